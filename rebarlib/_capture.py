@@ -1,0 +1,258 @@
+"""RGB-D captures on disk: the capture folder format, and bare point clouds."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ._camera import Intrinsics
+from ._checks import RebarInputError
+
+__all__ = ["Capture", "load_capture", "save_capture", "load_cloud", "read_intrinsics",
+           "write_intrinsics", "CAPTURE_FILES"]
+
+CAPTURE_FILES = ("color.png | color.jpg", "depth.png", "camera.json")
+
+
+@dataclass(frozen=True, eq=False)
+class Capture:
+    """One aligned RGB-D capture.
+
+    Attributes
+    ----------
+    color : (H, W, 3) uint8, RGB
+    depth_mm : (H, W) float64, mm, 0 = no depth
+    intrinsics : Intrinsics (of both images: depth is aligned to colour)
+    metadata : dict: ``depth_scale_mm``, and optionally ``device``, ``captured_at``, ``name``,
+        ``source`` (the folder it was read from), ``truth`` (synthetic ground truth).
+    labels : (H, W) uint8 or None: 0 formwork/background, 1 lower-lattice bar, 2 upper-lattice bar
+        (synthetic captures only).
+    bar_ids : (H, W) int32 or None: 0 no bar, k + 1 for the bar with id k (synthetic only).
+    """
+
+    color: np.ndarray
+    depth_mm: np.ndarray
+    intrinsics: Intrinsics
+    metadata: dict = field(default_factory=dict)
+    labels: np.ndarray | None = None
+    bar_ids: np.ndarray | None = None
+
+    def __post_init__(self):
+        h, w = self.intrinsics.height, self.intrinsics.width
+        if self.color.shape != (h, w, 3) or self.color.dtype != np.uint8:
+            raise RebarInputError(
+                f"color: expected ({h}, {w}, 3) uint8 RGB from the intrinsics, got {self.color.shape} {self.color.dtype}")
+        if self.depth_mm.shape != (h, w):
+            raise RebarInputError(f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}")
+
+    @property
+    def name(self) -> str:
+        return str(self.metadata.get("name", "capture"))
+
+    @property
+    def truth(self) -> dict | None:
+        return self.metadata.get("truth")
+
+    @property
+    def depth_scale_mm(self) -> float:
+        return float(self.metadata.get("depth_scale_mm", 1.0))
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RebarInputError(f"{path}: file not found") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise RebarInputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise RebarInputError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def read_intrinsics(path) -> tuple[Intrinsics, dict]:
+    """Read ``camera.json`` (Open3D's pinhole intrinsic keys plus ``depth_scale_mm``).
+
+    Returns the intrinsics and the remaining keys (depth scale, device, capture time).
+    """
+    path = Path(path)
+    data = _read_json(path)
+    for key in ("width", "height", "intrinsic_matrix"):
+        if key not in data:
+            raise RebarInputError(f"{path}: missing key '{key}' (Open3D intrinsic JSON: width, height, "
+                                  "intrinsic_matrix column-major [fx,0,0, 0,fy,0, cx,cy,1])")
+    m = data["intrinsic_matrix"]
+    if not (isinstance(m, list) and len(m) == 9 and all(isinstance(x, (int, float)) for x in m)):
+        raise RebarInputError(f"{path}: intrinsic_matrix must be a list of 9 numbers, got {m!r}")
+    K = np.array(m, dtype=np.float64).reshape(3, 3).T  # stored column-major
+    if abs(K[0, 1]) > 1e-9 or abs(K[1, 0]) > 1e-9 or np.abs(K[2] - [0, 0, 1]).max() > 1e-9:
+        raise RebarInputError(f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}")
+    try:
+        intr = Intrinsics(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]),
+                          int(data["width"]), int(data["height"]))
+    except RebarInputError as exc:
+        raise RebarInputError(f"{path}: {exc}") from None
+    extra = {k: v for k, v in data.items() if k not in ("width", "height", "intrinsic_matrix")}
+    scale = extra.get("depth_scale_mm", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (0 < scale <= 100):
+        raise RebarInputError(f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {scale!r}")
+    extra["depth_scale_mm"] = float(scale)
+    return intr, extra
+
+
+def write_intrinsics(path, intrinsics: Intrinsics, **extra) -> None:
+    K = intrinsics.matrix
+    data = {"width": intrinsics.width, "height": intrinsics.height,
+            "intrinsic_matrix": [float(x) for x in K.T.ravel()], **extra}
+    Path(path).write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+
+
+def _imread(path: Path, flags):
+    import cv2
+
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise RebarInputError(f"{path}: could not be read as an image")
+    return img
+
+
+def load_capture(path) -> Capture:
+    """Read a capture folder: ``color.png`` (or ``.jpg``), ``depth.png`` (16-bit), ``camera.json``.
+
+    Synthetic captures also carry ``truth.json``, ``labels.png`` and ``bar_ids.png``, which are
+    read when present. Every problem raises :class:`RebarInputError` naming the file.
+    """
+    import cv2
+
+    folder = Path(path)
+    if not folder.is_dir():
+        raise RebarInputError(f"{folder}: capture folder not found (expected a folder with "
+                              f"{', '.join(CAPTURE_FILES)})")
+    colors = [folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()]
+    if not colors:
+        raise RebarInputError(f"{folder}: no color.png or color.jpg in the capture folder")
+    depth_path = folder / "depth.png"
+    if not depth_path.is_file():
+        raise RebarInputError(f"{depth_path}: file not found (16-bit depth image expected)")
+    intr, meta = read_intrinsics(folder / "camera.json")
+
+    color = _imread(colors[0], cv2.IMREAD_UNCHANGED)
+    if color.ndim == 2:
+        color = cv2.cvtColor(color, cv2.COLOR_GRAY2RGB)
+    elif color.shape[2] == 4:
+        color = cv2.cvtColor(color, cv2.COLOR_BGRA2RGB)
+    else:
+        color = cv2.cvtColor(color, cv2.COLOR_BGR2RGB)
+    if color.dtype != np.uint8:
+        raise RebarInputError(f"{colors[0]}: expected an 8-bit colour image, got {color.dtype}")
+    raw = _imread(depth_path, cv2.IMREAD_UNCHANGED)
+    if raw.dtype != np.uint16 or raw.ndim != 2:
+        raise RebarInputError(f"{depth_path}: expected a single-channel 16-bit PNG, got "
+                              f"{raw.dtype} with shape {raw.shape}")
+    if color.shape[:2] != raw.shape:
+        raise RebarInputError(f"{folder}: colour {color.shape[1]}x{color.shape[0]} and depth "
+                              f"{raw.shape[1]}x{raw.shape[0]} differ in size: depth must be aligned to colour")
+    if raw.shape != (intr.height, intr.width):
+        raise RebarInputError(f"{folder / 'camera.json'}: says {intr.width}x{intr.height} but the images "
+                              f"are {raw.shape[1]}x{raw.shape[0]}")
+    if not raw.any():
+        raise RebarInputError(f"{depth_path}: every pixel is 0 (no depth at all)")
+    depth = raw.astype(np.float64) * meta["depth_scale_mm"]
+
+    meta["name"] = folder.name
+    meta["source"] = str(folder)
+    labels = bar_ids = None
+    if (folder / "truth.json").is_file():
+        meta["truth"] = _read_json(folder / "truth.json")
+    if (folder / "labels.png").is_file():
+        labels = _imread(folder / "labels.png", cv2.IMREAD_UNCHANGED).astype(np.uint8)
+    if (folder / "bar_ids.png").is_file():
+        bar_ids = _imread(folder / "bar_ids.png", cv2.IMREAD_UNCHANGED).astype(np.int32)
+    return Capture(color, depth, intr, meta, labels, bar_ids)
+
+
+def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite: bool = False) -> Path:
+    """Write a capture folder that :func:`load_capture` reads back.
+
+    Depth is stored as ``round(depth_mm / depth_scale_mm)`` in a 16-bit PNG; a depth already on
+    that grid (every loaded or synthetic capture) round-trips exactly. An existing non-empty
+    folder is never written into unless ``overwrite=True``.
+    """
+    import cv2
+
+    folder = Path(path)
+    if folder.exists() and any(folder.iterdir()) and not overwrite:
+        raise RebarInputError(f"{folder}: folder exists and is not empty; refusing to overwrite "
+                              "(pass overwrite=True or choose a new folder)")
+    if color_format not in ("png", "jpg"):
+        raise RebarInputError(f"color_format: expected 'png' or 'jpg', got {color_format!r}")
+    scale = capture.depth_scale_mm
+    units = np.round(capture.depth_mm / scale)
+    if units.max() > 65535:
+        raise RebarInputError(f"depth: {capture.depth_mm.max():.0f} mm does not fit 16 bits at "
+                              f"{scale} mm per unit; use a larger depth_scale_mm")
+    folder.mkdir(parents=True, exist_ok=True)
+    bgr = cv2.cvtColor(capture.color, cv2.COLOR_RGB2BGR)
+    if color_format == "png":
+        cv2.imwrite(str(folder / "color.png"), bgr, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+    else:
+        cv2.imwrite(str(folder / "color.jpg"), bgr, [cv2.IMWRITE_JPEG_QUALITY, 92])
+    cv2.imwrite(str(folder / "depth.png"), units.astype(np.uint16))
+    extra = {k: capture.metadata[k] for k in ("device", "captured_at") if k in capture.metadata}
+    write_intrinsics(folder / "camera.json", capture.intrinsics, depth_scale_mm=scale, **extra)
+    if capture.truth is not None:
+        (folder / "truth.json").write_text(json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8")
+    if capture.labels is not None:
+        cv2.imwrite(str(folder / "labels.png"), capture.labels.astype(np.uint8))
+    if capture.bar_ids is not None:
+        cv2.imwrite(str(folder / "bar_ids.png"), capture.bar_ids.astype(np.uint16))
+    return folder
+
+
+def load_cloud(path, *, units: str) -> np.ndarray:
+    """Read a bare point cloud (PLY, PCD, NPZ with an (N, 3) array, or CSV of x, y, z) in mm.
+
+    ``units`` must be given ("mm" or "m"): clouds arrive in either. A cloud whose extent looks
+    like the other unit (under 10 units across when said to be mm, over 100 when said to be m)
+    gets a warning rather than a silent thousand-fold error.
+    """
+    if units not in ("mm", "m"):
+        raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
+    p = Path(path)
+    if not p.is_file():
+        raise RebarInputError(f"{p}: point cloud file not found")
+    suffix = p.suffix.lower()
+    if suffix in (".ply", ".pcd"):
+        import open3d as o3d
+
+        pts = np.asarray(o3d.io.read_point_cloud(str(p)).points, dtype=np.float64)
+    elif suffix == ".npz":
+        with np.load(p) as z:
+            arrays = [z[k] for k in z.files if z[k].ndim == 2 and z[k].shape[1] == 3]
+        if not arrays:
+            raise RebarInputError(f"{p}: no (N, 3) array in the NPZ file")
+        pts = arrays[0].astype(np.float64)
+    elif suffix in (".csv", ".txt", ".xyz"):
+        try:
+            pts = np.loadtxt(p, delimiter="," if suffix == ".csv" else None, ndmin=2,
+                             comments="#", usecols=(0, 1, 2))
+        except ValueError:  # a header line
+            pts = np.loadtxt(p, delimiter="," if suffix == ".csv" else None, ndmin=2,
+                             skiprows=1, usecols=(0, 1, 2))
+    else:
+        raise RebarInputError(f"{p}: unknown point cloud format {suffix!r} (PLY, PCD, NPZ or CSV expected)")
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+        raise RebarInputError(f"{p}: expected a non-empty cloud of x, y, z points, got shape {pts.shape}")
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
+    if units == "mm" and 0 < extent < 10:
+        warnings.warn(f"{p}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)",
+                      stacklevel=2)
+    if units == "m" and extent > 100:
+        warnings.warn(f"{p}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)",
+                      stacklevel=2)
+    return pts * (1000.0 if units == "m" else 1.0)

@@ -1,0 +1,65 @@
+"""Point-cloud clean-up that keeps the link from every point to its pixel."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._camera import Cloud
+from ._checks import RebarInputError, check_positive
+
+__all__ = ["voxel_downsample", "remove_outliers", "to_open3d"]
+
+
+def to_open3d(points):
+    """An ``open3d.geometry.PointCloud`` of (N, 3) points (imported lazily: Open3D is heavy)."""
+    import open3d as o3d
+
+    pcd = o3d.geometry.PointCloud()
+    pcd.points = o3d.utility.Vector3dVector(np.ascontiguousarray(points, dtype=np.float64))
+    return pcd
+
+
+def voxel_downsample(cloud: Cloud, voxel_mm: float) -> Cloud:
+    """Keep, per occupied voxel, the original point nearest the voxel centre.
+
+    Open3D's ``voxel_down_sample`` averages points (the average has no pixel) and its
+    ``_and_trace`` variant returns Python lists per voxel, which is slow for 10^5 voxels; a
+    lexsort over voxel keys does the same job vectorised and keeps one real point per voxel.
+
+    Parameters
+    ----------
+    cloud : Cloud
+    voxel_mm : edge of the cubic voxel, mm
+
+    Examples
+    --------
+    >>> c = Cloud(np.array([[0.1, 0, 0], [0.9, 0, 0], [0.6, 0, 0], [5.0, 0, 0]]),
+    ...           np.zeros((4, 2), np.int32))
+    >>> voxel_downsample(c, 1.0).points[:, 0].tolist()
+    [0.6, 5.0]
+    """
+    voxel = check_positive(voxel_mm, "voxel_mm")
+    if len(cloud) == 0:
+        return cloud
+    keys = np.floor(cloud.points / voxel).astype(np.int64)
+    centre = (keys + 0.5) * voxel
+    d2 = ((cloud.points - centre) ** 2).sum(axis=1)
+    order = np.lexsort((d2, keys[:, 2], keys[:, 1], keys[:, 0]))
+    k = keys[order]
+    first = np.ones(len(k), dtype=bool)
+    first[1:] = np.any(k[1:] != k[:-1], axis=1)
+    keep = np.sort(order[first])
+    return cloud.subset(keep)
+
+
+def remove_outliers(cloud: Cloud, *, nb_neighbors: int = 20, std_ratio: float = 2.0) -> Cloud:
+    """Statistical outlier removal (Open3D): drop points whose mean distance to their
+    ``nb_neighbors`` nearest neighbours exceeds the global mean by ``std_ratio`` std devs."""
+    if nb_neighbors < 1:
+        raise RebarInputError(f"nb_neighbors: expected a positive integer, got {nb_neighbors!r}")
+    check_positive(std_ratio, "std_ratio", unit="")
+    if len(cloud) <= nb_neighbors:
+        return cloud
+    _, index = to_open3d(cloud.points).remove_statistical_outlier(nb_neighbors=nb_neighbors,
+                                                                  std_ratio=std_ratio)
+    return cloud.subset(np.sort(np.asarray(index, dtype=np.int64)))

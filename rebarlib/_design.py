@@ -1,0 +1,167 @@
+"""Slab design files (``design.toml``): what the inspection is checked against."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ._checks import RebarInputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict"]
+
+#: Direction groups of a lattice: its bottom bars and the bars resting on them.
+LEVELS = ("bottom", "top")
+
+
+@dataclass(frozen=True)
+class BarSet:
+    """One direction of one lattice: parallel bars of one size at one spacing (mm)."""
+
+    diameter_mm: float
+    spacing_mm: float
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """A lattice: ``bottom`` bars and the crossing ``top`` bars that rest on them."""
+
+    bottom: BarSet
+    top: BarSet
+
+    @property
+    def thickness_mm(self) -> float:
+        return self.bottom.diameter_mm + self.top.diameter_mm
+
+    def level(self, name: str) -> BarSet:
+        return getattr(self, name)
+
+
+@dataclass(frozen=True)
+class Design:
+    """Design values of one slab, in mm, plus the identification printed on the report."""
+
+    slab_id: str
+    cover_mm: float
+    layer_distance_mm: float
+    lower: Lattice
+    upper: Lattice
+    thickness_mm: float | None = None
+    element: str = "slab"
+    location: str = ""
+    standard: str = "GB50204-2015"
+    bar_system: str = "GB1499.2"
+    slab: dict = field(default_factory=dict, compare=False)
+    tolerances: dict = field(default_factory=dict, compare=False)
+    source: str = ""
+
+    def lattice(self, layer: str) -> Lattice:
+        if layer not in ("lower", "upper"):
+            raise RebarInputError(f"layer: expected 'lower' or 'upper', got {layer!r}")
+        return getattr(self, layer)
+
+    @property
+    def upper_top_mm(self) -> float:
+        """Design height of the top of the upper lattice above the formwork."""
+        return self.cover_mm + self.layer_distance_mm + self.upper.thickness_mm
+
+    @property
+    def top_cover_mm(self) -> float | None:
+        return None if self.thickness_mm is None else self.thickness_mm - self.upper_top_mm
+
+
+def _number(table: dict, key: str, where: str, *, lo: float, hi: float):
+    if key not in table:
+        raise RebarInputError(f"{where}: missing required key '{key}' (a number in mm)")
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise RebarInputError(f"{where}.{key}: expected a number in mm, got {v!r}")
+    if not (lo <= v <= hi):
+        raise RebarInputError(f"{where}.{key}: {v!r} mm is outside the plausible range {lo:g}..{hi:g} mm")
+    return float(v)
+
+
+def _lattice(table: dict, where: str) -> Lattice:
+    if not isinstance(table, dict):
+        raise RebarInputError(f"{where}: expected a table with diameter_mm and spacing_mm")
+    sets = {}
+    for lvl in LEVELS:
+        sub = table.get(lvl, {})
+        values = []
+        for key, lo, hi in (("diameter_mm", 4, 60), ("spacing_mm", 30, 1000)):
+            if key in sub:
+                values.append(_number(sub, key, f"{where}.{lvl}", lo=lo, hi=hi))
+            else:  # the lattice-wide value applies to both directions
+                values.append(_number(table, key, where, lo=lo, hi=hi))
+        sets[lvl] = BarSet(*values)
+    return Lattice(**sets)
+
+
+def design_from_dict(data: dict, *, source: str = "design") -> Design:
+    """Build a :class:`Design` from the parsed TOML tables (see the README for the format).
+
+    Examples
+    --------
+    >>> d = design_from_dict({"slab": {"id": "S-1"}, "design": {"cover_mm": 20,
+    ...     "layer_distance_mm": 85, "lower": {"diameter_mm": 14, "spacing_mm": 200},
+    ...     "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    >>> d.lower.bottom.diameter_mm, d.upper_top_mm
+    (14.0, 129.0)
+    """
+    slab = data.get("slab", {})
+    des = data.get("design")
+    if not isinstance(des, dict):
+        raise RebarInputError(f"{source}: missing table [design] with cover_mm and layer_distance_mm")
+    where = f"{source}: design"
+    for layer in ("lower", "upper"):
+        if layer not in des:
+            raise RebarInputError(f"{source}: missing table [design.{layer}] with diameter_mm and spacing_mm")
+    lower = _lattice(des["lower"], f"{source}: design.lower")
+    upper = _lattice(des["upper"], f"{source}: design.upper")
+    cover = _number(des, "cover_mm", where, lo=5, hi=200)
+    layer_distance = _number(des, "layer_distance_mm", where, lo=10, hi=2000)
+    if layer_distance < lower.thickness_mm:
+        raise RebarInputError(
+            f"{where}.layer_distance_mm: {layer_distance:g} mm is less than the lower lattice's "
+            f"thickness ({lower.thickness_mm:g} mm): the lattices would intersect")
+    thickness = des.get("thickness_mm")
+    if thickness is not None:
+        thickness = _number(des, "thickness_mm", where, lo=50, hi=3000)
+        if thickness <= cover + layer_distance + upper.thickness_mm:
+            raise RebarInputError(
+                f"{where}.thickness_mm: {thickness:g} mm leaves no top cover over the upper lattice "
+                f"(top of upper bars at {cover + layer_distance + upper.thickness_mm:g} mm)")
+    sid = slab.get("id", "")
+    if not isinstance(sid, str) or not sid.strip():
+        raise RebarInputError(f"{source}: [slab] needs an 'id' string (e.g. id = \"S-101\")")
+    return Design(
+        slab_id=sid, cover_mm=cover, layer_distance_mm=layer_distance, lower=lower, upper=upper,
+        thickness_mm=thickness, element=str(slab.get("element", "slab")),
+        location=str(slab.get("location", "")), standard=str(slab.get("standard", "GB50204-2015")),
+        bar_system=str(des.get("bar_system", slab.get("bar_system", "GB1499.2"))),
+        slab=dict(slab), tolerances=dict(data.get("tolerances", {})), source=source)
+
+
+def load_design(path) -> Design:
+    """Read a slab's ``design.toml``.
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file and the key when the file is missing, not TOML, or a value is absent or absurd.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / "design.toml"
+    if not p.is_file():
+        raise RebarInputError(f"{p}: design file not found (expected a design.toml)")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RebarInputError(f"{p}: not a valid TOML design file: {exc}") from None
+    return design_from_dict(data, source=str(p))

@@ -1,0 +1,116 @@
+"""Result types shared by every stage: a measurement that can say "not measured", and the
+whole inspection of one capture. Stages fill them; the report only reads them."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Measurement", "InspectionResult", "MEASURED", "NOT_MEASURED"]
+
+MEASURED, NOT_MEASURED = "measured", "not measured"
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One measured length (mm) with its standard uncertainty and the evidence behind it.
+
+    A measurement that could not be made has ``value_mm=None``, ``status="not measured"`` and a
+    ``reason`` a person can act on. Never a made-up number.
+    """
+
+    value_mm: float | None
+    uncertainty_mm: float | None = None
+    n_points: int = 0
+    status: str = MEASURED
+    reason: str = ""
+
+    @classmethod
+    def not_measured(cls, reason: str, n_points: int = 0) -> "Measurement":
+        return cls(None, None, n_points, NOT_MEASURED, reason)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == MEASURED and self.value_mm is not None
+
+    def to_dict(self) -> dict:
+        return {"value_mm": _num(self.value_mm), "uncertainty_mm": _num(self.uncertainty_mm),
+                "n_points": int(self.n_points), "status": self.status, "reason": self.reason}
+
+
+def _num(x):
+    if x is None:
+        return None
+    x = float(x)
+    return None if not math.isfinite(x) else round(x, 3)
+
+
+def _table_records(df) -> list:
+    if df is None:
+        return []
+    out = []
+    for rec in df.to_dict(orient="records"):
+        clean = {}
+        for k, v in rec.items():
+            if isinstance(v, (np.floating, float)):
+                clean[k] = _num(v)
+            elif isinstance(v, np.integer):
+                clean[k] = int(v)
+            elif isinstance(v, np.bool_):
+                clean[k] = bool(v)
+            elif isinstance(v, np.ndarray):
+                clean[k] = [_num(t) for t in v.ravel()]
+            else:
+                clean[k] = v
+        out.append(clean)
+    return out
+
+
+@dataclass
+class InspectionResult:
+    """Everything measured on one capture.
+
+    Tables are pandas DataFrames with one row per measured thing and unit-suffixed columns:
+
+    - ``bars``: ``bar_id, layer ("lower"|"upper"), level ("bottom"|"top": the direction group
+      resting lowest / on top within its lattice), plan_angle_deg, start_{x,y,z}_mm,
+      end_{x,y,z}_mm`` (axis end points, camera frame), ``visible_length_mm, n_points, status,
+      reason``; the diameter stage adds its columns (``nominal_mm``, ``diameter_status``, ...).
+    - ``spacings``: ``layer, level, bar_a, bar_b, spacing_mm, design_spacing_mm, deviation_mm,
+      status, reason`` in order across the bars.
+    - ``counts``: ``layer, level, found, expected, missing, extra``.
+    """
+
+    capture: str
+    method: str
+    cover: Measurement
+    layer_distance: Measurement
+    upper_top: Measurement
+    top_cover: Measurement
+    bars: object  # pandas.DataFrame
+    spacings: object  # pandas.DataFrame
+    counts: object = None  # pandas.DataFrame
+    formwork: dict = field(default_factory=dict)  # normal, offset_mm, n_inliers (camera frame)
+    camera: dict = field(default_factory=dict)  # height_mm, tilt_deg of the camera over the formwork
+    timings_s: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    extras: dict = field(default_factory=dict)  # later stages (diameter, mask) put summaries here
+
+    def to_dict(self) -> dict:
+        return {
+            "capture": self.capture, "method": self.method,
+            "cover_mm": _num(self.cover.value_mm), "layer_distance_mm": _num(self.layer_distance.value_mm),
+            "upper_top_mm": _num(self.upper_top.value_mm), "top_cover_mm": _num(self.top_cover.value_mm),
+            "measurements": {"cover": self.cover.to_dict(), "layer_distance": self.layer_distance.to_dict(),
+                             "upper_top": self.upper_top.to_dict(), "top_cover": self.top_cover.to_dict()},
+            "formwork": self.formwork, "camera": self.camera,
+            "bars": _table_records(self.bars), "spacings": _table_records(self.spacings),
+            "counts": _table_records(self.counts), "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
+            "notes": list(self.notes), "extras": self.extras,
+        }
+
+    def to_json(self, **kw) -> str:
+        return json.dumps(self.to_dict(), indent=kw.pop("indent", 1), **kw)

@@ -1,0 +1,844 @@
+"""Synthetic RGB-D captures of a double-layer bar mesh on formwork, with exact ground truth.
+
+The scene lives in a *world* frame: formwork top surface at z = 0, z up, mesh centred on the
+origin. Bars are exact cylinders: Open3D's ``RaycastingScene`` finds which object a ray meets
+first (on slightly over-sized prisms), then the hit is refined analytically against the true
+cylinder, so depths on bars are exact to floating-point precision with the ideal sensor.
+
+Ground truth (``Capture.metadata["truth"]``) follows the definitions of docs/method.md:
+cover = formwork top to the underside of the lower lattice's lowest bars; layer distance =
+underside of the lower lattice's lowest bars to underside of the upper lattice's lowest bars;
+spacing = centre-to-centre distance between adjacent parallel bars. Bars are placed by their
+visible (rib) envelope: cover and layer distance are measured to the envelope, like a tape would.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from ._camera import GEMINI2, Intrinsics, ray_directions
+from ._capture import Capture
+from ._checks import RebarInputError, check_positive
+from ._design import Design
+
+__all__ = ["Deviations", "SensorModel", "Appearance", "CameraPose", "Bar", "SlabScene",
+           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm"]
+
+# GB 1499.2 nominal size -> (inner diameter d1, rib height h), docs/acceptance.md.
+_GB_RIBS = {6: (5.8, 0.6), 8: (7.7, 0.8), 10: (9.6, 1.0), 12: (11.5, 1.2), 14: (13.4, 1.4),
+            16: (15.4, 1.5), 18: (17.3, 1.6), 20: (19.3, 1.7), 22: (21.3, 1.9), 25: (24.2, 2.1),
+            28: (27.2, 2.2), 32: (31.0, 2.4), 36: (35.0, 2.6), 40: (38.7, 2.9), 50: (48.5, 3.2)}
+
+LABEL_BACKGROUND, LABEL_LOWER, LABEL_UPPER = 0, 1, 2
+
+
+def rib_envelope_mm(nominal_mm: float) -> float:
+    """Outer diameter over the ribs of a GB 1499.2 deformed bar, d1 + 2h (e.g. 12 -> 13.9 mm).
+
+    Sizes not in the table scale with the nearest tabulated ratio.
+
+    Examples
+    --------
+    >>> rib_envelope_mm(12)
+    13.9
+    """
+    key = min(_GB_RIBS, key=lambda s: abs(s - nominal_mm))
+    d1, h = _GB_RIBS[key]
+    if key == nominal_mm:
+        return round(d1 + 2 * h, 3)
+    return round(nominal_mm * (d1 + 2 * h) / key, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+
+
+@dataclass(frozen=True)
+class Deviations:
+    """As-built deviations of the mesh from its design (all mm / degrees).
+
+    position_sigma_mm : std dev of each bar's offset across its direction (spacing varies bar to bar)
+    height_sigma_mm : std dev of each bar's height (local cover deviations)
+    bow_mm : in-plan sagitta of each bar over its full length (random sign)
+    mesh_yaw_deg : rotation of the whole mesh in plan
+    missing : number of bars left out (never the outermost of a set)
+    wrong_size : number of bars of another standard size than designed
+    ribs : deformed bars, drawn with their rib envelope (GB 1499.2 d1 + 2h)
+    spacers, chairs, ties : cover blocks under the lower lattice, chairs between the lattices,
+        tie wire at crossings
+    slab_size_mm : extent of the (square) mesh
+    """
+
+    position_sigma_mm: float = 2.0
+    height_sigma_mm: float = 0.5
+    bow_mm: float = 0.0
+    mesh_yaw_deg: float = 0.0
+    missing: int = 0
+    wrong_size: int = 0
+    ribs: bool = True
+    spacers: bool = True
+    chairs: bool = True
+    ties: bool = True
+    slab_size_mm: float = 2000.0
+
+    @classmethod
+    def none(cls) -> "Deviations":
+        """A mesh exactly as designed (no jitter, no ribs, no accessories): for unit tests."""
+        return cls(position_sigma_mm=0.0, height_sigma_mm=0.0, ribs=False, spacers=False,
+                   chairs=False, ties=False)
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """Active-stereo depth sensor (docs/sensors.md). The default is a realistic Gemini-2-like unit.
+
+    baseline_mm, disparity_sigma_px : axial noise sigma_z = z^2 sigma_d / (f B)
+    noise_correlation_px : the noise is smoothed over this many px (stereo matching windows
+        correlate neighbouring pixels); 0 = independent pixels
+    subpixel_px : disparity quantisation step (1/8 px); 0 = none
+    lateral_jitter_px : sigma of the pixel position jitter (simkinect)
+    edge_jump_mm : a depth step above this between neighbours is a discontinuity
+    edge_hole_prob, edge_fatten_prob, flying_pixel_prob : what happens to pixels next to a
+        discontinuity: no depth, foreground depth (edge fattening), or a mixed depth
+    projector_shadow : no depth where the projector cannot see; it sits ``projector_offset_mm``
+        from the camera along x (between the two IR cameras on most active-stereo units)
+    bias_mm_per_m2 : distance-dependent bias b = k z^2 (z in m), positive = too far (too low)
+    depth_scale_mm : mm per unit of the stored 16-bit depth
+    quantize : store depth on the depth_scale_mm grid (as read back from a file)
+    """
+
+    baseline_mm: float = 50.0
+    disparity_sigma_px: float = 0.08
+    noise_correlation_px: float = 1.0
+    subpixel_px: float = 1.0 / 8.0
+    lateral_jitter_px: float = 0.5
+    edge_jump_mm: float = 5.0
+    edge_hole_prob: float = 0.35
+    edge_fatten_prob: float = 0.35
+    flying_pixel_prob: float = 0.15
+    projector_shadow: bool = True
+    projector_offset_mm: float = 25.0
+    bias_mm_per_m2: float = 0.0
+    depth_scale_mm: float = 1.0
+    max_depth_mm: float = 10_000.0
+    quantize: bool = True
+
+    @classmethod
+    def ideal(cls) -> "SensorModel":
+        """Exact depth: no noise, holes, jitter or quantisation (depth_scale_mm for saving only)."""
+        return cls(disparity_sigma_px=0.0, noise_correlation_px=0.0, subpixel_px=0.0,
+                   lateral_jitter_px=0.0, edge_hole_prob=0.0, edge_fatten_prob=0.0,
+                   flying_pixel_prob=0.0, projector_shadow=False, depth_scale_mm=0.02,
+                   quantize=False)
+
+    def sigma_z_mm(self, z_mm, focal_px: float):
+        """Model axial noise (mm) at depth ``z_mm``."""
+        return np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
+
+
+FORMWORKS = ("plywood", "film", "plastic")
+
+
+@dataclass(frozen=True)
+class Appearance:
+    """How the colour image looks. ``None`` fields are drawn at random from the seed.
+
+    formwork : "plywood", "film" (black film-faced board) or "plastic"
+    rust_fraction : fraction of bars that are rusty
+    sun_elevation_deg, sun_azimuth_deg : direction of the light casting shadows
+    ambient : share of light that reaches shadowed surfaces
+    exposure : overall gain; noise_sigma : colour sensor noise (8-bit units)
+    blur_px : Gaussian blur sigma; jpeg_quality : JPEG round trip of the colour image
+    """
+
+    formwork: str | None = None
+    rust_fraction: float = 0.0
+    sun_elevation_deg: float | None = None
+    sun_azimuth_deg: float | None = None
+    ambient: float = 0.35
+    exposure: float = 1.0
+    noise_sigma: float = 2.5
+    blur_px: float = 0.0
+    jpeg_quality: int | None = None
+
+    def __post_init__(self):
+        if self.formwork is not None and self.formwork not in FORMWORKS:
+            raise RebarInputError(f"formwork: expected one of {FORMWORKS}, got {self.formwork!r}")
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """World-to-camera pose: ``X_cam = rotation @ (X_world - centre)`` (OpenCV camera frame)."""
+
+    rotation: np.ndarray
+    centre: np.ndarray
+
+    @classmethod
+    def looking_down(cls, height_mm: float, *, tilt_deg: float = 0.0, yaw_deg: float = 0.0,
+                     target_mm=(0.0, 0.0)) -> "CameraPose":
+        """Camera ``height_mm`` above the formwork, optical axis tilted ``tilt_deg`` from the
+        vertical (the image's top edge raised), turned ``yaw_deg`` about the vertical, with the
+        optical axis meeting the formwork at ``target_mm`` (world x, y)."""
+        check_positive(height_mm, "height_mm", lo=50, hi=5000)
+        if not 0 <= tilt_deg < 60:
+            raise RebarInputError(f"tilt_deg: expected 0..60 degrees, got {tilt_deg!r}")
+        t, y = math.radians(tilt_deg), math.radians(yaw_deg)
+        # Looking straight down: camera x = world x, camera y = -world y, camera z = -world z.
+        down = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+        cy, sy = math.cos(y), math.sin(y)
+        yaw = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1.0]])
+        ct, st = math.cos(t), math.sin(t)
+        pitch = np.array([[1.0, 0, 0], [0, ct, -st], [0, st, ct]])  # about the camera x axis
+        rotation = pitch @ down @ yaw.T
+        axis_world = rotation.T @ np.array([0, 0, 1.0])
+        centre = np.array([target_mm[0], target_mm[1], 0.0]) - axis_world * (height_mm / -axis_world[2])
+        return cls(rotation, centre)
+
+    @property
+    def extrinsic(self) -> np.ndarray:
+        """4x4 world-to-camera matrix."""
+        e = np.eye(4)
+        e[:3, :3] = self.rotation
+        e[:3, 3] = -self.rotation @ self.centre
+        return e
+
+    def to_camera(self, points_world) -> np.ndarray:
+        return (np.asarray(points_world, float) - self.centre) @ self.rotation.T
+
+
+# --------------------------------------------------------------------------------------------
+# Scene
+
+
+@dataclass(frozen=True)
+class Bar:
+    """One bar: a (bowed) polyline axis in the world frame and its envelope radius."""
+
+    id: int
+    layer: str  # "lower" | "upper"
+    level: str  # "bottom" | "top" (within its lattice)
+    index: int  # position across its direction, 0..n-1 in design order
+    offset_mm: float  # centre-line offset across the direction (in the mesh frame)
+    direction: np.ndarray  # unit in-plan axis direction (world)
+    axis: np.ndarray  # (M, 3) polyline, world mm
+    nominal_mm: float
+    envelope_mm: float
+    design_mm: float
+    rust: float = 0.0
+
+    @property
+    def radius_mm(self) -> float:
+        return self.envelope_mm / 2
+
+    @property
+    def underside_mm(self) -> float:
+        return float(self.axis[:, 2].mean() - self.radius_mm)
+
+
+@dataclass(frozen=True)
+class SlabScene:
+    """A mesh on formwork: bars, accessories (boxes and thin cylinders), the design it came from."""
+
+    design: Design
+    deviations: Deviations
+    bars: tuple
+    missing: tuple  # (layer, level, index) of design positions left empty
+    boxes: tuple  # (centre (3,), half-size (3,), yaw rad, kind)
+    rods: tuple  # (p0 (3,), p1 (3,), radius, kind)
+
+
+def _sizes_near(size: float) -> list:
+    std = sorted(_GB_RIBS)
+    i = std.index(size) if size in std else int(np.argmin([abs(s - size) for s in std]))
+    return [std[j] for j in (i - 1, i + 1) if 0 <= j < len(std) and std[j] >= 8]
+
+
+def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None) -> SlabScene:
+    """Lay out the mesh of ``design`` with as-built ``deviations`` (random parts drawn from ``rng``)."""
+    rng = np.random.default_rng(rng)
+    dev = deviations or Deviations()
+    half = dev.slab_size_mm / 2
+    yaw = math.radians(dev.mesh_yaw_deg)
+    ex = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    ey = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    env = (lambda d: rib_envelope_mm(d)) if dev.ribs else (lambda d: float(d))
+
+    # Design positions of every set, then pick missing / wrong-size bars among inner positions.
+    sets = []
+    for layer in ("lower", "upper"):
+        lat = design.lattice(layer)
+        for level in ("bottom", "top"):
+            s = lat.level(level).spacing_mm
+            phase = rng.uniform(-s / 2, s / 2)
+            n = int((2 * half - 2 * 25) // s) + 1
+            first = -(n - 1) * s / 2 + phase
+            sets.append((layer, level, [first + k * s for k in range(n)]))
+    slots = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 1)]
+    pick = rng.permutation(len(slots))
+    missing_slots = {slots[i] for i in pick[:dev.missing]}
+    wrong_slots = {slots[i] for i in pick[dev.missing:dev.missing + dev.wrong_size]}
+
+    base = {"lower": design.cover_mm, "upper": design.cover_mm + design.layer_distance_mm}
+    bars, missing = [], []
+    heights = {}
+    for si, (layer, level, offsets) in enumerate(sets):
+        lat = design.lattice(layer)
+        d_design = lat.level(level).diameter_mm
+        bottom_env = env(lat.bottom.diameter_mm)
+        along, across = (ex, ey) if level == "bottom" else (ey, ex)
+        for k, off in enumerate(offsets):
+            if (si, k) in missing_slots:
+                missing.append((layer, level, k))
+                continue
+            nominal = d_design
+            if (si, k) in wrong_slots:
+                nominal = float(rng.choice(_sizes_near(d_design)))
+            e = env(nominal)
+            off_true = off + rng.normal(0, dev.position_sigma_mm) if dev.position_sigma_mm else off
+            z0 = base[layer] + rng.normal(0, dev.height_sigma_mm) if dev.height_sigma_mm else base[layer]
+            # bottom bars rest on the spacers; top bars rest on the bottom bars of their lattice
+            zc = z0 + e / 2 if level == "bottom" else z0 + bottom_env + e / 2
+            n_seg = 12 if dev.bow_mm else 1
+            s = np.linspace(-half, half, n_seg + 1)
+            bow = dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - (s / half) ** 2) if dev.bow_mm else 0 * s
+            axis = (s[:, None] * along + (off_true + bow)[:, None] * across
+                    + np.array([0, 0, zc]))
+            rust = 0.0
+            bars.append(Bar(len(bars), layer, level, k, float(off_true), along.copy(), axis, float(nominal),
+                            float(e), float(d_design), rust))
+            heights[(layer, level)] = zc
+
+    boxes, rods = [], []
+    lower_b, lower_t = [b for b in bars if b.layer == "lower" and b.level == "bottom"], \
+        [b for b in bars if b.layer == "lower" and b.level == "top"]
+    if dev.spacers and lower_b:
+        pitch = max(2, int(round(800 / design.lower.top.spacing_mm)))
+        for b in lower_b[1::pitch]:
+            for s_mm in np.arange(-half + 150, half, 800.0):
+                c = b.axis[0] + (s_mm + half) * b.direction
+                c = np.array([c[0], c[1], (b.axis[:, 2].mean() - b.radius_mm) / 2])
+                hs = np.array([25.0, 25.0, c[2]])
+                boxes.append((c, hs, yaw, "spacer"))
+    upper_b = [b for b in bars if b.layer == "upper" and b.level == "bottom"]
+    if dev.chairs and upper_b and lower_t:
+        top_of_lower = max(b.axis[:, 2].max() + b.radius_mm for b in lower_t)
+        for b in upper_b[1::3]:
+            for s_mm in np.arange(-half + 300, half, 900.0):
+                p = b.axis[0] + (s_mm + half) * b.direction
+                z_top = b.axis[:, 2].mean() - b.radius_mm
+                rods.append((np.array([p[0], p[1], top_of_lower]), np.array([p[0], p[1], z_top]), 5.0, "chair"))
+    if dev.ties:
+        for layer in ("lower", "upper"):
+            bot = [b for b in bars if b.layer == layer and b.level == "bottom"]
+            top = [b for b in bars if b.layer == layer and b.level == "top"]
+            for tb in top:
+                for bb in bot[::2] if len(bot) > 6 else bot:
+                    # crossing of the two chord lines in plan
+                    A = np.column_stack((bb.direction[:2], -tb.direction[:2]))
+                    st = np.linalg.solve(A, tb.axis[0, :2] - bb.axis[0, :2])
+                    xy = bb.axis[0, :2] + st[0] * bb.direction[:2]
+                    z = tb.axis[:, 2].mean() + tb.radius_mm + 0.7
+                    diag = (bb.direction + tb.direction) / math.sqrt(2) * (tb.radius_mm + 3)
+                    c = np.array([xy[0], xy[1], z])
+                    rods.append((c - diag, c + diag, 0.7, "tie"))
+    return SlabScene(design, dev, tuple(bars), tuple(missing), tuple(boxes), tuple(rods))
+
+
+# --------------------------------------------------------------------------------------------
+# Meshes and ray casting
+
+_N_SIDES = 16
+
+
+def _prism(p0, p1, r, n=_N_SIDES):
+    """Triangles of an n-sided prism circumscribing the cylinder p0-p1 of radius r (with caps)."""
+    a = p1 - p0
+    a = a / np.linalg.norm(a)
+    u = np.cross(a, [0, 0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0, 0])
+    u /= np.linalg.norm(u)
+    w = np.cross(a, u)
+    rc = r / math.cos(math.pi / n) * 1.001
+    ang = np.arange(n) * 2 * math.pi / n
+    ring = rc * (np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * w)
+    verts = np.vstack((p0 + ring, p1 + ring, p0, p1))
+    i = np.arange(n)
+    j = (i + 1) % n
+    side = np.vstack((np.column_stack((i, j, n + i)), np.column_stack((j, n + j, n + i))))
+    caps = np.vstack((np.column_stack((np.full(n, 2 * n), j, i)), np.column_stack((np.full(n, 2 * n + 1), n + i, n + j))))
+    return verts, np.vstack((side, caps))
+
+
+def _box(c, hs, yaw):
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * hs
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    R = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1.0]])
+    verts = corners @ R.T + c
+    tris = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                     [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    return verts, tris
+
+
+# object kinds, in the per-object table
+K_FORMWORK, K_BAR, K_SPACER, K_CHAIR, K_TIE = 0, 1, 2, 3, 4
+
+
+@dataclass
+class _Geometry:
+    verts: np.ndarray
+    tris: np.ndarray
+    tri_obj: np.ndarray  # object index of each triangle
+    obj_kind: np.ndarray
+    obj_bar: np.ndarray  # bar id of each object (-1 if not a bar segment)
+    seg_p0: np.ndarray  # per object: cylinder segment (bars only)
+    seg_p1: np.ndarray
+    seg_r: np.ndarray
+
+
+def _build_geometry(scene: SlabScene) -> _Geometry:
+    half = scene.deviations.slab_size_mm * 2
+    V = [np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)]
+    T = [np.array([[0, 1, 2], [0, 2, 3]])]
+    kinds, barid, p0s, p1s, rs = [K_FORMWORK], [-1], [np.zeros(3)], [np.zeros(3)], [0.0]
+    for b in scene.bars:
+        for p0, p1 in zip(b.axis[:-1], b.axis[1:]):
+            v, t = _prism(p0, p1, b.radius_mm)
+            V.append(v), T.append(t)
+            kinds.append(K_BAR), barid.append(b.id), p0s.append(p0), p1s.append(p1), rs.append(b.radius_mm)
+    for c, hs, yaw, kind in scene.boxes:
+        v, t = _box(c, hs, yaw)
+        V.append(v), T.append(t)
+        kinds.append(K_SPACER), barid.append(-1), p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+    for p0, p1, r, kind in scene.rods:
+        v, t = _prism(p0, p1, r, 8)
+        V.append(v), T.append(t)
+        kinds.append(K_CHAIR if kind == "chair" else K_TIE), barid.append(-1)
+        p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+    offsets = np.cumsum([0] + [len(v) for v in V[:-1]])
+    tris = np.vstack([t + o for t, o in zip(T, offsets)])
+    tri_obj = np.concatenate([np.full(len(t), i) for i, t in enumerate(T)])
+    return _Geometry(np.vstack(V), tris, tri_obj, np.array(kinds), np.array(barid),
+                     np.array(p0s), np.array(p1s), np.array(rs))
+
+
+class _Caster:
+    """Open3D ray casting over the merged scene mesh (built once per render)."""
+
+    def __init__(self, geo: _Geometry):
+        import open3d as o3d
+
+        self.o3d = o3d
+        self.geo = geo
+        mesh = o3d.t.geometry.TriangleMesh()
+        mesh.vertex.positions = o3d.core.Tensor(geo.verts.astype(np.float32))
+        mesh.triangle.indices = o3d.core.Tensor(geo.tris.astype(np.int32))
+        self.scene = o3d.t.geometry.RaycastingScene()
+        self.scene.add_triangles(mesh)
+
+    def first_hit(self, origins, dirs):
+        """(t, object index, normal) of the first hit along each ray, bars exact; t = inf on a miss."""
+        n = len(dirs)
+        t = np.full(n, np.inf)
+        obj = np.full(n, -1)
+        normal = np.zeros((n, 3))
+        todo = np.arange(n)
+        start = np.zeros(n)
+        for _ in range(8):  # re-cast the few rays that pass through a prism but miss its cylinder
+            if len(todo) == 0:
+                break
+            o = origins[todo] + dirs[todo] * start[todo, None]
+            rays = np.hstack((o, dirs[todo])).astype(np.float32)
+            ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
+            th = ans["t_hit"].numpy().astype(np.float64) + start[todo]
+            prim = ans["primitive_ids"].numpy().astype(np.int64)
+            hit = np.isfinite(th)
+            ob = np.where(hit, self.geo.tri_obj[np.where(hit, prim, 0)], -1)
+            nrm = ans["primitive_normals"].numpy().astype(np.float64)
+            is_bar = hit & (self.geo.obj_kind[np.maximum(ob, 0)] == K_BAR)
+            # exact cylinder intersection for bar hits
+            tb, nb, ok = _ray_cylinder(origins[todo][is_bar], dirs[todo][is_bar], self.geo.seg_p0[ob[is_bar]],
+                                       self.geo.seg_p1[ob[is_bar]], self.geo.seg_r[ob[is_bar]])
+            th_b = th[is_bar]
+            th_b[ok] = tb[ok]
+            nrm[is_bar] = np.where(ok[:, None], nb, nrm[is_bar])
+            th[is_bar] = th_b
+            done = ~is_bar.copy()
+            bar_idx = np.flatnonzero(is_bar)
+            done[bar_idx[ok]] = True
+            sel = todo[done]
+            t[sel], obj[sel], normal[sel] = th[done], ob[done], nrm[done]
+            # planar formwork: exact by construction; flip normals to face the ray
+            retry = todo[~done]
+            start[retry] = th[~done] + 1e-3
+            todo = retry
+        flip = (normal * dirs).sum(axis=1) > 0
+        normal[flip] *= -1
+        return t, obj, normal
+
+    def occluded(self, origins, dirs, t_max):
+        """Whether anything lies on each segment origin -> origin + t_max * dir."""
+        rays = np.hstack((origins, dirs)).astype(np.float32)
+        ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
+        th = ans["t_hit"].numpy()
+        return th < t_max
+
+
+def _ray_cylinder(o, d, p0, p1, r):
+    """Nearest intersection of rays o + t d with finite cylinders (side and caps)."""
+    axis = p1 - p0
+    L = np.linalg.norm(axis, axis=1)
+    a = axis / L[:, None]
+    w = o - p0
+    da = (d * a).sum(1)
+    wa = (w * a).sum(1)
+    dp = d - da[:, None] * a
+    wp = w - wa[:, None] * a
+    A = (dp * dp).sum(1)
+    B = (wp * dp).sum(1)
+    C = (wp * wp).sum(1) - r * r
+    disc = B * B - A * C
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_side = (-B - np.sqrt(np.maximum(disc, 0))) / A
+    s = wa + t_side * da
+    side_ok = (disc >= 0) & (A > 1e-12) & (s >= 0) & (s <= L) & (t_side > 0)
+    t = np.where(side_ok, t_side, np.inf)
+    n = np.zeros_like(o)
+    pt = o + t_side[:, None] * d
+    radial = pt - p0 - ((pt - p0) * a).sum(1)[:, None] * a
+    n[side_ok] = radial[side_ok] / r[side_ok, None]
+    for cap, sign in ((0.0, -1.0), (1.0, 1.0)):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tc = (cap * L - wa) / da
+        pc = o + tc[:, None] * d - (p0 + cap * L[:, None] * a)
+        inside = ((pc * pc).sum(1) - ((pc * a).sum(1)) ** 2) <= r * r
+        better = inside & (tc > 0) & (tc < t)
+        t = np.where(better, tc, t)
+        n[better] = sign * a[better]
+    return t, n, np.isfinite(t)
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering
+
+
+def _value_noise(rng, shape, octaves=3):
+    """Smooth random field on a grid, values about 0..1 (sum of up-sampled random grids)."""
+    import cv2
+
+    h, w = shape
+    out = np.zeros(shape, np.float32)
+    amp, tot = 1.0, 0.0
+    for o in range(octaves):
+        gh, gw = max(2, h >> (octaves - o + 1)), max(2, w >> (octaves - o + 1))
+        g = rng.random((gh, gw)).astype(np.float32)
+        out += amp * cv2.resize(g, (w, h), interpolation=cv2.INTER_CUBIC)
+        tot += amp
+        amp *= 0.5
+    return np.clip(out / tot, 0, 1)
+
+
+def _sample(field_img, x, y, extent, cell):
+    """Bilinear sample of ``field_img`` (covering [-extent, extent]^2 at ``cell`` mm) at world x, y."""
+    import cv2
+
+    n = len(x)
+    cols = 1024  # remap wants maps under 32767 px a side: lay the samples out in rows
+    pad = (-n) % cols
+    mx = np.pad(((x + extent) / cell).astype(np.float32), (0, pad)).reshape(-1, cols)
+    my = np.pad(((y + extent) / cell).astype(np.float32), (0, pad)).reshape(-1, cols)
+    out = cv2.remap(field_img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    return out.ravel()[:n]
+
+
+def _formwork_albedo(kind, p, rng, extent):
+    x, y = p[:, 0], p[:, 1]
+    n1 = _sample(_value_noise(rng, (512, 512)), x, y, extent, 2 * extent / 512)
+    n2 = _sample(_value_noise(rng, (1024, 1024), 2), x, y, extent, 2 * extent / 1024)
+    if kind == "plywood":
+        base = np.array([0.78, 0.60, 0.40]) * rng.uniform(0.85, 1.1)
+        grain = 0.5 + 0.5 * np.sin(2 * np.pi * (x + 60 * n1) / rng.uniform(6, 12))
+        shade = 0.82 + 0.12 * grain + 0.18 * (n2 - 0.5)
+        seams = (np.abs(((y + extent) % 1220) - 610) > 608) | (np.abs(((x + extent) % 2440) - 1220) > 1218)
+        shade = np.where(seams, 0.45, shade)
+    elif kind == "film":
+        base = np.array([0.20, 0.14, 0.11]) * rng.uniform(0.8, 1.2)
+        shade = 0.85 + 0.3 * (n1 - 0.5) + 0.15 * (n2 - 0.5)
+        dust = n2 > 0.72
+        shade = np.where(dust, shade * 1.8, shade)
+    else:  # plastic
+        base = [np.array([0.25, 0.45, 0.75]), np.array([0.55, 0.57, 0.58]), np.array([0.3, 0.6, 0.35])][rng.integers(3)]
+        shade = 0.92 + 0.1 * (n2 - 0.5)
+        seams = (np.abs(((y + extent) % 500) - 250) > 247) | (np.abs(((x + extent) % 500) - 250) > 247)
+        shade = np.where(seams, 0.6, shade)
+    return np.clip(shade[:, None] * base, 0, 1)
+
+
+def _bar_albedo(scene, bar_of_px, p, rust_of_bar, rng):
+    axis0 = np.array([b.axis[0] for b in scene.bars])
+    dirs = np.array([b.direction for b in scene.bars])
+    radius = np.array([b.radius_mm for b in scene.bars])
+    s = ((p - axis0[bar_of_px]) * dirs[bar_of_px]).sum(1)  # position along the bar
+    steel = np.array([0.36, 0.35, 0.34])
+    rust = np.array([0.55, 0.27, 0.12])
+    pitch = 0.7 * 2 * radius[bar_of_px]
+    ribs = 0.85 + 0.15 * np.abs(np.sin(np.pi * s / pitch)) if scene.deviations.ribs else 1.0
+    field_img = _value_noise(rng, (64, 2048), 3)
+    patch = _sample(field_img, s, bar_of_px * 40.0 + (p[:, 2] % 7) * 0.0, 2048 / 2, 1.0)
+    amount = np.clip((patch - (1 - rust_of_bar[bar_of_px])) * 4, 0, 1)[:, None]
+    col = (1 - amount) * steel + amount * rust
+    return np.clip(col * (ribs * (0.9 + 0.2 * patch))[:, None], 0, 1)
+
+
+def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics = GEMINI2,
+                   sensor: SensorModel | None = None, appearance: Appearance | None = None,
+                   rng=None, name: str = "synthetic") -> Capture:
+    """Render one RGB-D capture of ``scene`` seen from ``pose``, with ground truth.
+
+    Returns a :class:`~rebarlib.Capture` with ``labels``, ``bar_ids`` and
+    ``metadata["truth"]`` (see the README for the keys). Deterministic for a given ``rng`` seed.
+    """
+    import cv2
+
+    rng = np.random.default_rng(rng)
+    sensor = sensor or SensorModel()
+    app = appearance or Appearance()
+    H, W = intrinsics.height, intrinsics.width
+    geo = _build_geometry(scene)
+    caster = _Caster(geo)
+
+    d_cam = ray_directions(intrinsics)  # z = 1: t along these rays is the z-depth
+    d_world = d_cam @ pose.rotation  # rows: R^T d
+    origins = np.broadcast_to(pose.centre, d_world.shape).copy()
+    t, obj, normal = caster.first_hit(origins, d_world)
+    hit = np.isfinite(t)
+    z_true = np.where(hit, t, 0.0).reshape(H, W)
+    p = origins + d_world * np.where(hit, t, 0)[:, None]
+    kind = np.where(hit, geo.obj_kind[np.maximum(obj, 0)], -1)
+    bar_of = np.where(kind == K_BAR, geo.obj_bar[np.maximum(obj, 0)], -1)
+    layer_of_bar = np.array([LABEL_LOWER if b.layer == "lower" else LABEL_UPPER for b in scene.bars] + [0])
+    labels = layer_of_bar[bar_of].astype(np.uint8).reshape(H, W)
+    bar_ids = (bar_of + 1).astype(np.int32).reshape(H, W)
+
+    # ---- depth sensor
+    # Shadow rays start just off the surface; on bars, outside the circumscribing prism
+    # (up to 2 % of the radius beyond the true cylinder), or a bar would shadow itself.
+    lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[np.maximum(obj, 0)], 0.0)
+    depth = _sensor_depth(z_true, p, normal, hit, pose, intrinsics, sensor, caster, rng, lift)
+
+    # ---- colour
+    formwork = app.formwork or FORMWORKS[rng.integers(len(FORMWORKS))]
+    elev = math.radians(app.sun_elevation_deg if app.sun_elevation_deg is not None else rng.uniform(35, 75))
+    azim = math.radians(app.sun_azimuth_deg if app.sun_azimuth_deg is not None else rng.uniform(0, 360))
+    light = np.array([math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)])
+    rust_of_bar = np.zeros(len(scene.bars) + 1)
+    n_rusty = int(round(app.rust_fraction * len(scene.bars)))
+    if n_rusty:
+        rust_of_bar[rng.permutation(len(scene.bars))[:n_rusty]] = rng.uniform(0.5, 1.0, n_rusty)
+    albedo = np.zeros((len(t), 3))
+    extent = scene.deviations.slab_size_mm * 2
+    fw = kind == K_FORMWORK
+    albedo[fw] = _formwork_albedo(formwork, p[fw], rng, extent)
+    bars_px = kind == K_BAR
+    albedo[bars_px] = _bar_albedo(scene, bar_of[bars_px], p[bars_px], rust_of_bar, rng)
+    albedo[kind == K_SPACER] = [0.62, 0.61, 0.58]
+    albedo[kind == K_CHAIR] = [0.35, 0.34, 0.33]
+    albedo[kind == K_TIE] = [0.18, 0.18, 0.19]
+    lambert = np.clip(normal @ light, 0, None)
+    lit = hit & (lambert > 0)
+    idx = np.flatnonzero(lit)
+    shadow = np.zeros(len(t), bool)
+    shadow[idx] = caster.occluded(p[idx] + normal[idx] * lift[idx, None], np.broadcast_to(light, (len(idx), 3)).copy(), 1e5)
+    direct = np.where(shadow, 0.0, lambert)
+    # specular sheen on steel and film-faced board
+    view = -d_world / np.linalg.norm(d_world, axis=1, keepdims=True)
+    half_v = (view + light) / np.linalg.norm(view + light, axis=1, keepdims=True)
+    spec_k = np.where(bars_px, 0.25 * (1 - rust_of_bar[bar_of]), np.where(fw & (formwork != "plywood"), 0.15, 0.0))
+    spec = spec_k * np.clip((normal * half_v).sum(1), 0, 1) ** 30 * (~shadow)
+    shade = app.ambient + (1 - app.ambient) * 1.25 * direct
+    rgb = albedo * shade[:, None] + spec[:, None]
+    rgb = np.where(hit[:, None], rgb, 0.0).reshape(H, W, 3) * app.exposure
+    if app.blur_px > 0:
+        rgb = cv2.GaussianBlur(rgb, (0, 0), app.blur_px)
+    img = np.clip(rgb ** (1 / 1.8) * 255 + rng.normal(0, app.noise_sigma, rgb.shape), 0, 255).astype(np.uint8)
+    if app.jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(app.jpeg_quality)])
+        img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
+
+    truth = _truth(scene, pose, intrinsics, bar_ids, p, formwork, light, rust_of_bar, sensor, app)
+    meta = {"depth_scale_mm": sensor.depth_scale_mm, "device": "rebarlib synthetic (Gemini-2-like)",
+            "name": name, "truth": truth}
+    return Capture(img, depth, intrinsics, meta, labels, bar_ids)
+
+
+def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rng, lift):
+    import cv2
+
+    H, W = z_true.shape
+    f = intr.fx
+    z = z_true.astype(np.float64).copy()
+    valid = z > 0
+    if s.lateral_jitter_px > 0:
+        v, u = np.mgrid[0:H, 0:W]
+        uj = np.clip(np.rint(u + rng.normal(0, s.lateral_jitter_px, (H, W))), 0, W - 1).astype(int)
+        vj = np.clip(np.rint(v + rng.normal(0, s.lateral_jitter_px, (H, W))), 0, H - 1).astype(int)
+        z = z[vj, uj]
+        valid = z > 0
+    big = np.where(valid, z, 1e9).astype(np.float32)
+    k3 = np.ones((3, 3), np.uint8)
+    zmin = cv2.erode(big, k3)
+    zmax = cv2.dilate(np.where(valid, z, 0).astype(np.float32), k3)
+    edge = valid & ((zmax - zmin) > s.edge_jump_mm)
+    u01 = rng.random((H, W))
+    if s.edge_fatten_prob > 0:  # the nearer surface bleeds over the edge
+        fat = edge & (u01 < s.edge_fatten_prob)
+        z[fat] = zmin[fat]
+    if s.flying_pixel_prob > 0:
+        lo = s.edge_fatten_prob
+        fly = edge & (u01 >= lo) & (u01 < lo + s.flying_pixel_prob)
+        mix = rng.random((H, W))
+        z[fly] = (zmin + mix * (zmax - zmin))[fly]
+    if s.edge_hole_prob > 0:
+        lo = s.edge_fatten_prob + s.flying_pixel_prob
+        hole = edge & (u01 >= lo) & (u01 < lo + s.edge_hole_prob)
+        z[hole] = 0
+    if s.projector_shadow:
+        proj = pose.centre + pose.rotation.T @ np.array([s.projector_offset_mm, 0.0, 0.0])
+        idx = np.flatnonzero(hit)
+        vec = proj - p[idx]
+        dist = np.linalg.norm(vec, axis=1)
+        start = p[idx] + normal[idx] * lift[idx, None]
+        vec = proj - start
+        dist = np.linalg.norm(vec, axis=1)
+        occ = caster.occluded(start, vec / dist[:, None], dist - 0.1)
+        shadow = np.zeros(H * W, bool)
+        shadow[idx[occ]] = True
+        z[shadow.reshape(H, W)] = 0
+    valid = z > 0
+    if s.disparity_sigma_px > 0 or s.subpixel_px > 0:
+        fb = f * s.baseline_mm
+        disp = np.where(valid, fb / np.where(valid, z, 1), 0)
+        if s.disparity_sigma_px > 0:
+            noise = rng.normal(0, 1, (H, W)).astype(np.float32)
+            if s.noise_correlation_px > 0:
+                noise = cv2.GaussianBlur(noise, (0, 0), s.noise_correlation_px)
+                noise /= noise.std()
+            disp = disp + s.disparity_sigma_px * noise
+        if s.subpixel_px > 0:
+            disp = np.round(disp / s.subpixel_px) * s.subpixel_px
+        z = np.where(valid & (disp > 0), fb / np.where(disp > 0, disp, 1), 0)
+    if s.bias_mm_per_m2:
+        z = np.where(z > 0, z + s.bias_mm_per_m2 * (z / 1000) ** 2, 0)
+    z[(z > s.max_depth_mm)] = 0
+    if s.quantize:
+        z = np.round(z / s.depth_scale_mm) * s.depth_scale_mm
+    return z
+
+
+def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, app):
+    """Ground truth in the camera frame (mm); heights above the formwork."""
+    R = pose.rotation
+    normal_c = R @ np.array([0, 0, 1.0])
+    offset_c = float(-normal_c @ pose.to_camera([[0, 0, 0]])[0])
+    ids = bar_ids.ravel() - 1
+    counts = np.bincount(ids[ids >= 0], minlength=len(scene.bars))
+    bars = []
+    vis_len = {}
+    for b in scene.bars:
+        sel = ids == b.id
+        vis = counts[b.id]
+        if vis:
+            s = (p[sel] - b.axis[0]) @ b.direction
+            s0, s1 = float(s.min()), float(s.max())
+        else:
+            s0 = s1 = 0.0
+        a0, a1 = b.axis[0], b.axis[-1]
+        chord = a1 - a0
+        vis_len[b.id] = s1 - s0
+        vs = a0 + s0 * b.direction
+        ve = a0 + s1 * b.direction
+        vs[2] = ve[2] = b.axis[:, 2].mean()
+        bars.append({
+            "id": b.id, "layer": b.layer, "level": b.level, "index": b.index,
+            "axis_start_mm": pose.to_camera([a0])[0].round(4).tolist(),
+            "axis_end_mm": pose.to_camera([a1])[0].round(4).tolist(),
+            "visible_start_mm": pose.to_camera([vs])[0].round(4).tolist(),
+            "visible_end_mm": pose.to_camera([ve])[0].round(4).tolist(),
+            "plan_angle_deg": round(math.degrees(math.atan2(chord[1], chord[0])) % 180, 4),
+            "offset_mm": round(b.offset_mm, 4),
+            "underside_mm": round(b.underside_mm, 4),
+            "top_mm": round(b.underside_mm + b.envelope_mm, 4),
+            "diameter_mm": b.nominal_mm, "envelope_mm": b.envelope_mm, "design_diameter_mm": b.design_mm,
+            "wrong_size": b.nominal_mm != b.design_mm,
+            "rust": round(float(rust_of_bar[b.id]), 3),
+            "visible_pixels": int(vis), "visible_length_mm": round(s1 - s0, 2),
+            "visible": bool(vis >= 100 and s1 - s0 >= 50),
+        })
+    by = {(bb["layer"], bb["level"]): [] for bb in bars}
+    for bb in bars:
+        by[(bb["layer"], bb["level"])].append(bb)
+
+    def mean_of(key, layer, level, visible=True):
+        vals = [bb[key] for bb in by.get((layer, level), []) if bb["visible"] or not visible]
+        if not vals:
+            vals = [bb[key] for bb in by.get((layer, level), [])]
+        return float(np.mean(vals)) if vals else None
+
+    cover = mean_of("underside_mm", "lower", "bottom")
+    upper_bottom = mean_of("underside_mm", "upper", "bottom")
+    spacings = []
+    for (layer, level), group in sorted(by.items()):
+        group = sorted(group, key=lambda bb: bb["offset_mm"])
+        for a, b in zip(group[:-1], group[1:]):
+            spacings.append({"layer": layer, "level": level, "bar_a": a["id"], "bar_b": b["id"],
+                             "spacing_mm": round(b["offset_mm"] - a["offset_mm"], 4),
+                             "visible": a["visible"] and b["visible"]})
+    d = scene.design
+    return {
+        "units": "mm, camera frame (OpenCV: x right, y down, z forward); heights above the formwork",
+        "cover_mm": round(cover, 4) if cover is not None else None,
+        "layer_distance_mm": round(upper_bottom - cover, 4) if None not in (cover, upper_bottom) else None,
+        "upper_top_mm": mean_of("top_mm", "upper", "top"),
+        "formwork_plane": {"normal": normal_c.round(8).tolist(), "offset_mm": round(offset_c, 4)},
+        "camera": {"height_mm": round(float(pose.centre[2]), 4),
+                   "rotation_world_to_camera": R.round(10).tolist(),
+                   "centre_world_mm": pose.centre.round(4).tolist()},
+        "bars": bars,
+        "missing": [{"layer": l, "level": v, "index": k} for l, v, k in scene.missing],
+        "spacings": spacings,
+        "design": {"cover_mm": d.cover_mm, "layer_distance_mm": d.layer_distance_mm,
+                   "lower_diameter_mm": d.lower.bottom.diameter_mm, "upper_diameter_mm": d.upper.bottom.diameter_mm},
+        "deviations": asdict(scene.deviations),
+        "sensor": asdict(sensor),
+        "appearance": {**asdict(app), "formwork": formwork, "light_world": light.round(6).tolist()},
+    }
+
+
+def synth_capture(design: Design, *, height_mm: float = 500.0, tilt_deg: float = 10.0,
+                  yaw_deg: float = 0.0, target_mm=(0.0, 0.0), deviations: Deviations | None = None,
+                  sensor: SensorModel | None = None, appearance: Appearance | None = None,
+                  intrinsics: Intrinsics = GEMINI2, seed: int = 0, scene_seed: int | None = None,
+                  name: str = "synthetic") -> Capture:
+    """Lay out and render one capture of ``design`` in one call (see :func:`make_scene`,
+    :func:`render_capture`). ``scene_seed`` fixes the mesh so several captures show one slab.
+
+    Examples
+    --------
+    >>> from rebarlib import design_from_dict
+    >>> d = design_from_dict({"slab": {"id": "S"}, "design": {"cover_mm": 20,
+    ...     "layer_distance_mm": 85, "lower": {"diameter_mm": 14, "spacing_mm": 200},
+    ...     "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    >>> cap = synth_capture(d, height_mm=500, tilt_deg=0, sensor=SensorModel.ideal(),
+    ...                     deviations=Deviations.none(), intrinsics=GEMINI2.scaled(0.25))
+    >>> round(cap.truth["cover_mm"], 6), round(cap.truth["layer_distance_mm"], 6)
+    (20.0, 85.0)
+    """
+    ss = np.random.SeedSequence(seed)
+    scene_rng, render_rng = ss.spawn(2)
+    if scene_seed is not None:
+        scene_rng = np.random.SeedSequence(scene_seed)
+    scene = make_scene(design, deviations, rng=np.random.default_rng(scene_rng))
+    pose = CameraPose.looking_down(height_mm, tilt_deg=tilt_deg, yaw_deg=yaw_deg, target_mm=target_mm)
+    return render_capture(scene, pose, intrinsics=intrinsics, sensor=sensor, appearance=appearance,
+                          rng=np.random.default_rng(render_rng), name=name)
