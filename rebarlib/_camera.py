@@ -110,7 +110,7 @@ def backproject(pixels, depth_mm, intrinsics: Intrinsics) -> np.ndarray:
     --------
     >>> K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
     >>> backproject([[420.0, 190.0]], [500.0], K)
-    array([[ 100.,  -50.,  500.]])
+    array([[100., -50., 500.]])
     """
     uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     z = np.asarray(depth_mm, dtype=np.float64).reshape(-1)
