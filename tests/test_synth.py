@@ -1,0 +1,152 @@
+"""Synthetic captures against geometry derived here independently of the renderer."""
+
+import hashlib
+
+import cv2
+import numpy as np
+import pytest
+
+from rebarlib import GEMINI2, save_capture
+from rebarlib._camera import ray_directions
+from rebarlib.synth import (Appearance, CameraPose, Deviations, SensorModel, make_scene, rib_envelope_mm,
+                            synth_capture)
+
+IDEAL_DEPTH_TOL_MM = 0.01  # the issue's bound for the ideal sensor
+NOISE_STD_REL_TOL = 0.10  # measured noise std within 10 % of the model
+BIAS_TOL_MM = 0.05
+
+
+def _ray_cylinder_depth(dirs, p0, p1, r):
+    """z-depth where rays from the origin with direction ``dirs`` (z = 1) meet an infinite cylinder."""
+    a = (p1 - p0) / np.linalg.norm(p1 - p0)
+    dp = dirs - np.outer(dirs @ a, a)
+    wp = -p0 - np.dot(-p0, a) * a
+    A = (dp * dp).sum(1)
+    B = dp @ wp
+    C = wp @ wp - r * r
+    disc = B * B - A * C
+    return (-B - np.sqrt(np.maximum(disc, 0))) / A, disc
+
+
+@pytest.fixture(scope="module")
+def ideal(paper_design):
+    return synth_capture(paper_design, height_mm=520, tilt_deg=12, yaw_deg=20, deviations=Deviations(
+        position_sigma_mm=3, height_sigma_mm=1, mesh_yaw_deg=33, spacers=False, chairs=False, ties=False),
+        sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.5), seed=5)
+
+
+def test_ideal_depth_on_bars_is_the_analytic_cylinder(ideal):
+    K = ideal.intrinsics
+    dirs = ray_directions(K)
+    checked = 0
+    for bar in ideal.truth["bars"]:
+        if not bar["visible"]:
+            continue
+        px = np.flatnonzero(ideal.bar_ids.ravel() == bar["id"] + 1)
+        p0, p1 = np.array(bar["axis_start_mm"]), np.array(bar["axis_end_mm"])
+        z, disc = _ray_cylinder_depth(dirs[px], p0, p1, bar["envelope_mm"] / 2)
+        # stay off the silhouette, where the depth's sensitivity to the truth's 4-decimal axis explodes
+        face = disc > 0.2 * (bar["envelope_mm"] / 2) ** 2 * (dirs[px] ** 2).sum(1)
+        assert face.sum() > 20
+        err = np.abs(ideal.depth_mm.ravel()[px][face] - z[face])
+        assert err.max() < IDEAL_DEPTH_TOL_MM, bar["id"]
+        checked += 1
+    assert checked >= 10
+
+
+def test_ideal_depth_on_formwork_is_the_plane(ideal):
+    n = np.array(ideal.truth["formwork_plane"]["normal"])
+    d = ideal.truth["formwork_plane"]["offset_mm"]
+    dirs = ray_directions(ideal.intrinsics)
+    form = ideal.labels.ravel() == 0
+    z_plane = -d / (dirs[form] @ n)
+    assert np.abs(ideal.depth_mm.ravel()[form] - z_plane).max() < IDEAL_DEPTH_TOL_MM
+
+
+def test_truth_heights_follow_the_design(paper_design):
+    cap = synth_capture(paper_design, height_mm=450, tilt_deg=0, deviations=Deviations.none(),
+                        sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.25), seed=1)
+    t = cap.truth
+    assert t["cover_mm"] == pytest.approx(20) and t["layer_distance_mm"] == pytest.approx(85)
+    assert t["upper_top_mm"] == pytest.approx(20 + 85 + 24)
+    assert t["camera"]["height_mm"] == pytest.approx(450)
+    assert all(s["spacing_mm"] == pytest.approx(200) for s in t["spacings"])
+    by_level = {(b["layer"], b["level"]): b for b in t["bars"]}
+    assert by_level[("lower", "top")]["underside_mm"] == pytest.approx(20 + 14)
+
+
+def test_rib_envelope_table():
+    assert rib_envelope_mm(12) == 13.9 and rib_envelope_mm(8) == 9.3 and rib_envelope_mm(14) == 16.2
+
+
+def test_missing_and_wrong_size_bars(paper_design):
+    scene = make_scene(paper_design, Deviations(missing=2, wrong_size=1), rng=4)
+    assert len(scene.missing) == 2
+    wrong = [b for b in scene.bars if b.nominal_mm != b.design_mm]
+    assert len(wrong) == 1 and wrong[0].nominal_mm in (10, 12, 14, 16)
+
+
+def test_camera_pose_height_tilt_and_target():
+    pose = CameraPose.looking_down(500, tilt_deg=15, yaw_deg=40, target_mm=(100, -50))
+    assert pose.centre[2] == pytest.approx(500)
+    axis = pose.rotation.T @ [0, 0, 1]
+    assert np.degrees(np.arccos(-axis[2])) == pytest.approx(15)
+    hit = pose.centre + axis * (500 / -axis[2])
+    assert hit[:2] == pytest.approx([100, -50])
+    assert np.allclose(pose.rotation @ pose.rotation.T, np.eye(3)) and np.linalg.det(pose.rotation) == pytest.approx(1)
+
+
+@pytest.mark.parametrize("bias", [0.0, 8.0])
+def test_realistic_noise_matches_the_model(paper_design, bias):
+    sensor = SensorModel(edge_hole_prob=0, flying_pixel_prob=0, edge_fatten_prob=0, bias_mm_per_m2=bias,
+                         quantize=False)
+    ideal = SensorModel.ideal()
+    kw = dict(height_mm=550, tilt_deg=0, deviations=Deviations.none(), intrinsics=GEMINI2.scaled(0.5), seed=2)
+    real = synth_capture(paper_design, sensor=sensor, **kw)
+    exact = synth_capture(paper_design, sensor=ideal, **kw)
+    form = cv2.erode((exact.labels == 0).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    form &= real.depth_mm > 0
+    z_true, z = exact.depth_mm[form], real.depth_mm[form]
+    z = z - bias * (z_true / 1000) ** 2
+    f = real.intrinsics.fx
+    # in disparity, the model is N(0, sigma_d) plus uniform rounding to the sub-pixel step
+    ddisp = f * sensor.baseline_mm / z - f * sensor.baseline_mm / z_true
+    expected = np.hypot(sensor.disparity_sigma_px, sensor.subpixel_px / np.sqrt(12))
+    assert np.std(ddisp) == pytest.approx(expected, rel=NOISE_STD_REL_TOL)
+    assert abs(np.mean(z - z_true)) < BIAS_TOL_MM + 0.02 * sensor.sigma_z_mm(550, f)
+    # and sigma_z grows with z^2 as the model says
+    assert sensor.sigma_z_mm(1000, 616.4) == pytest.approx(4 * sensor.sigma_z_mm(500, 616.4))
+
+
+def test_realistic_sensor_makes_holes_at_bar_edges(paper_design):
+    cap = synth_capture(paper_design, height_mm=500, intrinsics=GEMINI2.scaled(0.5), seed=3)
+    holes = cap.depth_mm == 0
+    assert 0.01 < holes.mean() < 0.2
+    edges = cv2.morphologyEx((cap.labels > 0).astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
+    assert holes[edges].mean() > 5 * holes[~edges].mean()
+
+
+def test_same_seed_same_bytes(paper_design, tmp_path):
+    kw = dict(height_mm=480, tilt_deg=7, intrinsics=GEMINI2.scaled(0.25), appearance=Appearance(rust_fraction=0.5))
+
+    def digest(folder):
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+    a = save_capture(synth_capture(paper_design, seed=9, **kw), tmp_path / "a")
+    b = save_capture(synth_capture(paper_design, seed=9, **kw), tmp_path / "b")
+    c = save_capture(synth_capture(paper_design, seed=10, **kw), tmp_path / "c")
+    assert digest(a) == digest(b)
+    assert digest(a)["depth.png"] != digest(c)["depth.png"]
+
+
+def test_cli_synth(tmp_path, capsys):
+    from rebarlib.cli import main
+
+    design = tmp_path / "design.toml"
+    design.write_text('[slab]\nid="X"\n[design]\ncover_mm=15\nlayer_distance_mm=54\n'
+                      '[design.lower]\ndiameter_mm=8\nspacing_mm=150\n[design.upper]\ndiameter_mm=8\nspacing_mm=150\n')
+    assert main(["synth", "--design", str(design), "--height", "450", "--seed", "1", str(tmp_path / "cap")]) == 0
+    assert "cover 1" in capsys.readouterr().out
+    assert (tmp_path / "cap" / "truth.json").is_file()
+    assert main(["synth", "--design", str(design), str(tmp_path / "cap")]) == 2  # never overwrites
+    assert "not empty" in capsys.readouterr().err
