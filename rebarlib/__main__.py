@@ -1,5 +1,8 @@
+"""``python -m rebarlib`` is the ``rebar`` command."""
+
 import sys
 
 from .cli import main
 
-sys.exit(main())
+if __name__ == "__main__":
+    sys.exit(main())
