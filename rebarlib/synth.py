@@ -227,7 +227,6 @@ class Bar:
     nominal_mm: float
     envelope_mm: float
     design_mm: float
-    rust: float = 0.0
 
     @property
     def radius_mm(self) -> float:
@@ -248,6 +247,7 @@ class SlabScene:
     missing: tuple  # (layer, level, index) of design positions left empty
     boxes: tuple  # (centre (3,), half-size (3,), yaw rad, kind)
     rods: tuple  # (p0 (3,), p1 (3,), radius, kind)
+    key: int = 0  # seeds what belongs to the slab, not the shot: formwork texture, which bars rust
 
 
 def _sizes_near(size: float) -> list:
@@ -283,7 +283,6 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
 
     base = {"lower": design.cover_mm, "upper": design.cover_mm + design.layer_distance_mm}
     bars, missing = [], []
-    heights = {}
     for si, (layer, level, offsets) in enumerate(sets):
         lat = design.lattice(layer)
         d_design = lat.level(level).diameter_mm
@@ -306,10 +305,8 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
             bow = dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - (s / half) ** 2) if dev.bow_mm else 0 * s
             axis = (s[:, None] * along + (off_true + bow)[:, None] * across
                     + np.array([0, 0, zc]))
-            rust = 0.0
             bars.append(Bar(len(bars), layer, level, k, float(off_true), along.copy(), axis, float(nominal),
-                            float(e), float(d_design), rust))
-            heights[(layer, level)] = zc
+                            float(e), float(d_design)))
 
     boxes, rods = [], []
     lower_b, lower_t = [b for b in bars if b.layer == "lower" and b.level == "bottom"], \
@@ -344,7 +341,8 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
                     diag = (bb.direction + tb.direction) / math.sqrt(2) * (tb.radius_mm + 3)
                     c = np.array([xy[0], xy[1], z])
                     rods.append((c - diag, c + diag, 0.7, "tie"))
-    return SlabScene(design, dev, tuple(bars), tuple(missing), tuple(boxes), tuple(rods))
+    return SlabScene(design, dev, tuple(bars), tuple(missing), tuple(boxes), tuple(rods),
+                     key=int(rng.integers(2**31)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -585,7 +583,7 @@ def _bar_albedo(scene, bar_of_px, p, rust_of_bar, rng):
     pitch = 0.7 * 2 * radius[bar_of_px]
     ribs = 0.85 + 0.15 * np.abs(np.sin(np.pi * s / pitch)) if scene.deviations.ribs else 1.0
     field_img = _value_noise(rng, (64, 2048), 3)
-    patch = _sample(field_img, s, bar_of_px * 40.0 + (p[:, 2] % 7) * 0.0, 2048 / 2, 1.0)
+    patch = _sample(field_img, s, bar_of_px * 40.0, 2048 / 2, 1.0)
     amount = np.clip((patch - (1 - rust_of_bar[bar_of_px])) * 4, 0, 1)[:, None]
     col = (1 - amount) * steel + amount * rust
     return np.clip(col * (ribs * (0.9 + 0.2 * patch))[:, None], 0, 1)
@@ -628,20 +626,22 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     depth = _sensor_depth(z_true, p, normal, hit, pose, intrinsics, sensor, caster, rng, lift)
 
     # ---- colour
-    formwork = app.formwork or FORMWORKS[rng.integers(len(FORMWORKS))]
+    # what belongs to the slab is drawn from its key, so every capture of one slab agrees
+    slab_rng = np.random.default_rng([scene.key, 1])
+    formwork = app.formwork or FORMWORKS[slab_rng.integers(len(FORMWORKS))]
     elev = math.radians(app.sun_elevation_deg if app.sun_elevation_deg is not None else rng.uniform(35, 75))
     azim = math.radians(app.sun_azimuth_deg if app.sun_azimuth_deg is not None else rng.uniform(0, 360))
     light = np.array([math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)])
     rust_of_bar = np.zeros(len(scene.bars) + 1)
     n_rusty = int(round(app.rust_fraction * len(scene.bars)))
     if n_rusty:
-        rust_of_bar[rng.permutation(len(scene.bars))[:n_rusty]] = rng.uniform(0.5, 1.0, n_rusty)
+        rust_of_bar[slab_rng.permutation(len(scene.bars))[:n_rusty]] = slab_rng.uniform(0.5, 1.0, n_rusty)
     albedo = np.zeros((len(t), 3))
     extent = scene.deviations.slab_size_mm * 2
     fw = kind == K_FORMWORK
-    albedo[fw] = _formwork_albedo(formwork, p[fw], rng, extent)
+    albedo[fw] = _formwork_albedo(formwork, p[fw], slab_rng, extent)
     bars_px = kind == K_BAR
-    albedo[bars_px] = _bar_albedo(scene, bar_of[bars_px], p[bars_px], rust_of_bar, rng)
+    albedo[bars_px] = _bar_albedo(scene, bar_of[bars_px], p[bars_px], rust_of_bar, slab_rng)
     albedo[kind == K_SPACER] = [0.62, 0.61, 0.58]
     albedo[kind == K_CHAIR] = [0.35, 0.34, 0.33]
     albedo[kind == K_TIE] = [0.18, 0.18, 0.19]
