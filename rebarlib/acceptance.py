@@ -1,0 +1,755 @@
+"""Acceptance of a slab against its design: tolerance presets as data, checkpoints, lot rules, verdicts.
+
+Pure functions over the result tables of the inspection (``InspectionResult`` or its JSON dict).
+Nothing here measures anything: every number judged comes from a result, every limit from a
+tolerance file (``rebarlib/presets/*.toml``) or the slab's ``design.toml`` ``[tolerances]`` table.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._checks import RebarInputError
+from ._design import Design
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["ItemTolerance", "LotRule", "Tolerances", "Acceptance", "load_tolerances",
+           "list_presets", "evaluate", "PRESETS_DIR", "CHECKPOINT_COLUMNS", "ITEM_COLUMNS"]
+
+PRESETS_DIR = Path(__file__).resolve().parent / "presets"
+DEFAULT_PRESET = "GB50204-2015"
+
+LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
+#: Checkpoint status words, and the flag a Chinese record sheet prints next to them.
+WITHIN, BEYOND, BEYOND_MAX, NOT_MEASURED, EXCLUDED = (
+    "within", "beyond", "beyond max", "not measured", "excluded")
+FLAGS = {BEYOND: "*", BEYOND_MAX: "#"}
+PASS, FAIL, INCOMPLETE = "pass", "fail", "incomplete"
+ACCEPTED, REJECTED, SLAB_INCOMPLETE = "accepted", "rejected", "incomplete"
+# Deviations come from results rounded to 0.001 mm; a deviation that equals its limit to within
+# this is on the limit (inside), so "exactly 1.5x" is not lost to binary rounding.
+_EPS = 1e-6
+
+CHECKPOINT_COLUMNS = [
+    "item", "label", "capture", "layer", "level", "what", "unit", "design_value", "measured_value",
+    "deviation", "uncertainty", "tolerance", "tol_minus", "tol_plus", "status", "flag", "reason"]
+ITEM_COLUMNS = [
+    "item", "label", "unit", "design_value", "design_text", "tolerance", "checkpoints", "measured",
+    "passed", "pass_ratio", "worst_deviation", "beyond", "beyond_max", "not_measured", "excluded",
+    "verdict", "reason", "rule", "clause"]
+
+_ITEM_KEYS = {"minus_mm", "plus_mm", "minus_bars", "plus_bars", "minus_fraction_of_design",
+              "plus_by_thickness_mm", "lot_rule", "clause", "interpretation", "confirmed", "note"}
+_RULE_KEYS = {"min_pass_ratio", "max_factor", "text", "clause", "interpretation", "confirmed"}
+_BASE_ITEMS = ("cover", "layer_distance", "spacing", "bar_size", "bar_count", "top_cover")
+
+
+# --------------------------------------------------------------------------------------------
+# Tolerances as data
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ItemTolerance:
+    """Allowed deviation (measured minus design) of one item, and where the value comes from.
+
+    ``minus`` / ``plus`` are magnitudes in ``unit`` ("mm" or "bars"); ``None`` = no limit.
+    """
+
+    item: str
+    minus: float | None
+    plus: float | None
+    lot_rule: str
+    unit: str = "mm"
+    clause: str = ""
+    interpretation: bool = False
+    confirmed: bool = True
+    note: str = ""
+    minus_fraction_of_design: float | None = None
+    plus_by_thickness_mm: tuple | None = None
+
+    def limits(self, design_value: float | None = None, *, thickness_mm: float | None = None):
+        """The (minus, plus) limits that apply to one design value (and slab thickness).
+
+        Examples
+        --------
+        >>> t = ItemTolerance("cover", 10.0, None, "all", minus_fraction_of_design=1 / 3)
+        >>> t.limits(15.0)
+        (5.0, None)
+        """
+        minus, plus = self.minus, self.plus
+        if self.minus_fraction_of_design is not None and design_value is not None:
+            cap = self.minus_fraction_of_design * design_value
+            minus = cap if minus is None else min(minus, cap)
+        if self.plus_by_thickness_mm:
+            h, p = np.asarray(self.plus_by_thickness_mm, dtype=float).T
+            plus = float(np.interp(thickness_mm if thickness_mm is not None else h[0], h, p))
+        return (None if minus is None else round(float(minus), 3),
+                None if plus is None else round(float(plus), 3))
+
+    def text(self, design_value: float | None = None, *, thickness_mm: float | None = None) -> str:
+        """The limits as printed: ``±3 mm``, ``-10 / +12 mm``, ``-10 mm (no upper limit)``.
+
+        Examples
+        --------
+        >>> ItemTolerance("spacing", 10.0, 10.0, "general").text()
+        '±10 mm'
+        """
+        return _tol_text(*self.limits(design_value, thickness_mm=thickness_mm), self.unit)
+
+    @property
+    def labels(self) -> str:
+        out = []
+        if self.interpretation:
+            out.append("interpretation")
+        if not self.confirmed:
+            out.append("not confirmed")
+        return ", ".join(out)
+
+
+@dataclass(frozen=True)
+class LotRule:
+    """When an item passes: at least ``min_pass_ratio`` of its measured checkpoints within
+    tolerance and, when ``max_factor`` is set, none beyond ``max_factor`` x the tolerance."""
+
+    name: str
+    min_pass_ratio: float
+    max_factor: float | None = None
+    text: str = ""
+    clause: str = ""
+    interpretation: bool = False
+    confirmed: bool = True
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """A tolerance preset: the standard, its lot rules and the allowed deviation of every item."""
+
+    name: str
+    standard: str
+    edition: str
+    items: dict
+    lot_rules: dict
+    title: str = ""
+    source: str = ""
+    overrides: tuple = ()
+
+    def item(self, key: str) -> ItemTolerance:
+        """The tolerance of ``key``; ``spacing_<layer>_<level>`` falls back to ``spacing``.
+
+        Examples
+        --------
+        >>> load_tolerances("GB50204-2015").item("spacing_upper_top").text()
+        '±10 mm'
+        """
+        if key in self.items:
+            return self.items[key]
+        base = "spacing" if key.startswith("spacing_") else key
+        if base in self.items:
+            return replace(self.items[base], item=key)
+        raise RebarInputError(f"tolerances {self.name!r} ({self.source}): no item {key!r}; "
+                              f"it has {sorted(self.items)}")
+
+    def rule(self, name: str) -> LotRule:
+        if name not in self.lot_rules:
+            raise RebarInputError(f"tolerances {self.name!r} ({self.source}): lot rule {name!r} is not "
+                                  f"defined; it has {sorted(self.lot_rules)}")
+        return self.lot_rules[name]
+
+    def with_overrides(self, table: dict, *, source: str = "design.toml") -> "Tolerances":
+        """Apply a design file's ``[tolerances]`` table (see the README for its keys).
+
+        Flat keys: ``<item>_mm`` (symmetric), ``<item>_minus_mm``, ``<item>_plus_mm``,
+        ``<item>_lot_rule``, ``bar_count_bars`` / ``bar_count_minus_bars`` / ``bar_count_plus_bars``,
+        ``<rule>_min_pass_ratio``, ``<rule>_max_factor``; ``<item>`` is one of cover,
+        layer_distance, top_cover, bar_size, spacing or spacing_<lower|upper>_<bottom|top>.
+        A sub-table ``[tolerances.<item>]`` takes the preset's own item keys.
+
+        Examples
+        --------
+        >>> t = load_tolerances("GB50204-2015").with_overrides({"cover_minus_mm": 5, "general_min_pass_ratio": 0.9})
+        >>> t.item("cover").limits(), t.rule("general").min_pass_ratio
+        ((5.0, 3.0), 0.9)
+        """
+        if not table:
+            return self
+        if not isinstance(table, dict):
+            raise RebarInputError(f"{source}: [tolerances] must be a table")
+        items = dict(self.items)
+        rules = dict(self.lot_rules)
+        item_names = set(items) | {f"spacing_{a}_{b}" for a in LAYERS for b in LEVELS}
+        for key, value in table.items():
+            where = f"{source}: tolerances.{key}"
+            if isinstance(value, dict):
+                if key not in item_names:
+                    raise RebarInputError(f"{where}: unknown item; expected one of {sorted(item_names)}")
+                base = self.item(key)
+                items[key] = _item_from_table(key, {**_item_as_table(base), **value}, where)
+                continue
+            item, field_ = _split_override(key, item_names, set(rules))
+            if item is None:
+                raise RebarInputError(
+                    f"{where}: unknown key; expected <item>_mm, <item>_minus_mm, <item>_plus_mm, "
+                    f"<item>_lot_rule or <rule>_min_pass_ratio / <rule>_max_factor with item in "
+                    f"{sorted(item_names)} and rule in {sorted(rules)}")
+            if field_ in ("min_pass_ratio", "max_factor"):
+                v = _override_number(value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0)
+                rules[item] = replace(rules[item], **{field_: v})
+                continue
+            base = items.get(item) or self.item(item)
+            if field_ == "lot_rule":
+                if value not in rules:
+                    raise RebarInputError(f"{where}: lot rule {value!r} is not defined; expected one of {sorted(rules)}")
+                items[item] = replace(base, lot_rule=value)
+                continue
+            v = _override_number(value, where, lo=0.0, hi=1000.0)
+            changes = {"minus": v, "plus": v} if field_ == "both" else {field_: v}
+            if "minus" in changes:
+                changes["minus_fraction_of_design"] = None
+            if "plus" in changes:
+                changes["plus_by_thickness_mm"] = None
+            items[item] = replace(base, clause=f"{base.clause} — overridden in {Path(source).name}"
+                                  if "overridden" not in base.clause else base.clause, **changes)
+        return replace(self, items=items, lot_rules=rules,
+                       overrides=self.overrides + tuple(f"{k} = {v!r}" for k, v in table.items()))
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "standard": self.standard, "edition": self.edition,
+                "source": self.source, "overrides": list(self.overrides),
+                "items": {k: _item_as_table(v) for k, v in self.items.items()},
+                "lot_rules": {k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()}}
+
+
+def _split_override(key: str, item_names: set, rule_names: set):
+    for rule in rule_names:
+        for f in ("min_pass_ratio", "max_factor"):
+            if key == f"{rule}_{f}":
+                return rule, f
+    for suffix, f in (("_minus_mm", "minus"), ("_plus_mm", "plus"), ("_minus_bars", "minus"),
+                      ("_plus_bars", "plus"), ("_lot_rule", "lot_rule"), ("_mm", "both"), ("_bars", "both")):
+        if key.endswith(suffix) and key[: -len(suffix)] in item_names:
+            return key[: -len(suffix)], f
+    return None, None
+
+
+def _override_number(value, where: str, *, lo: float, hi: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (lo <= value <= hi):
+        raise RebarInputError(f"{where}: expected a number in {lo:g}..{hi:g}, got {value!r}")
+    return float(value)
+
+
+def _tol_text(minus, plus, unit="mm") -> str:
+    def f(x):
+        return f"{x:g}"
+    if minus is None and plus is None:
+        return "no limit"
+    if minus is None:
+        return f"+{f(plus)} {unit} (no lower limit)"
+    if plus is None:
+        return f"−{f(minus)} {unit} (no upper limit)"
+    if minus == plus:
+        return f"±{f(minus)} {unit}" if minus else f"0 {unit} (as designed)"
+    return f"−{f(minus)} / +{f(plus)} {unit}"
+
+
+def _item_as_table(t: ItemTolerance) -> dict:
+    unit = "bars" if t.unit == "bars" else "mm"
+    out = {f"minus_{unit}": t.minus, f"plus_{unit}": t.plus, "lot_rule": t.lot_rule, "clause": t.clause,
+           "interpretation": t.interpretation, "confirmed": t.confirmed, "note": t.note,
+           "minus_fraction_of_design": t.minus_fraction_of_design,
+           "plus_by_thickness_mm": [list(p) for p in t.plus_by_thickness_mm] if t.plus_by_thickness_mm else None}
+    return {k: v for k, v in out.items() if v is not None}
+
+
+def _item_from_table(key: str, table: dict, where: str) -> ItemTolerance:
+    unknown = set(table) - _ITEM_KEYS
+    if unknown:
+        raise RebarInputError(f"{where}: unknown keys {sorted(unknown)}; expected some of {sorted(_ITEM_KEYS)}")
+    unit = "bars" if key == "bar_count" else "mm"
+    nums = {}
+    for side in ("minus", "plus"):
+        v = table.get(f"{side}_{unit}")
+        nums[side] = None if v is None else _override_number(v, f"{where}.{side}_{unit}", lo=0, hi=1000)
+    frac = table.get("minus_fraction_of_design")
+    if frac is not None:
+        frac = _override_number(frac, f"{where}.minus_fraction_of_design", lo=0, hi=1)
+    pbt = table.get("plus_by_thickness_mm")
+    if pbt is not None:
+        try:
+            arr = np.asarray(pbt, dtype=float)
+            ok = arr.ndim == 2 and arr.shape[1] == 2 and len(arr) >= 1 and np.all(np.diff(arr[:, 0]) > 0)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise RebarInputError(f"{where}.plus_by_thickness_mm: expected [[h_mm, plus_mm], ...] with increasing h")
+        pbt = tuple(tuple(float(x) for x in p) for p in arr)
+    if "lot_rule" not in table:
+        raise RebarInputError(f"{where}: missing 'lot_rule' (the name of a [lot_rules.*] table)")
+    return ItemTolerance(item=key, minus=nums["minus"], plus=nums["plus"], lot_rule=str(table["lot_rule"]),
+                         unit=unit, clause=str(table.get("clause", "")),
+                         interpretation=bool(table.get("interpretation", False)),
+                         confirmed=bool(table.get("confirmed", True)), note=str(table.get("note", "")),
+                         minus_fraction_of_design=frac, plus_by_thickness_mm=pbt)
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"[^a-z0-9]", "", name.lower())
+
+
+def list_presets() -> dict:
+    """The shipped presets: ``{name: path}``.
+
+    Examples
+    --------
+    >>> sorted(list_presets())
+    ['ACI117-318', 'EN13670-class1', 'GB50204-2015', 'custom']
+    """
+    out = {}
+    for p in sorted(PRESETS_DIR.glob("*.toml")):
+        try:
+            out[str(tomllib.loads(p.read_text(encoding="utf-8")).get("name", p.stem))] = p
+        except tomllib.TOMLDecodeError:  # a broken preset is reported when it is loaded by path
+            out[p.stem] = p
+    return out
+
+
+def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
+    """Read a tolerance preset by name (``"GB50204-2015"``, ``"ACI117-318"``, ``"EN13670-class1"``,
+    ``"custom"``; case and punctuation ignored) or from a TOML file path.
+
+    Examples
+    --------
+    >>> t = load_tolerances("gb50204_2015")
+    >>> t.standard, t.item("cover").text(), t.rule("cover").max_factor
+    ('GB 50204-2015', '±3 mm', 1.5)
+    """
+    if isinstance(name_or_path, Tolerances):
+        return name_or_path
+    text = str(name_or_path)
+    path = Path(text)
+    if not (path.suffix == ".toml" and path.is_file()):
+        presets = list_presets()
+        match = [p for n, p in presets.items() if _norm(n) in (_norm(text),) or _norm(p.stem) == _norm(text)]
+        if not match:
+            # A short name ("aci", "en13670", "gb") picks the one preset it starts.
+            match = [p for n, p in presets.items() if _norm(text) and _norm(n).startswith(_norm(text))]
+        if len(match) != 1:
+            if path.suffix == ".toml":
+                raise RebarInputError(f"{path}: tolerance file not found")
+            raise RebarInputError(f"tolerances: unknown preset {text!r}; expected one of "
+                                  f"{sorted(presets)} or a path to a .toml file")
+        path = match[0]
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RebarInputError(f"{path}: not a valid TOML tolerance file: {exc}") from None
+    where = str(path)
+    rules = {}
+    for name, table in (data.get("lot_rules") or {}).items():
+        unknown = set(table) - _RULE_KEYS
+        if unknown or "min_pass_ratio" not in table:
+            raise RebarInputError(f"{where}: lot_rules.{name}: needs min_pass_ratio; unknown keys {sorted(unknown)}")
+        mf = table.get("max_factor")
+        rules[name] = LotRule(
+            name, _override_number(table["min_pass_ratio"], f"{where}: lot_rules.{name}.min_pass_ratio", lo=0, hi=1),
+            None if mf is None else _override_number(mf, f"{where}: lot_rules.{name}.max_factor", lo=1, hi=100),
+            str(table.get("text", "")), str(table.get("clause", "")),
+            bool(table.get("interpretation", False)), bool(table.get("confirmed", True)))
+    items = {k: _item_from_table(k, v, f"{where}: items.{k}") for k, v in (data.get("items") or {}).items()}
+    missing = [k for k in _BASE_ITEMS if k not in items]
+    if missing:
+        raise RebarInputError(f"{where}: missing [items.*] tables for {missing}")
+    for k, v in items.items():
+        if v.lot_rule not in rules:
+            raise RebarInputError(f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table")
+    return Tolerances(name=str(data.get("name", path.stem)), standard=str(data.get("standard", path.stem)),
+                      edition=str(data.get("edition", "")), items=items, lot_rules=rules,
+                      title=str(data.get("title", "")), source=where)
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Acceptance:
+    """The judgement of one slab.
+
+    Attributes
+    ----------
+    checkpoints : DataFrame, one row per checkpoint (columns ``CHECKPOINT_COLUMNS``)
+    items : DataFrame, one row per item (columns ``ITEM_COLUMNS``)
+    bars : DataFrame ``capture, bar_id, layer, level, verdict`` (pass / fail / not checked / hidden)
+    verdict : "accepted" | "rejected" | "incomplete"
+    reasons : tuple of str, why the verdict is what it is
+    """
+
+    checkpoints: pd.DataFrame
+    items: pd.DataFrame
+    bars: pd.DataFrame
+    verdict: str
+    reasons: tuple
+    tolerances: Tolerances
+    results: tuple = field(default=(), repr=False)  # the result dicts judged, in order
+    missing_captures: tuple = ()  # (capture, reason)
+    notes: tuple = ()
+
+    @property
+    def accepted(self) -> bool:
+        return self.verdict == ACCEPTED
+
+    def to_dict(self) -> dict:
+        return {"verdict": self.verdict, "reasons": list(self.reasons),
+                "standard": self.tolerances.standard, "tolerances": self.tolerances.to_dict(),
+                "missing_captures": [{"capture": c, "reason": r} for c, r in self.missing_captures],
+                "notes": list(self.notes), "items": _records(self.items),
+                "checkpoints": _records(self.checkpoints)}
+
+    def to_json(self, **kw) -> str:
+        return json.dumps(self.to_dict(), indent=kw.pop("indent", 1), ensure_ascii=False, **kw)
+
+
+def _records(df) -> list:
+    out = []
+    for rec in df.to_dict(orient="records"):
+        out.append({k: (None if isinstance(v, float) and not math.isfinite(v) else
+                        v.item() if isinstance(v, np.generic) else v) for k, v in rec.items()})
+    return out
+
+
+def _result_dict(r, i: int) -> dict:
+    if hasattr(r, "to_dict") and hasattr(r, "capture"):
+        r = r.to_dict()
+    if not isinstance(r, dict) or "capture" not in r or "measurements" not in r:
+        raise RebarInputError(f"results[{i}]: expected an InspectionResult or its to_dict()/result.json "
+                              "(keys 'capture', 'measurements', 'bars', 'spacings', 'counts')")
+    return r
+
+
+def _table(r: dict, key: str) -> pd.DataFrame:
+    recs = r.get(key) or []
+    return pd.DataFrame.from_records(recs) if recs else pd.DataFrame()
+
+
+def _num(v):
+    if v is None or isinstance(v, bool):
+        return None
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _judge(deviation, minus, plus, max_factor):
+    """Status and flag of one deviation against (minus, plus); limits are inclusive."""
+    lo = -math.inf if minus is None else -minus
+    hi = math.inf if plus is None else plus
+    if lo - _EPS <= deviation <= hi + _EPS:
+        return WITHIN, ""
+    factor = 1.5 if max_factor is None else max_factor
+    # "Beyond 1.5x" only means something for a non-zero limit on the side that was exceeded.
+    side = hi if deviation > 0 else -lo
+    if side > 0 and abs(deviation) > factor * side + _EPS:
+        return BEYOND_MAX, FLAGS[BEYOND_MAX]
+    return BEYOND, FLAGS[BEYOND]
+
+
+def _size_text(d, system: str) -> str:
+    if d is None:
+        return "-"
+    return f"Φ{d:g}" if str(system).upper().startswith("GB") else f"{d:g} mm"
+
+
+def _labels(design: Design) -> dict:
+    out = {"cover": "Cover (formwork to lower bars)", "layer_distance": "Layer distance (lower to upper mesh)",
+           "top_cover": "Top cover (predicted from thickness)"}
+    for la in LAYERS:
+        for lv in LEVELS:
+            out[f"spacing_{la}_{lv}"] = f"Spacing, {la} mesh, {lv} bars"
+            out[f"bar_size_{la}_{lv}"] = f"Bar size, {la} mesh, {lv} bars"
+            out[f"bar_count_{la}_{lv}"] = f"Bar count, {la} mesh, {lv} bars"
+    return out
+
+
+def _item_order(design: Design) -> list:
+    keys = ["cover", "layer_distance"]
+    keys += [f"spacing_{la}_{lv}" for la in LAYERS for lv in LEVELS]
+    keys += [f"bar_size_{la}_{lv}" for la in LAYERS for lv in LEVELS]
+    keys += [f"bar_count_{la}_{lv}" for la in LAYERS for lv in LEVELS]
+    if design.thickness_mm is not None:
+        keys.append("top_cover")
+    return keys
+
+
+def _tol_key(item: str) -> str:
+    if item.startswith("bar_size_"):
+        return "bar_size"
+    if item.startswith("bar_count_"):
+        return "bar_count"
+    return item
+
+
+def _design_value(item: str, design: Design):
+    if item in ("cover", "layer_distance"):
+        return getattr(design, f"{item}_mm")
+    if item == "top_cover":
+        return design.top_cover_mm
+    kind, la, lv = item.rsplit("_", 2)
+    bs = design.lattice(la).level(lv)
+    return bs.spacing_mm if kind == "spacing" else bs.diameter_mm if kind == "bar_size" else None
+
+
+def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -> Acceptance:
+    """Judge every checkpoint of a slab's captures against the design and the lot rules.
+
+    Parameters
+    ----------
+    results : list of InspectionResult or result dicts (``result.json``), one per capture
+    design : Design
+    tolerances : Tolerances, preset name or TOML path; default: the preset named by
+        ``design.standard``. The design's ``[tolerances]`` overrides are applied on top.
+    missing_captures : capture names, or (name, reason) pairs, of captures of the slab that have
+        no result; they make the slab verdict "incomplete".
+
+    Returns
+    -------
+    Acceptance
+
+    Examples
+    --------
+    >>> from rebarlib.data import paper_design
+    >>> r = {"capture": "A", "measurements": {"cover": {"value_mm": 21.0, "status": "measured"},
+    ...      "layer_distance": {"value_mm": 91.0, "status": "measured"}}}
+    >>> acc = evaluate([r], paper_design())
+    >>> acc.items.set_index("item").loc[["cover", "layer_distance"], "verdict"].tolist()
+    ['pass', 'fail']
+    >>> acc.verdict
+    'rejected'
+    """
+    if not isinstance(design, Design):
+        raise RebarInputError(f"design: expected a rebarlib.Design, got {type(design).__name__}")
+    if isinstance(results, (dict,)) or hasattr(results, "capture"):
+        results = [results]
+    res = [_result_dict(r, i) for i, r in enumerate(results)]
+    tol = load_tolerances(design.standard if tolerances is None else tolerances)
+    tol = tol.with_overrides(design.tolerances, source=design.source or "design")
+    missing = tuple((m, "no inspection result") if isinstance(m, str) else (str(m[0]), str(m[1]))
+                    for m in missing_captures)
+    labels = _labels(design)
+    thickness = design.thickness_mm
+    rows = []
+
+    def add(item, capture, layer, level, what, design_value, measured, uncertainty=None, *,
+            status=None, reason="", deviation=None):
+        t = tol.item(_tol_key(item))
+        minus, plus = t.limits(design_value, thickness_mm=thickness)
+        rule = tol.rule(t.lot_rule)
+        flag = ""
+        if status is None:
+            if measured is None or design_value is None:
+                status = NOT_MEASURED
+            else:
+                deviation = measured - design_value if deviation is None else deviation
+                status, flag = _judge(deviation, minus, plus, rule.max_factor)
+        rows.append({"item": item, "label": labels[item], "capture": capture, "layer": layer, "level": level,
+                     "what": what, "unit": t.unit, "design_value": design_value, "measured_value": measured,
+                     "deviation": None if deviation is None else round(deviation, 3),
+                     "uncertainty": uncertainty, "tolerance": _tol_text(minus, plus, t.unit),
+                     "tol_minus": minus, "tol_plus": plus, "status": status, "flag": flag, "reason": reason})
+
+    bar_rows = []
+    for r in res:
+        cap = str(r["capture"])
+        meas = r.get("measurements") or {}
+        for item in ("cover", "layer_distance") + (("top_cover",) if thickness is not None else ()):
+            m = meas.get(item) or {}
+            ok = m.get("status", "measured") == "measured" and _num(m.get("value_mm")) is not None
+            add(item, cap, "", "", "capture", _design_value(item, design),
+                _num(m.get("value_mm")) if ok else None, _num(m.get("uncertainty_mm")),
+                reason="" if ok else (m.get("reason") or "not in the result"))
+        sp = _table(r, "spacings")
+        for la in LAYERS:
+            for lv in LEVELS:
+                item = f"spacing_{la}_{lv}"
+                dv = _design_value(item, design)
+                sub = sp[(sp["layer"] == la) & (sp["level"] == lv)] if len(sp) else sp
+                for rec in sub.to_dict(orient="records"):
+                    v = _num(rec.get("spacing_mm"))
+                    ok = rec.get("status", "measured") == "measured" and v is not None
+                    add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
+                        _num(rec.get("design_spacing_mm")) or dv, v if ok else None,
+                        reason="" if ok else (rec.get("reason") or "spacing not measured"))
+        bars = _table(r, "bars")
+        has_diam = len(bars) and ("nominal_mm" in bars.columns or "diameter_status" in bars.columns)
+        for la in LAYERS:
+            for lv in LEVELS:
+                item = f"bar_size_{la}_{lv}"
+                dv = _design_value(item, design)
+                sub = bars[(bars["layer"] == la) & (bars["level"] == lv)] if len(bars) else bars
+                for rec in sub.to_dict(orient="records"):
+                    what = f"bar {rec.get('bar_id')}"
+                    ddv = _num(rec.get("design_diameter_mm")) or dv
+                    hidden = bool(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
+                    if hidden:
+                        add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
+                            reason=rec.get("diameter_reason") or "hidden under crossing bars")
+                        continue
+                    nominal = _num(rec.get("nominal_mm"))
+                    ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
+                    reason = "" if ok else (rec.get("diameter_reason") or
+                                            ("diameter stage not run" if not has_diam else "diameter not measured"))
+                    add(item, cap, la, lv, what, ddv, nominal if ok else None,
+                        _num(rec.get("width_spread_mm")), reason=reason)
+        counts = _table(r, "counts")
+        for la in LAYERS:
+            for lv in LEVELS:
+                item = f"bar_count_{la}_{lv}"
+                sub = counts[(counts["layer"] == la) & (counts["level"] == lv)] if len(counts) else counts
+                if not len(sub):
+                    add(item, cap, la, lv, "count", None, None, reason="no bar count for this direction in the result")
+                    continue
+                rec = sub.iloc[0].to_dict()
+                found, expected = _num(rec.get("found")), _num(rec.get("expected"))
+                if found is None or expected is None:
+                    add(item, cap, la, lv, "count", expected, None, reason="bar count not measured")
+                    continue
+                n_miss = int(_num(rec.get("missing")) or max(expected - found, 0))
+                n_extra = int(_num(rec.get("extra")) or max(found - expected, 0))
+                t = tol.item("bar_count")
+                minus, plus = t.limits()
+                bad_miss = minus is not None and n_miss > minus
+                bad_extra = plus is not None and n_extra > plus
+                status, flag = (BEYOND, "*") if (bad_miss or bad_extra) else (WITHIN, "")
+                add(item, cap, la, lv, f"{n_miss} missing, {n_extra} extra", expected, found,
+                    status=status, deviation=found - expected)
+                rows[-1]["flag"] = flag
+        for rec in bars.to_dict(orient="records") if len(bars) else []:
+            bar_rows.append({"capture": cap, "bar_id": rec.get("bar_id"), "layer": rec.get("layer"),
+                             "level": rec.get("level")})
+
+    cp = pd.DataFrame(rows, columns=CHECKPOINT_COLUMNS)
+    items = pd.DataFrame([_item_row(k, cp[cp["item"] == k], design, tol, labels) for k in _item_order(design)],
+                         columns=ITEM_COLUMNS)
+    verdict, reasons = _slab_verdict(items, missing, n_results=len(res))
+    notes = []
+    if thickness is None:
+        notes.append("The design gives no slab thickness: the top cover is not checked.")
+    n_hidden = int((cp["status"] == EXCLUDED).sum())
+    if n_hidden:
+        notes.append(f"{n_hidden} bar(s) hidden under crossing bars are excluded from the bar-size check.")
+    return Acceptance(checkpoints=cp, items=items, bars=_bar_verdicts(bar_rows, cp), verdict=verdict,
+                      reasons=tuple(reasons), tolerances=tol, results=tuple(res),
+                      missing_captures=missing, notes=tuple(notes))
+
+
+def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, labels: dict) -> dict:
+    t = tol.item(_tol_key(key))
+    rule = tol.rule(t.lot_rule)
+    dv = _design_value(key, design)
+    counted = cp[cp["status"] != EXCLUDED]
+    measured = counted[counted["status"] != NOT_MEASURED]
+    n, n_meas = len(counted), len(measured)
+    passed = int((measured["status"] == WITHIN).sum())
+    n_beyond_max = int((measured["status"] == BEYOND_MAX).sum())
+    n_nm = n - n_meas
+    ratio = passed / n_meas if n_meas else None
+    worst = None
+    if n_meas:
+        dev = measured["deviation"].astype(float)
+        worst = float(dev.iloc[int(np.argmax(np.abs(dev.to_numpy())))])
+    reasons = sorted(set(r for r in counted.loc[counted["status"] == NOT_MEASURED, "reason"] if r))
+    if n_meas == 0:
+        verdict = "not measured"
+        reason = "; ".join(reasons) or "no checkpoints in the results"
+    else:
+        ok_ratio = passed >= rule.min_pass_ratio * n_meas - _EPS
+        ok_max = rule.max_factor is None or n_beyond_max == 0
+        verdict = PASS if ok_ratio and ok_max else FAIL
+        why = []
+        if not ok_ratio:
+            why.append(f"{passed}/{n_meas} within tolerance, below {rule.min_pass_ratio:.0%}")
+        if not ok_max:
+            why.append(f"{n_beyond_max} checkpoint(s) beyond {rule.max_factor:g}× the tolerance")
+        if n_nm:
+            why.append(f"{n_nm} of {n} checkpoints not measured ({'; '.join(reasons)})")
+            # A rule that needs every checkpoint to comply cannot pass on a part of them.
+            if verdict == PASS and rule.min_pass_ratio >= 1.0:
+                verdict = INCOMPLETE
+        reason = "; ".join(why)
+    if key.startswith("bar_size"):
+        design_text = _size_text(dv, design.bar_system)
+    elif key.startswith("bar_count"):
+        exp = counted["design_value"].dropna()
+        design_text = " / ".join(f"{v:g}" for v in exp) + " bars" if len(exp) else "as drawn"
+        dv = None
+    else:
+        design_text = f"{dv:g} mm"
+    labels_txt = t.labels
+    rule_txt = rule.text or f"≥ {rule.min_pass_ratio:.0%} within tolerance"
+    return {"item": key, "label": labels[key], "unit": t.unit, "design_value": dv, "design_text": design_text,
+            "tolerance": t.text(dv, thickness_mm=design.thickness_mm), "checkpoints": n, "measured": n_meas,
+            "passed": passed, "pass_ratio": None if ratio is None else round(ratio, 4),
+            "worst_deviation": None if worst is None else round(worst, 3), "beyond": n_meas - passed,
+            "beyond_max": n_beyond_max, "not_measured": n_nm, "excluded": len(cp) - n,
+            "verdict": verdict, "reason": reason,
+            "rule": rule_txt + (f" ({labels_txt})" if labels_txt else ""),
+            "clause": t.clause + (f" — {t.note}" if t.note else "")}
+
+
+def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):
+    reasons = []
+    failed = items[items["verdict"] == FAIL]
+    open_ = items[items["verdict"].isin(["not measured", INCOMPLETE])]
+    for rec in failed.itertuples():
+        reasons.append(f"{rec.label}: fails ({rec.reason})")
+    for rec in open_.itertuples():
+        reasons.append(f"{rec.label}: {rec.verdict} ({rec.reason})")
+    for cap, why in missing:
+        reasons.append(f"capture {cap}: {why}")
+    if n_results == 0:
+        reasons.append("no inspection results")
+    if len(failed):
+        return REJECTED, reasons
+    if len(open_) or missing or n_results == 0:
+        return SLAB_INCOMPLETE, reasons
+    return ACCEPTED, reasons
+
+
+def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
+    """pass / fail / not checked / hidden per bar, from the checkpoints that name it."""
+    out = []
+    per_bar: dict = {}
+    for rec in cp.itertuples():
+        what = str(rec.what)
+        if what.startswith("bar "):
+            ids = [what[4:]]
+        elif what.startswith("bars "):
+            ids = what[5:].split("-")
+        else:
+            continue
+        for b in ids:
+            per_bar.setdefault((rec.capture, b), []).append(rec.status)
+    for b in bar_rows:
+        st = per_bar.get((b["capture"], str(b["bar_id"])), [])
+        if any(s in (BEYOND, BEYOND_MAX) for s in st):
+            v = "fail"
+        elif EXCLUDED in st:
+            v = "hidden"
+        elif WITHIN in st:
+            v = "pass"
+        else:
+            v = "not checked"
+        out.append({**b, "verdict": v})
+    return pd.DataFrame(out, columns=["capture", "bar_id", "layer", "level", "verdict"])
