@@ -1,0 +1,711 @@
+"""Nominal bar diameter from the rebar mask, made metric with each bar's axis (method.md Stage 3).
+
+Each bar's axis (from the point cloud) defines the imaginary plane γ: it contains the axis and
+faces the camera (normal OA, A the foot of the perpendicular from the camera centre O to the
+axis). A pixel on the bar's silhouette edge is back-projected as a ray and met with γ, so widths
+come out in millimetres without using the (often missing or wrong) depth at the bar's edges.
+
+Two methods:
+
+- ``"paper"``: the paper's procedure (§3.3): parallelogram regions at detect-points, boundary
+  pixels, D = min distance between the two sides, a vote in ±1 mm bins around the nominal sizes.
+- ``"refined"`` (default): many cross-sections per bar; both edges found per section at sub-pixel
+  precision on the mask profile; sections at crossings, under a nearer bar, at the image border
+  or in deep shadow are dropped; the median width is snapped to the observed (rib-envelope)
+  width of a standard size with a confidence; weak evidence gives "not measured".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._barsizes import bar_system, observed_width_mm, snap_diameter
+from ._camera import Intrinsics, project, ray_directions
+from ._checks import RebarInputError
+
+__all__ = ["BarPlane", "imaginary_plane", "intersect_rays_plane", "cross_section_direction",
+           "diameter_region", "pixels_in_region", "boundary_pixels", "bars_from_truth",
+           "measure_diameters", "BAR_COLUMNS", "DIAMETER_COLUMNS"]
+
+#: Columns the bars table must have (camera frame axis end points, mm).
+BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_mm",
+               "end_x_mm", "end_y_mm", "end_z_mm")
+#: Columns of the table :func:`measure_diameters` returns (one row per bar, merge on bar_id).
+DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
+                    "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
+                    "matches_design", "hidden", "occluded_fraction")
+
+MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry helpers
+
+
+@dataclass(frozen=True)
+class BarPlane:
+    """The imaginary plane γ of one bar: ``normal · x = offset_mm`` (camera frame, mm).
+
+    Attributes
+    ----------
+    normal : (3,) float, unit vector from the camera centre O towards A
+    offset_mm : float, |OA|, the distance from O to the axis
+    foot_mm : (3,) float, A, the foot of the perpendicular from O to the axis
+    direction : (3,) float, unit axis direction v
+    across : (3,) float, unit vector in γ perpendicular to the axis (the cross-section direction)
+    """
+
+    normal: np.ndarray
+    offset_mm: float
+    foot_mm: np.ndarray
+    direction: np.ndarray
+    across: np.ndarray
+
+    def coordinates(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """(along, across) coordinates in mm of points in γ, measured from A."""
+        d = np.asarray(points, float).reshape(-1, 3) - self.foot_mm
+        return d @ self.direction, d @ self.across
+
+
+def imaginary_plane(start_mm, end_mm) -> BarPlane:
+    """Plane γ through the bar axis ``start_mm``-``end_mm`` whose normal is OA (method.md 3.3).
+
+    Parameters
+    ----------
+    start_mm, end_mm : (3,) float, two points of the axis in the camera frame (mm)
+
+    Returns
+    -------
+    BarPlane with ``normal · x = offset_mm``, i.e. x_A·x + y_A·y + z_A·z − |A|² = 0 scaled by 1/|A|.
+
+    Examples
+    --------
+    >>> g = imaginary_plane([-100.0, 50.0, 500.0], [100.0, 50.0, 500.0])
+    >>> g.foot_mm.tolist(), round(g.offset_mm, 3)
+    ([0.0, 50.0, 500.0], 502.494)
+    >>> bool(abs(g.normal @ [1.0, 0.0, 0.0]) < 1e-12)  # the axis lies in γ
+    True
+    """
+    p0 = np.asarray(start_mm, float).reshape(3)
+    p1 = np.asarray(end_mm, float).reshape(3)
+    if not (np.all(np.isfinite(p0)) and np.all(np.isfinite(p1))):
+        raise RebarInputError(f"bar axis: end points must be finite, got {p0.tolist()} and {p1.tolist()}")
+    length = np.linalg.norm(p1 - p0)
+    if length < 1e-9:
+        raise RebarInputError(f"bar axis: start and end points coincide at {p0.tolist()}")
+    v = (p1 - p0) / length
+    a = p0 - (p0 @ v) * v
+    dist = float(np.linalg.norm(a))
+    if dist < 1e-6:
+        raise RebarInputError("bar axis: passes through the camera centre, plane γ is undefined")
+    n = a / dist
+    w = np.cross(v, n)
+    return BarPlane(n, dist, a, v, w / np.linalg.norm(w))
+
+
+def intersect_rays_plane(pixels, intrinsics: Intrinsics, plane: BarPlane) -> np.ndarray:
+    """Points where the rays through ``pixels`` meet ``plane`` (camera frame, mm).
+
+    Parameters
+    ----------
+    pixels : (N, 2) float, (u, v) px
+    intrinsics : Intrinsics
+    plane : BarPlane (or anything with ``normal`` and ``offset_mm``)
+
+    Returns
+    -------
+    (N, 3) float, mm; NaN for rays parallel to the plane or meeting it behind the camera.
+
+    Examples
+    --------
+    >>> from rebarlib import Intrinsics
+    >>> K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    >>> g = imaginary_plane([-100.0, 0.0, 500.0], [100.0, 0.0, 500.0])
+    >>> intersect_rays_plane([[420.0, 240.0]], K, g).tolist()
+    [[100.0, 0.0, 500.0]]
+    """
+    d = ray_directions(intrinsics, np.asarray(pixels, float).reshape(-1, 2))
+    den = d @ plane.normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = plane.offset_mm / den
+    lam = np.where((np.abs(den) > 1e-12) & (lam > 0), lam, np.nan)
+    return d * lam[:, None]
+
+
+def cross_section_direction(point_mm, direction, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """Image directions of the cross-section and of the axis at the axis point ``point_mm``.
+
+    The cross-section direction is that of p → q with q = p + (p − O) × v (method.md 3.3, step 4);
+    the axis direction that of p → p + v.
+
+    Returns
+    -------
+    across_px, along_px : (2,) float, unit vectors in the image (u, v)
+
+    Examples
+    --------
+    >>> from rebarlib import Intrinsics
+    >>> K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    >>> across, along = cross_section_direction([0.0, 0.0, 500.0], [1.0, 0.0, 0.0], K)
+    >>> np.abs(across).round(6).tolist(), along.round(6).tolist()
+    ([0.0, 1.0], [1.0, 0.0])
+    """
+    p = np.asarray(point_mm, float).reshape(3)
+    v = np.asarray(direction, float).reshape(3)
+    v = v / np.linalg.norm(v)
+    c = np.cross(p, v)
+    # a short step keeps q in front of the camera; only the image direction matters
+    step = 0.01 * np.linalg.norm(p)
+    uv = project(np.vstack((p, p + c / np.linalg.norm(c) * step, p + v * step)), intrinsics)
+    across = uv[1] - uv[0]
+    along = uv[2] - uv[0]
+    return across / np.linalg.norm(across), along / np.linalg.norm(along)
+
+
+def diameter_region(center_px, across_px, along_px, *, long_px: float, short_px: float = 6.0) -> np.ndarray:
+    """Corners of the parallelogram diameter-calculation region (method.md 3.3, step 5).
+
+    Centred on ``center_px``; two sides of length ``long_px`` run along the cross-section
+    direction ``across_px``, the other two (``short_px``) along the projected axis ``along_px``.
+
+    Returns
+    -------
+    (4, 2) float, corners (u, v) in order around the parallelogram
+
+    Examples
+    --------
+    >>> diameter_region([10.0, 20.0], [0.0, 1.0], [1.0, 0.0], long_px=8, short_px=6).tolist()
+    [[7.0, 16.0], [13.0, 16.0], [13.0, 24.0], [7.0, 24.0]]
+    """
+    c = np.asarray(center_px, float).reshape(2)
+    a = np.asarray(across_px, float).reshape(2)
+    b = np.asarray(along_px, float).reshape(2)
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    ha, hb = a * long_px / 2, b * short_px / 2
+    return np.array([c - ha - hb, c - ha + hb, c + ha + hb, c + ha - hb])
+
+
+def pixels_in_region(corners, shape) -> np.ndarray:
+    """Integer pixels (u, v) whose centres lie inside the parallelogram ``corners`` (from
+    :func:`diameter_region`), clipped to an image of ``shape`` (H, W).
+
+    Examples
+    --------
+    >>> corners = diameter_region([10.0, 20.0], [0.0, 1.0], [1.0, 0.0], long_px=4, short_px=2)
+    >>> pixels_in_region(corners, (40, 40)).tolist()
+    [[9, 18], [10, 18], [11, 18], [9, 19], [10, 19], [11, 19], [9, 20], [10, 20], [11, 20], [9, 21], [10, 21], [11, 21], [9, 22], [10, 22], [11, 22]]
+    """
+    q = np.asarray(corners, float).reshape(4, 2)
+    c = q.mean(axis=0)
+    e1, e2 = q[1] - q[0], q[3] - q[0]  # along-axis side, cross-section side
+    lo = np.floor(q.min(axis=0)).astype(int)
+    hi = np.ceil(q.max(axis=0)).astype(int)
+    lo = np.maximum(lo, 0)
+    hi = np.minimum(hi, [shape[1] - 1, shape[0] - 1])
+    if np.any(hi < lo):
+        return np.zeros((0, 2), int)
+    vv, uu = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+    d = np.column_stack((uu.ravel(), vv.ravel())) - c
+    coef = np.linalg.solve(np.column_stack((e1, e2)), d.T).T  # in units of the side lengths
+    inside = np.all(np.abs(coef) <= 0.5 + 1e-9, axis=1)
+    return np.column_stack((uu.ravel(), vv.ravel()))[inside]
+
+
+def boundary_pixels(mask) -> np.ndarray:
+    """Rebar pixels with at least one background 4-neighbour (image border counts as background).
+
+    Examples
+    --------
+    >>> m = np.zeros((5, 5), bool); m[1:4, 1:4] = True
+    >>> int(boundary_pixels(m).sum()), bool(boundary_pixels(m)[2, 2])
+    (8, False)
+    """
+    m = np.asarray(mask, bool)
+    p = np.pad(m, 1)
+    inner = p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
+    return m & ~inner
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+
+
+def bars_from_truth(truth: dict, *, visible_only: bool = True):
+    """Bars table (:data:`BAR_COLUMNS`) from a synthetic capture's ground truth.
+
+    The axis end points are the true axis over the visible extent (``visible_start_mm`` /
+    ``visible_end_mm``), so later stages can be developed and taught on exact axes.
+
+    Examples
+    --------
+    >>> truth = {"bars": [{"id": 3, "layer": "lower", "level": "top", "visible": True,
+    ...          "visible_start_mm": [0, 0, 500], "visible_end_mm": [0, 300, 500]}]}
+    >>> bars_from_truth(truth)[["bar_id", "layer", "end_y_mm"]].values.tolist()
+    [[3, 'lower', 300.0]]
+    """
+    import pandas as pd
+
+    if not isinstance(truth, dict) or "bars" not in truth:
+        raise RebarInputError("truth: expected a synthetic capture's truth dict with a 'bars' list")
+    rows = []
+    for b in truth["bars"]:
+        if visible_only and not b.get("visible", True):
+            continue
+        s, e = b["visible_start_mm"], b["visible_end_mm"]
+        rows.append({"bar_id": int(b["id"]), "layer": b["layer"], "level": b["level"],
+                     "start_x_mm": float(s[0]), "start_y_mm": float(s[1]), "start_z_mm": float(s[2]),
+                     "end_x_mm": float(e[0]), "end_y_mm": float(e[1]), "end_z_mm": float(e[2])})
+    return pd.DataFrame(rows, columns=list(BAR_COLUMNS))
+
+
+def _check_inputs(capture, bars, mask, method):
+    if method not in ("refined", "paper"):
+        raise RebarInputError(f"method: expected 'refined' or 'paper', got {method!r}")
+    missing = [c for c in BAR_COLUMNS if c not in getattr(bars, "columns", ())]
+    if missing:
+        raise RebarInputError(f"bars: expected a DataFrame with columns {list(BAR_COLUMNS)}; missing {missing}")
+    m = np.asarray(mask)
+    h, w = capture.intrinsics.height, capture.intrinsics.width
+    if m.shape != (h, w):
+        raise RebarInputError(f"mask: expected shape ({h}, {w}) like the capture, got {m.shape}")
+    return m.astype(bool)
+
+
+# --------------------------------------------------------------------------------------------
+# Per-bar geometry shared by both methods
+
+
+@dataclass
+class _Bar:
+    bar_id: int
+    layer: str
+    level: str
+    p0: np.ndarray
+    p1: np.ndarray
+    plane: BarPlane
+    length_mm: float
+    design_mm: float
+    expected_mm: float  # observed width expected from the design size (window sizing)
+
+
+def _prepare(bars, design, system, deformed, default_expected_mm):
+    out = []
+    for r in bars.itertuples(index=False):
+        p0 = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm], float)
+        p1 = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm], float)
+        design_mm = math.nan
+        if design is not None and r.layer in ("lower", "upper") and r.level in ("bottom", "top"):
+            design_mm = float(design.lattice(r.layer).level(r.level).diameter_mm)
+        expected = (observed_width_mm(design_mm, system=system, deformed=deformed)
+                    if math.isfinite(design_mm) else default_expected_mm)
+        plane = imaginary_plane(p0, p1)
+        out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
+                        float(np.linalg.norm(p1 - p0)), design_mm, expected))
+    return out
+
+
+def _stations(bar: _Bar, intr: Intrinsics, step_px: float, max_n: int) -> np.ndarray:
+    """Points on the axis, evenly spread over its extent, about ``step_px`` apart in the image."""
+    uv = project(np.vstack((bar.p0, bar.p1)), intr)
+    length_px = float(np.linalg.norm(uv[1] - uv[0]))
+    n = int(np.clip(length_px / step_px, 1, max_n))
+    s = (np.arange(n) + 0.5) / n * bar.length_mm
+    return bar.p0 + s[:, None] * bar.plane.direction
+
+
+@dataclass
+class _Footprints:
+    """Where each bar is expected in the image: |across| <= half_mm in its γ, along in range."""
+
+    normal: np.ndarray  # (B, 3)
+    offset: np.ndarray  # (B,)
+    p0: np.ndarray  # (B, 3)
+    along: np.ndarray  # (B, 3)
+    across: np.ndarray  # (B, 3)
+    s_lo: np.ndarray
+    s_hi: np.ndarray
+    half_mm: np.ndarray
+    bbox: np.ndarray  # (B, 4) u0, v0, u1, v1 of the footprint in the image
+
+
+def _footprints(prepared, intr, margin_rel=0.2, margin_px=1.5):
+    B = len(prepared)
+    fp = _Footprints(np.zeros((B, 3)), np.zeros(B), np.zeros((B, 3)), np.zeros((B, 3)), np.zeros((B, 3)),
+                     np.zeros(B), np.zeros(B), np.zeros(B), np.zeros((B, 4)))
+    for i, b in enumerate(prepared):
+        z = max(min(b.p0[2], b.p1[2]), 1.0)
+        # the expected width with room for a bar one size larger and for mask edges a pixel off
+        half = b.expected_mm / 2 * (1 + margin_rel) + margin_px * z / intr.fx
+        # bars go on beyond the extent where they were seen (hidden parts, ties at the ends)
+        ext = b.expected_mm
+        fp.normal[i], fp.offset[i], fp.p0[i] = b.plane.normal, b.plane.offset_mm, b.p0
+        fp.along[i], fp.across[i] = b.plane.direction, b.plane.across
+        fp.s_lo[i], fp.s_hi[i], fp.half_mm[i] = -ext, b.length_mm + ext, half
+        corners = np.array([b.p0 - ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)]
+                           + [b.p1 + ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)])
+        corners = corners[corners[:, 2] > 1.0]
+        uv = project(corners, intr) if len(corners) else np.zeros((1, 2))
+        fp.bbox[i] = [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()]
+    return fp
+
+
+def _hits_footprints(points_mm, fp: _Footprints, which: np.ndarray):
+    """For camera-frame points, whether the ray through each meets the footprint of each bar in
+    ``which``, and whether that bar is nearer along the ray than the point. Returns (N, C) bools."""
+    d = points_mm / points_mm[:, 2:3]  # rays with z = 1, so the ray parameter is the depth
+    n = fp.normal[which]
+    den = d @ n.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = fp.offset[which][None, :] / den
+    x = lam[:, :, None] * d[:, None, :] - fp.p0[which][None, :, :]
+    s = np.einsum("nck,ck->nc", x, fp.along[which])
+    t = np.einsum("nck,ck->nc", x, fp.across[which])
+    inside = (lam > 0) & (np.abs(t) <= fp.half_mm[which]) & (s >= fp.s_lo[which]) & (s <= fp.s_hi[which])
+    nearer = inside & (lam < points_mm[:, 2:3])
+    return inside, nearer
+
+
+def _candidates(i, fp: _Footprints, window_bbox):
+    u0, v0, u1, v1 = window_bbox
+    b = fp.bbox
+    hit = (b[:, 0] <= u1) & (b[:, 2] >= u0) & (b[:, 1] <= v1) & (b[:, 3] >= v0)
+    hit[i] = False
+    return np.flatnonzero(hit)
+
+
+def _tangent_correct(width_mm, distance_mm):
+    # Silhouette rays are tangent to the cylinder: they meet γ at ±r·D/√(D² − r²), slightly
+    # wider than the bar. Invert for the radius (exact for a circular cross-section).
+    half = np.asarray(width_mm, float) / 2
+    return 2 * half * distance_mm / np.sqrt(distance_mm ** 2 + half ** 2)
+
+
+# --------------------------------------------------------------------------------------------
+# Refined method
+
+
+@dataclass(frozen=True)
+class _RefinedParams:
+    step_px: float = 3.0  # cross-sections about this far apart along the bar (image)
+    max_sections: int = 200
+    window: float = 1.0  # half-window across the bar, in expected widths (2x the width in all)
+    sample_px: float = 0.5  # profile sampling step
+    min_sections: int = 8
+    max_spread_rel: float = 0.12  # robust spread above this fraction of the width: too scattered
+    outlier_k: float = 3.0
+    shadow_ratio: float = 0.5  # section centre darker than this x the bar's median: in shadow
+    hidden_fraction: float = 0.5
+    min_confidence: float = 0.6  # below: ambiguous between two sizes, not measured
+    quantisation_px: float = 0.4  # std. uncertainty floor of a width from pixel edges
+    shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
+    behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
+
+
+def _remap(img, u, v):
+    import cv2
+
+    return cv2.remap(img, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams):
+    H, W = maskf.shape
+    pl = bar.plane
+    st = _stations(bar, intr, prm.step_px, prm.max_sections)
+    M = len(st)
+    half_win = prm.window * bar.expected_mm
+    z_near = max(float(st[:, 2].min()), 1.0)
+    K = int(math.ceil(2 * half_win * intr.fx / z_near / prm.sample_px)) + 1
+    t = np.linspace(-half_win, half_win, K)
+    X = st[:, None, :] + t[None, :, None] * pl.across  # (M, K, 3) points of γ
+    z = X[..., 2]
+    u = intr.fx * X[..., 0] / z + intr.cx
+    v = intr.fy * X[..., 1] / z + intr.cy
+    inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
+    in_img = inside_px[:, K // 2]  # the station itself is in the image
+    info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
+            "no_edge": 0, "shadow": 0, "outlier": 0}
+    widths = np.full(M, np.nan)
+    cut = np.zeros(M, bool)
+    ok = in_img.copy()
+
+    # occlusion by a nearer bar across the expected width at each station (for "hidden")
+    win_uv = np.column_stack((u[in_img].ravel(), v[in_img].ravel())) if in_img.any() else np.zeros((1, 2))
+    cand = _candidates(i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(), win_uv[:, 1].max()])
+    probe_t = np.array([-0.5, -0.25, 0.0, 0.25, 0.5]) * bar.expected_mm
+    occluded = np.zeros(M, bool)
+    if len(cand):
+        P = (st[:, None, :] + probe_t[None, :, None] * pl.across).reshape(-1, 3)
+        _, nearer = _hits_footprints(P, fp, cand)
+        occluded = nearer.any(axis=1).reshape(M, -1).any(axis=1)
+    occluded &= in_img
+    info["occluded"] = int(occluded.sum())
+
+    m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
+    b = m >= 0.5
+    behind = np.zeros_like(b)
+    if depth is not None:
+        # Mask pixels whose depth lies well behind this bar belong to a bar under it that peeks
+        # out beside it: the mask alone cannot separate the two, the point cloud can.
+        import cv2
+
+        dz = cv2.remap(depth, u.astype(np.float32), v.astype(np.float32), cv2.INTER_NEAREST,
+                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        # no depth counts too: beside a bar the projector's shadow often hides the bar behind
+        behind = b & ((dz <= 0) | (dz > z + bar.expected_mm / 2 + prm.behind_mm))
+    kc = K // 2
+    idx = np.arange(K)
+    # seed: the bar pixel nearest the expected axis within a third of the expected width
+    near = np.abs(t) <= bar.expected_mm / 3
+    dist = np.where(b & ~behind & near[None, :], np.abs(idx - kc)[None, :], K + 1)
+    seed = dist.argmin(axis=1)
+    has_seed = dist.min(axis=1) <= K
+
+    def run_ends(fg):
+        lo = np.where(~fg & (idx[None, :] < seed[:, None]), idx[None, :], -1).max(axis=1)
+        hi = np.where(~fg & (idx[None, :] > seed[:, None]), idx[None, :], K).min(axis=1)
+        return lo, hi
+
+    left, right = run_ends(b)
+    # Only where the mask run reaches beyond this bar's footprint is it cut at the depth step:
+    # a lone deep pixel at an ordinary edge is a flying pixel, not another bar.
+    left2, right2 = run_ends(b & ~behind)
+    too_far_lo = (left < 0) | (t[np.clip(left, 0, K - 1)] < -fp.half_mm[i])
+    too_far_hi = (right >= K) | (t[np.clip(right, 0, K - 1)] > fp.half_mm[i])
+    left = np.where(too_far_lo, left2, left)
+    right = np.where(too_far_hi, right2, right)
+    edged = has_seed & (left >= 0) & (right < K)
+    # an "edge" where the profile leaves the image is the border, not the bar's edge
+    rr = np.arange(M)
+    edged &= inside_px[rr, np.clip(left, 0, K - 1)] & inside_px[rr, np.clip(right, 0, K - 1)]
+    info["no_edge"] = int((ok & ~edged).sum())
+    ok &= edged
+    rows = np.flatnonzero(ok)
+    if len(rows):
+        la, ra = left[rows], right[rows]
+        ma0, ma1 = m[rows, la], m[rows, la + 1]
+        mb0, mb1 = m[rows, ra - 1], m[rows, ra]
+        dt = t[1] - t[0]
+        # sub-pixel: where the interpolated mask profile crosses 0.5
+        t_lo = t[la] + np.clip((0.5 - ma0) / np.maximum(ma1 - ma0, 1e-9), 0, 1) * dt
+        t_hi = t[ra - 1] + np.clip((mb0 - 0.5) / np.maximum(mb0 - mb1, 1e-9), 0, 1) * dt
+        # an edge cut at a depth step lies half-way between the samples either side of it
+        cut_lo, cut_hi = behind[rows, la], behind[rows, ra]
+        t_lo = np.where(cut_lo, t[la] + dt / 2, t_lo)
+        t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
+        cut[rows] = cut_lo | cut_hi
+        widths[rows] = t_hi - t_lo
+        # An edge is trusted unless it may belong to another bar: inside the footprint of a
+        # nearer bar (ours is occluded there), or beyond our own expected width and inside a
+        # farther bar's footprint (our run merged with the bar behind).
+        if len(cand):
+            px_mm = st[rows, 2] / intr.fx
+            tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm))
+            P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
+            inside, nearer = _hits_footprints(P, fp, cand)
+            beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
+            bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1).any(axis=1)
+            info["crossing"] = int(bad.sum())
+            ok[rows[bad]] = False
+        # shadow: the middle of the section much darker than the bar usually is
+        if gray is not None:
+            rows = np.flatnonzero(ok)
+            if len(rows) >= prm.min_sections:
+                uvc = project(st[rows], intr)
+                lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
+                dark = lum < prm.shadow_ratio * np.median(lum)
+                if (len(rows) - dark.sum()) >= prm.min_sections:
+                    info["shadow"] = int(dark.sum())
+                    ok[rows[dark]] = False
+    # edges from the mask are sharper than edges at depth steps: use the latter only if needed
+    if (ok & ~cut).sum() >= prm.min_sections:
+        info["depth_cut"] = int((ok & cut).sum())
+        ok &= ~cut
+    w = _tangent_correct(widths[ok], pl.offset_mm)
+    if len(w) >= 3:
+        med = np.median(w)
+        mad = 1.4826 * np.median(np.abs(w - med))
+        px_mm = float(np.median(st[ok, 2])) / intr.fx
+        keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
+        info["outlier"] = int((~keep).sum())
+        w = w[keep]
+    info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
+    info["lum"] = math.nan
+    if gray is not None and in_img.any():
+        uvc = project(st[in_img], intr)
+        info["lum"] = float(np.median(_remap(gray, uvc[:, 0:1], uvc[:, 1:2])))
+    return w, occluded, in_img, info
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's method
+
+
+def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int):
+    pl = bar.plane
+    H, W = mask.shape
+    st = _stations(bar, intr, 1.0, n_points)
+    design = bar.design_mm if math.isfinite(bar.design_mm) else bar.expected_mm
+    Ds = []
+    for p in st:
+        c = project(p[None, :], intr)[0]
+        if not (0 <= c[0] <= W - 1 and 0 <= c[1] <= H - 1):
+            continue
+        across, along = cross_section_direction(p, pl.direction, intr)
+        long_px = 2 * design * intr.fx / p[2]
+        region = pixels_in_region(diameter_region(c, across, along, long_px=long_px, short_px=6.0), mask.shape)
+        if len(region) == 0:
+            continue
+        bp = region[edge[region[:, 1], region[:, 0]]]
+        if len(bp) < 2:
+            continue
+        side = along[0] * (bp[:, 1] - c[1]) - along[1] * (bp[:, 0] - c[0])
+        pts = intersect_rays_plane(bp, intr, pl)
+        a, b = pts[side > 0], pts[side < 0]
+        if len(a) == 0 or len(b) == 0:
+            continue
+        d = np.sqrt(((a[:, None, :] - b[None, :, :]) ** 2).sum(-1))
+        Ds.append(float(np.nanmin(d)))
+    return np.array(Ds)
+
+
+def _paper_vote(Ds, system):
+    sizes = np.array(bar_system(system).sizes_mm)
+    if len(Ds) == 0:
+        return math.nan, 0.0
+    # bins of ±1 mm around the nominal sizes (8 ↔ 7–9, 10 ↔ 9–11, ...); outside every bin: no vote
+    k = np.abs(Ds[:, None] - sizes[None, :]).argmin(axis=1)
+    inbin = np.abs(Ds - sizes[k]) <= 1.0
+    if not inbin.any():
+        return math.nan, 0.0
+    counts = np.bincount(k[inbin], minlength=len(sizes))
+    win = int(counts.argmax())
+    return float(sizes[win]), float(counts[win] / len(Ds))
+
+
+# --------------------------------------------------------------------------------------------
+# Entry point
+
+
+def measure_diameters(capture, bars, mask, *, design=None, method: str = "refined",
+                      system: str | None = None, deformed: bool = True, use_depth: bool = True,
+                      paper_points: int = 20, rng=None):
+    """Nominal diameter of every bar from the rebar mask and the bar axes.
+
+    Parameters
+    ----------
+    capture : Capture, for the intrinsics and the colour image (shadow check)
+    bars : pandas.DataFrame with :data:`BAR_COLUMNS`: axis end points over the visible extent in
+        the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"
+    mask : (H, W) bool, rebar pixels (any bar)
+    design : Design or None; gives each bar's design size (window size, ``matches_design``)
+    method : "refined" (default) or "paper" (method.md Stage 3, faithfully)
+    system : bar-size standard for snapping; default the design's ``bar_system`` or "GB1499.2"
+    deformed : snap against the rib envelope (deformed bars) or the nominal size (smooth bars)
+    use_depth : refined: separate a bar from a bar peeking out behind it by the depth image
+        where the mask runs on (edges at such depth steps are used only when too few sections
+        have two clean mask edges)
+    paper_points : detect-points per bar for ``method="paper"``
+    rng : unused (the measurement is deterministic); accepted for the common signature
+
+    Returns
+    -------
+    pandas.DataFrame, one row per bar, columns :data:`DIAMETER_COLUMNS`: ``width_median_mm`` and
+    ``width_spread_mm`` (robust σ, IQR/1.349) of the widths over ``n_sections`` cross-sections,
+    ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
+    "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
+    (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
+    ``occluded_fraction``.
+
+    Examples
+    --------
+    >>> from rebarlib.synth import synth_capture, SensorModel
+    >>> from rebarlib.data import paper_design
+    >>> from rebarlib import GEMINI2
+    >>> cap = synth_capture(paper_design(), height_mm=400, tilt_deg=0, sensor=SensorModel.ideal(),
+    ...                     intrinsics=GEMINI2.scaled(0.5), seed=1)
+    >>> bars = bars_from_truth(cap.truth)
+    >>> table = measure_diameters(cap, bars, cap.labels > 0, design=paper_design())
+    >>> upper = table.merge(bars, on="bar_id").query("layer == 'upper' and diameter_status == 'measured'")
+    >>> sorted(set(upper.nominal_mm))
+    [12.0]
+    """
+    import pandas as pd
+
+    m = _check_inputs(capture, bars, mask, method)
+    if system is None:
+        system = getattr(design, "bar_system", None) or "GB1499.2"
+    bar_system(system)  # validates the name
+    intr = capture.intrinsics
+    prepared = _prepare(bars, design, system, deformed,
+                        default_expected_mm=observed_width_mm(20.0, system="GB1499.2", deformed=deformed))
+    fp = _footprints(prepared, intr)
+    prm = _RefinedParams()
+    maskf = m.astype(np.float32)
+    gray = capture.color.astype(np.float32).mean(axis=2) if capture.color is not None else None
+    depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
+    edge = boundary_pixels(m) if method == "paper" else None
+    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm) for i, bar in enumerate(prepared)]
+    lums = np.array([r[3]["lum"] for r in results], float)
+    ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
+    rows = []
+    for i, bar in enumerate(prepared):
+        w, occluded, in_img, info = results[i]
+        # a bar in shadow over its whole length: its mask edges are the least reliable there is,
+        # so its size is never reported with high confidence
+        in_shadow = bool(np.isfinite(ref_lum) and info["lum"] < prm.shadow_ratio * ref_lum)
+        n_in = int(in_img.sum())
+        occ_frac = float(occluded.sum() / n_in) if n_in else 0.0
+        row = {"bar_id": bar.bar_id, "width_median_mm": math.nan, "width_spread_mm": math.nan,
+               "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
+               "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
+               "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3)}
+        if method == "paper":
+            w = _paper_bar(i, bar, m, edge, intr, paper_points)
+        if len(w):
+            q1, med, q3 = np.percentile(w, [25, 50, 75])
+            row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
+        few = len(w) < (1 if method == "paper" else prm.min_sections)
+        if n_in == 0:
+            row["diameter_reason"] = "bar axis is outside the image"
+        elif few and occ_frac >= prm.hidden_fraction:
+            row.update(diameter_status=HIDDEN, hidden=True,
+                       diameter_reason=f"hidden: {occ_frac:.0%} of the bar lies under nearer bars")
+        elif few:
+            why = max(("crossing", "no_edge", "border", "shadow", "outlier"), key=lambda k: info[k])
+            text = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",
+                    "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths"}
+            row["diameter_reason"] = (f"too few clean cross-sections ({len(w)} of {info['stations']}; "
+                                      f"most lost {text[why]})")
+        elif method == "paper":
+            nominal, share = _paper_vote(w, system)
+            if math.isfinite(nominal):
+                row.update(nominal_mm=nominal, confidence=round(share, 3), diameter_status=MEASURED)
+            else:
+                row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
+        else:
+            spread, px_mm = row["width_spread_mm"], info["px_mm"]
+            sigma = math.hypot(1.2533 * spread / math.sqrt(len(w)), prm.quantisation_px * px_mm)
+            nominal, conf = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma)
+            if spread > prm.max_spread_rel * med:
+                row["diameter_reason"] = f"widths too scattered (robust σ {spread:.1f} mm over {len(w)} sections)"
+            elif not math.isfinite(nominal):
+                row["diameter_reason"] = f"width {med:.1f} mm matches no {system} size"
+            elif conf < prm.min_confidence:
+                row.update(confidence=conf)
+                row["diameter_reason"] = (f"ambiguous: width {med:.1f} mm lies between two {system} sizes "
+                                          f"(confidence {conf:.2f})")
+            else:
+                if in_shadow:
+                    conf = min(conf, prm.shadow_confidence)
+                    row["diameter_reason"] = "bar in shadow: confidence capped"
+                row.update(nominal_mm=nominal, confidence=conf, diameter_status=MEASURED)
+        if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
+            row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
+        rows.append(row)
+    df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
+    df["matches_design"] = df["matches_design"].astype(object)
+    return df
