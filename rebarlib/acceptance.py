@@ -26,7 +26,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 __all__ = ["ItemTolerance", "LotRule", "Tolerances", "Acceptance", "load_tolerances",
-           "list_presets", "evaluate", "PRESETS_DIR", "CHECKPOINT_COLUMNS", "ITEM_COLUMNS"]
+           "list_presets", "evaluate", "design_top_cover_mm", "PRESETS_DIR", "CHECKPOINT_COLUMNS", "ITEM_COLUMNS"]
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 DEFAULT_PRESET = "GB50204-2015"
@@ -501,11 +501,36 @@ def _tol_key(item: str) -> str:
     return item
 
 
+def design_top_cover_mm(design: Design) -> float | None:
+    """Design top cover over the ribs: thickness - (cover + layer distance + rib envelopes of the
+    upper lattice's two bar sizes); ``None`` without a design thickness.
+
+    Cover and layer distance are measured to the bars' rib envelope (docs/method.md), and so is
+    the top of the upper bars; judging it against nominal diameters would read a Φ12 mesh ~4 mm
+    high on every slab. The envelope is GB 1499.2's d1 + 2h (``rebarlib.synth.rib_envelope_mm``).
+
+    Examples
+    --------
+    >>> from rebarlib.data import paper_design
+    >>> d = paper_design()
+    >>> d.top_cover_mm, design_top_cover_mm(d)
+    (51.0, 47.2)
+    """
+    if design.thickness_mm is None:
+        return None
+    from .synth import rib_envelope_mm
+
+    upper = design.upper
+    top = (design.cover_mm + design.layer_distance_mm + rib_envelope_mm(upper.bottom.diameter_mm)
+           + rib_envelope_mm(upper.top.diameter_mm))
+    return round(design.thickness_mm - top, 3)
+
+
 def _design_value(item: str, design: Design):
     if item in ("cover", "layer_distance"):
         return getattr(design, f"{item}_mm")
     if item == "top_cover":
-        return design.top_cover_mm
+        return design_top_cover_mm(design)
     kind, la, lv = item.rsplit("_", 2)
     bs = design.lattice(la).level(lv)
     return bs.spacing_mm if kind == "spacing" else bs.diameter_mm if kind == "bar_size" else None
@@ -692,7 +717,8 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
         design_text = _size_text(dv, design.bar_system)
     elif key.startswith("bar_count"):
         exp = counted["design_value"].dropna()
-        design_text = " / ".join(f"{v:g}" for v in exp) + " bars" if len(exp) else "as drawn"
+        # The design value of a count is the number of bars of that direction in each capture's view.
+        design_text = f"{exp.sum():g} in view" if len(exp) else "as drawn"
         dv = None
     else:
         design_text = f"{dv:g} mm"

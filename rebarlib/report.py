@@ -1,0 +1,568 @@
+"""The slab's acceptance report (PDF or HTML) from the inspection results and the acceptance.
+
+The report only reads: numbers come from the results, verdicts from :mod:`rebarlib.acceptance`.
+What is computed here is presentation (pixel and plan coordinates of the bars to draw them).
+HTML comes from jinja2 templates in the repository's ``templates/`` folder (autoescaped: text
+from design files and captures is printed as text); weasyprint renders it with a URL fetcher
+that refuses everything but ``data:`` URIs made here and the template folder's own files.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ._camera import project
+from ._capture import read_intrinsics
+from ._checks import RebarInputError
+from ._design import Design
+from .acceptance import Acceptance
+
+__all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
+           "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
+
+#: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
+BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "not checked": "#f0a30a", "hidden": "#7f3fbf"}
+LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
+_BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
+             "width_spread_mm", "nominal_mm", "design_diameter_mm", "diameter_status", "diameter_reason")
+VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
+                "incomplete": "NOT ACCEPTED (incomplete: items not measured)"}
+IMAGE_WIDTH_PX = 800  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
+
+
+def templates_dir() -> Path:
+    """The report templates: ``templates/`` next to the ``rebarlib`` package (source checkout).
+
+    Raises
+    ------
+    RebarInputError
+        When the folder is not there (e.g. rebarlib installed from a wheel without the checkout).
+    """
+    path = Path(__file__).resolve().parent.parent / "templates"
+    if not (path / "report.html.j2").is_file():
+        raise RebarInputError(
+            f"{path}: report templates not found (expected templates/report.html.j2 next to the "
+            "rebarlib package); the report needs the source checkout of rebarlib")
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# Safety: what weasyprint may load
+# --------------------------------------------------------------------------------------------
+
+def safe_url_fetcher(allowed_dir=None, *, refused=None):
+    """A weasyprint URL fetcher that serves only ``data:`` URIs and files inside ``allowed_dir``.
+
+    Every other URL (http, ftp, any other local path) is refused with ``ValueError``, which
+    weasyprint turns into a missing resource. Refused URLs are appended to ``refused`` (a list)
+    when one is given, so callers and tests can see what a document tried to load.
+    """
+    from weasyprint.urls import URLFetcher
+
+    root = Path(allowed_dir or templates_dir()).resolve()
+
+    class _ProjectOnlyFetcher(URLFetcher):
+        def fetch(self, url, headers=None):
+            scheme = url.split(":", 1)[0].lower() if ":" in url else ""
+            if scheme == "data":
+                return super().fetch(url, headers)
+            if scheme == "file":
+                from urllib.request import url2pathname
+                path = Path(url2pathname(url.split("?")[0].split("#")[0][len("file:"):])).resolve()
+                if path.is_relative_to(root) and path.is_file():
+                    return super().fetch(url, headers)
+            if refused is not None:
+                refused.append(url)
+            raise ValueError(f"refused to load {url!r}: the report loads only its own template assets")
+
+    return _ProjectOnlyFetcher(allowed_protocols=("data", "file"), allow_redirects=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Slab folders
+# --------------------------------------------------------------------------------------------
+
+def find_captures(slab_dir) -> list:
+    """Capture folders of a slab folder (sub-folders holding a ``camera.json``), sorted by name."""
+    slab = Path(slab_dir)
+    if not slab.is_dir():
+        raise RebarInputError(f"{slab}: slab folder not found (expected design.toml and capture folders)")
+    return sorted(p for p in slab.iterdir() if p.is_dir() and (p / "camera.json").is_file())
+
+
+def _capture_info(folder: Path | None) -> dict:
+    """Colour image path, intrinsics and metadata of a capture folder (nothing measured)."""
+    if folder is None or not folder.is_dir():
+        return {}
+    info = {}
+    try:
+        info["intrinsics"], meta = read_intrinsics(folder / "camera.json")
+        info["meta"] = meta
+    except RebarInputError:
+        return {}
+    for name in ("color.jpg", "color.png"):
+        if (folder / name).is_file():
+            info["color"] = folder / name
+            break
+    return info
+
+
+def _image_data_uri(path: Path) -> tuple[str, float]:
+    """The colour image, shrunk to ``IMAGE_WIDTH_PX``, as a JPEG data URI, and the scale used."""
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise RebarInputError(f"{path}: cannot read the colour image")
+    scale = min(1.0, IMAGE_WIDTH_PX / img.shape[1])
+    if scale < 1.0:
+        img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 82])
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"), scale
+
+
+# --------------------------------------------------------------------------------------------
+# Drawing geometry (presentation only)
+# --------------------------------------------------------------------------------------------
+
+def _clip_segment(p0, p1, w, h):
+    """Liang-Barsky clip of the segment p0-p1 to the image rectangle; None when outside.
+    (A handful of segments: simpler by hand than pulling in a geometry library.)"""
+    x0, y0 = p0
+    dx, dy = p1[0] - x0, p1[1] - y0
+    t0, t1 = 0.0, 1.0
+    for p, q in ((-dx, x0), (dx, w - 1 - x0), (-dy, y0), (dy, h - 1 - y0)):
+        if p == 0:
+            if q < 0:
+                return None
+            continue
+        t = q / p
+        if p < 0:
+            t0 = max(t0, t)
+        else:
+            t1 = min(t1, t)
+    if t0 > t1:
+        return None
+    return (x0 + t0 * dx, y0 + t0 * dy), (x0 + t1 * dx, y0 + t1 * dy)
+
+
+def _axis(rec: dict):
+    try:
+        a = np.array([rec[f"start_{c}_mm"] for c in "xyz"], dtype=float)
+        b = np.array([rec[f"end_{c}_mm"] for c in "xyz"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return None
+    return (a, b) if np.all(np.isfinite(a)) and np.all(np.isfinite(b)) else None
+
+
+def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
+    """Bar segments in pixel coordinates (of the original image) with label positions."""
+    out = []
+    for rec in bars:
+        ax = _axis(rec)
+        if ax is None or ax[0][2] <= 0 or ax[1][2] <= 0:
+            continue
+        uv = project(np.vstack(ax), intrinsics)
+        seg = _clip_segment(uv[0], uv[1], intrinsics.width, intrinsics.height)
+        if seg is None:
+            continue
+        (x0, y0), (x1, y1) = seg
+        v = verdicts.get(str(rec.get("bar_id")), "not checked")
+        hidden = v == "hidden" or bool(rec.get("hidden"))
+        # Labels of the bottom level at 12 % along the bar, of the top level at 88 %, so that the
+        # ids of crossing bars do not sit on each other.
+        t = 0.12 if rec.get("level") == "bottom" else 0.88
+        if rec.get("layer") == "upper":
+            t = 1 - t - 0.06 if t > 0.5 else t + 0.06
+        out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": x0 + t * (x1 - x0), "ly": y0 + t * (y1 - y0),
+                    "id": str(rec.get("bar_id")), "colour": BAR_COLOURS["hidden" if hidden else v],
+                    "hidden": hidden, "verdict": "hidden" if hidden else v})
+    return out
+
+
+def _plan_basis(normal):
+    """Two in-plane unit vectors of the formwork: e1 along the camera x axis, e2 along camera y.
+
+    Plan coordinates (p·e1, p·e2) look like the image seen square-on, with no tilt distortion.
+    """
+    n = np.asarray(normal, dtype=float) if normal is not None else np.array([0.0, 0.0, -1.0])
+    if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+        n = np.array([0.0, 0.0, -1.0])
+    n = n / np.linalg.norm(n)
+    e1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    if e2[1] < 0:
+        e2 = -e2
+    return e1, e2
+
+
+def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, design: Design) -> dict | None:
+    """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing."""
+    e1, e2 = _plan_basis((formwork or {}).get("normal"))
+    segs, by_id = [], {}
+    for rec in bars:
+        ax = _axis(rec)
+        if ax is None:
+            continue
+        a, b = (np.array([p @ e1, p @ e2]) for p in ax)
+        layer, level = rec.get("layer"), rec.get("level")
+        try:
+            width = design.lattice(layer).level(level).diameter_mm
+        except (RebarInputError, AttributeError):
+            width = 10.0
+        by_id[str(rec.get("bar_id"))] = (a, b)
+        # Bar ids at the far end of the bottom level and the near end of the top level, so the
+        # ids of crossing directions sit on different sides of the drawing.
+        lab = b + 0.04 * (b - a) if level == "bottom" else a - 0.04 * (b - a)
+        segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
+                     "lx": lab[0], "ly": lab[1],
+                     "layer": layer, "level": level, "width": width,
+                     "colour": LAYER_COLOURS.get(layer, "#555"), "hidden": bool(rec.get("hidden"))})
+    if not segs:
+        return None
+    pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
+                   + [[s["lx"], s["ly"]] for s in segs])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    span = max(float((hi - lo).max()), 1.0)
+    pad = 0.06 * span
+    labels = []
+    for rec in spacings:
+        a, b = by_id.get(str(rec.get("bar_a"))), by_id.get(str(rec.get("bar_b")))
+        if a is None or b is None:
+            continue
+        # Lower-mesh spacings are written a third of the way along the bars, upper-mesh ones at
+        # two thirds, so the two meshes' numbers do not overlap where their bars run parallel.
+        t = 1 / 3 if rec.get("layer") == "lower" else 2 / 3
+        pa = a[0] + t * (a[1] - a[0])
+        # The foot of pa on bar b: the label sits half way across the gap it describes.
+        d = b[1] - b[0]
+        pb = b[0] + np.clip((pa - b[0]) @ d / max(d @ d, 1e-9), 0, 1) * d
+        mid = (pa + pb) / 2
+        key = (rec.get("capture"), str(rec.get("bar_a")), str(rec.get("bar_b")), rec.get("layer"), rec.get("level"))
+        status = acc_rows.get(key, "")
+        v = rec.get("spacing_mm")
+        labels.append({"x": mid[0], "y": mid[1], "x0": pa[0], "y0": pa[1], "x1": pb[0], "y1": pb[1],
+                       "text": "n/m" if v is None else f"{v:.0f}", "bad": status in ("beyond", "beyond max"),
+                       "layer": rec.get("layer")})
+    return {"segments": segs, "labels": labels, "x": lo[0] - pad, "y": lo[1] - pad,
+            "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 2 * pad, "font": span / 45,
+            "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 0.6}
+
+
+def _scale_bar(span: float) -> float:
+    for s in (50, 100, 200, 250, 500, 1000, 2000):
+        if s >= span / 6:
+            return float(s)
+    return 5000.0
+
+
+# --------------------------------------------------------------------------------------------
+# Context and rendering
+# --------------------------------------------------------------------------------------------
+
+def _fmt(v, nd: int = 1, unit: str = "") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    s = f"{v:.{nd}f}"
+    return s + (f" {unit}" if unit else "")
+
+
+def _signed(v, nd: int = 1) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    s = f"{float(v):+.{nd}f}"
+    return s if float(s) != 0 else f"{0:.{nd}f}"  # no "-0.0" / "+0.0"
+
+
+def _pct(v) -> str:
+    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{100 * float(v):.0f} %"
+
+
+def _records(df) -> list:
+    if df is None or not len(df):
+        return []
+    return [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
+            for r in df.to_dict(orient="records")]
+
+
+def _capture_folders(source) -> tuple[Path | None, dict]:
+    if isinstance(source, (str, Path)):
+        slab = Path(source)
+        return slab, {p.name: p for p in find_captures(slab)}
+    return None, {}
+
+
+def report_context(source, design: Design, acceptance: Acceptance, *, now=None) -> dict:
+    """Everything the template prints, as plain values (numbers already judged by ``acceptance``).
+
+    ``source``: the slab folder (images and camera files are read from its capture folders), or
+    the list of results that were judged (the report then has no images).
+    """
+    from . import __version__
+
+    if not isinstance(acceptance, Acceptance):
+        raise RebarInputError(f"acceptance: expected an Acceptance from rebarlib.acceptance.evaluate, "
+                              f"got {type(acceptance).__name__}")
+    slab_dir, folders = _capture_folders(source)
+    results = list(acceptance.results)
+    if not isinstance(source, (str, Path)) and source is not None:
+        # Results passed directly: find capture folders they name, if any.
+        for r in results:
+            src = (r.get("extras") or {}).get("source") or r.get("source")
+            if src and Path(src).is_dir():
+                folders[r["capture"]] = Path(src)
+    now = now or _dt.datetime.now()
+    slab = dict(design.slab)
+    tol = acceptance.tolerances
+    cp = acceptance.checkpoints
+    status_of = {}
+    for rec in cp.itertuples():
+        if str(rec.what).startswith("bars "):
+            a, b = str(rec.what)[5:].split("-", 1)
+            status_of[(rec.capture, a, b, rec.layer, rec.level)] = rec.status
+
+    captures, devices, dates = [], set(), set()
+    for r in results:
+        name = str(r["capture"])
+        info = _capture_info(folders.get(name))
+        meta = info.get("meta", {})
+        if meta.get("device"):
+            devices.add(str(meta["device"]))
+        if meta.get("captured_at"):
+            dates.add(str(meta["captured_at"]))
+        bars = [dict(b) for b in (r.get("bars") or [])]
+        spacings = [{**s, "capture": name} for s in (r.get("spacings") or [])]
+        bv = acceptance.bars[acceptance.bars["capture"] == name]
+        verdicts = {str(k): v for k, v in zip(bv["bar_id"], bv["verdict"])}
+        image = None
+        if info.get("color") is not None and info.get("intrinsics") is not None:
+            uri, _ = _image_data_uri(info["color"])
+            K = info["intrinsics"]
+            image = {"uri": uri, "width": K.width, "height": K.height,
+                     "bars": _image_overlay(bars, verdicts, K), "font": K.width / 60,
+                     "stroke": K.width / 320}
+        for b in bars:
+            b["verdict"] = verdicts.get(str(b.get("bar_id")), "not checked")
+            for key in _BAR_KEYS:  # the template prints every column; absent = not in the result
+                b.setdefault(key, None)
+        meas = r.get("measurements") or {}
+        mrows = []
+        for key, label in (("cover", "Cover"), ("layer_distance", "Layer distance"),
+                           ("upper_top", "Top of upper bars above formwork"), ("top_cover", "Top cover (predicted)")):
+            m = meas.get(key) or {}
+            mrows.append({"label": label, "value": _fmt(m.get("value_mm"), 1, "mm"),
+                          "u": _fmt(m.get("uncertainty_mm"), 1, "mm"), "n": m.get("n_points", ""),
+                          "status": m.get("status", "not measured"), "reason": m.get("reason", "")})
+        cam = r.get("camera") or {}
+        captures.append({
+            "name": name, "method": r.get("method", ""), "image": image,
+            "image_missing": "" if image else ("no capture folder with a colour image and camera.json"
+                                               if name not in folders else "colour image or camera.json unreadable"),
+            "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design),
+            "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
+            "height": _fmt(cam.get("height_mm"), 0, "mm"), "tilt": _fmt(cam.get("tilt_deg"), 1, "°"),
+            "device": meta.get("device", "not recorded"), "captured_at": meta.get("captured_at", "not recorded"),
+            "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
+        })
+
+    items = _records(acceptance.items)
+    rules = []
+    for it in items:
+        key = (it["rule"], it["clause"])
+        if key not in [(r["rule"], r["clause"]) for r in rules]:
+            rules.append({"no": len(rules) + 1, "rule": it["rule"], "clause": it["clause"]})
+        it["rule_no"] = [(r["rule"], r["clause"]) for r in rules].index(key) + 1
+        unit = "bars" if it["unit"] == "bars" else "mm"
+        it["worst_text"] = "–" if it["worst_deviation"] is None else (
+            f"{it['worst_deviation']:+.0f} {unit}" if unit == "bars" else f"{it['worst_deviation']:+.1f} mm")
+        it["ratio_text"] = _pct(it["pass_ratio"])
+    checkpoints = _records(cp)
+    for c in checkpoints:
+        nd = 0 if c["unit"] == "bars" else 1
+        c["design_text"] = _fmt(c["design_value"], nd)
+        c["measured_text"] = _fmt(c["measured_value"], nd)
+        c["deviation_text"] = _signed(c["deviation"], nd)
+    checkpoint_rows = _checkpoint_rows(items, checkpoints, design.bar_system)
+    # Limitations: per item the uncertainty reported by the results, and what was not measured.
+    uncertainty = []
+    for key in ("cover", "layer_distance", "top_cover"):
+        sub = cp[(cp["item"] == key) & cp["uncertainty"].notna()]
+        if len(sub):
+            u = sub["uncertainty"].astype(float)
+            uncertainty.append({"label": sub["label"].iloc[0], "text":
+                                f"{u.median():.1f} mm (median over {len(u)} capture(s), max {u.max():.1f} mm)"})
+    u_bar = cp[cp["item"].str.startswith("bar_size") & cp["uncertainty"].notna()]
+    if len(u_bar):
+        uncertainty.append({"label": "Bar width (spread along each bar)",
+                            "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm (median over {len(u_bar)} bars)"})
+    not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
+                    for c in checkpoints if c["status"] == "not measured"]
+    # Collapse repeated (item, reason) pairs so the section stays readable on a large slab.
+    nm_grouped = {}
+    for c in not_measured:
+        key = (c["label"], c["reason"])
+        nm_grouped.setdefault(key, []).append(f"{c['capture']}: {c['what']}")
+    nm_rows = [{"label": k[0], "reason": k[1], "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
+                "n": len(v)} for k, v in nm_grouped.items()]
+    record = str(slab.get("record", "")) or f"{design.slab_id}-{now:%Y%m%d}"
+    return {
+        "title": f"Rebar inspection record — slab {design.slab_id}",
+        "record": record, "record_generated": not slab.get("record"),
+        "project": slab.get("project", ""), "slab_id": design.slab_id, "element": design.element,
+        "location": design.location, "drawing": slab.get("drawing", ""), "contractor": slab.get("contractor", ""),
+        "standard": tol.standard, "edition": tol.edition, "preset": tol.name, "preset_title": tol.title,
+        "overrides": list(tol.overrides), "design_source": design.source,
+        "capture_dates": ", ".join(sorted(dates)) or "not recorded in the capture files",
+        "devices": ", ".join(sorted(devices)) or "not recorded", "software": f"rebarlib {__version__}",
+        "report_date": f"{now:%Y-%m-%d %H:%M}", "n_captures": len(results),
+        "missing_captures": [{"capture": c, "reason": r} for c, r in acceptance.missing_captures],
+        "design": {"cover": design.cover_mm, "layer_distance": design.layer_distance_mm,
+                   "thickness": design.thickness_mm, "bar_system": design.bar_system,
+                   "meshes": [{"layer": la, "level": lv, "d": design.lattice(la).level(lv).diameter_mm,
+                               "s": design.lattice(la).level(lv).spacing_mm}
+                              for la in ("lower", "upper") for lv in ("bottom", "top")]},
+        "verdict": acceptance.verdict, "verdict_text": VERDICT_TEXT.get(acceptance.verdict, acceptance.verdict),
+        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons), "notes": list(acceptance.notes),
+        "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows, "captures": captures,
+        "uncertainty": uncertainty, "not_measured": nm_rows,
+        "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
+        "colours": BAR_COLOURS, "layer_colours": LAYER_COLOURS,
+    }
+
+
+def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
+    """One row per item and capture with every checkpoint's value and flag, as on a record sheet.
+
+    (A table row per checkpoint would triple the PDF's layout time on a four-capture slab; the
+    CSV / JSON exports keep one row per checkpoint.)
+    """
+    rows = []
+    for it in items:
+        cps = [c for c in checkpoints if c["item"] == it["item"]]
+        caps = []
+        for cap in dict.fromkeys(c["capture"] for c in cps):
+            vals = []
+            for c in (c for c in cps if c["capture"] == cap):
+                if c["status"] == "excluded":
+                    v = "hidden"
+                elif c["status"] == "not measured":
+                    v = "n/m"
+                elif it["item"].startswith("bar_size"):
+                    v = _size(c["measured_value"], bar_system)
+                elif it["item"].startswith("bar_count"):
+                    v = f"{c['measured_text']} of {c['design_text']}"
+                else:
+                    v = c["deviation_text"]
+                vals.append({"text": v, "flag": c["flag"], "bad": bool(c["flag"]),
+                             "open": c["status"] in ("not measured", "excluded")})
+            caps.append({"capture": cap, "vals": vals})
+        rows.append({"label": it["label"], "tolerance": it["tolerance"], "caps": caps,
+                     "kind": ("measured size" if it["item"].startswith("bar_size") else
+                              "found of expected" if it["item"].startswith("bar_count") else "deviation, mm")})
+    return rows
+
+
+def _max_factor_text(tol) -> str:
+    factors = sorted({r.max_factor for r in tol.lot_rules.values() if r.max_factor is not None})
+    return " / ".join(f"{f:g}×" for f in factors) or "1.5×"
+
+
+def _css_class(v) -> str:
+    return "".join(ch if ch.isalnum() else "-" for ch in str(v or "none").lower())
+
+
+def _size(v, system="GB1499.2") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return f"Φ{float(v):g}" if str(system).upper().startswith("GB") else f"{float(v):g} mm"
+
+
+def _env():
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(templates_dir())),
+                             autoescape=True, trim_blocks=True, lstrip_blocks=True,
+                             undefined=jinja2.StrictUndefined)
+    env.filters.update(fmt=_fmt, signed=_signed, pct=_pct, cls=_css_class, size=_size)
+    return env
+
+
+def render_html(context: dict) -> str:
+    """The report as one self-contained HTML page (CSS inlined, images as data URIs)."""
+    return _env().get_template("report.html.j2").render(**context)
+
+
+def write_exports(acceptance: Acceptance, out_path) -> list:
+    """Machine-readable copies next to the report: ``<stem>_checkpoints.csv`` (every checkpoint)
+    and ``<stem>_acceptance.json`` (verdict, items, checkpoints, tolerances)."""
+    out = Path(out_path)
+    csv_path = out.with_name(out.stem + "_checkpoints.csv")
+    json_path = out.with_name(out.stem + "_acceptance.json")
+    acceptance.checkpoints.to_csv(csv_path, index=False)
+    json_path.write_text(acceptance.to_json(), encoding="utf-8")
+    return [csv_path, json_path]
+
+
+def build_report(slab_dir_or_results, design: Design, acceptance: Acceptance, *, out_path,
+                 format: str = "pdf", exports: bool = True, now=None) -> Path:
+    """Write the slab's acceptance report.
+
+    Parameters
+    ----------
+    slab_dir_or_results : path of the slab folder (capture folders give the images), or the
+        list of results (no images unless a result names its capture folder in ``extras.source``)
+    design : Design
+    acceptance : Acceptance from :func:`rebarlib.acceptance.evaluate` on those results
+    out_path : where the PDF (or HTML) goes
+    format : "pdf" or "html"
+    exports : also write ``<stem>_checkpoints.csv`` and ``<stem>_acceptance.json`` next to it
+
+    Returns
+    -------
+    Path of the report.
+    """
+    if format not in ("pdf", "html"):
+        raise RebarInputError(f"format: expected 'pdf' or 'html', got {format!r}")
+    out = Path(out_path)
+    if not out.parent.is_dir():
+        raise RebarInputError(f"out_path: folder {out.parent} does not exist")
+    html = render_html(report_context(slab_dir_or_results, design, acceptance, now=now))
+    if format == "html":
+        out.write_text(html, encoding="utf-8")
+    else:
+        import weasyprint
+
+        root = templates_dir()
+        weasyprint.HTML(string=html, base_url=str(root) + "/",
+                        url_fetcher=safe_url_fetcher(root)).write_pdf(str(out))
+    if exports:
+        write_exports(acceptance, out)
+    return out
+
+
+def load_results(paths) -> list:
+    """Read ``result.json`` files (as written by ``rebar inspect``)."""
+    out = []
+    for p in paths:
+        p = Path(p)
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise RebarInputError(f"{p}: result file not found") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise RebarInputError(f"{p}: not a valid result.json ({exc})") from None
+        if not isinstance(data, dict) or "capture" not in data:
+            raise RebarInputError(f"{p}: not an inspection result (no 'capture' key)")
+        out.append(data)
+    return out
