@@ -452,6 +452,17 @@ def _num(v):
     return v if math.isfinite(v) else None
 
 
+def is_true(v) -> bool:
+    """A table flag that is set: ``True`` / ``np.True_`` / 1, not NaN (an absent column cell).
+
+    Examples
+    --------
+    >>> is_true(True), is_true(float("nan")), is_true(None)
+    (True, False, False)
+    """
+    return v is not None and not (isinstance(v, float) and math.isnan(v)) and bool(v)
+
+
 def _judge(deviation, minus, plus, max_factor):
     """Status and flag of one deviation against (minus, plus); limits are inclusive."""
     lo = -math.inf if minus is None else -minus
@@ -626,7 +637,7 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
                 for rec in sub.to_dict(orient="records"):
                     what = f"bar {rec.get('bar_id')}"
                     ddv = _num(rec.get("design_diameter_mm")) or dv
-                    hidden = bool(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
+                    hidden = is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
                     if hidden:
                         add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
                             reason=rec.get("diameter_reason") or "hidden under crossing bars")

@@ -21,7 +21,7 @@ from ._camera import project
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import Design
-from .acceptance import Acceptance
+from .acceptance import Acceptance, is_true
 
 __all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
            "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
@@ -174,7 +174,7 @@ def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
             continue
         (x0, y0), (x1, y1) = seg
         v = verdicts.get(str(rec.get("bar_id")), "not checked")
-        hidden = v == "hidden" or bool(rec.get("hidden"))
+        hidden = v == "hidden" or is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
         # Labels of the bottom level at 12 % along the bar, of the top level at 88 %, so that the
         # ids of crossing bars do not sit on each other.
         t = 0.12 if rec.get("level") == "bottom" else 0.88
@@ -224,7 +224,7 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
                      "lx": lab[0], "ly": lab[1],
                      "layer": layer, "level": level, "width": width,
-                     "colour": LAYER_COLOURS.get(layer, "#555"), "hidden": bool(rec.get("hidden"))})
+                     "colour": LAYER_COLOURS.get(layer, "#555"), "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"})
     if not segs:
         return None
     pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
