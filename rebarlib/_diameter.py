@@ -398,10 +398,12 @@ class _RefinedParams:
     outlier_k: float = 3.0
     shadow_ratio: float = 0.5  # section centre darker than this x the bar's median: in shadow
     hidden_fraction: float = 0.5
-    min_confidence: float = 0.6  # below: ambiguous between two sizes, not measured
+    min_confidence: float = 0.75  # below: ambiguous between two sizes, not measured
     quantisation_px: float = 0.4  # std. uncertainty floor of a width from pixel edges
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
+    axis_sigma_mm: float = 0.3  # lateral axis error tolerated before the centring counts against a width
+    max_offcentre_rel: float = 0.2  # mask run centre this far (x width) off the axis: not measured
 
 
 def _remap(img, u, v):
@@ -429,6 +431,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
             "no_edge": 0, "shadow": 0, "outlier": 0}
     widths = np.full(M, np.nan)
+    centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
     cut = np.zeros(M, bool)
     ok = in_img.copy()
 
@@ -498,6 +501,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
         cut[rows] = cut_lo | cut_hi
         widths[rows] = t_hi - t_lo
+        centres[rows] = (t_hi + t_lo) / 2
         # An edge is trusted unless it may belong to another bar: inside the footprint of a
         # nearer bar (ours is occluded there), or beyond our own expected width and inside a
         # farther bar's footprint (our run merged with the bar behind).
@@ -525,13 +529,17 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         info["depth_cut"] = int((ok & cut).sum())
         ok &= ~cut
     w = _tangent_correct(widths[ok], pl.offset_mm)
+    c = centres[ok]
     if len(w) >= 3:
         med = np.median(w)
         mad = 1.4826 * np.median(np.abs(w - med))
         px_mm = float(np.median(st[ok, 2])) / intr.fx
         keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
         info["outlier"] = int((~keep).sum())
-        w = w[keep]
+        w, c = w[keep], c[keep]
+    # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
+    # the axis is off: either way the width may be wrong by twice the offset.
+    info["centre_mm"] = float(np.median(c)) if len(c) else math.nan
     info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
     info["lum"] = math.nan
     if gray is not None and in_img.any():
@@ -544,7 +552,26 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
 # The paper's method
 
 
-def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int):
+def _attribute_pixels(pixels, prepared, intr) -> np.ndarray:
+    """Index of the bar whose projected axis segment is nearest in the image to each pixel
+    (method.md 3.3: projecting the axes attributes mask pixels to bars). (N,) int."""
+    px = np.asarray(pixels, float).reshape(-1, 2)
+    best = np.full(len(px), np.inf)
+    owner = np.full(len(px), -1, int)
+    for k, b in enumerate(prepared):
+        pts = np.vstack((b.p0, b.p1))
+        if np.any(pts[:, 2] <= 1.0):
+            continue
+        a, c = project(pts, intr)
+        ab = c - a
+        s = np.clip(((px - a) @ ab) / max(ab @ ab, 1e-12), 0, 1)
+        d = np.linalg.norm(px - (a + s[:, None] * ab), axis=1)
+        closer = d < best
+        best[closer], owner[closer] = d[closer], k
+    return owner
+
+
+def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, prepared):
     pl = bar.plane
     H, W = mask.shape
     st = _stations(bar, intr, 1.0, n_points)
@@ -560,6 +587,7 @@ def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int):
         if len(region) == 0:
             continue
         bp = region[edge[region[:, 1], region[:, 0]]]
+        bp = bp[_attribute_pixels(bp, prepared, intr) == i]
         if len(bp) < 2:
             continue
         side = along[0] * (bp[:, 1] - c[1]) - along[1] * (bp[:, 0] - c[0])
@@ -663,15 +691,16 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3)}
+        clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
-            w = _paper_bar(i, bar, m, edge, intr, paper_points)
+            w = _paper_bar(i, bar, m, edge, intr, paper_points, prepared)
         if len(w):
             q1, med, q3 = np.percentile(w, [25, 50, 75])
             row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
         few = len(w) < (1 if method == "paper" else prm.min_sections)
         if n_in == 0:
             row["diameter_reason"] = "bar axis is outside the image"
-        elif few and occ_frac >= prm.hidden_fraction:
+        elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,
                        diameter_reason=f"hidden: {occ_frac:.0%} of the bar lies under nearer bars")
         elif few:
@@ -687,10 +716,14 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             else:
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:
-            spread, px_mm = row["width_spread_mm"], info["px_mm"]
-            sigma = math.hypot(1.2533 * spread / math.sqrt(len(w)), prm.quantisation_px * px_mm)
+            spread, px_mm, off = row["width_spread_mm"], info["px_mm"], abs(info["centre_mm"])
+            sigma = math.hypot(1.2533 * spread / math.sqrt(len(w)), prm.quantisation_px * px_mm,
+                               2 * max(off - prm.axis_sigma_mm, 0.0))
             nominal, conf = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma)
-            if spread > prm.max_spread_rel * med:
+            if off > prm.max_offcentre_rel * med:
+                row["diameter_reason"] = (f"mask not centred on the axis ({off:.1f} mm off over a "
+                                          f"{med:.1f} mm width): one side lost to shadow or segmentation")
+            elif spread > prm.max_spread_rel * med:
                 row["diameter_reason"] = f"widths too scattered (robust σ {spread:.1f} mm over {len(w)} sections)"
             elif not math.isfinite(nominal):
                 row["diameter_reason"] = f"width {med:.1f} mm matches no {system} size"
