@@ -32,7 +32,7 @@ LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
              "width_spread_mm", "nominal_mm", "design_diameter_mm", "diameter_status", "diameter_reason")
 VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
-                "incomplete": "NOT ACCEPTED (incomplete: items not measured)"}
+                "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
 IMAGE_WIDTH_PX = 800  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
@@ -43,6 +43,11 @@ def templates_dir() -> Path:
     ------
     RebarInputError
         When the folder is not there (e.g. rebarlib installed from a wheel without the checkout).
+
+    Examples
+    --------
+    >>> sorted(p.name for p in templates_dir().iterdir())
+    ['report.css', 'report.html.j2']
     """
     path = Path(__file__).resolve().parent.parent / "templates"
     if not (path / "report.html.j2").is_file():
@@ -89,7 +94,14 @@ def safe_url_fetcher(allowed_dir=None, *, refused=None):
 # --------------------------------------------------------------------------------------------
 
 def find_captures(slab_dir) -> list:
-    """Capture folders of a slab folder (sub-folders holding a ``camera.json``), sorted by name."""
+    """Capture folders of a slab folder (sub-folders holding a ``camera.json``), sorted by name.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> [p.name for p in find_captures(Path(__file__).parent.parent / "examples" / "paper_slab")]
+    ['A_400', 'B_500', 'C_600', 'D_500']
+    """
     slab = Path(slab_dir)
     if not slab.is_dir():
         raise RebarInputError(f"{slab}: slab folder not found (expected design.toml and capture folders)")
@@ -385,7 +397,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
         it["rule_no"] = [(r["rule"], r["clause"]) for r in rules].index(key) + 1
         unit = "bars" if it["unit"] == "bars" else "mm"
         it["worst_text"] = "–" if it["worst_deviation"] is None else (
-            f"{it['worst_deviation']:+.0f} {unit}" if unit == "bars" else f"{it['worst_deviation']:+.1f} mm")
+            f"{_signed(it['worst_deviation'], 0)} bars" if unit == "bars" else f"{_signed(it['worst_deviation'], 1)} mm")
         it["ratio_text"] = _pct(it["pass_ratio"])
     checkpoints = _records(cp)
     for c in checkpoints:

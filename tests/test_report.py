@@ -1,0 +1,181 @@
+"""The acceptance report: the PDF's text equals the evaluation tables, text is escaped, weasyprint
+loads nothing but the report's own assets, and ``rebar report`` handles a missing capture.
+
+Results are built from the example captures' ground truth (``truth.json``) in the result.json
+layout, with chosen numbers changed, so every verdict is known without running the inspection.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pandas as pd
+import pypdf
+import pytest
+
+from rebarlib import design_from_dict, load_design
+from rebarlib.acceptance import design_top_cover_mm, evaluate
+from rebarlib.cli import main
+from rebarlib.report import build_report, render_html, report_context, safe_url_fetcher, templates_dir
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+PAPER = EXAMPLES / "paper_slab"
+COVER_OFF_MM = 4.6  # beyond 1.5 x the ±3 mm cover tolerance: flagged '#'
+HIDE_EVERY = 5  # every 5th visible bar is reported hidden under crossing bars
+EVIL = "<img src=file:///etc/passwd>"
+
+
+def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict:
+    """A result.json dict holding the synthetic capture's ground truth."""
+    t = json.loads((capture_dir / "truth.json").read_text(encoding="utf-8"))
+    n = t["formwork_plane"]["normal"]
+    bars = []
+    for i, b in enumerate(x for x in t["bars"] if x["visible"]):
+        hidden = i % HIDE_EVERY == HIDE_EVERY - 1
+        rec = {"bar_id": b["id"], "layer": b["layer"], "level": b["level"], "plan_angle_deg": b["plan_angle_deg"],
+               "visible_length_mm": b["visible_length_mm"], "n_points": b["visible_pixels"],
+               "status": "measured", "reason": "", "width_median_mm": None if hidden else b["envelope_mm"],
+               "width_spread_mm": None if hidden else 0.5, "nominal_mm": None if hidden else b["diameter_mm"],
+               "diameter_status": "hidden" if hidden else "measured",
+               "diameter_reason": "under crossing bars" if hidden else "",
+               "design_diameter_mm": b["design_diameter_mm"], "hidden": hidden}
+        for c, s, e in zip("xyz", b["visible_start_mm"], b["visible_end_mm"]):
+            rec[f"start_{c}_mm"], rec[f"end_{c}_mm"] = s, e
+        bars.append(rec)
+    spacings = [{"layer": s["layer"], "level": s["level"], "bar_a": s["bar_a"], "bar_b": s["bar_b"],
+                 "spacing_mm": s["spacing_mm"], "design_spacing_mm": 200.0, "deviation_mm": s["spacing_mm"] - 200.0,
+                 "status": "measured", "reason": ""} for s in t["spacings"] if s["visible"]]
+    counts = []
+    for la in ("lower", "upper"):
+        for lv in ("bottom", "top"):
+            k = sum(b["layer"] == la and b["level"] == lv for b in bars)
+            counts.append({"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0})
+
+    def m(v):
+        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
+
+    top = design.thickness_mm - t["upper_top_mm"]
+    return {"capture": capture_dir.name, "method": "truth",
+            "measurements": {"cover": m(t["cover_mm"] + cover_offset_mm), "layer_distance": m(t["layer_distance_mm"]),
+                             "upper_top": m(t["upper_top_mm"]), "top_cover": m(top)},
+            "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
+            "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
+            "bars": bars, "spacings": spacings, "counts": counts, "notes": []}
+
+
+def pdf_text(path) -> str:
+    text = " ".join(p.extract_text() for p in pypdf.PdfReader(str(path)).pages)
+    return re.sub(r"\s+", " ", text)
+
+
+@pytest.fixture(scope="module")
+def paper():
+    design = load_design(PAPER)
+    return design, {c: result_from_truth(PAPER / c, design) for c in ("A_400", "B_500")}
+
+
+def test_pdf_text_equals_the_tables(paper, tmp_path):
+    design, res = paper
+    results = [res["A_400"], result_from_truth(PAPER / "B_500", design, cover_offset_mm=COVER_OFF_MM)]
+    acc = evaluate(results, design)
+    assert acc.verdict == "rejected"  # the cover of B is off by more than 1.5x
+    cover_b = acc.checkpoints[(acc.checkpoints["item"] == "cover") & (acc.checkpoints["capture"] == "B_500")].iloc[0]
+    assert (cover_b["status"], cover_b["flag"]) == ("beyond max", "#")
+    out = build_report(PAPER, design, acc, out_path=tmp_path / "r.pdf")
+    text = pdf_text(out)
+    assert "Overall verdict: NOT ACCEPTED (rejected)" in text
+    assert f"slab {design.slab_id}" in text and design.slab.get("drawing") in text
+    assert "GB 50204-2015" in text
+    for it in acc.items.itertuples():
+        unit = "bars" if it.unit == "bars" else "mm"
+        worst = f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
+        worst = worst.replace("+0.0 mm", "0.0 mm").replace("+0 bars", "0 bars")
+        extra = f" (+{it.excluded} hidden)" if it.excluded else ""
+        row = f"{it.tolerance} {it.measured}{extra} {it.passed} {100 * it.pass_ratio:.0f} % {worst} {it.verdict}"
+        assert row in text, f"summary row of {it.item} not in the PDF: {row!r}"
+    # The flagged cover deviation is printed with its flag, as on a record sheet.
+    assert f"B_500: {cover_b['deviation']:+.1f}#" in text
+    # Exports next to the PDF hold every checkpoint.
+    cp = pd.read_csv(tmp_path / "r_checkpoints.csv")
+    assert len(cp) == len(acc.checkpoints)
+    assert json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))["verdict"] == "rejected"
+
+
+def test_html_draws_every_bar_and_writes_the_spacings(paper):
+    design, res = paper
+    acc = evaluate([res["A_400"]], design)
+    html = render_html(report_context(PAPER, design, acc))
+    assert html.count("data:image/jpeg;base64,") == 1
+    ctx = report_context(PAPER, design, acc)
+    cap = ctx["captures"][0]
+    drawn = {b["id"] for b in cap["image"]["bars"]}
+    assert drawn == {str(b["bar_id"]) for b in res["A_400"]["bars"]}  # all visible bars are in view
+    assert sum(b["hidden"] for b in cap["image"]["bars"]) == sum(b["hidden"] for b in res["A_400"]["bars"])
+    labels = sorted(lab["text"] for lab in cap["plan"]["labels"])
+    assert labels == sorted(f"{s['spacing_mm']:.0f}" for s in res["A_400"]["spacings"])
+    # Plan coordinates are in the formwork plane: a spacing drawn equals the spacing measured.
+    for lab, s in zip(cap["plan"]["labels"], res["A_400"]["spacings"]):
+        gap = math.hypot(lab["x1"] - lab["x0"], lab["y1"] - lab["y0"])
+        assert gap == pytest.approx(s["spacing_mm"], abs=1.0)
+
+
+def test_text_from_design_files_is_escaped(paper, tmp_path):
+    _, res = paper
+    design = design_from_dict({"slab": {"id": EVIL, "project": "<script>alert(1)</script>", "location": "a & b"},
+                               "design": {"cover_mm": 20, "layer_distance_mm": 85, "thickness_mm": 180,
+                                          "lower": {"diameter_mm": 14, "spacing_mm": 200},
+                                          "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    r = dict(res["A_400"], capture=EVIL)
+    acc = evaluate([r], design)
+    html = render_html(report_context([r], design, acc))
+    assert "<img src=file" not in html and "<script>" not in html
+    assert "&lt;img src=file:///etc/passwd&gt;" in html and "a &amp; b" in html
+    out = build_report([r], design, acc, out_path=tmp_path / "evil.pdf", exports=False)
+    text = pdf_text(out)
+    assert f"slab {EVIL}" in text and "<script>alert(1)</script>" in text
+
+
+def test_url_fetcher_serves_only_data_uris_and_template_files(tmp_path):
+    import weasyprint
+
+    secret = tmp_path / "secret.css"
+    secret.write_text("body { color: red }", encoding="utf-8")
+    root = templates_dir()
+    html = (f'<link rel="stylesheet" href="report.css"><link rel="stylesheet" href="{secret.as_uri()}">'
+            '<link rel="stylesheet" href="../pyproject.toml">'
+            '<img src="file:///etc/passwd"><img src="http://127.0.0.1:9/x.png">'
+            '<img src="data:image/gif;base64,R0lGODlhAQABAAAAACwAAAAAAQABAAA=">')
+    refused = []
+    weasyprint.HTML(string=html, base_url=str(root) + "/",
+                    url_fetcher=safe_url_fetcher(root, refused=refused)).write_pdf()
+    assert set(refused) == {secret.as_uri(), (root.parent / "pyproject.toml").as_uri(),
+                            "file:///etc/passwd", "http://127.0.0.1:9/x.png"}
+
+
+def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
+    design, res = paper
+    results = tmp_path / "results"
+    for name, r in res.items():  # C_600 and D_500 have no result
+        (results / name).mkdir(parents=True)
+        (results / name / "result.json").write_text(json.dumps(r), encoding="utf-8")
+    out = tmp_path / "report" / "S-101.pdf"
+    assert main(["report", str(PAPER), "--results", str(results), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "INCOMPLETE" in printed and str(out) in printed
+    saved = json.loads((tmp_path / "report" / "S-101_acceptance.json").read_text(encoding="utf-8"))
+    assert saved["verdict"] == "incomplete"
+    assert [m["capture"] for m in saved["missing_captures"]] == ["C_600", "D_500"]
+    text = pdf_text(out)
+    assert "NOT ACCEPTED (incomplete" in text and "capture C_600: no result" in text
+    assert main(["report", str(PAPER), "--results", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
+
+
+def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
+    design, res = paper
+    acc = evaluate([res["A_400"]], design)
+    row = acc.items.set_index("item").loc["top_cover"]
+    assert row["design_value"] == design_top_cover_mm(design) < design.top_cover_mm
+    assert row["verdict"] == "pass"  # the truth's top of the bars includes the ribs
