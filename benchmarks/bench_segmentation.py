@@ -1,0 +1,145 @@
+"""Segmentation benchmark: the paper's Table 3 for our models on the held-out synthetic test split.
+
+Regenerates the test split from its seeds with rebarlib.synth (no torch, no files needed beyond
+the ONNX models), at the sensor's full 1280 x 800 resolution, and prints
+
+1. Table 3: Pixel Accuracy, IoU and Dice of the rebar class (method.md formulas; confusion
+   counts summed over the split) for every model;
+2. the hard cases: the same on the shadow subset (pixels without direct sunlight) and the rust
+   subset (pixels of rusty bars, grown by 3 px), and the gap to the overall figure;
+3. colour-only vs depth-only vs fused masks (shipped model), overall and on both subsets;
+4. inference speed: median ms for one 1280 x 800 image (resize, network, full-resolution mask).
+
+    python benchmarks/bench_segmentation.py            # the 60 test captures
+    python benchmarks/bench_segmentation.py --quick    # 8 of them
+
+Models: the shipped ``rebarlib/models/rebar_seg.onnx`` and every ``training/candidates/*.onnx``
+(the architectures it was compared with), or those given with ``--models``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rebarlib import GEMINI2
+from rebarlib.segmentation import (
+    DATASET_SEED, DATASET_SIZE, SegmentationModel, confusion_counts, dice, fuse_masks, iou,
+    mask_from_depth, pixel_accuracy, split_indices, synth_eval_regions, synth_segmentation_capture)
+
+ROOT = Path(__file__).resolve().parents[1]
+KEYS = ("TP", "FP", "FN", "TN")
+
+
+def _add(a, b):
+    return {k: a[k] + b[k] for k in KEYS}
+
+
+def _zero():
+    return dict.fromkeys(KEYS, 0)
+
+
+def _pct(x):
+    return f"{100 * x:6.2f}" if np.isfinite(x) else "   n/a"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="8 test captures instead of 60")
+    ap.add_argument("--models", nargs="*", help="ONNX files (sidecar next to each)")
+    ap.add_argument("--threads", type=int, default=2, help="onnxruntime threads (default 2)")
+    ap.add_argument("--scale", type=float, default=1.0, help="render scale of the test captures")
+    ap.add_argument("--speed-runs", type=int, default=20)
+    args = ap.parse_args(argv)
+
+    paths = [Path(p) for p in args.models] if args.models else \
+        [ROOT / "rebarlib" / "models" / "rebar_seg.onnx"] + sorted((ROOT / "training" / "candidates").glob("*.onnx"))
+    models = {}
+    for p in paths:
+        m = SegmentationModel(p, threads=args.threads)
+        arch = m.spec.get("model", {}).get("architecture", "?")
+        models[f"{p.stem} ({arch})"] = m
+    shipped = next(iter(models))
+    test = split_indices(DATASET_SIZE, seed=DATASET_SEED)["test"]
+    if args.quick:
+        test = test[:8]
+    intr = GEMINI2.scaled(args.scale) if args.scale != 1.0 else GEMINI2
+    print(f"# Segmentation benchmark: {len(test)} held-out test captures (data set seed {DATASET_SEED}, "
+          f"{DATASET_SIZE} captures split 6:2:2), {intr.width} x {intr.height}, "
+          f"onnxruntime threads {args.threads}, cpu count {os.cpu_count()}")
+    subsets = ("all", "shadow", "rust")
+    counts = {name: {s: _zero() for s in subsets} for name in models}
+    sources = ("colour", "depth", "fused")
+    fused_counts = {src: {s: _zero() for s in subsets} for src in sources}
+    share = {"shadow": [0, 0], "rust": [0, 0]}
+    t0 = time.time()
+    for n, i in enumerate(test):
+        cap = synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr)
+        truth = cap.labels > 0
+        regions = synth_eval_regions(int(i), cap, seed=DATASET_SEED)
+        regions["all"] = None
+        for s in ("shadow", "rust"):
+            share[s][0] += int((regions[s] & truth).sum())
+            share[s][1] += int(truth.sum())
+        masks = {}
+        for name, m in models.items():
+            masks[name] = m.predict_mask(cap.color)
+            for s in subsets:
+                counts[name][s] = _add(counts[name][s], confusion_counts(masks[name], truth, region=regions[s]))
+        dmask = mask_from_depth(cap, rng=0)
+        fmask = fuse_masks(masks[shipped], dmask, depth_valid=cap.depth_mm > 0)
+        for src, mk in zip(sources, (masks[shipped], dmask, fmask)):
+            for s in subsets:
+                fused_counts[src][s] = _add(fused_counts[src][s], confusion_counts(mk, truth, region=regions[s]))
+        print(f"  capture {n + 1}/{len(test)} (index {i}) done, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
+
+    print("\n## Table 3 (held-out synthetic test split; rebar class; %)\n")
+    print("| model | PA % | IoU % | Dice % |")
+    print("|---|---:|---:|---:|")
+    for name in models:
+        c = counts[name]["all"]
+        print(f"| {name} | {_pct(pixel_accuracy(c))} | {_pct(iou(c))} | {_pct(dice(c))} |")
+    print("| paper K-Net (site images, for reference) | 97.90 | 93.40 | 96.50 |")
+
+    print("\n## Hard cases: shadow (no direct sunlight) and rust (rusty bars + 3 px) subsets\n")
+    print(f"Share of bar pixels in the subsets: shadow {100 * share['shadow'][0] / max(share['shadow'][1], 1):.1f} %, "
+          f"rust {100 * share['rust'][0] / max(share['rust'][1], 1):.1f} %\n")
+    print("| model | IoU all | IoU shadow | IoU rust | Dice all | Dice shadow | Dice rust | worst IoU gap (pts) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name in models:
+        c = counts[name]
+        ious = [iou(c[s]) for s in subsets]
+        dices = [dice(c[s]) for s in subsets]
+        gap = 100 * (ious[0] - min(ious[1:]))
+        print(f"| {name} | " + " | ".join(_pct(v) for v in ious + dices) + f" | {gap:5.2f} |")
+
+    print(f"\n## Colour vs depth vs fused masks (IoU %, shipped model {shipped})\n")
+    print("| mask | IoU all | IoU shadow | IoU rust | Dice all |")
+    print("|---|---:|---:|---:|---:|")
+    for src in sources:
+        c = fused_counts[src]
+        print(f"| {src} | {_pct(iou(c['all']))} | {_pct(iou(c['shadow']))} | {_pct(iou(c['rust']))} | {_pct(dice(c['all']))} |")
+
+    print(f"\n## Speed: one 1280 x 800 colour image -> full-resolution mask ({args.threads} threads)\n")
+    print("| model | median ms | p90 ms | ONNX size KB |")
+    print("|---|---:|---:|---:|")
+    img = synth_segmentation_capture(int(test[0]), seed=DATASET_SEED, intrinsics=GEMINI2).color
+    for name, m in models.items():
+        m.predict_mask(img)  # warm-up
+        ts = []
+        for _ in range(args.speed_runs):
+            t = time.perf_counter()
+            m.predict_mask(img)
+            ts.append(1000 * (time.perf_counter() - t))
+        print(f"| {name} | {np.median(ts):7.1f} | {np.percentile(ts, 90):7.1f} | {m.onnx_path.stat().st_size / 1024:7.0f} |")
+    print(f"\n(total {time.time() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,737 @@
+"""Rebar segmentation: a binary rebar mask for the colour image (method.md, Stage 3, step 1).
+
+Three sources of a mask, and the metrics to judge them:
+
+* :class:`SegmentationModel` runs any ONNX segmentation network with onnxruntime, described by a
+  small sidecar JSON (how to feed it, how to read it); :meth:`SegmentationModel.default` loads the
+  model shipped in ``rebarlib/models`` (trained on synthetic captures by
+  ``training/train_segmentation.py``).
+* :func:`mask_from_depth`: the pixels whose depth lies clearly above the formwork plane, which
+  shadows and rust cannot fool; :func:`fuse_masks` keeps the colour mask's edges where depth
+  agrees that a bar is there, and fills bars that colour missed.
+* :func:`confusion_counts`, :func:`pixel_accuracy`, :func:`iou`, :func:`dice`: the paper's
+  formulas (method.md, "Segmentation metrics").
+
+The runtime never imports torch.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ._camera import Intrinsics, depth_to_points
+from ._checks import RebarInputError
+
+__all__ = [
+    "SegmentationModel", "confusion_counts", "pixel_accuracy", "iou", "dice",
+    "fit_formwork_plane", "height_above_plane", "mask_from_depth", "fuse_masks",
+    "DATASET_SEED", "DATASET_SIZE", "segmentation_scene_params", "synth_segmentation_capture",
+    "split_indices", "synth_eval_regions",
+]
+
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+DEFAULT_MODEL = "rebar_seg"
+SIDECAR_FORMAT = "rebarlib-segmentation/1"
+
+
+# ---------------------------------------------------------------------------------------------
+# Metrics (method.md, "Segmentation metrics", paper §2.3)
+
+
+def confusion_counts(pred, truth, *, region=None) -> dict:
+    """Pixel confusion counts of a predicted rebar mask against the true one.
+
+    Parameters
+    ----------
+    pred, truth : (H, W) bool (anything non-zero is rebar)
+    region : (H, W) bool, optional; count only these pixels (e.g. the shadow subset)
+
+    Returns
+    -------
+    dict with int ``TP``, ``FP``, ``FN``, ``TN``. Counts of several images add up (sum the dicts
+    key by key) to give data-set metrics, as the paper's tables do.
+
+    Examples
+    --------
+    >>> confusion_counts([[1, 1, 0, 0]], [[1, 0, 1, 0]])
+    {'TP': 1, 'FP': 1, 'FN': 1, 'TN': 1}
+    """
+    p = np.asarray(pred).astype(bool)
+    t = np.asarray(truth).astype(bool)
+    if p.shape != t.shape:
+        raise RebarInputError(f"pred: expected the shape of truth {t.shape}, got {p.shape}")
+    if region is not None:
+        r = np.asarray(region).astype(bool)
+        if r.shape != t.shape:
+            raise RebarInputError(f"region: expected the shape of truth {t.shape}, got {r.shape}")
+        p, t = p[r], t[r]
+    tp = int(np.count_nonzero(p & t))
+    fp = int(np.count_nonzero(p & ~t))
+    fn = int(np.count_nonzero(~p & t))
+    return {"TP": tp, "FP": fp, "FN": fn, "TN": int(p.size) - tp - fp - fn}
+
+
+def _counts(pred_or_counts, truth):
+    if truth is None:
+        c = pred_or_counts
+        if not isinstance(c, dict) or not {"TP", "FP", "FN", "TN"} <= set(c):
+            raise RebarInputError("pred: expected a mask with truth, or a dict with TP, FP, FN, TN")
+        return c
+    return confusion_counts(pred_or_counts, truth)
+
+
+def _ratio(num, den) -> float:
+    # an empty denominator means the metric is undefined (e.g. no rebar in either mask)
+    return float(num) / float(den) if den > 0 else float("nan")
+
+
+def pixel_accuracy(pred, truth=None) -> float:
+    """Pixel Accuracy = (TP + TN) / (TP + TN + FP + FN), in [0, 1].
+
+    ``pred`` is a mask (with ``truth``) or a :func:`confusion_counts` dict (without).
+
+    Examples
+    --------
+    >>> pixel_accuracy({"TP": 2, "FP": 1, "FN": 1, "TN": 6})
+    0.8
+    """
+    c = _counts(pred, truth)
+    return _ratio(c["TP"] + c["TN"], c["TP"] + c["TN"] + c["FP"] + c["FN"])
+
+
+def iou(pred, truth=None) -> float:
+    """IoU of the rebar class = TP / (TP + FP + FN), in [0, 1]; NaN when both masks are empty.
+
+    Examples
+    --------
+    >>> iou([[1, 1, 0, 0]], [[1, 0, 1, 0]])
+    0.3333333333333333
+    """
+    c = _counts(pred, truth)
+    return _ratio(c["TP"], c["TP"] + c["FP"] + c["FN"])
+
+
+def dice(pred, truth=None) -> float:
+    """Dice of the rebar class = 2 TP / (2 TP + FP + FN), in [0, 1]; NaN when both are empty.
+
+    Examples
+    --------
+    >>> dice({"TP": 2, "FP": 1, "FN": 1, "TN": 6})
+    0.6666666666666666
+    """
+    c = _counts(pred, truth)
+    return _ratio(2 * c["TP"], 2 * c["TP"] + c["FP"] + c["FN"])
+
+
+# ---------------------------------------------------------------------------------------------
+# ONNX models described by a sidecar JSON
+
+_LAYOUTS = ("NCHW", "NHWC")
+_DTYPES = {"float32": ("tensor(float)", np.float32), "uint8": ("tensor(uint8)", np.uint8),
+           "float16": ("tensor(float16)", np.float16)}
+_KINDS = ("logits", "probability", "labels")
+
+
+def _bad(path, problem):
+    return RebarInputError(f"{path}: {problem}")
+
+
+def _read_sidecar(path: Path) -> dict:
+    if not path.is_file():
+        raise _bad(path, "sidecar JSON not found (expected next to the ONNX file, same name, .json; "
+                         "see the README section 'segmentation' for its keys)")
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise _bad(path, f"not valid JSON ({e})") from None
+    if not isinstance(spec, dict) or not isinstance(spec.get("input"), dict) \
+            or not isinstance(spec.get("output"), dict):
+        raise _bad(path, "expected a JSON object with 'input' and 'output' objects")
+    inp, out = dict(spec["input"]), dict(spec["output"])
+    size = inp.get("size")
+    if size is not None:
+        if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size)):
+            raise _bad(path, f"input.size: expected [width, height] in pixels, got {size!r}")
+    scale = inp.get("scale", 1.0)
+    if not isinstance(scale, (int, float)) or not 0 < scale <= 4:
+        raise _bad(path, f"input.scale: expected a number in (0, 4], got {scale!r}")
+    pad_to = inp.get("pad_to", 1)
+    if not isinstance(pad_to, int) or pad_to < 1:
+        raise _bad(path, f"input.pad_to: expected a positive integer, got {pad_to!r}")
+    order = inp.get("channel_order", "RGB")
+    if order not in ("RGB", "BGR"):
+        raise _bad(path, f"input.channel_order: expected 'RGB' or 'BGR', got {order!r}")
+    layout = inp.get("layout", "NCHW")
+    if layout not in _LAYOUTS:
+        raise _bad(path, f"input.layout: expected one of {_LAYOUTS}, got {layout!r}")
+    dtype = inp.get("dtype", "float32")
+    if dtype not in _DTYPES:
+        raise _bad(path, f"input.dtype: expected one of {tuple(_DTYPES)}, got {dtype!r}")
+    for key, default in (("mean", [0.0, 0.0, 0.0]), ("std", [1.0, 1.0, 1.0])):
+        v = inp.get(key, default)
+        if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)):
+            raise _bad(path, f"input.{key}: expected 3 numbers (0-255 units, in channel_order), got {v!r}")
+        if key == "std" and min(v) <= 0:
+            raise _bad(path, f"input.std: expected positive numbers, got {v!r}")
+        inp[key] = [float(x) for x in v]
+    value_scale = inp.get("value_scale", 1.0)
+    if not isinstance(value_scale, (int, float)) or value_scale <= 0:
+        raise _bad(path, f"input.value_scale: expected a positive number, got {value_scale!r}")
+    inp.update(size=size, scale=float(scale), pad_to=pad_to, channel_order=order, layout=layout,
+               dtype=dtype, value_scale=float(value_scale))
+    kind = out.get("kind")
+    if kind not in _KINDS:
+        raise _bad(path, f"output.kind: expected one of {_KINDS}, got {kind!r}")
+    classes = out.get("rebar_classes", [1] if kind != "probability" else [0])
+    if not (isinstance(classes, list) and classes and all(isinstance(c, int) and c >= 0 for c in classes)):
+        raise _bad(path, f"output.rebar_classes: expected a non-empty list of class indices, got {classes!r}")
+    thr = out.get("threshold", 0.5)
+    if not isinstance(thr, (int, float)) or not 0 < thr < 1:
+        raise _bad(path, f"output.threshold: expected a probability in (0, 1), got {thr!r}")
+    out_layout = out.get("layout", "NCHW")
+    if out_layout not in _LAYOUTS:
+        raise _bad(path, f"output.layout: expected one of {_LAYOUTS}, got {out_layout!r}")
+    out.update(kind=kind, rebar_classes=classes, threshold=float(thr), layout=out_layout)
+    return {**spec, "input": inp, "output": out}
+
+
+class SegmentationModel:
+    """An ONNX rebar segmentation network and the sidecar JSON that says how to use it.
+
+    Parameters
+    ----------
+    onnx_path : path of the ``.onnx`` file
+    sidecar_json_path : path of the sidecar; default: next to the model, same name, ``.json``
+    threads : onnxruntime intra-op threads (default: onnxruntime's choice)
+
+    The sidecar (see the README section "segmentation" for every key)::
+
+        {"input":  {"size": [640, 400], "channel_order": "RGB", "mean": [...], "std": [...],
+                    "layout": "NCHW", "dtype": "float32"},
+         "output": {"kind": "logits", "rebar_classes": [0], "threshold": 0.5}}
+
+    A missing, unreadable or inconsistent model or sidecar raises
+    :class:`~rebarlib.RebarInputError` naming the file and the problem.
+
+    Examples
+    --------
+    >>> model = SegmentationModel.default()
+    >>> model.predict_mask(np.zeros((40, 64, 3), np.uint8)).shape
+    (40, 64)
+    """
+
+    def __init__(self, onnx_path, sidecar_json_path=None, *, threads: int | None = None):
+        self.onnx_path = Path(onnx_path)
+        if not self.onnx_path.is_file():
+            raise _bad(self.onnx_path, "ONNX model file not found")
+        self.sidecar_path = Path(sidecar_json_path) if sidecar_json_path is not None \
+            else self.onnx_path.with_suffix(".json")
+        spec = _read_sidecar(self.sidecar_path)
+        self.spec = spec
+        self._inp, self._out = spec["input"], spec["output"]
+
+        import onnxruntime as ort
+
+        so = ort.SessionOptions()
+        if threads is not None:
+            so.intra_op_num_threads = int(threads)
+            so.inter_op_num_threads = 1
+        so.log_severity_level = 3
+        try:
+            self._session = ort.InferenceSession(str(self.onnx_path), so, providers=["CPUExecutionProvider"])
+        except Exception as e:  # onnxruntime raises its own exception types for unreadable models
+            raise _bad(self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})") from None
+        self._check_io()
+
+    @classmethod
+    def default(cls, *, threads: int | None = None) -> "SegmentationModel":
+        """The model shipped with rebarlib (``rebarlib/models/rebar_seg.onnx`` + ``.json``)."""
+        return cls(MODELS_DIR / f"{DEFAULT_MODEL}.onnx", threads=threads)
+
+    def __repr__(self):
+        return f"SegmentationModel({str(self.onnx_path)!r})"
+
+    # ---- consistency of the sidecar with the graph
+    def _check_io(self):
+        where = f"{self.onnx_path} with {self.sidecar_path.name}"
+        inputs = self._session.get_inputs()
+        names = [i.name for i in inputs]
+        name = self._inp.get("name") or names[0]
+        if name not in names:
+            raise RebarInputError(f"{where}: input.name {name!r} is not an input of the model (it has {names})")
+        if len(inputs) != 1:
+            raise RebarInputError(f"{where}: expected a model with one image input, it has {names}")
+        node = inputs[0]
+        want_type, self._np_dtype = _DTYPES[self._inp["dtype"]]
+        if node.type != want_type:
+            raise RebarInputError(f"{where}: input.dtype {self._inp['dtype']!r} does not match the "
+                                  f"model's input type {node.type}")
+        shape = node.shape
+        if len(shape) != 4:
+            raise RebarInputError(f"{where}: expected a 4-D image input ({self._inp['layout']}), "
+                                  f"the model's input has shape {shape}")
+        c_axis, h_axis, w_axis = (1, 2, 3) if self._inp["layout"] == "NCHW" else (3, 1, 2)
+        if isinstance(shape[c_axis], int) and shape[c_axis] != 3:
+            raise RebarInputError(f"{where}: input.layout {self._inp['layout']!r} puts the colour "
+                                  f"channels on axis {c_axis}, but the model's input shape is {shape}")
+        fixed = [shape[h_axis], shape[w_axis]]
+        size = self._inp["size"]
+        if all(isinstance(v, int) for v in fixed):
+            if size is None:
+                raise RebarInputError(f"{where}: the model takes a fixed {fixed[1]} x {fixed[0]} image; "
+                                      f"set input.size to [{fixed[1]}, {fixed[0]}]")
+            if [size[1], size[0]] != fixed:
+                raise RebarInputError(f"{where}: input.size {size} (width, height) does not match the "
+                                      f"model's input shape {shape}")
+        self._input_name = name
+        outputs = self._session.get_outputs()
+        onames = [o.name for o in outputs]
+        oname = self._out.get("name") or onames[0]
+        if oname not in onames:
+            raise RebarInputError(f"{where}: output.name {oname!r} is not an output of the model (it has {onames})")
+        self._output_name = oname
+        oshape = next(o.shape for o in outputs if o.name == oname)
+        if self._out["kind"] == "labels":
+            if len(oshape) not in (3, 4):
+                raise RebarInputError(f"{where}: output.kind 'labels' expects an (N, H, W) label map, "
+                                      f"the model's output has shape {oshape}")
+        else:
+            if len(oshape) not in (3, 4):
+                raise RebarInputError(f"{where}: output.kind {self._out['kind']!r} expects an "
+                                      f"(N, C, H, W) or (N, H, W) output, the model's has shape {oshape}")
+            n_cls = None
+            if len(oshape) == 4:
+                ax = 1 if self._out["layout"] == "NCHW" else 3
+                n_cls = oshape[ax] if isinstance(oshape[ax], int) else None
+            elif len(oshape) == 3:
+                n_cls = 1
+            if n_cls is not None:
+                if self._out["kind"] == "probability" and n_cls != 1:
+                    raise RebarInputError(f"{where}: output.kind 'probability' expects one channel, "
+                                          f"the model's output has shape {oshape}")
+                bad = [c for c in self._out["rebar_classes"] if c >= n_cls]
+                if bad:
+                    raise RebarInputError(f"{where}: output.rebar_classes {bad} out of range for "
+                                          f"{n_cls} output channel(s) (shape {oshape})")
+
+    # ---- inference
+    def _prepare(self, color):
+        import cv2
+
+        img = np.asarray(color)
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise RebarInputError(f"color: expected an (H, W, 3) uint8 RGB image, got "
+                                  f"{img.shape} {img.dtype}")
+        H, W = img.shape[:2]
+        inp = self._inp
+        if inp["size"] is not None:
+            w, h = inp["size"]
+        else:
+            w, h = max(1, round(W * inp["scale"])), max(1, round(H * inp["scale"]))
+        interp = cv2.INTER_AREA if w < W else cv2.INTER_LINEAR
+        x = img if (w, h) == (W, H) else cv2.resize(img, (w, h), interpolation=interp)
+        if inp["channel_order"] == "BGR":
+            x = x[..., ::-1]
+        p = inp["pad_to"]
+        ph, pw = -h % p, -w % p
+        if self._np_dtype == np.uint8:
+            t = np.ascontiguousarray(x)
+        else:
+            mean = np.asarray(inp["mean"], np.float32)
+            inv = 1.0 / np.asarray(inp["std"], np.float32)
+            t = (x.astype(np.float32) * inp["value_scale"] - mean) * inv
+        if ph or pw:
+            t = np.pad(t, ((0, ph), (0, pw), (0, 0)))
+        t = t.transpose(2, 0, 1)[None] if inp["layout"] == "NCHW" else t[None]
+        return np.ascontiguousarray(t, dtype=self._np_dtype), (h, w), (h + ph, w + pw)
+
+    def _score(self, color):
+        """The rebar score map at full resolution and the threshold it is compared with."""
+        import cv2
+
+        H, W = np.asarray(color).shape[:2]
+        t, (h, w), (hp, wp) = self._prepare(color)
+        is_logit = False
+        y = self._session.run([self._output_name], {self._input_name: t})[0]
+        out = self._out
+        y = np.asarray(y)[0]
+        if out["kind"] == "labels":
+            if y.ndim == 3:  # (1, H, W) or (H, W, 1)
+                y = y.reshape(y.shape[-2:]) if y.shape[0] == 1 else y[..., 0]
+            score = np.isin(y, out["rebar_classes"]).astype(np.float32)
+            interp = cv2.INTER_NEAREST
+            thr = 0.5
+        else:
+            if y.ndim == 3:
+                y = y if out["layout"] == "NCHW" else y.transpose(2, 0, 1)
+            else:
+                y = y[None]
+            y = y.astype(np.float32)
+            interp = cv2.INTER_LINEAR
+            if out["kind"] == "probability":
+                score, thr = y[0], out["threshold"]
+            elif y.shape[0] == 1:
+                # one logit channel: resize the logit (smoother edges), compare with logit(thr)
+                score, thr = y[0], math.log(out["threshold"] / (1 - out["threshold"]))
+                is_logit = True
+            else:
+                e = np.exp(y - y.max(axis=0, keepdims=True))
+                score = e[out["rebar_classes"]].sum(axis=0) / e.sum(axis=0)
+                thr = out["threshold"]
+        oh, ow = score.shape
+        if (hp, wp) != (h, w):  # drop the padding, in output pixels
+            score = score[:max(1, round(oh * h / hp)), :max(1, round(ow * w / wp))]
+        if score.shape != (H, W):
+            score = cv2.resize(np.ascontiguousarray(score), (W, H), interpolation=interp)
+        return score, thr, is_logit
+
+    def predict_proba(self, color) -> np.ndarray:
+        """Rebar probability per pixel, (H, W) float32 in [0, 1] at the image's resolution.
+
+        Label-map models give 0 or 1.
+        """
+        score, _, is_logit = self._score(color)
+        if is_logit:
+            return (1.0 / (1.0 + np.exp(-score))).astype(np.float32)
+        return np.clip(score, 0, 1).astype(np.float32)
+
+    def predict_mask(self, color) -> np.ndarray:
+        """Binary rebar mask, (H, W) bool at the resolution of ``color`` ((H, W, 3) uint8 RGB)."""
+        score, thr, _ = self._score(color)
+        return score > thr
+
+
+# ---------------------------------------------------------------------------------------------
+# A mask from depth: what stands clearly above the formwork
+
+
+def fit_formwork_plane(points_mm, *, distance_mm: float = 4.0, max_points: int = 30_000,
+                       rng=None) -> tuple:
+    """Fit the formwork plane to camera-frame points with a seeded RANSAC (Open3D).
+
+    Self-contained on purpose (the geometry stage has its own, finer fit): the formwork is the
+    farthest large plane in a view of a mesh on formwork. If a plane is found with many points
+    clearly *behind* it (it lay on bar tops), it is refitted to those points, up to 3 times.
+
+    Parameters
+    ----------
+    points_mm : (N, 3) float, camera frame, mm
+    distance_mm : RANSAC inlier distance, mm
+    max_points : points sampled for the fit (speed)
+    rng : seed or Generator
+
+    Returns
+    -------
+    (normal (3,), offset_mm): the plane ``normal @ x + offset_mm = 0``, with the normal pointing
+    towards the camera (so ``offset_mm`` > 0 is the camera's height above the plane).
+
+    Examples
+    --------
+    >>> g = np.random.default_rng(0)
+    >>> xy = g.uniform(-200, 200, (2000, 2))
+    >>> pts = np.column_stack([xy, np.full(2000, 500.0)])
+    >>> n, d = fit_formwork_plane(pts, rng=0)
+    >>> np.round(n, 6).tolist(), round(d, 3)
+    ([0.0, 0.0, -1.0], 500.0)
+    """
+    import open3d as o3d
+
+    from ._checks import check_points
+
+    pts = check_points(points_mm, "points_mm", min_count=3)
+    rng = np.random.default_rng(rng)
+    if len(pts) > max_points:
+        pts = pts[rng.choice(len(pts), max_points, replace=False)]
+    cand = pts
+    normal, offset = None, None
+    for _ in range(4):
+        if len(cand) < 3:
+            break
+        o3d.utility.random.seed(int(rng.integers(2**31)))
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cand))
+        (a, b, c, d), _ = pc.segment_plane(distance_threshold=float(distance_mm), ransac_n=3,
+                                           num_iterations=300)
+        n = np.array([a, b, c], float)
+        s = np.linalg.norm(n)
+        n, d = n / s, d / s
+        if d < 0:  # orient towards the camera (origin on the positive side)
+            n, d = -n, -d
+        normal, offset = n, d
+        below = pts @ n + d < -3 * distance_mm
+        if below.mean() < 0.02:
+            break
+        cand = pts[below]
+    if normal is None:
+        raise RebarInputError("points_mm: no plane found")
+    return normal, float(offset)
+
+
+def height_above_plane(depth_mm, intrinsics: Intrinsics, plane) -> np.ndarray:
+    """Height of every pixel's point above ``plane`` = (normal, offset_mm), mm; NaN without depth.
+
+    Examples
+    --------
+    >>> K = Intrinsics(100.0, 100.0, 1.0, 1.0, 3, 3)
+    >>> h = height_above_plane(np.full((3, 3), 480.0), K, (np.array([0, 0, -1.0]), 500.0))
+    >>> float(h[1, 1])
+    20.0
+    """
+    d = np.asarray(depth_mm, float)
+    cloud = depth_to_points(d, intrinsics)
+    n, off = plane
+    h = np.full(d.shape, np.nan)
+    h[cloud.pixels[:, 1], cloud.pixels[:, 0]] = cloud.points @ np.asarray(n, float) + float(off)
+    return h
+
+
+def mask_from_depth(capture_or_depth, intrinsics: Intrinsics | None = None, *,
+                    min_height_mm: float | None = None, max_height_mm: float = 400.0,
+                    plane=None, open_px: int = 1, rng=None) -> np.ndarray:
+    """Rebar pixels known from depth: points clearly above the formwork plane.
+
+    Parameters
+    ----------
+    capture_or_depth : a :class:`~rebarlib.Capture`, or an (H, W) depth map in mm (0 = none)
+    intrinsics : needed with a depth map
+    min_height_mm : a pixel is a bar if its point is at least this far above the formwork;
+        default ``max(6 mm, 4 sigma)`` with sigma the robust spread of the formwork's points
+        (noise grows with distance, so the default adapts to the capture)
+    max_height_mm : higher points are not rebar (a boot, a tool)
+    plane : (normal, offset_mm) of the formwork if known, else fitted with
+        :func:`fit_formwork_plane`
+    open_px : radius of a morphological opening that removes isolated (flying) pixels; 0 = none
+    rng : seed or Generator of the plane fit
+
+    Returns
+    -------
+    (H, W) bool; pixels without depth are False (see :func:`fuse_masks` for how holes are used).
+
+    Examples
+    --------
+    >>> K = Intrinsics(100.0, 100.0, 3.5, 3.5, 8, 8)
+    >>> depth = np.full((8, 8), 500.0); depth[:, 3:5] = 480.0   # a 20 mm high "bar"
+    >>> mask_from_depth(depth, K, rng=0, open_px=0)[0].astype(int).tolist()
+    [0, 0, 0, 1, 1, 0, 0, 0]
+    """
+    import cv2
+
+    if hasattr(capture_or_depth, "depth_mm"):
+        depth, intr = capture_or_depth.depth_mm, capture_or_depth.intrinsics
+    else:
+        if intrinsics is None:
+            raise RebarInputError("intrinsics: required when a depth map is given instead of a Capture")
+        depth, intr = np.asarray(capture_or_depth, float), intrinsics
+    rng = np.random.default_rng(rng)
+    if plane is None:
+        cloud = depth_to_points(depth, intr)
+        if len(cloud.points) < 3:
+            raise RebarInputError("depth: fewer than 3 pixels with depth, no formwork plane to fit")
+        plane = fit_formwork_plane(cloud.points, rng=rng)
+    h = height_above_plane(depth, intr, plane)
+    if min_height_mm is None:
+        near = h[np.isfinite(h) & (np.abs(h) < 10)]
+        sigma = 1.4826 * np.median(np.abs(near - np.median(near))) if len(near) > 50 else 1.0
+        min_height_mm = max(6.0, 4 * sigma)
+    with np.errstate(invalid="ignore"):
+        mask = (h > min_height_mm) & (h < max_height_mm)
+    if open_px > 0:
+        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * open_px + 1, 2 * open_px + 1))
+        mask = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, k).astype(bool)
+    return mask
+
+
+def fuse_masks(color_mask, depth_mask, *, depth_valid=None, support_px: int | None = None,
+               min_fill_px: int | None = None) -> np.ndarray:
+    """Combine a colour mask (sharp edges) with a depth mask (presence that light cannot fool).
+
+    1. A colour pixel is kept if depth confirms a bar within ``support_px`` of it, or if there
+       is no depth around it (holes, projector shadow: no evidence against it). This removes
+       shadow lines, stains and marks on flat formwork that look like bars.
+    2. Depth regions that colour missed (bars in deep shadow, dark rust on dark board) are added:
+       connected components of the depth mask, away from the colour mask, of at least
+       ``min_fill_px`` pixels.
+
+    Parameters
+    ----------
+    color_mask, depth_mask : (H, W) bool
+    depth_valid : (H, W) bool, where depth exists (e.g. ``capture.depth_mm > 0``); default all
+    support_px : how far depth evidence reaches, px; default 3 px per 1280 px of width
+    min_fill_px : smallest depth-only region added, px; default 40 px per 1280 x 800 image
+
+    Returns
+    -------
+    (H, W) bool
+
+    Examples
+    --------
+    >>> color = np.zeros((6, 12), bool); color[:, 2:4] = True; color[:, 8] = True  # 8: a shadow line
+    >>> depth = np.zeros((6, 12), bool); depth[:, 2:4] = True
+    >>> fuse_masks(color, depth, support_px=1, min_fill_px=4)[0].astype(int).tolist()
+    [0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0]
+    """
+    import cv2
+
+    c = np.asarray(color_mask).astype(bool)
+    d = np.asarray(depth_mask).astype(bool)
+    if c.shape != d.shape or c.ndim != 2:
+        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
+    H, W = c.shape
+    scale = W / 1280.0
+    if support_px is None:
+        support_px = max(1, round(3 * scale))
+    if min_fill_px is None:
+        min_fill_px = max(4, round(40 * scale * scale))
+    valid = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
+    if valid.shape != c.shape:
+        raise RebarInputError(f"depth_valid: expected the shape of color_mask {c.shape}, got {valid.shape}")
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * support_px + 1, 2 * support_px + 1))
+    near_bar = cv2.dilate(d.astype(np.uint8), k).astype(bool)
+    # no depth at the pixel itself (hole, projector shadow): no evidence against colour
+    kept = c & (near_bar | ~valid)
+    missed = d & ~cv2.dilate(c.astype(np.uint8), k).astype(bool)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(missed.astype(np.uint8), connectivity=8)
+    big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= min_fill_px)
+    big = big[big > 0]
+    if len(big):
+        kept = kept | np.isin(lab, big)
+    return kept
+
+
+# ---------------------------------------------------------------------------------------------
+# Synthetic data for training and evaluating segmentation models
+
+#: The recipe of the shipped model's data set: capture ``i`` of the set is
+#: ``synth_segmentation_capture(i, seed=DATASET_SEED)``; the 6:2:2 split is ``split_indices``.
+DATASET_SEED = 20240611
+DATASET_SIZE = 300
+
+
+def segmentation_scene_params(index: int, *, seed: int = DATASET_SEED) -> dict:
+    """The randomised design, pose, deviations and appearance of capture ``index`` of a data set.
+
+    Everything is drawn from ``numpy.random.default_rng([seed, index])``, so a data set is
+    regenerated exactly from ``(seed, index)`` at any resolution.
+
+    Examples
+    --------
+    >>> p = segmentation_scene_params(3)
+    >>> 350 <= p["height_mm"] <= 700 and 0 <= p["tilt_deg"] <= 20
+    True
+    """
+    from .synth import rib_envelope_mm
+
+    rng = np.random.default_rng([int(seed), int(index)])
+    sizes = (8, 10, 12, 14, 16, 18, 20)
+    d_lo, d_up = (int(rng.choice(sizes)) for _ in range(2))
+    s_lo, s_up = (float(10 * round(rng.uniform(100, 250) / 10)) for _ in range(2))
+    cover = float(round(rng.uniform(15, 50)))
+    layer = float(round(2 * rib_envelope_mm(d_lo) + rng.uniform(10, 90)))
+    design = {"slab": {"id": f"SEG-{seed}-{index}"},
+              "design": {"cover_mm": cover, "layer_distance_mm": layer,
+                         "lower": {"diameter_mm": d_lo, "spacing_mm": s_lo},
+                         "upper": {"diameter_mm": d_up, "spacing_mm": s_up}}}
+    deviations = dict(position_sigma_mm=float(rng.uniform(0, 6)), height_sigma_mm=float(rng.uniform(0, 2)),
+                      bow_mm=float(rng.uniform(0, 10)), mesh_yaw_deg=float(rng.uniform(-45, 45)),
+                      missing=int(rng.integers(0, 3)), wrong_size=int(rng.integers(0, 2)))
+    rusty = rng.random() < 0.5
+    appearance = dict(
+        formwork=str(rng.choice(["plywood", "film", "plastic"])),
+        rust_fraction=float(rng.uniform(0.3, 1.0)) if rusty else 0.0,
+        sun_elevation_deg=float(rng.uniform(20, 85)), sun_azimuth_deg=float(rng.uniform(0, 360)),
+        ambient=float(rng.uniform(0.15, 0.6)), exposure=float(rng.uniform(0.6, 1.4)),
+        noise_sigma=float(rng.uniform(1.0, 6.0)),
+        blur_px=float(rng.uniform(0.0, 1.2)) if rng.random() < 0.5 else 0.0,
+        jpeg_quality=int(rng.integers(50, 96)) if rng.random() < 0.5 else None)
+    return {"design": design, "height_mm": float(rng.uniform(350, 700)),
+            "tilt_deg": float(rng.uniform(0, 20)), "yaw_deg": float(rng.uniform(0, 360)),
+            "target_mm": (float(rng.uniform(-300, 300)), float(rng.uniform(-300, 300))),
+            "deviations": deviations, "appearance": appearance,
+            "render_seed": int(rng.integers(2**31))}
+
+
+def synth_segmentation_capture(index: int, *, seed: int = DATASET_SEED, intrinsics=None,
+                               sensor=None):
+    """Render capture ``index`` of the segmentation data set (see :func:`segmentation_scene_params`).
+
+    Parameters
+    ----------
+    index : which capture of the set
+    seed : the data set's seed
+    intrinsics : camera (default GEMINI2, 1280 x 800); ``GEMINI2.scaled(0.5)`` renders the same
+        scene at 640 x 400
+    sensor : depth sensor model (default: the realistic ``SensorModel()``)
+
+    Returns
+    -------
+    Capture with ``labels`` (rebar = ``labels > 0``) and ``metadata["truth"]``.
+    """
+    from ._camera import GEMINI2
+    from ._design import design_from_dict
+    from .synth import Appearance, Deviations, synth_capture
+
+    p = segmentation_scene_params(index, seed=seed)
+    return synth_capture(design_from_dict(p["design"], source="segmentation data set"),
+                         height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
+                         target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
+                         sensor=sensor, appearance=Appearance(**p["appearance"]),
+                         intrinsics=intrinsics or GEMINI2, seed=p["render_seed"],
+                         name=f"seg-{seed}-{index}")
+
+
+def split_indices(n: int = DATASET_SIZE, *, seed: int = DATASET_SEED) -> dict:
+    """Split capture indices ``0..n-1`` 6:2:2 into train / val / test, by capture, seeded.
+
+    Examples
+    --------
+    >>> s = split_indices(10, seed=1)
+    >>> [len(s[k]) for k in ("train", "val", "test")]
+    [6, 2, 2]
+    """
+    perm = np.random.default_rng([int(seed), 622]).permutation(int(n))
+    n_train, n_val = int(round(0.6 * n)), int(round(0.2 * n))
+    return {"train": np.sort(perm[:n_train]), "val": np.sort(perm[n_train:n_train + n_val]),
+            "test": np.sort(perm[n_train + n_val:])}
+
+
+def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, rust_margin_px: int | None = None) -> dict:
+    """The hard-case subsets of a data-set capture, for the shadow / rust breakdown.
+
+    * ``shadow``: pixels that receive no direct sunlight (in a cast shadow, or facing away from
+      the sun), bar and formwork alike. Found by rendering the same scene again with no ambient
+      light and no noise: those pixels come out exactly black.
+    * ``rust``: pixels of bars with ``truth rust > 0``, grown by ``rust_margin_px`` (default
+      3 px per 1280 px of width) so that false positives around rusty bars count too.
+
+    Metrics on a subset count only its pixels (``confusion_counts(..., region=...)``).
+
+    Parameters
+    ----------
+    index, seed : the capture of the data set (see :func:`synth_segmentation_capture`)
+    capture : that capture, as rendered (gives the resolution and the bar ids)
+    """
+    import cv2
+    from dataclasses import replace
+
+    from ._design import design_from_dict
+    from .synth import Appearance, Deviations, SensorModel, synth_capture
+
+    p = segmentation_scene_params(index, seed=seed)
+    app = Appearance(**p["appearance"])
+    dark = replace(app, ambient=0.0, exposure=1.0, noise_sigma=0.0, blur_px=0.0, jpeg_quality=None)
+    ref = synth_capture(design_from_dict(p["design"], source="segmentation data set"),
+                        height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
+                        target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
+                        sensor=SensorModel.ideal(), appearance=dark, intrinsics=capture.intrinsics,
+                        seed=p["render_seed"])
+    shadow = ref.color.max(axis=2) == 0
+    rusty = [b["id"] + 1 for b in capture.truth["bars"] if b["rust"] > 0]
+    rust = np.isin(capture.bar_ids, rusty)
+    margin = rust_margin_px if rust_margin_px is not None else max(1, round(3 * capture.intrinsics.width / 1280))
+    if margin > 0 and rust.any():
+        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1))
+        rust = cv2.dilate(rust.astype(np.uint8), k).astype(bool)
+    return {"shadow": shadow, "rust": rust}
