@@ -33,7 +33,7 @@ _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", 
              "width_spread_mm", "nominal_mm", "design_diameter_mm", "diameter_status", "diameter_reason")
 VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
                 "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
-IMAGE_WIDTH_PX = 800  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
+IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
 def templates_dir() -> Path:
@@ -47,7 +47,7 @@ def templates_dir() -> Path:
     Examples
     --------
     >>> sorted(p.name for p in templates_dir().iterdir())
-    ['report.css', 'report.html.j2']
+    ['overlay.svg.j2', 'plan.svg.j2', 'report.css', 'report.html.j2']
     """
     path = Path(__file__).resolve().parent.parent / "templates"
     if not (path / "report.html.j2").is_file():
@@ -232,7 +232,7 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         by_id[str(rec.get("bar_id"))] = (a, b)
         # Bar ids at the far end of the bottom level and the near end of the top level, so the
         # ids of crossing directions sit on different sides of the drawing.
-        lab = b + 0.04 * (b - a) if level == "bottom" else a - 0.04 * (b - a)
+        lab = b + 0.07 * (b - a) if level == "bottom" else a - 0.07 * (b - a)
         segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
                      "lx": lab[0], "ly": lab[1],
                      "layer": layer, "level": level, "width": width,
@@ -264,8 +264,9 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
                        "text": "n/m" if v is None else f"{v:.0f}", "bad": status in ("beyond", "beyond max"),
                        "layer": rec.get("layer")})
     return {"segments": segs, "labels": labels, "x": lo[0] - pad, "y": lo[1] - pad,
-            "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 2 * pad, "font": span / 45,
-            "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 0.6}
+            # An extra strip at the bottom holds the scale bar, clear of the bar ids.
+            "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 3 * pad, "font": span / 45,
+            "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 2.0}
 
 
 def _scale_bar(span: float) -> float:
@@ -383,7 +384,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                                if name not in folders else "colour image or camera.json unreadable"),
             "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design),
             "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
-            "height": _fmt(cam.get("height_mm"), 0, "mm"), "tilt": _fmt(cam.get("tilt_deg"), 1, "°"),
+            "height": _fmt(cam.get("height_mm"), 0, "mm"), "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
             "device": meta.get("device", "not recorded"), "captured_at": meta.get("captured_at", "not recorded"),
             "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
         })
@@ -510,9 +511,30 @@ def _env():
     return env
 
 
+def _svg_uri(svg: str) -> str:
+    return "data:image/svg+xml;base64," + base64.b64encode(svg.encode("utf-8")).decode("ascii")
+
+
 def render_html(context: dict) -> str:
-    """The report as one self-contained HTML page (CSS inlined, images as data URIs)."""
-    return _env().get_template("report.html.j2").render(**context)
+    """The report as one self-contained HTML page (CSS inlined, images as data URIs).
+
+    The drawings are SVG documents of their own (templates ``overlay.svg.j2``, ``plan.svg.j2``)
+    embedded as data URIs: inline, their hundreds of elements would each go through the HTML
+    style cascade, which doubled the PDF's layout time.
+    """
+    env = _env()
+    overlay, plan = env.get_template("overlay.svg.j2"), env.get_template("plan.svg.j2")
+    captures = []
+    for c in context["captures"]:
+        c = dict(c)
+        if c.get("image"):
+            c["image"] = {**c["image"], "overlay_uri": _svg_uri(overlay.render(image=c["image"]))}
+        if c.get("plan"):
+            p = c["plan"]
+            # Page content is 184 mm wide; at most 80 mm high keeps image and plan on one page.
+            c["plan"] = {**p, "uri": _svg_uri(plan.render(plan=p)), "display_mm": min(184.0, 80.0 * p["w"] / p["h"])}
+        captures.append(c)
+    return env.get_template("report.html.j2").render(**{**context, "captures": captures})
 
 
 def write_exports(acceptance: Acceptance, out_path) -> list:
