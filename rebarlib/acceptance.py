@@ -205,13 +205,18 @@ class Tolerances:
                     f"{sorted(item_names)} and rule in {sorted(rules)}")
             if field_ in ("min_pass_ratio", "max_factor"):
                 v = _override_number(value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0)
-                rules[item] = replace(rules[item], **{field_: v})
+                r = replace(rules[item], **{field_: v})
+                # The preset's wording no longer describes the rule: print what applies now.
+                text = f"{r.name}: at least {r.min_pass_ratio:.0%} of checkpoints within tolerance" + (
+                    f" and none beyond {r.max_factor:g} x the tolerance" if r.max_factor else "")
+                rules[item] = replace(r, text=text + f" (overridden in {Path(source).name})")
                 continue
             base = items.get(item) or self.item(item)
             if field_ == "lot_rule":
                 if value not in rules:
                     raise RebarInputError(f"{where}: lot rule {value!r} is not defined; expected one of {sorted(rules)}")
-                items[item] = replace(base, lot_rule=value)
+                items[item] = replace(base, lot_rule=value, clause=f"{base.clause} — lot rule {value!r} set in "
+                                      f"{Path(source).name}")
                 continue
             v = _override_number(value, where, lo=0.0, hi=1000.0)
             changes = {"minus": v, "plus": v} if field_ == "both" else {field_: v}
@@ -259,7 +264,7 @@ def _tol_text(minus, plus, unit="mm") -> str:
     if plus is None:
         return f"−{f(minus)} {unit} (no upper limit)"
     if minus == plus:
-        return f"±{f(minus)} {unit}" if minus else f"0 {unit} (as designed)"
+        return f"±{f(minus)} {unit}" if minus else "as designed"
     return f"−{f(minus)} / +{f(plus)} {unit}"
 
 
