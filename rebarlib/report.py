@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
-import json
 import math
 from pathlib import Path
 
@@ -582,21 +581,4 @@ def build_report(slab_dir_or_results, design: Design, acceptance: Acceptance, *,
                         url_fetcher=safe_url_fetcher(root)).write_pdf(str(out))
     if exports:
         write_exports(acceptance, out)
-    return out
-
-
-def load_results(paths) -> list:
-    """Read ``result.json`` files (as written by ``rebar inspect``)."""
-    out = []
-    for p in paths:
-        p = Path(p)
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise RebarInputError(f"{p}: result file not found") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise RebarInputError(f"{p}: not a valid result.json ({exc})") from None
-        if not isinstance(data, dict) or "capture" not in data:
-            raise RebarInputError(f"{p}: not an inspection result (no 'capture' key)")
-        out.append(data)
     return out

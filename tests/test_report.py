@@ -16,7 +16,7 @@ import pandas as pd
 import pypdf
 import pytest
 
-from rebarlib import design_from_dict, load_design
+from rebarlib import RebarInputError, design_from_dict, load_design
 from rebarlib.acceptance import design_top_cover_mm, evaluate
 from rebarlib.cli import main
 from rebarlib.report import build_report, render_html, report_context, safe_url_fetcher, templates_dir
@@ -179,3 +179,25 @@ def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
     row = acc.items.set_index("item").loc["top_cover"]
     assert row["design_value"] == design_top_cover_mm(design) < design.top_cover_mm
     assert row["verdict"] == "pass"  # the truth's top of the bars includes the ribs
+
+
+def test_cli_html_with_another_standard(paper, tmp_path):
+    _, res = paper
+    (tmp_path / "res" / "A_400").mkdir(parents=True)
+    (tmp_path / "res" / "A_400" / "result.json").write_text(json.dumps(res["A_400"]), encoding="utf-8")
+    out = tmp_path / "r.html"
+    assert main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out),
+                 "--standard", "ACI117-318", "--no-exports"]) == 0
+    html = out.read_text(encoding="utf-8")
+    assert "ACI 318-19 / ACI 117-10" in html and "±76 mm" in html
+    assert not (tmp_path / "r_checkpoints.csv").exists()
+    assert main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out),
+                 "--standard", "BS8110"]) == 2
+
+
+def test_missing_templates_fail_with_a_clear_error(monkeypatch, tmp_path):
+    import rebarlib.report as report
+
+    monkeypatch.setattr(report, "__file__", str(tmp_path / "rebarlib" / "report.py"))
+    with pytest.raises(RebarInputError, match="report templates not found"):
+        report.templates_dir()
