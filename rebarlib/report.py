@@ -191,7 +191,11 @@ def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
         t = 0.12 if rec.get("level") == "bottom" else 0.88
         if rec.get("layer") == "upper":
             t = 1 - t - 0.06 if t > 0.5 else t + 0.06
-        out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": x0 + t * (x1 - x0), "ly": y0 + t * (y1 - y0),
+        # Keep the label box (about 1.8 x 1.2 label heights, see overlay.svg.j2) inside the image.
+        m = intrinsics.width / 60
+        lx = float(np.clip(x0 + t * (x1 - x0), 0.9 * m, intrinsics.width - 0.9 * m))
+        ly = float(np.clip(y0 + t * (y1 - y0), 0.62 * m, intrinsics.height - 0.62 * m))
+        out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": lx, "ly": ly,
                     "id": str(rec.get("bar_id")), "colour": BAR_COLOURS["hidden" if hidden else v],
                     "hidden": hidden, "verdict": "hidden" if hidden else v})
     return out

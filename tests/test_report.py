@@ -201,3 +201,20 @@ def test_missing_templates_fail_with_a_clear_error(monkeypatch, tmp_path):
     monkeypatch.setattr(report, "__file__", str(tmp_path / "rebarlib" / "report.py"))
     with pytest.raises(RebarInputError, match="report templates not found"):
         report.templates_dir()
+
+
+def test_unmeasured_item_is_reported_with_its_reason(paper):
+    design, res = paper
+    r = json.loads(json.dumps(res["A_400"]))
+    r["measurements"]["layer_distance"] = {"value_mm": None, "uncertainty_mm": None, "n_points": 0,
+                                           "status": "not measured", "reason": "upper lattice not found"}
+    acc = evaluate([r], design)
+    assert acc.verdict == "incomplete"
+    ctx = report_context([r], design, acc)
+    row = next(it for it in ctx["items"] if it["item"] == "layer_distance")
+    assert (row["verdict"], row["ratio_text"], row["worst_text"]) == ("not measured", "–", "–")
+    assert [n["reason"] for n in ctx["not_measured"]] == ["upper lattice not found"]
+    html = render_html(ctx)
+    assert "NOT ACCEPTED (incomplete" in html and "upper lattice not found" in html
+    assert ctx["captures"][0]["image"] is None  # results without a slab folder: no image, said so
+    assert "No image:" in html
