@@ -335,6 +335,8 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
 
     Examples
     --------
+    >>> load_tolerances("ACI 318").name
+    'ACI117-318'
     >>> t = load_tolerances("gb50204_2015")
     >>> t.standard, t.item("cover").text(), t.rule("cover").max_factor
     ('GB 50204-2015', '±3 mm', 1.5)
@@ -349,6 +351,11 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
         if not match:
             # A short name ("aci", "en13670", "gb") picks the one preset it starts.
             match = [p for n, p in presets.items() if _norm(text) and _norm(n).startswith(_norm(text))]
+        if not match and path.suffix != ".toml":
+            # A code named another way ("ACI 318", "EN 1992-1-1", "GB 50204") picks the one preset
+            # of that family; the report prints which preset was used.
+            family = re.match(r"[a-z]*", _norm(text)).group()
+            match = [p for n, p in presets.items() if family and re.match(r"[a-z]*", _norm(n)).group() == family]
         if len(match) != 1:
             if path.suffix == ".toml":
                 raise RebarInputError(f"{path}: tolerance file not found")
