@@ -437,6 +437,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
         "record": record, "record_generated": not slab.get("record"),
         "project": slab.get("project", ""), "slab_id": design.slab_id, "element": design.element,
         "location": design.location, "drawing": slab.get("drawing", ""), "contractor": slab.get("contractor", ""),
+        "lot": str(slab.get("lot", "")),
         "standard": tol.standard, "edition": tol.edition, "preset": tol.name, "preset_title": tol.title,
         "overrides": list(tol.overrides), "design_source": design.source,
         "capture_dates": ", ".join(sorted(dates)) or "not recorded in the capture files",
