@@ -36,24 +36,28 @@ IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sha
 
 
 def templates_dir() -> Path:
-    """The report templates: ``templates/`` next to the ``rebarlib`` package (source checkout).
+    """The report templates: ``rebarlib/templates/`` when installed as package data, else the
+    repository's ``templates/`` next to the ``rebarlib`` package (source checkout, editable install).
 
     Raises
     ------
     RebarInputError
-        When the folder is not there (e.g. rebarlib installed from a wheel without the checkout).
+        When neither folder holds ``report.html.j2`` (e.g. a wheel built without the templates).
 
     Examples
     --------
     >>> sorted(p.name for p in templates_dir().iterdir())
     ['overlay.svg.j2', 'plan.svg.j2', 'report.css', 'report.html.j2']
     """
-    path = Path(__file__).resolve().parent.parent / "templates"
-    if not (path / "report.html.j2").is_file():
-        raise RebarInputError(
-            f"{path}: report templates not found (expected templates/report.html.j2 next to the "
-            "rebarlib package); the report needs the source checkout of rebarlib")
-    return path
+    package = Path(__file__).resolve().parent
+    candidates = (package / "templates", package.parent / "templates")
+    for path in candidates:
+        if (path / "report.html.j2").is_file():
+            return path
+    raise RebarInputError(
+        f"report templates not found: no report.html.j2 in {candidates[0]} or {candidates[1]} "
+        "(the report needs rebarlib's templates/ folder: use a source checkout, or a build that "
+        "ships templates/ as package data)")
 
 
 # --------------------------------------------------------------------------------------------
