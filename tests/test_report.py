@@ -93,7 +93,9 @@ def test_pdf_text_equals_the_tables(paper, tmp_path):
         unit = "bars" if it.unit == "bars" else "mm"
         worst = f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
         worst = worst.replace("+0.0 mm", "0.0 mm").replace("+0 bars", "0 bars")
-        extra = f" (+{it.excluded} hidden)" if it.excluded else ""
+        extra = ", ".join(t for t in (f"+{it.not_measured} n/m" if it.not_measured else "",
+                                      f"+{it.excluded} hidden" if it.excluded else "") if t)
+        extra = f" ({extra})" if extra else ""
         row = f"{it.tolerance} {it.measured}{extra} {it.passed} {100 * it.pass_ratio:.0f} % {worst} {it.verdict}"
         assert row in text, f"summary row of {it.item} not in the PDF: {row!r}"
     # The flagged cover deviation is printed with its flag, as on a record sheet.
