@@ -243,7 +243,8 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
                      "lx": lab[0], "ly": lab[1],
                      "layer": layer, "level": level, "width": width,
-                     "colour": LAYER_COLOURS.get(layer, "#555"), "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"})
+                     "colour": LAYER_COLOURS.get(layer, "#555"),
+                     "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"})
     if not segs:
         return None
     pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
@@ -391,7 +392,8 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                                if name not in folders else "colour image or camera.json unreadable"),
             "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design),
             "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
-            "height": _fmt(cam.get("height_mm"), 0, "mm"), "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
+            "height": _fmt(cam.get("height_mm"), 0, "mm"),
+            "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
             "device": meta.get("device", "not recorded"), "captured_at": meta.get("captured_at", "not recorded"),
             "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
         })
@@ -404,8 +406,9 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             rules.append({"no": len(rules) + 1, "rule": it["rule"], "clause": it["clause"]})
         it["rule_no"] = [(r["rule"], r["clause"]) for r in rules].index(key) + 1
         unit = "bars" if it["unit"] == "bars" else "mm"
-        it["worst_text"] = "–" if it["worst_deviation"] is None else (
-            f"{_signed(it['worst_deviation'], 0)} bars" if unit == "bars" else f"{_signed(it['worst_deviation'], 1)} mm")
+        w = it["worst_deviation"]
+        it["worst_text"] = "–" if w is None else (
+            f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
         it["ratio_text"] = _pct(it["pass_ratio"])
         it["extra_text"] = ", ".join(t for t in (f"+{it['not_measured']} n/m" if it["not_measured"] else "",
                                                  f"+{it['excluded']} hidden" if it["excluded"] else "") if t)
@@ -427,7 +430,8 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     u_bar = cp[cp["item"].str.startswith("bar_size") & cp["uncertainty"].notna()]
     if len(u_bar):
         uncertainty.append({"label": "Bar width (spread along each bar)",
-                            "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm (median over {len(u_bar)} bars)"})
+                            "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
+                                    f"(median over {len(u_bar)} bars)"})
     not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
                     for c in checkpoints if c["status"] == "not measured"]
     # Collapse repeated (item, reason) pairs so the section stays readable on a large slab.
@@ -435,7 +439,8 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     for c in not_measured:
         key = (c["label"], c["reason"])
         nm_grouped.setdefault(key, []).append(f"{c['capture']}: {c['what']}")
-    nm_rows = [{"label": k[0], "reason": k[1], "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
+    nm_rows = [{"label": k[0], "reason": k[1],
+                "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
                 "n": len(v)} for k, v in nm_grouped.items()]
     record = str(slab.get("record", "")) or f"{design.slab_id}-{now:%Y%m%d}"
     return {
@@ -456,7 +461,8 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                "s": design.lattice(la).level(lv).spacing_mm}
                               for la in ("lower", "upper") for lv in ("bottom", "top")]},
         "verdict": acceptance.verdict, "verdict_text": VERDICT_TEXT.get(acceptance.verdict, acceptance.verdict),
-        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons), "notes": list(acceptance.notes),
+        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons),
+        "notes": list(acceptance.notes),
         "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows, "captures": captures,
         "uncertainty": uncertainty, "not_measured": nm_rows,
         "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
