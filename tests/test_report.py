@@ -220,3 +220,27 @@ def test_unmeasured_item_is_reported_with_its_reason(paper):
     assert "NOT ACCEPTED (incomplete" in html and "upper lattice not found" in html
     assert ctx["captures"][0]["image"] is None  # results without a slab folder: no image, said so
     assert "No image:" in html
+
+
+def test_cli_inspects_captures_itself_without_results(paper, tmp_path, monkeypatch, capsys):
+    import sys
+    import types
+
+    design, _ = paper
+    calls = []
+
+    def fake_inspect(capture, design_, *, method):
+        calls.append((capture.name, method))
+        if capture.name == "D_500":
+            raise RebarInputError("depth image empty")
+        return result_from_truth(PAPER / capture.name, design_)
+
+    monkeypatch.setitem(sys.modules, "rebarlib._inspect", types.SimpleNamespace(inspect=fake_inspect))
+    out = tmp_path / "r.html"
+    assert main(["report", str(PAPER), "--out", str(out), "--method", "paper"]) == 0
+    assert calls == [(c, "paper") for c in ("A_400", "B_500", "C_600", "D_500")]
+    saved = json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))
+    assert saved["missing_captures"] == [{"capture": "D_500", "reason": "inspection failed: depth image empty"}]
+    monkeypatch.setitem(sys.modules, "rebarlib._inspect", None)  # the stage is not installed
+    assert main(["report", str(PAPER), "--out", str(out)]) == 2
+    assert "--results" in capsys.readouterr().err
