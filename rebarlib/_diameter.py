@@ -36,7 +36,8 @@ BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_
 #: Columns of the table :func:`measure_diameters` returns (one row per bar, merge on bar_id).
 DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
                     "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
-                    "matches_design", "hidden", "occluded_fraction")
+                    "matches_design", "hidden", "occluded_fraction", "cloud_width_mm", "width_source",
+                    "width_used_mm")
 
 MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 
@@ -402,6 +403,18 @@ class _RefinedParams:
     quantisation_px: float = 0.4  # std. uncertainty floor of a width from pixel edges
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
+    colour_edges: object = "check"  # colour edges near the mask edges: "check" the mask, "replace" it, False
+    depth_check: bool = True  # the point-cloud width must snap to the same size as the mask width
+    depth_correlated_px: float = 4.0  # neighbouring depth points share noise: effective count / this
+    cloud_bias_mm_per_m2: float = 1.5  # systematic uncertainty of a point-cloud diameter, x z² (m)
+    veto_k: float = 2.0  # mask and cloud widths further apart than this many σ: not measured
+    mask_spread_sys: float = 0.5  # share of the mask widths' spread that is a bias of the whole bar
+    cloud_only_confidence: float = 0.85  # cap for a size from the point cloud alone (relies on the axis)
+    depth_core: float = 0.5  # point-cloud points from the middle this fraction of each run
+    colour_tolerance_px: float = 0.5  # colour and mask widths may differ this much (cylinder shading)
+    edge_search_px: float = 2.5  # how far from the mask edge the colour edge may lie
+    edge_min_contrast: float = 12.0  # grey levels between bar and background, else keep the mask
+    edge_peak_share: float = 0.3  # the gradient peak must carry this share of the step per pixel
     axis_sigma_mm: float = 0.3  # lateral axis error tolerated before the centring counts against a width
     max_offcentre_rel: float = 0.2  # mask run centre this far (x width) off the axis: not measured
 
@@ -413,7 +426,85 @@ def _remap(img, u, v):
                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
-def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams):
+def _colour_edges_rgb(c, t, t_lo, t_hi, px_mm, prm):
+    """Move each mask edge to the colour edge near it, in colour (RGB) rather than luminance.
+
+    Grey steel on a green or brown board can have the luminance of the board; the colour step
+    remains. Candidates are local maxima of the colour gradient magnitude within
+    ``prm.edge_search_px`` of the mask edge; the one where the colour passes from that of the
+    bar's middle (inside) to something else (outside) wins, so the edge of a cast shadow next
+    to the bar (shadow inside, board outside) loses to the bar's own edge.
+
+    c : (R, K, 3) colour profiles at ``t`` (K,) mm. Returns t_lo, t_hi (R,) mm and moved (R,).
+    """
+    R, K, _ = c.shape
+    dt = t[1] - t[0]
+    tm = (t[:-1] + t[1:]) / 2
+    mag = np.linalg.norm(np.diff(c, axis=1), axis=2) / dt  # colour change per mm, (R, K-1)
+    pm = px_mm[:, None]
+    mid = (t_lo + t_hi) / 2
+    core = np.abs(t[None, :] - mid[:, None]) <= (t_hi - t_lo)[:, None] / 4
+    ref = (c * core[..., None]).sum(axis=1) / np.maximum(core.sum(axis=1), 1)[:, None]  # bar colour
+    dist = np.linalg.norm(c - ref[:, None, :], axis=2)  # (R, K) colour distance to the bar
+    step = np.maximum(np.rint(px_mm / dt).astype(int), 1)  # one pixel in samples, per row
+    j = np.arange(K - 1)[None, :]
+    lo_idx = np.clip(j - step[:, None] + 1, 0, K - 1)  # a pixel before the gap j|j+1
+    hi_idx = np.clip(j + step[:, None], 0, K - 1)  # a pixel after it
+    d_before = np.take_along_axis(dist, lo_idx, axis=1)
+    d_after = np.take_along_axis(dist, hi_idx, axis=1)
+    peak = np.ones_like(mag, bool)
+    peak[:, 1:] &= mag[:, 1:] >= mag[:, :-1]
+    peak[:, :-1] &= mag[:, :-1] >= mag[:, 1:]
+    strong = mag * pm >= prm.edge_min_contrast
+    res, moved = [], np.zeros(R, bool)
+    for edge, sign in ((t_lo, -1.0), (t_hi, 1.0)):
+        near = np.abs(tm[None, :] - edge[:, None]) <= prm.edge_search_px * pm
+        # outside minus inside colour distance to the bar: large for the bar's own edge
+        gain = (d_before - d_after) if sign < 0 else (d_after - d_before)
+        score = np.where(near & peak & strong & (gain > prm.edge_min_contrast / 2), gain, -np.inf)
+        k = score.argmax(axis=1)
+        ok = np.isfinite(score[np.arange(R), k])
+        win = (np.abs(tm[None, :] - tm[k][:, None]) <= pm) & near
+        w = mag * win
+        pos = (w * tm[None, :]).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-12)
+        res.append(np.where(ok, pos, edge))
+        moved |= ok & (np.abs(pos - edge) > 1e-9)
+    return res[0], res[1], moved
+
+
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm):
+    """Diameter from the point cloud: twice the median distance from the bar's axis of the points
+    on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
+    how many points.
+
+    Independent of the mask's edges (a mask a pixel too wide or narrow does not move it), but it
+    depends on the axis lying at the bar's centre: an axis placed with an assumed radius would
+    return that radius.
+    """
+    if len(stations) < prm.min_sections:
+        return math.nan, math.nan, 0
+    H, W = depth.shape
+    n = 7
+    f = np.linspace(-prm.depth_core, prm.depth_core, n)  # across the middle of each run
+    t = centres[:, None] + f[None, :] * widths[:, None] / 2
+    X = stations[:, None, :] + t[..., None] * plane.across  # (S, n, 3) points of γ
+    uv = project(X.reshape(-1, 3), intr)
+    ui, vi = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    inside = (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
+    z = np.zeros(len(uv))
+    z[inside] = depth[vi[inside], ui[inside]]
+    good = z > 0
+    if good.sum() < prm.min_sections * 3:
+        return math.nan, math.nan, int(good.sum())
+    rays = np.column_stack(((ui[good] - intr.cx) / intr.fx, (vi[good] - intr.cy) / intr.fy, np.ones(good.sum())))
+    P = rays * z[good][:, None] - plane.foot_mm
+    radial = P - np.outer(P @ plane.direction, plane.direction)
+    d = 2 * np.linalg.norm(radial, axis=1)
+    q1, med, q3 = np.percentile(d, [25, 50, 75])
+    return float(med), float((q3 - q1) / 1.349), int(good.sum())
+
+
+def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None):
     H, W = maskf.shape
     pl = bar.plane
     st = _stations(bar, intr, prm.step_px, prm.max_sections)
@@ -429,9 +520,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
     info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
-            "no_edge": 0, "shadow": 0, "outlier": 0}
+            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0}
     widths = np.full(M, np.nan)
     centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
+    colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
     cut = np.zeros(M, bool)
     ok = in_img.copy()
 
@@ -500,6 +592,15 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         t_lo = np.where(cut_lo, t[la] + dt / 2, t_lo)
         t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
         cut[rows] = cut_lo | cut_hi
+        if rgb is not None and prm.colour_edges:
+            g = _remap(rgb, u[rows], v[rows])
+            c_lo, c_hi, moved = _colour_edges_rgb(g, t, t_lo, t_hi, st[rows, 2] / intr.fx, prm)
+            info["colour_edges"] = int(moved.sum())
+            both = ~cut_lo & ~cut_hi & (c_lo != t_lo) & (c_hi != t_hi)
+            colour_w[rows[both]] = (c_hi - c_lo)[both]
+            if prm.colour_edges == "replace":
+                t_lo = np.where(cut_lo, t_lo, c_lo)
+                t_hi = np.where(cut_hi, t_hi, c_hi)
         widths[rows] = t_hi - t_lo
         centres[rows] = (t_hi + t_lo) / 2
         # An edge is trusted unless it may belong to another bar: inside the footprint of a
@@ -528,19 +629,29 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     if (ok & ~cut).sum() >= prm.min_sections:
         info["depth_cut"] = int((ok & cut).sum())
         ok &= ~cut
+    kept = np.flatnonzero(ok)
     w = _tangent_correct(widths[ok], pl.offset_mm)
     c = centres[ok]
+    cw = _tangent_correct(colour_w[ok], pl.offset_mm)
     if len(w) >= 3:
         med = np.median(w)
         mad = 1.4826 * np.median(np.abs(w - med))
         px_mm = float(np.median(st[ok, 2])) / intr.fx
         keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
         info["outlier"] = int((~keep).sum())
-        w, c = w[keep], c[keep]
+        w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
+    info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
+        depth_img, intr, pl, st[kept], c, widths[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
+    # The colour edges next to the mask edges are an independent check of the mask: where the
+    # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
+    # into a dark bar), and the width is no better known than their difference.
+    cw = cw[np.isfinite(cw)]
+    info["colour_width_mm"] = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
     info["centre_mm"] = float(np.median(c)) if len(c) else math.nan
     info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
+    info["z_mm"] = float(np.median(st[:, 2]))
     info["lum"] = math.nan
     if gray is not None and in_img.any():
         uvc = project(st[in_img], intr)
@@ -614,12 +725,78 @@ def _paper_vote(Ds, system):
     return float(sizes[win]), float(counts[win] / len(Ds))
 
 
+def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, depth_check) -> dict:
+    """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
+
+    The mask width and the point-cloud width are two independent measurements, each with a
+    standard uncertainty. Where both are sound they must agree (else "not measured": one of them
+    is biased) and their weighted mean is snapped; where the mask's edges are unreliable
+    (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
+    capped because it relies on the axis lying at the bar's centre.
+    """
+    px_mm, off = info["px_mm"], abs(info["centre_mm"])
+    cdiff = abs(info["colour_width_mm"] - med) if math.isfinite(info["colour_width_mm"]) else 0.0
+    # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
+    # sections: part of the spread is kept as a systematic term.
+    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), prm.quantisation_px * px_mm,
+                         prm.mask_spread_sys * spread, 2 * max(off - prm.axis_sigma_mm, 0.0),
+                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0))
+    mask_problem = ""
+    if off > prm.max_offcentre_rel * med:
+        mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
+                        f"one side lost to shadow or segmentation")
+    elif spread > prm.max_spread_rel * med:
+        mask_problem = f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
+    dw, d_spread, d_n = info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"]
+    cloud = bool(depth_check and math.isfinite(dw))
+    sigma_c = math.inf
+    if cloud:
+        # depth noise grows with z²; besides its random part, the cloud of an active stereo
+        # camera is off by up to about a millimetre on a bar's diameter at 500-700 mm
+        sigma_c = math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
+                             2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info["z_mm"] / 1000) ** 2)
+    out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
+    cap = 1.0
+    if not mask_problem and cloud:
+        if abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
+            out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
+            return out
+        wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
+        width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
+    elif not mask_problem:
+        width, sigma, source = med, sigma_m, "mask"
+    elif cloud:
+        width, sigma, source = dw, sigma_c, "cloud"
+        cap = prm.cloud_only_confidence
+    else:
+        out["diameter_reason"] = mask_problem
+        return out
+    nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
+    if not math.isfinite(nominal):
+        out["diameter_reason"] = f"width {width:.1f} mm matches no {system} size"
+        return out
+    if conf < prm.min_confidence:
+        out["confidence"] = conf
+        out["diameter_reason"] = (f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} "
+                                  f"sizes (confidence {conf:.2f})")
+        return out
+    reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
+    conf = min(conf, cap)
+    if in_shadow:
+        conf = min(conf, prm.shadow_confidence)
+        reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
+    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED,
+               diameter_reason=reason, width_source=source, width_used_mm=round(width, 3))
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # Entry point
 
 
 def measure_diameters(capture, bars, mask, *, design=None, method: str = "refined",
                       system: str | None = None, deformed: bool = True, use_depth: bool = True,
+                      colour_edges="check", depth_check: bool = True,
                       paper_points: int = 20, rng=None):
     """Nominal diameter of every bar from the rebar mask and the bar axes.
 
@@ -636,6 +813,14 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     use_depth : refined: separate a bar from a bar peeking out behind it by the depth image
         where the mask runs on (edges at such depth steps are used only when too few sections
         have two clean mask edges)
+    colour_edges : refined: ``"check"`` (default) finds the colour edge within 2.5 px of each
+        mask edge and widens the width's uncertainty by the disagreement between the colour and
+        mask widths (a biased mask then gives "not measured", not a wrong size); ``"replace"``
+        measures between the colour edges instead; False uses the mask alone
+    depth_check : refined: also measure the diameter from the point cloud (twice the median
+        distance of the bar's depth points from its axis) and report "not measured" when it
+        snaps to another size than the mask width. Needs an axis found from the points
+        without assuming the design radius; False: mask widths alone
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -671,12 +856,17 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     prepared = _prepare(bars, design, system, deformed,
                         default_expected_mm=observed_width_mm(20.0, system="GB1499.2", deformed=deformed))
     fp = _footprints(prepared, intr)
-    prm = _RefinedParams()
+    if colour_edges not in ("check", "replace", False, None):
+        raise RebarInputError(f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}")
+    prm = _RefinedParams(colour_edges=colour_edges or False)
     maskf = m.astype(np.float32)
     gray = capture.color.astype(np.float32).mean(axis=2) if capture.color is not None else None
     depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
     edge = boundary_pixels(m) if method == "paper" else None
-    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm) for i, bar in enumerate(prepared)]
+    rgb = capture.color.astype(np.float32) if capture.color is not None else None
+    depth_img = np.asarray(capture.depth_mm, np.float32) if (depth_check and capture.depth_mm is not None) else None
+    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
+               for i, bar in enumerate(prepared)]
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []
@@ -690,7 +880,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         row = {"bar_id": bar.bar_id, "width_median_mm": math.nan, "width_spread_mm": math.nan,
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
-               "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3)}
+               "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
+               "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, prepared)
@@ -716,26 +907,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             else:
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:
-            spread, px_mm, off = row["width_spread_mm"], info["px_mm"], abs(info["centre_mm"])
-            sigma = math.hypot(1.2533 * spread / math.sqrt(len(w)), prm.quantisation_px * px_mm,
-                               2 * max(off - prm.axis_sigma_mm, 0.0))
-            nominal, conf = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma)
-            if off > prm.max_offcentre_rel * med:
-                row["diameter_reason"] = (f"mask not centred on the axis ({off:.1f} mm off over a "
-                                          f"{med:.1f} mm width): one side lost to shadow or segmentation")
-            elif spread > prm.max_spread_rel * med:
-                row["diameter_reason"] = f"widths too scattered (robust σ {spread:.1f} mm over {len(w)} sections)"
-            elif not math.isfinite(nominal):
-                row["diameter_reason"] = f"width {med:.1f} mm matches no {system} size"
-            elif conf < prm.min_confidence:
-                row.update(confidence=conf)
-                row["diameter_reason"] = (f"ambiguous: width {med:.1f} mm lies between two {system} sizes "
-                                          f"(confidence {conf:.2f})")
-            else:
-                if in_shadow:
-                    conf = min(conf, prm.shadow_confidence)
-                    row["diameter_reason"] = "bar in shadow: confidence capped"
-                row.update(nominal_mm=nominal, confidence=conf, diameter_status=MEASURED)
+            row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
+                                         system=system, deformed=deformed, depth_check=depth_check))
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)
