@@ -831,7 +831,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
     "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
-    ``occluded_fraction``.
+    ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
+    (refined: diameter from the point cloud, twice the median distance of the bar's points from
+    its axis), ``width_source`` ("mask", "cloud" or "mask+cloud": what the size came from) and
+    ``width_used_mm`` (the width that was snapped).
 
     Examples
     --------
@@ -903,7 +906,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         elif method == "paper":
             nominal, share = _paper_vote(w, system)
             if math.isfinite(nominal):
-                row.update(nominal_mm=nominal, confidence=round(share, 3), diameter_status=MEASURED)
+                row.update(nominal_mm=nominal, confidence=round(share, 3), diameter_status=MEASURED,
+                           width_source="mask", width_used_mm=float(med))
             else:
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:

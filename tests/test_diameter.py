@@ -17,6 +17,7 @@ GEOM_TOL_MM = 1e-9  # hand-computed geometry is exact up to rounding
 WIDTH_TOL_MM = 0.8  # ideal sensor, truth mask: median width within ~1 px of the true envelope
 MIN_MEASURED_SHARE = 0.7  # of the bars visible over at least half their view
 HIGH_CONFIDENCE = 0.9
+CLOUD_WIDTH_TOL_MM = 0.3  # ideal sensor, true axis: point-cloud diameter vs true envelope
 PAPER_RIGHT_OR_NEXT = 0.8  # share of the paper method's votes that are the size or the next one  # a wrong size must never be reported with this confidence or more
 K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)  # a simple camera for hand computations
 
@@ -176,6 +177,35 @@ def test_each_standard_size_recovered_on_ideal_captures(ideal_sizes):
     assert (t[t.diameter_status != "measured"].diameter_reason.str.len() > 0).all()
     hidden = bars[bars.bar_id.isin(t[t.hidden].bar_id)]
     assert (hidden.layer == "lower").all()
+
+
+def test_point_cloud_width_is_the_envelope_on_ideal_depth(ideal_sizes):
+    design, cap, bars = ideal_sizes
+    t = _truth_table(cap, measure_diameters(cap, bars, cap.labels > 0, design=design))
+    has = t[np.isfinite(t.cloud_width_mm)]
+    assert len(has) >= len(t) / 2
+    assert (np.abs(has.cloud_width_mm - has.envelope_mm) <= CLOUD_WIDTH_TOL_MM).all()
+    meas = t[t.diameter_status == "measured"]
+    assert set(meas.width_source) <= {"mask+cloud", "mask", "cloud"}
+    assert (meas.width_source == "mask+cloud").mean() >= MIN_MEASURED_SHARE
+
+
+def test_a_biased_mask_is_caught_by_the_point_cloud(ideal_sizes):
+    # The truth mask grown by 2 px all round: its widths are a size or more too large, but the
+    # point cloud still sees the true envelope, so no size is reported wrongly with confidence.
+    import cv2
+
+    design, cap, bars = ideal_sizes
+    fat = cv2.dilate((cap.labels > 0).astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    t = _truth_table(cap, measure_diameters(cap, bars, fat, design=design))
+    meas = t[t.diameter_status == "measured"]
+    assert (meas.nominal_mm == meas.true_mm).all(), meas[meas.nominal_mm != meas.true_mm]
+    assert (t.diameter_reason.str.contains("disagree") | (t.width_source == "cloud")).sum() > 0
+    # without the point cloud the same mask gives wrong sizes: the check is what saves it
+    t2 = _truth_table(cap, measure_diameters(cap, bars, fat, design=design, depth_check=False,
+                                             colour_edges=False))
+    m2 = t2[t2.diameter_status == "measured"]
+    assert (m2.nominal_mm != m2.true_mm).any()
 
 
 def test_paper_method_runs_and_votes_standard_sizes(ideal_sizes):
