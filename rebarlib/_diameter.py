@@ -682,7 +682,7 @@ def _attribute_pixels(pixels, prepared, intr) -> np.ndarray:
     return owner
 
 
-def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, prepared):
+def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner):
     pl = bar.plane
     H, W = mask.shape
     st = _stations(bar, intr, 1.0, n_points)
@@ -698,7 +698,7 @@ def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, prepared):
         if len(region) == 0:
             continue
         bp = region[edge[region[:, 1], region[:, 0]]]
-        bp = bp[_attribute_pixels(bp, prepared, intr) == i]
+        bp = bp[owner[bp[:, 1], bp[:, 0]] == i]
         if len(bp) < 2:
             continue
         side = along[0] * (bp[:, 1] - c[1]) - along[1] * (bp[:, 0] - c[0])
@@ -865,7 +865,12 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     maskf = m.astype(np.float32)
     gray = capture.color.astype(np.float32).mean(axis=2) if capture.color is not None else None
     depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
-    edge = boundary_pixels(m) if method == "paper" else None
+    edge, owner = None, None
+    if method == "paper":
+        edge = boundary_pixels(m)
+        vv, uu = np.nonzero(edge)
+        owner = np.full(m.shape, -1, np.int32)  # bar index of each boundary pixel
+        owner[vv, uu] = _attribute_pixels(np.column_stack((uu, vv)), prepared, intr)
     rgb = capture.color.astype(np.float32) if capture.color is not None else None
     depth_img = np.asarray(capture.depth_mm, np.float32) if (depth_check and capture.depth_mm is not None) else None
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
@@ -887,7 +892,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
-            w = _paper_bar(i, bar, m, edge, intr, paper_points, prepared)
+            w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)
         if len(w):
             q1, med, q3 = np.percentile(w, [25, 50, 75])
             row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
