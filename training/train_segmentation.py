@@ -217,6 +217,9 @@ def cmd_train(args):
     imgs, masks = _load(work, "train")
     vimgs, vmasks = _load(work, "val")
     model = build_model(args.arch)
+    if args.init:
+        # continue from an earlier run (a second, longer stage of the same recipe)
+        model.load_state_dict(torch.load(args.init))
     n_params = sum(p.numel() for p in model.parameters())
     print(f"{args.arch}: {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=1e-4)
@@ -254,18 +257,18 @@ def cmd_train(args):
             print(f"VAL it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
             if v_iou > best:
                 best = v_iou
-                torch.save(model.state_dict(), work / f"{args.arch}.pt")
+                torch.save(model.state_dict(), work / f"{args.tag or args.arch}.pt")
     v_iou, v_dice = evaluate(model, vimgs, vmasks)
     log.append({"it": it, "t_s": round(time.time() - t0), "val_iou": v_iou, "val_dice": v_dice})
     print(f"VAL final it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
     if v_iou > best:
         best = v_iou
-        torch.save(model.state_dict(), work / f"{args.arch}.pt")
-    info = {"arch": args.arch, "parameters": n_params, "iterations": it, "batch": args.batch,
+        torch.save(model.state_dict(), work / f"{args.tag or args.arch}.pt")
+    info = {"arch": args.arch, "init": args.init, "parameters": n_params, "iterations": it, "batch": args.batch,
             "crop_px": args.crop, "lr": args.lr, "minutes": args.minutes, "threads": args.threads,
             "train_seed": TRAIN_SEED, "best_val_iou": best, "log": log,
             "train_captures": len(imgs), "val_captures": len(vimgs)}
-    (work / f"{args.arch}.json").write_text(json.dumps(info, indent=1))
+    (work / f"{args.tag or args.arch}.json").write_text(json.dumps(info, indent=1))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -279,22 +282,39 @@ def cmd_export(args):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model = build_model(args.arch)
-    model.load_state_dict(torch.load(work / f"{args.arch}.pt"))
+    tag = args.tag or args.arch
+    model.load_state_dict(torch.load(work / f"{tag}.pt"))
     model.eval()
+    # pick the probability threshold on the validation split (never on the test split)
+    vimgs, vmasks = _load(work, "val")
+    logits = []
+    with torch.no_grad():
+        for k in range(0, len(vimgs), 4):
+            logits.append(model(_normalise(vimgs[k:k + 4]))[:, 0].numpy())
+    logits = np.concatenate(logits)
+    best_t, best_iou = 0.0, -1.0
+    for t in np.arange(-2.0, 1.01, 0.25):
+        tp, fp, fn = _iou_counts(logits - t, vmasks)
+        v = tp / max(tp + fp + fn, 1)
+        print(f"threshold logit {t:+.2f}: val IoU {v:.4f}")
+        if v > best_iou:
+            best_t, best_iou = float(t), v
+    threshold = round(1 / (1 + math.exp(-best_t)), 4)
     x = torch.zeros(1, 3, IN_H, IN_W)
     onnx_path = out / f"{args.name}.onnx"
     torch.onnx.export(model, (x,), str(onnx_path), input_names=["image"], output_names=["logits"],
                       opset_version=17, dynamo=False)
-    info_path = work / f"{args.arch}.json"
+    info_path = work / f"{tag}.json"
     info = json.loads(info_path.read_text()) if info_path.exists() else \
         {"parameters": sum(p.numel() for p in model.parameters()), "best_val_iou": None}
     sidecar = {
         "format": "rebarlib-segmentation/1",
         "input": {"name": "image", "size": [IN_W, IN_H], "channel_order": "RGB",
                   "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32"},
-        "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": 0.5},
+        "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
         "model": {"architecture": args.arch, "trained_by": "training/train_segmentation.py",
-                  "parameters": info["parameters"], "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5)},
+                  "parameters": info["parameters"], "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
+                  "val_iou_at_threshold": round(best_iou, 5)},
     }
     (out / f"{args.name}.json").write_text(json.dumps(sidecar, indent=2) + "\n")
     print("wrote", onnx_path, onnx_path.stat().st_size, "bytes")
@@ -315,11 +335,14 @@ def main(argv=None):
     a.add_argument("--crop", type=int, default=224)
     a.add_argument("--lr", type=float, default=3e-3)
     a.add_argument("--val-every-s", type=float, default=240)
+    a.add_argument("--init", default=None, help="state dict to start from (continue training)")
+    a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
     a = sub.add_parser("export")
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--arch", choices=["unet", "deeplab"], required=True)
     a.add_argument("--out", default="rebarlib/models")
     a.add_argument("--name", default="rebar_seg")
+    a.add_argument("--tag", default=None, help="which trained run (default: the arch)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.segmentation import DATASET_SIZE
