@@ -45,8 +45,9 @@ def _design(lower_mm, upper_mm, spacing_mm=200):
         "upper": {"diameter_mm": upper_mm, "spacing_mm": spacing_mm}}})
 
 
-def scenarios(quick: bool):
-    """(name, design, synth_capture keywords) of every capture."""
+def scenarios(quick: bool, seed_offset: int = 0):
+    """(name, design, synth_capture keywords) of every capture; ``seed_offset`` shifts every
+    seed (fresh captures of the same set-ups, e.g. to check thresholds on held-out data)."""
     out = []
     heights, tilts, seeds = ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
     for h in heights:
@@ -70,6 +71,21 @@ def _morph(mask, px):
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * abs(px) + 1, 2 * abs(px) + 1))
     op = cv2.dilate if px > 0 else cv2.erode
     return op(mask.astype(np.uint8), k).astype(bool)
+
+
+def _capture(name, design, kw, app, cache):
+    if not cache:
+        return synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
+    from pathlib import Path
+
+    from rebarlib import load_capture, save_capture
+
+    folder = Path(cache) / "".join(c if c.isalnum() else "_" for c in name)
+    if (folder / "truth.json").is_file():
+        return load_capture(folder)
+    cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
+    save_capture(cap, folder)
+    return load_capture(folder)
 
 
 def _mask_sources():
@@ -165,6 +181,9 @@ def main() -> None:
     ap.add_argument("--edges", default="check", help="refined colour edges: check, replace or mask (none)")
     ap.add_argument("--axes", default="truth,detected")
     ap.add_argument("--show-wrong", action="store_true", help="print every wrong size")
+    ap.add_argument("--only", default="", help="only captures whose name contains this")
+    ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
+    ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     args = ap.parse_args()
     mask_src, notes = _mask_sources()
     axis_src, notes2 = _axis_sources()
@@ -180,8 +199,10 @@ def main() -> None:
     recs = defaultdict(list)
     times = defaultdict(list)
     missed = defaultdict(int)
-    for name, design, kw in scenarios(args.quick):
-        cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
+    for name, design, kw in scenarios(args.quick, args.seed_offset):
+        if args.only not in name:
+            continue
+        cap = _capture(name, design, kw, app, args.cache)
         masks = {k: f(cap) for k, f in mask_src.items()}
         axes = {}
         for a, f in axis_src.items():

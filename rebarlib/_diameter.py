@@ -399,7 +399,7 @@ class _RefinedParams:
     outlier_k: float = 3.0
     shadow_ratio: float = 0.5  # section centre darker than this x the bar's median: in shadow
     hidden_fraction: float = 0.5
-    min_confidence: float = 0.75  # below: ambiguous between two sizes, not measured
+    min_confidence: float = 0.8  # below: ambiguous between two sizes, not measured
     quantisation_px: float = 0.4  # std. uncertainty floor of a width from pixel edges
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
