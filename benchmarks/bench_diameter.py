@@ -62,6 +62,8 @@ def scenarios(quick: bool, seed_offset: int = 0):
     for k, (lo, up, h) in enumerate(others):
         out.append((f"Φ{lo}/Φ{up} {h}/8°", _design(lo, up, 150 if lo <= 10 else 200),
                     dict(height_mm=h, tilt_deg=8, yaw_deg=7 * k, seed=20 + k)))
+    if seed_offset:
+        out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
     return out
 
 
