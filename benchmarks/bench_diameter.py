@@ -29,9 +29,9 @@ from collections import defaultdict
 import numpy as np
 
 from rebarlib import GEMINI2, design_from_dict
-from rebarlib._diameter import bars_from_truth, measure_diameters
+from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
 from rebarlib.data import paper_design, site_design
-from rebarlib.synth import Appearance, SensorModel, synth_capture
+from rebarlib.synth import Appearance, Deviations, SensorModel, rib_envelope_mm, synth_capture
 
 HIGH_CONFIDENCE = 0.9
 MATCH_MM = 25.0  # a detected axis within this of a true axis (and parallel) is that bar
@@ -62,6 +62,11 @@ def scenarios(quick: bool, seed_offset: int = 0):
     for k, (lo, up, h) in enumerate(others):
         out.append((f"Φ{lo}/Φ{up} {h}/8°", _design(lo, up, 150 if lo <= 10 else 200),
                     dict(height_mm=h, tilt_deg=8, yaw_deg=7 * k, seed=20 + k)))
+    # a few bars of another size than designed, on a smaller slab so that they are in view
+    wrong = ((450, 0, 30), (500, 10, 31)) if quick else ((450, 0, 30), (450, 10, 31), (500, 5, 32), (550, 15, 33))
+    for h, tilt, seed in wrong:
+        out.append((f"wrong-size {h}/{tilt}°", paper_design(), dict(
+            height_mm=h, tilt_deg=tilt, seed=seed, deviations=Deviations(wrong_size=3, slab_size_mm=800))))
     if seed_offset:
         out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
     return out
@@ -120,8 +125,50 @@ def _mask_sources():
     return sources, notes
 
 
+def _jittered(bars, *, sigma_mm=1.0, rng=None):
+    """The bars table with each axis moved by N(0, sigma_mm) across it (both directions
+    perpendicular to the axis, the same shift at both ends): axes as a detector might find them."""
+    rng = np.random.default_rng(rng)
+    out = bars.copy()
+    for k, r in enumerate(bars.itertuples(index=False)):
+        p0 = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
+        p1 = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
+        v = (p1 - p0) / np.linalg.norm(p1 - p0)
+        a = np.cross(v, [0.0, 0.0, 1.0])
+        a /= np.linalg.norm(a)
+        b = np.cross(v, a)
+        shift = rng.normal(0, sigma_mm) * a + rng.normal(0, sigma_mm) * b
+        for i, c in enumerate("xyz"):
+            out.loc[out.index[k], f"start_{c}_mm"] = p0[i] + shift[i]
+            out.loc[out.index[k], f"end_{c}_mm"] = p1[i] + shift[i]
+    return out
+
+
+def _design_radius_axes(bars, truth, declare=False):
+    """The true axes moved along the line of sight so that the visible surface lies at the design
+    envelope radius from them: what an axis fitted with the design radius looks like."""
+    tb = {int(b["id"]): b for b in truth["bars"]}
+    out = bars.copy()
+    for k, r in enumerate(bars.itertuples(index=False)):
+        b = tb[int(r.bar_id)]
+        shift = (rib_envelope_mm(b["design_diameter_mm"]) - b["envelope_mm"]) / 2
+        p0 = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
+        p1 = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
+        n = imaginary_plane(p0, p1).normal  # from the camera towards the axis
+        for i, c in enumerate("xyz"):
+            out.loc[out.index[k], f"start_{c}_mm"] = p0[i] + shift * n[i]
+            out.loc[out.index[k], f"end_{c}_mm"] = p1[i] + shift * n[i]
+    if declare:  # say so, as the geometry stage should: the cloud width then only vetoes
+        out["axis_radius_mm"] = [rib_envelope_mm(tb[int(i)]["design_diameter_mm"]) / 2 for i in out.bar_id]
+    return out
+
+
 def _axis_sources():
-    sources = {"truth": lambda cap, design: bars_from_truth(cap.truth)}
+    sources = {"truth": lambda cap, design: bars_from_truth(cap.truth),
+               # the true axes moved by 1 mm (σ) across: what detected axes may look like
+               "jitter1": lambda cap, design: _jittered(bars_from_truth(cap.truth), sigma_mm=1.0, rng=0),
+               "designr": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth),
+               "designr+": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth, True)}
     try:
         from rebarlib._inspect import inspect
     except ImportError as e:
@@ -157,7 +204,7 @@ def _score(df, bars, truth, axes_name):
     """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such."""
     tb = {int(b["id"]): b for b in truth["bars"]}
     visible = {int(i) for i in bars_from_truth(truth).bar_id}
-    if axes_name == "truth":
+    if axes_name in ("truth", "jitter1", "designr", "designr+"):  # bar ids are the truth's
         tid = df.bar_id.to_numpy()
     else:
         tid = _match(bars.set_index("bar_id").loc[df.bar_id].reset_index(), truth)
@@ -170,7 +217,8 @@ def _score(df, bars, truth, axes_name):
         seen.add(t)
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
         recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
-                         true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r))
+                         true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r,
+                         wrong_size=bool(tb[t]["wrong_size"])))
     n_missed = len(visible - seen)
     return recs, n_missed
 
@@ -181,9 +229,11 @@ def main() -> None:
     ap.add_argument("--methods", default="paper,refined")
     ap.add_argument("--masks", default="truth,dilated,eroded,model,fused")
     ap.add_argument("--edges", default="check", help="refined colour edges: check, replace or mask (none)")
-    ap.add_argument("--axes", default="truth,detected")
+    ap.add_argument("--axes", default="truth,jitter1,designr,designr+,detected")
     ap.add_argument("--show-wrong", action="store_true", help="print every wrong size")
     ap.add_argument("--only", default="", help="only captures whose name contains this")
+    ap.add_argument("--cloud", default="fuse", choices=("fuse", "veto", "off"),
+                    help="refined: use_cloud True (fuse), 'veto' or False (off)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     args = ap.parse_args()
@@ -219,7 +269,8 @@ def main() -> None:
                 continue
             t0 = time.perf_counter()
             df = measure_diameters(cap, axes[a], masks[k], design=design, method=m,
-                                   colour_edges=False if args.edges == "mask" else args.edges)
+                                   colour_edges=False if args.edges == "mask" else args.edges,
+                                   use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud])
             times[combo].append(time.perf_counter() - t0)
             rr, n_missed = _score(df, axes[a], cap.truth, a)
             recs[combo] += rr
@@ -261,6 +312,18 @@ def main() -> None:
         print(f"{m:<8}{k:<8}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
               f"{extra:>6}{np.median(times[combo]):>9.3f}")
+
+    print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
+          "not measured, missed (measured as another size)")
+    print(f"{'method':<8}{'mask':<8}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'missed':>8}")
+    for combo in combos:
+        ws = [r for r in recs[combo] if r["kind"] == "bar" and r["wrong_size"]]
+        if not ws:
+            continue
+        flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
+        missed = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
+        m, k, a = combo
+        print(f"{m:<8}{k:<8}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - missed:>6}{missed:>8}")
 
     print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
           "bars measured with the true axes")

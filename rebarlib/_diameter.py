@@ -290,6 +290,7 @@ class _Bar:
     length_mm: float
     design_mm: float
     expected_mm: float  # observed width expected from the design size (window sizing)
+    axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
 
 
 def _prepare(bars, design, system, deformed, default_expected_mm):
@@ -303,8 +304,10 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         expected = (observed_width_mm(design_mm, system=system, deformed=deformed)
                     if math.isfinite(design_mm) else default_expected_mm)
         plane = imaginary_plane(p0, p1)
+        assumed = getattr(r, "axis_radius_mm", math.nan)
+        assumed = float(assumed) if assumed is not None else math.nan
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
-                        float(np.linalg.norm(p1 - p0)), design_mm, expected))
+                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed))
     return out
 
 
@@ -404,7 +407,6 @@ class _RefinedParams:
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
     colour_edges: object = "check"  # colour edges near the mask edges: "check" the mask, "replace" it, False
-    depth_check: bool = True  # the point-cloud width must snap to the same size as the mask width
     depth_correlated_px: float = 4.0  # neighbouring depth points share noise: effective count / this
     cloud_bias_mm_per_m2: float = 1.5  # systematic uncertainty of a point-cloud diameter, x z² (m)
     veto_k: float = 2.0  # mask and cloud widths further apart than this many σ: not measured
@@ -725,7 +727,7 @@ def _paper_vote(Ds, system):
     return float(sizes[win]), float(counts[win] / len(Ds))
 
 
-def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, depth_check) -> dict:
+def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
     The mask width and the point-cloud width are two independent measurements, each with a
@@ -748,7 +750,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     elif spread > prm.max_spread_rel * med:
         mask_problem = f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
     dw, d_spread, d_n = info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"]
-    cloud = bool(depth_check and math.isfinite(dw))
+    cloud = bool(use_cloud and math.isfinite(dw))
+    veto_only = use_cloud == "veto"
     sigma_c = math.inf
     if cloud:
         # depth noise grows with z²; besides its random part, the cloud of an active stereo
@@ -763,9 +766,11 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
+        if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
+            width, sigma, source = med, sigma_m, "mask"
     elif not mask_problem:
         width, sigma, source = med, sigma_m, "mask"
-    elif cloud:
+    elif cloud and not veto_only:
         width, sigma, source = dw, sigma_c, "cloud"
         cap = prm.cloud_only_confidence
     else:
@@ -796,7 +801,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
 
 def measure_diameters(capture, bars, mask, *, design=None, method: str = "refined",
                       system: str | None = None, deformed: bool = True, use_depth: bool = True,
-                      colour_edges="check", depth_check: bool = True,
+                      colour_edges="check", use_cloud: bool = True,
                       paper_points: int = 20, rng=None):
     """Nominal diameter of every bar from the rebar mask and the bar axes.
 
@@ -804,7 +809,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ----------
     capture : Capture, for the intrinsics and the colour image (shadow check)
     bars : pandas.DataFrame with :data:`BAR_COLUMNS`: axis end points over the visible extent in
-        the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"
+        the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"; optional
+        ``axis_radius_mm`` (see ``use_cloud``)
     mask : (H, W) bool, rebar pixels (any bar)
     design : Design or None; gives each bar's design size (window size, ``matches_design``)
     method : "refined" (default) or "paper" (method.md Stage 3, faithfully)
@@ -817,10 +823,15 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         mask edge and widens the width's uncertainty by the disagreement between the colour and
         mask widths (a biased mask then gives "not measured", not a wrong size); ``"replace"``
         measures between the colour edges instead; False uses the mask alone
-    depth_check : refined: also measure the diameter from the point cloud (twice the median
-        distance of the bar's depth points from its axis) and report "not measured" when it
-        snaps to another size than the mask width. Needs an axis found from the points
-        without assuming the design radius; False: mask widths alone
+    use_cloud : refined: also measure the diameter from the point cloud (twice the median
+        distance of the bar's depth points from its axis) and combine it with the mask width
+        (a conflict is "not measured"; a sound cloud width alone sizes a bar whose mask is
+        unreliable). Only valid when the axes were found without assuming a bar radius (true
+        axes, free cylinder fits): an axis placed at the design radius below the visible
+        surface makes the cloud width that radius: use ``"veto"`` then (the cloud width only
+        rules out mask sizes it contradicts, "not measured"), or False (mask widths alone).
+        A bar whose row in ``bars`` has a finite ``axis_radius_mm`` (the radius its axis was
+        placed with) is always treated as ``"veto"``
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -859,6 +870,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     prepared = _prepare(bars, design, system, deformed,
                         default_expected_mm=observed_width_mm(20.0, system="GB1499.2", deformed=deformed))
     fp = _footprints(prepared, intr)
+    if use_cloud not in (True, False, "veto"):
+        raise RebarInputError(f"use_cloud: expected True, False or 'veto', got {use_cloud!r}")
     if colour_edges not in ("check", "replace", False, None):
         raise RebarInputError(f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}")
     prm = _RefinedParams(colour_edges=colour_edges or False)
@@ -872,7 +885,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         owner = np.full(m.shape, -1, np.int32)  # bar index of each boundary pixel
         owner[vv, uu] = _attribute_pixels(np.column_stack((uu, vv)), prepared, intr)
     rgb = capture.color.astype(np.float32) if capture.color is not None else None
-    depth_img = np.asarray(capture.depth_mm, np.float32) if (depth_check and capture.depth_mm is not None) else None
+    depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
                for i, bar in enumerate(prepared)]
     lums = np.array([r[3]["lum"] for r in results], float)
@@ -917,7 +930,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:
             row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
-                                         system=system, deformed=deformed, depth_check=depth_check))
+                                         system=system, deformed=deformed,
+                                         # an axis placed with an assumed radius: its cloud
+                                         # width echoes that radius, so it may only veto
+                                         use_cloud=("veto" if use_cloud and math.isfinite(bar.axis_radius_mm)
+                                                    else use_cloud)))
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)

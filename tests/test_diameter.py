@@ -202,7 +202,7 @@ def test_a_biased_mask_is_caught_by_the_point_cloud(ideal_sizes):
     assert (meas.nominal_mm == meas.true_mm).all(), meas[meas.nominal_mm != meas.true_mm]
     assert (t.diameter_reason.str.contains("disagree") | (t.width_source == "cloud")).sum() > 0
     # without the point cloud the same mask gives wrong sizes: the check is what saves it
-    t2 = _truth_table(cap, measure_diameters(cap, bars, fat, design=design, depth_check=False,
+    t2 = _truth_table(cap, measure_diameters(cap, bars, fat, design=design, use_cloud=False,
                                              colour_edges=False))
     m2 = t2[t2.diameter_status == "measured"]
     assert (m2.nominal_mm != m2.true_mm).any()
