@@ -241,6 +241,37 @@ def test_wrong_size_bar_does_not_match_the_design():
     assert len(others) > 0 and (others.matches_design == True).all()  # noqa: E712
 
 
+def test_axes_placed_with_the_design_radius_never_confirm_the_design_size():
+    # Axes moved along the line of sight so the visible surface lies at the design radius from
+    # them (as a fit with the design radius places them): the cloud width then echoes the design
+    # size. Declared by axis_radius_mm, the cloud may only veto, so the wrong-size bar is never
+    # reported as the design size.
+    from rebarlib.synth import rib_envelope_mm
+
+    design = _design(14, 12)
+    cap = synth_capture(design, height_mm=450, tilt_deg=0, seed=0, sensor=SensorModel.ideal(),
+                        deviations=Deviations(wrong_size=1, slab_size_mm=700), intrinsics=GEMINI2)
+    bars = bars_from_truth(cap.truth)
+    tb = {b["id"]: b for b in cap.truth["bars"]}
+    for k, r in enumerate(bars.itertuples(index=False)):
+        b = tb[r.bar_id]
+        p0 = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
+        p1 = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
+        shift = (rib_envelope_mm(b["design_diameter_mm"]) - b["envelope_mm"]) / 2 * imaginary_plane(p0, p1).normal
+        bars.loc[bars.index[k], ["start_x_mm", "start_y_mm", "start_z_mm"]] = p0 + shift
+        bars.loc[bars.index[k], ["end_x_mm", "end_y_mm", "end_z_mm"]] = p1 + shift
+    bars["axis_radius_mm"] = [rib_envelope_mm(tb[i]["design_diameter_mm"]) / 2 for i in bars.bar_id]
+    wrong = next(b for b in cap.truth["bars"] if b["wrong_size"])
+    t = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id")
+    w = t.loc[wrong["id"]]
+    assert w.diameter_status != "measured" or w.nominal_mm == wrong["diameter_mm"]
+    assert abs(w.cloud_width_mm - rib_envelope_mm(wrong["design_diameter_mm"])) < CLOUD_WIDTH_TOL_MM
+    ok = t[t.index != wrong["id"]]
+    assert (ok[ok.diameter_status == "measured"].matches_design == True).all()  # noqa: E712
+    with pytest.raises(RebarInputError, match="use_cloud"):
+        measure_diameters(cap, bars, cap.labels > 0, use_cloud="maybe")
+
+
 def test_shadow_and_rust_never_give_a_confident_wrong_size():
     # Every bar rusty, low sun, little ambient light; the mask is what a colour threshold
     # keeps of the truth mask (dark shadowed and rusty pixels dropped): a degraded mask must
