@@ -98,6 +98,8 @@ class InspectionResult:
     timings_s: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     extras: dict = field(default_factory=dict)  # later stages (diameter, mask) put summaries here
+    #: bar_id -> Cloud of the points fitted to that bar (camera frame, with pixels); not serialised
+    bar_points: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
         return {

@@ -1,0 +1,303 @@
+"""``inspect(capture, design)``: the whole geometry of one capture, composed from ``geometry``.
+
+Both methods return the same :class:`~rebarlib.InspectionResult`, so they can be compared row by
+row. Each stage is timed (``result.timings_s``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from . import geometry as G
+from ._camera import depth_to_points
+from ._capture import Capture
+from ._checks import RebarInputError
+from ._design import Design
+from ._results import InspectionResult, Measurement
+
+__all__ = ["inspect", "prepare_cloud", "METHODS"]
+
+METHODS = ("refined", "paper")
+
+#: Refined: keep every ``STRIDE``-th pixel in each direction. At 400–600 mm a pixel covers
+#: 0.65–1 mm, so a stride of 2 still puts 5+ samples across the thinnest (Φ8) bar, and the
+#: cloud is 4× smaller.
+STRIDE = 2
+#: Paper: voxel grid (mm) and Open3D statistical outlier filter, as in method.md stage 0.
+PAPER_VOXEL_MM, PAPER_NB, PAPER_STD = 2.0, 20, 2.0
+#: Paper constants (method.md): t₁ = 0.8 × cover, k = 170; t₂ = 50 mm; 1.2·d; 1000 points; k = 460.
+PAPER_T1_FACTOR, PAPER_PLANE_TRIALS, PAPER_T2_MM, PAPER_COVER_FACTOR = 0.8, 170, 50.0, 1.2
+PAPER_SAMPLE, PAPER_LINE_TRIALS = 1000, 460
+#: A formwork plane is rejected when more than this fraction of the points lie more than
+#: 5 noise std below it (a plane through bar tops has bars' sides and the formwork under it).
+MAX_BELOW_FRACTION = 0.02
+#: Bars shorter than this (mm of visible axis) are not reported: too short to fit an axis.
+MIN_BAR_LENGTH_MM = 50.0
+
+
+def prepare_cloud(capture: Capture, *, stride: int = STRIDE):
+    """Camera-frame cloud of a capture, every ``stride``-th pixel (pixel links kept)."""
+    depth = capture.depth_mm
+    if stride > 1:
+        sub = np.zeros_like(depth)
+        sub[::stride, ::stride] = depth[::stride, ::stride]
+        depth = sub
+    return depth_to_points(depth, capture.intrinsics)
+
+
+def _check(capture, design, method):
+    if not isinstance(capture, Capture):
+        raise RebarInputError(f"capture: expected a rebarlib.Capture (use rebarlib.load_capture), got {type(capture).__name__}")
+    if not isinstance(design, Design):
+        raise RebarInputError(f"design: expected a rebarlib.Design (use rebarlib.load_design), got {type(design).__name__}")
+    if method not in METHODS:
+        raise RebarInputError(f"method: expected one of {METHODS}, got {method!r}")
+    if not np.any(capture.depth_mm > 0):
+        raise RebarInputError(f"capture {capture.name!r}: the depth image has no valid pixel")
+
+
+def _camera_pose(plane: G.Plane) -> dict:
+    tilt = math.degrees(math.acos(min(1.0, abs(float(plane.normal[2])))))
+    return {"height_mm": round(float(plane.offset_mm), 2), "tilt_deg": round(tilt, 2)}
+
+
+def _design_spacing(design: Design) -> dict:
+    return {(la, lv): design.lattice(la).level(lv).spacing_mm for la in G.LAYERS for lv in G.LEVELS}
+
+
+def _radii(design: Design, layer: str) -> dict:
+    lat = design.lattice(layer)
+    return {lv: G.envelope_mm(lat.level(lv).diameter_mm, design.bar_system) / 2 for lv in G.LEVELS}
+
+
+def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 0) -> Measurement:
+    v = np.asarray([x for x in values if np.isfinite(x)], float)
+    if len(v) == 0:
+        return Measurement.not_measured(f"no {what} measured", n_points)
+    se = float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else float("nan")
+    unc = math.sqrt((se if np.isfinite(se) else 0.5) ** 2 + extra_var)
+    return Measurement(float(v.mean()), unc, int(n_points))
+
+
+def inspect(capture: Capture, design: Design, *, method: str = "refined", rng=None) -> InspectionResult:
+    """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
+
+    Parameters
+    ----------
+    capture : Capture (``load_capture``)
+    design : Design (``load_design``) — gives the bar sizes (envelope radii), spacings for counts
+        and the paper's design-derived thresholds
+    method : "refined" (default) or "paper"
+    rng : seed or Generator for the random parts (RANSAC, sampling)
+
+    Returns
+    -------
+    InspectionResult; bars carry their fitted points in ``result.bar_points`` (bar_id -> Cloud).
+    """
+    _check(capture, design, method)
+    rng = np.random.default_rng(rng)
+    if method == "paper":
+        return _inspect_paper(capture, design, rng)
+    return _inspect_refined(capture, design, rng)
+
+
+def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
+    T = {}
+    t = time.perf_counter()
+    cloud = prepare_cloud(capture)
+    T["cloud"] = time.perf_counter() - t
+    notes = []
+    if len(cloud) < 100:
+        raise RebarInputError(f"capture {capture.name!r}: only {len(cloud)} valid depth points")
+
+    t = time.perf_counter()
+    thr = max(3.0, min(0.4 * design.cover_mm, 10.0))
+    plane, inl = G.fit_formwork(cloud.points, threshold_mm=thr, rng=rng)
+    h = plane.height(cloud.points)
+    sigma = plane.noise_mm or 1.0
+    below = float(np.mean(h < -max(5 * sigma, 3.0)))
+    has_formwork = below <= MAX_BELOW_FRACTION and plane.n_inliers >= 0.05 * len(cloud)
+    if not has_formwork:
+        notes.append(f"no formwork plane: {below:.0%} of the points lie under the best plane; cover not measured, "
+                     "heights are relative to the lowest bars")
+        # a reference plane parallel to the lattice, under every point
+        lowest = float(np.percentile(h, 0.5))
+        plane = G.Plane(plane.normal, plane.offset_mm - lowest, 0, None)
+        h = plane.height(cloud.points)
+    T["plane"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    above_thr = max(4 * sigma, 3.0) if has_formwork else -1.0
+    bar_sel = np.where(h > above_thr)[0] if has_formwork else np.arange(len(h))
+    q = G.to_slab_frame(cloud.points[bar_sel], plane)
+    split = G.find_layer_split(q[:, 2])
+    layer_of = G.split_layers(q[:, 2], split_mm=split)
+    layer_names = ["lower", "upper"]
+    if split is None:
+        # one lattice: which one, from the design heights (only meaningful over formwork)
+        lo = float(np.percentile(q[:, 2], 2))
+        is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(lo - design.cover_mm)
+        layer_names = ["upper" if is_upper else "lower"]
+        notes.append(f"one lattice only ({layer_names[0]}): no empty band between lattices in the heights")
+    T["layers"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    bars, bar_clouds = [], []
+    for li, lname in enumerate(layer_names):
+        sel = np.where(layer_of == li)[0]
+        radii = _radii(design, lname)
+        # direction groups do not know their level yet: fit with the larger radius first, then
+        # refit each group with its level's radius once the levels are known
+        found = G.find_bars(q[sel], layer=lname, radius_mm=max(radii.values()), min_length_mm=MIN_BAR_LENGTH_MM,
+                            rng=rng)
+        found = G.assign_levels(found)
+        if radii["bottom"] != radii["top"]:
+            rad_by_group = {b.group: radii[b.level] for b in found}
+            found = G.assign_levels(G.find_bars(q[sel], layer=lname, radius_mm=rad_by_group,
+                                                min_length_mm=MIN_BAR_LENGTH_MM, rng=rng))
+        for b in found:
+            bar_clouds.append(cloud.subset(bar_sel[sel[b.point_index]]))
+        bars.extend(found)
+    T["bars"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    def undersides(layer, level):
+        return [b.underside_mm for b in bars if b.layer == layer and b.level == level and b.status == "measured"]
+
+    npts = lambda layer, level: sum(b.n_points for b in bars if b.layer == layer and b.level == level)
+    plane_var = (sigma / math.sqrt(max(plane.n_inliers, 1))) ** 2 if has_formwork else 0.0
+    lower_u = undersides("lower", "bottom")
+    if not has_formwork:
+        cover = Measurement.not_measured("no formwork visible in the capture (no plane with nothing beneath it)")
+    elif not lower_u:
+        cover = Measurement.not_measured("no bar of the lower lattice's bottom level was measured",
+                                         npts("lower", "bottom"))
+    else:
+        cover = _mean_measure(lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom"))
+    upper_u = undersides("upper", "bottom")
+    if lower_u and upper_u:
+        lm = _mean_measure(lower_u, what="lower bar")
+        um = _mean_measure(upper_u, what="upper bar")
+        layer_distance = Measurement(um.value_mm - lm.value_mm, math.hypot(lm.uncertainty_mm, um.uncertainty_mm),
+                                     npts("lower", "bottom") + npts("upper", "bottom"))
+    else:
+        which = "upper" if not upper_u else "lower"
+        layer_distance = Measurement.not_measured(f"no bar of the {which} lattice's bottom level was measured")
+    tops = [b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == "measured"]
+    if not has_formwork:
+        upper_top = Measurement.not_measured("no formwork visible: heights have no reference")
+    else:
+        upper_top = (_mean_measure(tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top"))
+                     if tops else Measurement.not_measured("no bar of the upper lattice's top level was measured"))
+    top_cover = _top_cover(design, upper_top)
+
+    spacings = G.measure_spacings(bars, design_spacing=_design_spacing(design))
+    heights = {}
+    for b in bars:
+        heights.setdefault((b.layer, b.level), []).append(b.centre_h_mm + b.h_slope * b.t_mid)
+    heights = {k: float(np.median(v)) for k, v in heights.items()}
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=plane, R=None,
+                          depth_mm=capture.depth_mm, intrinsics=capture.intrinsics, heights=heights,
+                          min_length_mm=MIN_BAR_LENGTH_MM)
+    T["measure"] = time.perf_counter() - t
+
+    table = G.bars_table(bars, plane)
+    res = InspectionResult(capture=capture.name, method="refined", cover=cover, layer_distance=layer_distance,
+                           upper_top=upper_top, top_cover=top_cover, bars=table, spacings=spacings, counts=counts,
+                           formwork={**plane.to_dict(), "found": bool(has_formwork)},
+                           camera=_camera_pose(plane) if has_formwork else {},
+                           timings_s=T, notes=notes,
+                           extras={"layer_split_mm": split, "n_points": int(len(cloud))})
+    res.bar_points = {i: c for i, c in enumerate(bar_clouds)}
+    return res
+
+
+def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
+    if design.thickness_mm is None:
+        return Measurement.not_measured("the design gives no slab thickness")
+    if not upper_top.ok:
+        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
+    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)
+
+
+def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
+    from ._cloud import remove_outliers, voxel_downsample
+
+    T = {}
+    t = time.perf_counter()
+    cloud = depth_to_points(capture.depth_mm, capture.intrinsics)
+    cloud = voxel_downsample(cloud, PAPER_VOXEL_MM)
+    cloud = remove_outliers(cloud, nb_neighbors=PAPER_NB, std_ratio=PAPER_STD)
+    T["cloud"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    plane, inl = G.paper_fit_formwork(cloud.points, threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
+                                      max_trials=PAPER_PLANE_TRIALS, rng=rng)
+    T["plane"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    rest = np.where(~inl)[0]
+    q = G.to_slab_frame(cloud.points[rest], plane)
+    keep = q[:, 2] > 0  # points under the formwork are noise
+    rest, q = rest[keep], q[keep]
+    lower = q[:, 2] < PAPER_T2_MM
+    T["layers"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    d_low = design.lower.bottom.diameter_mm
+    notes = ["paper method: cover = m1 - 1.2 d_lower, layer distance = m2 - m1 (method.md stage 1)"]
+    ql, qu = q[lower], q[~lower]
+    if len(ql) == 0:
+        m1 = None
+        cover = Measurement.not_measured("no point of the lower lattice (heights under t2 = 50 mm)")
+    else:
+        s1 = ql[rng.choice(len(ql), min(PAPER_SAMPLE, len(ql)), replace=False), 2]
+        m1 = float(s1.mean())
+        cover = Measurement(m1 - PAPER_COVER_FACTOR * d_low, float(s1.std() / math.sqrt(len(s1))), len(s1))
+    if len(qu) == 0 or m1 is None:
+        layer_distance = Measurement.not_measured("no point of one of the lattices")
+        upper_top = Measurement.not_measured("no point of the upper lattice")
+    else:
+        s2 = qu[rng.choice(len(qu), min(PAPER_SAMPLE, len(qu)), replace=False), 2]
+        layer_distance = Measurement(float(s2.mean()) - m1, float(math.hypot(s1.std() / math.sqrt(len(s1)),
+                                                                             s2.std() / math.sqrt(len(s2)))),
+                                     len(s1) + len(s2))
+        upper_top = Measurement(float(np.percentile(qu[:, 2], 99)), None, len(qu))
+        notes.append("paper method: top of the upper lattice is the 99th percentile of the upper heights "
+                     "(the paper does not measure it)")
+    T["cover"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    bars, clouds = [], []
+    for lname, sel in (("lower", lower), ("upper", ~lower)):
+        idx = np.where(sel)[0]
+        if len(idx) < 10:
+            continue
+        d = design.lattice(lname).bottom.diameter_mm
+        # t4: slightly more than half the design diameter (method.md): 0.5 d + 1 mm
+        found = G.paper_find_bars(q[idx], layer=lname, threshold_mm=0.5 * d + 1.0, max_trials=PAPER_LINE_TRIALS,
+                                  rng=rng)
+        found = G.group_directions(found, rng=rng)
+        found = G.assign_levels(found)
+        for b in found:
+            clouds.append(cloud.subset(rest[idx[b.point_index]]))
+        bars.extend(found)
+    T["bars"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    pts_by_layer = {"lower": q[lower], "upper": q[~lower]}
+    spacings = G.paper_spacings(bars, pts_by_layer, design_spacing=_design_spacing(design), rng=rng)
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=None, R=None)
+    T["spacing"] = time.perf_counter() - t
+
+    res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
+                           upper_top=upper_top, top_cover=_top_cover(design, upper_top),
+                           bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
+                           formwork={**plane.to_dict(), "found": True}, camera=_camera_pose(plane),
+                           timings_s=T, notes=notes, extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
+    res.bar_points = {i: c for i, c in enumerate(clouds)}
+    return res
