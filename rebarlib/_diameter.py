@@ -876,7 +876,12 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         raise RebarInputError(f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}")
     prm = _RefinedParams(colour_edges=colour_edges or False)
     maskf = m.astype(np.float32)
-    gray = capture.color.astype(np.float32).mean(axis=2) if capture.color is not None else None
+    gray = rgb = None
+    if capture.color is not None:
+        import cv2
+
+        rgb = np.ascontiguousarray(capture.color, dtype=np.float32)
+        gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)  # luminance: only compared with itself
     depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
     edge, owner = None, None
     if method == "paper":
@@ -884,7 +889,6 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         vv, uu = np.nonzero(edge)
         owner = np.full(m.shape, -1, np.int32)  # bar index of each boundary pixel
         owner[vv, uu] = _attribute_pixels(np.column_stack((uu, vv)), prepared, intr)
-    rgb = capture.color.astype(np.float32) if capture.color is not None else None
     depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
                for i, bar in enumerate(prepared)]
