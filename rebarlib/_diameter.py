@@ -304,7 +304,8 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         expected = (observed_width_mm(design_mm, system=system, deformed=deformed)
                     if math.isfinite(design_mm) else default_expected_mm)
         plane = imaginary_plane(p0, p1)
-        assumed = getattr(r, "axis_radius_mm", math.nan)
+        # the radius the axis was placed with: ours, or the geometry stage's fixed-radius fit
+        assumed = getattr(r, "axis_radius_mm", getattr(r, "radius_mm", math.nan))
         assumed = float(assumed) if assumed is not None else math.nan
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
                         float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed))
@@ -810,7 +811,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     capture : Capture, for the intrinsics and the colour image (shadow check)
     bars : pandas.DataFrame with :data:`BAR_COLUMNS`: axis end points over the visible extent in
         the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"; optional
-        ``axis_radius_mm`` (see ``use_cloud``)
+        ``axis_radius_mm`` or ``radius_mm`` (see ``use_cloud``)
     mask : (H, W) bool, rebar pixels (any bar)
     design : Design or None; gives each bar's design size (window size, ``matches_design``)
     method : "refined" (default) or "paper" (method.md Stage 3, faithfully)
@@ -831,7 +832,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         surface makes the cloud width that radius: use ``"veto"`` then (the cloud width only
         rules out mask sizes it contradicts, "not measured"), or False (mask widths alone).
         A bar whose row in ``bars`` has a finite ``axis_radius_mm`` (the radius its axis was
-        placed with) is always treated as ``"veto"``
+        placed with; else the geometry stage's ``radius_mm`` of its fixed-radius cylinder fit)
+        is always treated as ``"veto"``
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
