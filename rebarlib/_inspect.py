@@ -147,18 +147,23 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
 
     t = time.perf_counter()
     bars, bar_clouds = [], []
+    K = capture.intrinsics
     for li, lname in enumerate(layer_names):
         sel = np.where(layer_of == li)[0]
+        if len(sel) == 0:
+            continue
+        # sample pitch on this lattice: STRIDE pixels at its median depth
+        pitch = STRIDE * float(np.median(cloud.points[bar_sel[sel], 2])) / (0.5 * (K.fx + K.fy))
         radii = _radii(design, lname)
         # direction groups do not know their level yet: fit with the larger radius first, then
         # refit each group with its level's radius once the levels are known
         found = G.find_bars(q[sel], layer=lname, radius_mm=max(radii.values()), min_length_mm=MIN_BAR_LENGTH_MM,
-                            rng=rng)
+                            pitch_mm=pitch, rng=rng)
         found = G.assign_levels(found)
         if radii["bottom"] != radii["top"]:
             rad_by_group = {b.group: radii[b.level] for b in found}
             found = G.assign_levels(G.find_bars(q[sel], layer=lname, radius_mm=rad_by_group,
-                                                min_length_mm=MIN_BAR_LENGTH_MM, rng=rng))
+                                                min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, rng=rng))
         for b in found:
             bar_clouds.append(cloud.subset(bar_sel[sel[b.point_index]]))
         bars.extend(found)

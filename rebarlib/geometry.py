@@ -377,33 +377,69 @@ def bar_directions(plan, *, max_points: int = 8000, min_separation_deg: float = 
     return dirs
 
 
-def _peaks(offsets, *, bin_mm, min_sep_mm, width_mm, min_ratio: float = 1.2):
-    """Bar positions across a direction: peaks of the offset histogram (smoothed over a bar's
-    width) standing clearly above the background of the crossing bars' points.
+def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.0, max_gap_mm: float = 10.0,
+                    min_cell_points: int = 2):
+    """Offsets (mm) across a direction at which the points run continuously along it.
 
-    A peak is a bin that is the maximum within ``min_sep_mm`` and exceeds ``min_ratio`` times the
-    background (median of the occupied smoothed bins) and 2 points per bin. These are only
-    candidates: :func:`find_bars` keeps those whose points run continuously along the line.
+    The points are rasterised in (offset, along) cells of 1 mm × ``cell_mm``; a cell counts as
+    occupied when at least ``min_cell_points`` points lie within ``radius_mm`` across of it (a
+    bar's surface is sampled densely, the flying pixels along an edge are not). For every offset row the longest
+    occupied stretch (gaps up to ``max_gap_mm`` closed) is measured: a bar gives a stretch as long
+    as its visible part, a crossing bar only about its width. Rows with a stretch of at least
+    ``min_length_mm`` that are the best within 2.2 radii are bars; each is placed at the densest
+    row of its plateau.
+
+    Returns ``(centres, run_mm)``.
     """
-    if len(offsets) == 0:
-        return np.array([]), 0.0
-    lo = offsets.min() - 3 * width_mm
-    edges = np.arange(lo, offsets.max() + 3 * width_mm + bin_mm, bin_mm)
-    c, _ = np.histogram(offsets, edges)
-    k = max(1, int(round(width_mm / bin_mm)))
-    sm = np.convolve(c, np.ones(k) / k, mode="same")
-    bg = float(np.median(sm[sm > 0])) if np.any(sm > 0) else 0.0
-    r = max(1, int(min_sep_mm / bin_mm))
-    # running maximum over +-r bins (sliding window view keeps it vectorised)
-    pad = np.r_[np.full(r, -1.0), sm, np.full(r, -1.0)]
-    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * r + 1).max(axis=1)
-    is_peak = (sm >= win) & (sm > max(min_ratio * bg, 2.0))
-    # plateaus: keep the first bin of equal neighbours
-    idx = np.where(is_peak)[0]
-    if len(idx) > 1:
-        idx = idx[np.r_[True, np.diff(idx) > r]]
-    centres = edges[idx] + bin_mm / 2
-    return centres, bg
+    if len(off) == 0:
+        return np.array([]), np.array([])
+    r = max(1, int(round(radius_mm)))
+    o0 = off.min() - 2 * r
+    a0 = along.min()
+    io = np.floor(off - o0).astype(np.int64)
+    ia = np.floor((along - a0) / cell_mm).astype(np.int64)
+    n_o, n_a = int(io.max()) + 2 * r + 1, int(ia.max()) + 1
+    count = np.zeros((n_o, n_a), np.int32)
+    np.add.at(count, (io, ia), 1)
+    # occupancy within +-r rows: cumulative sum over rows
+    cs = np.cumsum(np.vstack([np.zeros((1, n_a), np.int32), count]), axis=0)
+    lo = np.clip(np.arange(n_o) - r, 0, n_o)
+    hi = np.clip(np.arange(n_o) + r + 1, 0, n_o)
+    occ = (cs[hi] - cs[lo]) >= min_cell_points
+    # close gaps of up to max_gap_mm along each row
+    g = int(max_gap_mm // cell_mm)
+    if g > 0:
+        closed = occ.copy()
+        for k in range(1, g + 1):
+            closed[:, :-k] |= occ[:, k:] & np.maximum.accumulate(occ, axis=1)[:, :-k]
+        occ = closed
+    # longest run per row: position minus the last empty cell before it
+    pos = np.arange(1, n_a + 1)[None, :]
+    last_empty = np.maximum.accumulate(np.where(occ, 0, pos), axis=1)
+    run = ((pos - last_empty) * occ).max(axis=1) * cell_mm
+    dens = count.sum(axis=1).astype(float)
+    w = max(1, int(round(2.2 * radius_mm)))
+    # greedy: the longest stretch first; its plateau (neighbouring rows with >= 80 % of its
+    # length) is one bar, placed at the plateau's point-weighted centre; suppress the plateau
+    # and w rows on each side, repeat
+    free = run >= min_length_mm
+    centres, runs = [], []
+    while free.any():
+        i = int(np.argmax(np.where(free, run, -1.0)))
+        j0 = i
+        while j0 - 1 >= 0 and run[j0 - 1] >= 0.8 * run[i] and free[j0 - 1]:
+            j0 -= 1
+        j1 = i
+        while j1 + 1 < n_o and run[j1 + 1] >= 0.8 * run[i] and free[j1 + 1]:
+            j1 += 1
+        rows_ = np.arange(j0, j1 + 1)
+        wts = dens[rows_]
+        centre = float((rows_ * wts).sum() / wts.sum()) if wts.sum() > 0 else 0.5 * (j0 + j1)
+        centres.append(o0 + centre + 0.5)
+        runs.append(float(run[i]))
+        free[max(0, j0 - w):j1 + w + 1] = False
+    order = np.argsort(centres)
+    return np.array(centres)[order], np.array(runs)[order]
 
 
 def _fit_bar(t, s, h, radius, *, iters: int = 12):
@@ -449,7 +485,7 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12):
 
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
-              rng=None) -> list:
+              pitch_mm: float | None = None, rng=None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -465,6 +501,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         its points is not a bar
     max_rms_ratio : a candidate whose fit residual (rms) exceeds this multiple of the lattice's
         median bar residual is not a bar (the median is the sensor noise on bars)
+    pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
+        of a bar must hold at least 20 % of the points a fully seen bar surface would give
+        there; without it, 2 points per cell.
 
     Returns
     -------
@@ -488,11 +527,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         off = plan @ n2
         along = plan @ d
         r = radii.get(g, max_r)
-        centres, _ = _peaks(off, bin_mm=1.0, min_sep_mm=2.2 * r, width_mm=2 * r)
-        # a bar is a continuous run of points along the line; a crossing bar's points in the
-        # same band run for only about a bar width
-        centres = np.array([c for c in centres
-                            if _run_length(along[np.abs(off - c) < r], cell_mm=5.0, max_gap_mm=10.0) >= min_length_mm])
+        min_cell = 2 if pitch_mm is None else max(2, int(0.2 * 5.0 * 2 * r / pitch_mm**2))
+        centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_length_mm, min_cell_points=min_cell)
         win = window_mm if window_mm is not None else r + 3.0
         if len(centres):
             j = np.searchsorted(centres, off)
@@ -535,6 +571,14 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             tt = t[keep]
             bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
                                 float(tt.max()), r, int(keep.sum()), rms, idx[keep], g))
+    # something lying well below the other bars of its direction (a spacer block's top, the
+    # stub of a chair) is not a bar of this lattice level
+    for g in {b.group for b in bars}:
+        hs = [b.centre_h_mm + b.h_slope * b.t_mid for b in bars if b.group == g and b.status == "measured"]
+        if len(hs) >= 2:
+            floor = float(np.median(hs)) - 2 * radii.get(g, max_r)
+            bars = [b for b in bars if b.group != g or b.status != "measured"
+                    or b.centre_h_mm + b.h_slope * b.t_mid >= floor]
     rms = [b.rms_mm for b in bars if b.status == "measured"]
     if len(rms) >= 3:
         limit = max_rms_ratio * float(np.median(rms))
