@@ -1,0 +1,132 @@
+"""Score an :class:`~rebarlib.InspectionResult` against a synthetic capture's ground truth.
+
+Used by the geometry tests and benchmarks; handy in a notebook to see which bar went wrong.
+
+Rules (stated once, here):
+
+- A detected bar *matches* a true bar of the same layer when their plan directions differ by less
+  than ``MAX_ANGLE_DEG`` and the detected axis' mid point lies within ``MAX_OFFSET_MM`` of the
+  true axis line (camera frame). Each true bar takes at most one detected bar; a second detected
+  bar on the same true bar, or one matching no true bar, is a **phantom**.
+- A true bar is **measurable** (must be found) when the renderer flags it ``visible`` and its
+  visible stretch is at least ``MEASURABLE_LENGTH_MM`` long: a shorter piece (a bar end in the
+  image corner, a lower bar seen only between two upper bars) cannot give an axis. Bars visible
+  but shorter than that may be found or not; they count neither as missed nor as phantoms.
+- A detected spacing is scored when both its bars match true bars that are adjacent in the truth
+  (``truth["spacings"]``); its error is detected − true spacing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["match_bars", "score_result", "MEASURABLE_LENGTH_MM", "MAX_OFFSET_MM", "MAX_ANGLE_DEG"]
+
+MEASURABLE_LENGTH_MM = 100.0
+MAX_OFFSET_MM = 15.0
+MAX_ANGLE_DEG = 5.0
+
+
+def _line_dist(p, a, b) -> float:
+    d = b - a
+    d = d / np.linalg.norm(d)
+    return float(np.linalg.norm(np.cross(p - a, d)))
+
+
+def _dir_angle_deg(d1, d2) -> float:
+    c = abs(float(np.dot(d1, d2)) / (np.linalg.norm(d1) * np.linalg.norm(d2)))
+    return math.degrees(math.acos(min(1.0, c)))
+
+
+def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
+    """Match every detected bar to a true bar.
+
+    Parameters
+    ----------
+    bars : the ``bars`` table of an InspectionResult (camera-frame axis end points, mm)
+    truth : ``capture.metadata["truth"]`` of a synthetic capture
+
+    Returns
+    -------
+    DataFrame, one row per detected bar: ``bar_id, layer, level, truth_id, truth_level,
+    offset_mm`` (mid point to true axis), ``angle_deg``, ``phantom`` (bool).
+    """
+    rows, taken = [], {}
+    tb = truth["bars"]
+    for r in bars.itertuples():
+        s = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm], float)
+        e = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm], float)
+        mid, d = (s + e) / 2, e - s
+        best = None
+        for t in tb:
+            if t["layer"] != r.layer:
+                continue
+            a, b = np.asarray(t["axis_start_mm"], float), np.asarray(t["axis_end_mm"], float)
+            ang = _dir_angle_deg(d, b - a) if np.linalg.norm(d) > 0 else 90.0
+            if ang > MAX_ANGLE_DEG:
+                continue
+            off = _line_dist(mid, a, b)
+            if best is None or off < best[0]:
+                best = (off, t, ang)
+        rec = {"bar_id": r.bar_id, "layer": r.layer, "level": r.level, "truth_id": None, "truth_level": None,
+               "offset_mm": np.nan, "angle_deg": np.nan, "phantom": True}
+        if best is not None and best[0] <= MAX_OFFSET_MM:
+            off, t, ang = best
+            rec.update(truth_id=int(t["id"]), truth_level=t["level"], offset_mm=off, angle_deg=ang)
+            prev = taken.get(t["id"])
+            if prev is None:
+                rec["phantom"] = False
+                taken[t["id"]] = len(rows)
+            elif rows[prev]["offset_mm"] > off:  # keep the closer one, the other is the duplicate
+                rows[prev]["phantom"] = True
+                rec["phantom"] = False
+                taken[t["id"]] = len(rows)
+        rows.append(rec)
+    return pd.DataFrame(rows, columns=["bar_id", "layer", "level", "truth_id", "truth_level", "offset_mm",
+                                       "angle_deg", "phantom"])
+
+
+def score_result(result, truth: dict) -> dict:
+    """Errors of one result against the truth.
+
+    Returns
+    -------
+    dict with ``cover_err_mm``, ``layer_distance_err_mm``, ``upper_top_err_mm`` (detected − true,
+    NaN when not measured), ``measurable`` (number of true bars that must be found), ``found``,
+    ``missed`` (list of true ids), ``phantoms`` (list of detected ids), ``wrong_level`` (detected
+    ids whose level differs from the truth), ``spacing_errors_mm`` (array), ``spacings_unscored``
+    (detected spacings between bars not adjacent in the truth), ``matches`` (the match_bars table).
+    """
+    m = match_bars(result.bars, truth)
+    meas = [t for t in truth["bars"] if t["visible"] and t["visible_length_mm"] >= MEASURABLE_LENGTH_MM]
+    ok = m[~m["phantom"]]
+    found_ids = set(int(x) for x in ok["truth_id"])
+    missed = sorted(t["id"] for t in meas if t["id"] not in found_ids)
+    phantoms = [int(r.bar_id) for r in m.itertuples() if r.phantom]
+    wrong_level = [int(r.bar_id) for r in ok.itertuples() if r.level != r.truth_level]
+    to_truth = {int(r.bar_id): int(r.truth_id) for r in ok.itertuples()}
+    true_sp = {frozenset((s["bar_a"], s["bar_b"])): s["spacing_mm"] for s in truth["spacings"]}
+    errs, unscored = [], 0
+    sp = result.spacings
+    if sp is not None:
+        for r in sp.itertuples():
+            if r.status != "measured" or not np.isfinite(r.spacing_mm):
+                continue
+            key = frozenset((to_truth.get(int(r.bar_a)), to_truth.get(int(r.bar_b))))
+            if key in true_sp:
+                errs.append(r.spacing_mm - true_sp[key])
+            else:
+                unscored += 1
+
+    def err(meas_, true):
+        return meas_.value_mm - true if meas_.ok else float("nan")
+
+    return {"cover_err_mm": err(result.cover, truth["cover_mm"]),
+            "layer_distance_err_mm": err(result.layer_distance, truth["layer_distance_mm"]),
+            "upper_top_err_mm": err(result.upper_top, truth["upper_top_mm"]),
+            "measurable": len(meas), "found": len(meas) - len(missed), "missed": missed, "phantoms": phantoms,
+            "wrong_level": wrong_level, "spacing_errors_mm": np.asarray(errs, float),
+            "spacings_unscored": unscored, "matches": m}
