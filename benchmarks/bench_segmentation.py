@@ -7,7 +7,8 @@ the ONNX models), at the sensor's full 1280 x 800 resolution, and prints
    counts summed over the split) for every model;
 2. the hard cases: the same on the shadow subset (pixels without direct sunlight) and the rust
    subset (pixels of rusty bars, grown by 3 px), and the gap to the overall figure;
-3. colour-only vs depth-only vs fused masks (shipped model), overall and on both subsets;
+3. colour-only vs depth-only vs fused masks (shipped model; ``fuse_masks`` with the colour
+   probability and the depth validity), overall and on both subsets;
 4. inference speed: median ms for one 1280 x 800 image (resize, network, full-resolution mask).
 
     python benchmarks/bench_segmentation.py            # the 60 test captures
@@ -92,7 +93,8 @@ def main(argv=None):
             for s in subsets:
                 counts[name][s] = _add(counts[name][s], confusion_counts(masks[name], truth, region=regions[s]))
         dmask = mask_from_depth(cap, rng=0)
-        fmask = fuse_masks(masks[shipped], dmask, depth_valid=cap.depth_mm > 0)
+        fmask = fuse_masks(masks[shipped], dmask, color_proba=models[shipped].predict_proba(cap.color),
+                           depth_valid=cap.depth_mm > 0)
         for src, mk in zip(sources, (masks[shipped], dmask, fmask)):
             for s in subsets:
                 fused_counts[src][s] = _add(fused_counts[src][s], confusion_counts(mk, truth, region=regions[s]))

@@ -255,6 +255,11 @@ class SegmentationModel:
     def __repr__(self):
         return f"SegmentationModel({str(self.onnx_path)!r})"
 
+    @property
+    def threshold(self) -> float:
+        """Probability above which a pixel is rebar (``output.threshold``; 0.5 for label maps)."""
+        return 0.5 if self._out["kind"] == "labels" else self._out["threshold"]
+
     # ---- consistency of the sidecar with the graph
     def _check_io(self):
         where = f"{self.onnx_path} with {self.sidecar_path.name}"
