@@ -90,8 +90,10 @@ def _oriented(normal, offset) -> tuple[np.ndarray, float]:
 
 def _lsq_plane(points) -> tuple[np.ndarray, float]:
     c = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - c, full_matrices=False)
-    n = vt[2]
+    x = points - c
+    # smallest eigenvector of the 3x3 scatter matrix (an SVD of the N x 3 matrix costs 10x more)
+    w, v = np.linalg.eigh(x.T @ x)
+    n = v[:, 0]
     return _oriented(n, -n @ c)
 
 
@@ -569,6 +571,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             if keep.mean() < min_inlier_fraction or keep.sum() < min_points:
                 continue
             tt = t[keep]
+            if tt.max() - tt.min() < min_length_mm:
+                continue
             bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
                                 float(tt.max()), r, int(keep.sum()), rms, idx[keep], g))
     # something lying well below the other bars of its direction (a spacer block's top, the
@@ -576,14 +580,37 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     for g in {b.group for b in bars}:
         hs = [b.centre_h_mm + b.h_slope * b.t_mid for b in bars if b.group == g and b.status == "measured"]
         if len(hs) >= 2:
-            floor = float(np.median(hs)) - 2 * radii.get(g, max_r)
+            floor = float(np.median(hs)) - 1.5 * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != "measured"
                     or b.centre_h_mm + b.h_slope * b.t_mid >= floor]
+    # two bars of one direction cannot overlap: of two axes closer than the sum of their radii,
+    # keep the one with more points (the other is the first one's edge or shadow fringe)
+    bars = _drop_overlaps(bars)
     rms = [b.rms_mm for b in bars if b.status == "measured"]
     if len(rms) >= 3:
         limit = max_rms_ratio * float(np.median(rms))
         bars = [b for b in bars if b.status != "measured" or b.rms_mm <= limit]
     return bars
+
+
+def _drop_overlaps(bars: list) -> list:
+    keep = sorted(bars, key=lambda b: -b.n_points)
+    out = []
+    for b in keep:
+        clash = False
+        for o in out:
+            if o.group != b.group:
+                continue
+            p = b.plan_point(np.array([b.t_mid]))[0]
+            d = abs(float((p - o.plan_point(np.array([float(p @ o.direction)]))[0]) @ o.normal2d))
+            overlap_t = min(b.t1_mm, o.t1_mm) - max(b.t0_mm, o.t0_mm)
+            if d < b.radius_mm + o.radius_mm and overlap_t > 0:
+                clash = True
+                break
+        if not clash:
+            out.append(b)
+    order = {id(b): i for i, b in enumerate(bars)}
+    return sorted(out, key=lambda b: order[id(b)])
 
 
 def _run_length(t, *, cell_mm: float, max_gap_mm: float) -> float:
