@@ -762,7 +762,11 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
     cap = 1.0
     if not mask_problem and cloud:
-        if abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
+        # With an assumed axis radius the cloud width echoes the design: a mask disagreeing
+        # with it can never be confirmed, so in veto mode the two must give the same size.
+        strict = veto_only and snap_diameter(dw, system=system, deformed=deformed)[0] != \
+            snap_diameter(med, system=system, deformed=deformed)[0]
+        if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
