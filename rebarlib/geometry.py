@@ -669,7 +669,7 @@ def _line_distances(points, p0, dirs):
 
 def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int = 460,
                     stop_fraction: float = 0.06, min_count_ratio: float = 0.4, max_bars: int = 80,
-                    chunk: int = 40, rng=None) -> list:
+                    chunk: int = 40, score_points: int = 4000, rng=None) -> list:
     """The paper's sequential RANSAC lines in one lattice (slab-frame points).
 
     Hypotheses (pairs of points) are evaluated in vectorised chunks. Each accepted line is refitted
@@ -684,7 +684,10 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
     remaining = np.arange(n_total)
     found = []
     while len(remaining) > stop_fraction * n_total and len(found) < max_bars and len(remaining) >= 2:
-        pts = q[remaining]
+        pts_all = q[remaining]
+        # hypotheses are scored on a random subset (the count ranks hypotheses the same way up
+        # to sampling noise); the chosen line's inliers are then taken from all points
+        pts = pts_all if len(pts_all) <= score_points else pts_all[rng.choice(len(pts_all), score_points, replace=False)]
         best_n, best = -1, None
         for s in range(0, max_trials, chunk):
             k = min(chunk, max_trials - s)
@@ -702,8 +705,11 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
                 best_n, best = int(cnt[j]), (p0[ok][j], (dv[ok] / ln[ok, None])[j])
         if best is None or best_n < 2:
             break
+        pts = pts_all
         dist = _line_distances(pts, best[0][None], best[1][None])[0]
         inl = dist < threshold_mm
+        if inl.sum() < 2:
+            break
         c = pts[inl].mean(axis=0)
         _, _, vt = np.linalg.svd(pts[inl] - c, full_matrices=False)
         found.append((c, vt[0], remaining[inl]))
