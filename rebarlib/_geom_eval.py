@@ -4,14 +4,17 @@ Used by the geometry tests and benchmarks; handy in a notebook to see which bar 
 
 Rules (stated once, here):
 
-- A detected bar *matches* a true bar of the same layer when their plan directions differ by less
-  than ``MAX_ANGLE_DEG`` and the detected axis' mid point lies within ``MAX_OFFSET_MM`` of the
-  true axis line (camera frame). Each true bar takes at most one detected bar; a second detected
+- A detected bar *matches* a true bar of the same layer when the mid point of its axis lies
+  within ``MAX_OFFSET_MM`` of the true axis line (camera frame) and both its ends within twice
+  that; of several candidates the one nearest the mid point wins. Each true bar takes at most one detected bar; a second detected
   bar on the same true bar, or one matching no true bar, is a **phantom**.
-- A true bar is **measurable** (must be found) when the renderer flags it ``visible`` and its
-  visible stretch is at least ``MEASURABLE_LENGTH_MM`` long: a shorter piece (a bar end in the
-  image corner, a lower bar seen only between two upper bars) cannot give an axis. Bars visible
-  but shorter than that may be found or not; they count neither as missed nor as phantoms.
+- A true bar is **measurable** (must be found) when the renderer flags it ``visible``, its
+  visible stretch is at least ``MEASURABLE_LENGTH_MM`` long, and its visible pixels cover at
+  least ``MEASURABLE_AREA_FRACTION`` of the pixels the stretch would cover if nothing hid it
+  (visible length × envelope / pixel footprint², footprint = depth / focal length): a bar end in
+  the image corner, or a lower bar seen only in slivers beside the upper bar right above it,
+  cannot give an axis. Bars visible but not measurable may be found or not; they count neither
+  as missed nor, when found, as phantoms.
 - A detected spacing is scored when both its bars match true bars that are adjacent in the truth
   (``truth["spacings"]``); its error is detected − true spacing.
 """
@@ -23,11 +26,12 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["match_bars", "score_result", "MEASURABLE_LENGTH_MM", "MAX_OFFSET_MM", "MAX_ANGLE_DEG"]
+__all__ = ["match_bars", "score_result", "measurable_bars", "MEASURABLE_LENGTH_MM", "MEASURABLE_AREA_FRACTION",
+           "MAX_OFFSET_MM"]
 
 MEASURABLE_LENGTH_MM = 100.0
 MAX_OFFSET_MM = 15.0
-MAX_ANGLE_DEG = 5.0
+MEASURABLE_AREA_FRACTION = 0.3
 
 
 def _line_dist(p, a, b) -> float:
@@ -65,15 +69,14 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
             if t["layer"] != r.layer:
                 continue
             a, b = np.asarray(t["axis_start_mm"], float), np.asarray(t["axis_end_mm"], float)
-            ang = _dir_angle_deg(d, b - a) if np.linalg.norm(d) > 0 else 90.0
-            if ang > MAX_ANGLE_DEG:
+            if max(_line_dist(s, a, b), _line_dist(e, a, b)) > 2 * MAX_OFFSET_MM or _line_dist(mid, a, b) > MAX_OFFSET_MM:
                 continue
             off = _line_dist(mid, a, b)
             if best is None or off < best[0]:
-                best = (off, t, ang)
+                best = (off, t, _dir_angle_deg(d, b - a) if np.linalg.norm(d) > 0 else np.nan)
         rec = {"bar_id": r.bar_id, "layer": r.layer, "level": r.level, "truth_id": None, "truth_level": None,
                "offset_mm": np.nan, "angle_deg": np.nan, "phantom": True}
-        if best is not None and best[0] <= MAX_OFFSET_MM:
+        if best is not None:
             off, t, ang = best
             rec.update(truth_id=int(t["id"]), truth_level=t["level"], offset_mm=off, angle_deg=ang)
             prev = taken.get(t["id"])
@@ -89,8 +92,23 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
                                        "angle_deg", "phantom"])
 
 
-def score_result(result, truth: dict) -> dict:
-    """Errors of one result against the truth.
+def measurable_bars(capture) -> list:
+    """The true bars of a synthetic capture that must be found (rule in the module docstring)."""
+    K = capture.intrinsics
+    f = 0.5 * (K.fx + K.fy)
+    out = []
+    for t in capture.metadata["truth"]["bars"]:
+        if not t["visible"] or t["visible_length_mm"] < MEASURABLE_LENGTH_MM:
+            continue
+        z = 0.5 * (t["visible_start_mm"][2] + t["visible_end_mm"][2])
+        full_px = t["visible_length_mm"] * t["envelope_mm"] / (z / f) ** 2
+        if t["visible_pixels"] >= MEASURABLE_AREA_FRACTION * full_px:
+            out.append(t)
+    return out
+
+
+def score_result(result, capture) -> dict:
+    """Errors of one result against the truth of the synthetic ``capture`` it was measured on.
 
     Returns
     -------
@@ -100,8 +118,9 @@ def score_result(result, truth: dict) -> dict:
     ids whose level differs from the truth), ``spacing_errors_mm`` (array), ``spacings_unscored``
     (detected spacings between bars not adjacent in the truth), ``matches`` (the match_bars table).
     """
+    truth = capture.metadata["truth"]
     m = match_bars(result.bars, truth)
-    meas = [t for t in truth["bars"] if t["visible"] and t["visible_length_mm"] >= MEASURABLE_LENGTH_MM]
+    meas = measurable_bars(capture)
     ok = m[~m["phantom"]]
     found_ids = set(int(x) for x in ok["truth_id"])
     missed = sorted(t["id"] for t in meas if t["id"] not in found_ids)

@@ -35,6 +35,8 @@ PAPER_SAMPLE, PAPER_LINE_TRIALS = 1000, 460
 #: A formwork plane is rejected when more than this fraction of the points lie more than
 #: 5 noise std below it (a plane through bar tops has bars' sides and the formwork under it).
 MAX_BELOW_FRACTION = 0.02
+#: Fewer points than this above the formwork: no lattice in the capture.
+MIN_LATTICE_POINTS = 30
 #: Bars shorter than this (mm of visible axis) are not reported: too short to fit an axis.
 MIN_BAR_LENGTH_MM = 50.0
 
@@ -137,7 +139,11 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     split = G.find_layer_split(q[:, 2])
     layer_of = G.split_layers(q[:, 2], split_mm=split)
     layer_names = ["lower", "upper"]
-    if split is None:
+    if len(q) < MIN_LATTICE_POINTS:
+        # nothing stands above the plane (a capture of bare formwork): no lattice, no bars
+        layer_names = []
+        notes.append(f"no lattice: only {len(q)} points stand above the formwork plane")
+    elif split is None:
         # one lattice: which one, from the design heights (only meaningful over formwork)
         lo = float(np.percentile(q[:, 2], 2))
         is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(lo - design.cover_mm)

@@ -1,0 +1,363 @@
+"""inspect() and `rebar inspect` against the synthetic captures' ground truth.
+
+Every capture is rendered once per module (half-resolution Gemini 2 to keep the file fast) and
+scored with rebarlib._geom_eval (bar matching, the "measurable" rule, phantoms, spacing errors).
+Tolerances below are for half-resolution captures up to 500 mm; the benchmark holds the
+full-resolution targets (0.5 mm cover / layer distance, 2 mm spacing).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rebarlib import GEMINI2, RebarInputError, load_capture
+from rebarlib._capture import Capture
+from rebarlib._geom_eval import measurable_bars, score_result
+from rebarlib._inspect import inspect
+from rebarlib._results import MEASURED, NOT_MEASURED
+from rebarlib.data import example_capture, example_slab, paper_design, site_design
+from rebarlib.synth import Deviations, CameraPose, make_scene, render_capture, synth_capture
+
+K_HALF = GEMINI2.scaled(0.5)
+COVER_TOL_MM = 0.8  # cover, half resolution
+LAYER_TOL_MM = 0.8  # layer distance, half resolution
+UPPER_TOP_TOL_MM = 1.0
+SPACING_TOL_MM = 3.0  # any single spacing, half resolution (position jitter 5 mm)
+EXAMPLE_COVER_TOL_MM = 0.5  # full-resolution examples: the benchmark's target
+EXAMPLE_SPACING_TOL_MM = 2.0
+PAPER_COVER_TOL_MM = 1.5  # paper method at 500 mm (the paper reports 1.43 mm)
+AXIS_OFFSET_TOL_MM = 3.0  # median distance of found axes from the true axes
+SPARSE_KEEP_EVERY = 48  # the too-few-points case keeps 1 pixel in this many of one bar
+
+
+def _visible_measurable(cap, **where):
+    return [b for b in measurable_bars(cap) if all(b[k] == v for k, v in where.items())]
+
+
+def _assert_bars_ok(res, cap, *, allow_missed=0):
+    s = score_result(res, cap)
+    measured = res.bars[res.bars["status"] == MEASURED]
+    phantoms = [b for b in s["phantoms"] if b in set(measured["bar_id"])]
+    assert phantoms == [], f"phantom bars {phantoms}"
+    assert len(s["missed"]) <= allow_missed, f"visible bars not found: {s['missed']}"
+    assert s["wrong_level"] == [], f"bars with the wrong level: {s['wrong_level']}"
+    m = s["matches"]
+    assert np.nanmedian(m.loc[~m["phantom"], "offset_mm"]) < AXIS_OFFSET_TOL_MM
+    return s
+
+
+# ------------------------------------------------------------------------------------------------
+# Captures (rendered once per module)
+# ------------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def hard():
+    """Yawed mesh, 20° tilt, spacing varying bar to bar, one bar missing in view, bars cut by the
+    image border, lower bars partly hidden under upper bars."""
+    dev = Deviations(mesh_yaw_deg=37.0, position_sigma_mm=5.0, missing=1)
+    design = paper_design()
+    cap = synth_capture(design, height_mm=500, tilt_deg=20, yaw_deg=15, deviations=dev, intrinsics=K_HALF,
+                        seed=4, scene_seed=11, name="hard")
+    return cap, design, inspect(cap, design, rng=0)
+
+
+@pytest.fixture(scope="module")
+def one_lattice():
+    """Only the lower lattice was placed (no upper bars, no chairs)."""
+    design = paper_design()
+    scene = make_scene(design, Deviations(mesh_yaw_deg=-23.0), rng=np.random.default_rng(3))
+    scene = replace(scene, bars=tuple(b for b in scene.bars if b.layer == "lower"), rods=())
+    pose = CameraPose.looking_down(450, tilt_deg=8)
+    cap = render_capture(scene, pose, intrinsics=K_HALF, rng=np.random.default_rng(5), name="one")
+    return cap, design, inspect(cap, design, rng=0)
+
+
+def _with_depth(cap: Capture, depth, name: str) -> Capture:
+    return replace(cap, depth_mm=depth, metadata={**cap.metadata, "name": name})
+
+
+def _bare(cap: Capture) -> Capture:
+    """The capture with everything but the bars removed (no formwork, no spacers or chairs)."""
+    return _with_depth(cap, np.where(cap.labels > 0, cap.depth_mm, 0.0), cap.name + "_bare")
+
+
+# ------------------------------------------------------------------------------------------------
+# Hard cases
+# ------------------------------------------------------------------------------------------------
+
+def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
+    cap, design, res = hard
+    t = cap.truth
+    assert res.cover.status == MEASURED and abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
+    assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
+    assert abs(res.upper_top.value_mm - t["upper_top_mm"]) <= UPPER_TOP_TOL_MM
+    assert res.top_cover.ok and abs(res.top_cover.value_mm - (design.thickness_mm - t["upper_top_mm"])) <= UPPER_TOP_TOL_MM
+    for m in (res.cover, res.layer_distance, res.upper_top):
+        assert m.n_points > 100 and 0 < m.uncertainty_mm < 1.0
+    # the camera pose over the formwork
+    assert abs(res.camera["tilt_deg"] - 20.0) < 0.5
+    assert abs(res.camera["height_mm"] - t["camera"]["height_mm"]) < 2.0 if "height_mm" in t["camera"] else True
+    assert abs(abs(np.dot(res.formwork["normal"], t["formwork_plane"]["normal"])) - 1) < 1e-4
+
+
+def test_every_visible_bar_found_once_with_its_level(hard):
+    cap, _, res = hard
+    t = cap.truth
+    # preconditions of the hard case: bars cut by the image border, lower bars partly hidden
+    cut = [b for b in _visible_measurable(cap) if b["visible_length_mm"] < 0.95 * np.linalg.norm(
+        np.subtract(b["axis_end_mm"], b["axis_start_mm"]))]
+    assert len(cut) >= 10
+    assert len(_visible_measurable(cap, layer="lower")) >= 6
+    s = _assert_bars_ok(res, cap)
+    assert s["found"] == s["measurable"] >= 15
+    # plan angles of the two directions 90° apart
+    ang = res.bars.groupby(["layer", "level"])["plan_angle_deg"].median()
+    for layer in ("lower", "upper"):
+        d = abs(ang[(layer, "bottom")] - ang[(layer, "top")]) % 180
+        assert abs(d - 90) < 2.0
+
+
+def test_spacing_varying_bar_to_bar(hard):
+    cap, design, res = hard
+    s = score_result(res, cap)
+    true_sp = np.array([x["spacing_mm"] for x in cap.truth["spacings"] if x["visible"]])
+    assert true_sp.std() > 3.0  # precondition: spacings really vary
+    err = s["spacing_errors_mm"]
+    assert len(err) >= 8 and np.abs(err).max() <= SPACING_TOL_MM
+    sp = res.spacings
+    assert list(sp.columns[:9]) == ["layer", "level", "bar_a", "bar_b", "spacing_mm", "design_spacing_mm",
+                                    "deviation_mm", "status", "reason"]
+    ok = sp[sp["status"] == MEASURED]
+    assert np.allclose(ok["deviation_mm"], ok["spacing_mm"] - ok["design_spacing_mm"])
+    assert (ok["design_spacing_mm"] == 200).all()
+
+
+def test_spacings_in_order_across_the_bars(hard):
+    _, _, res = hard
+    bars = res.bars.set_index("bar_id")
+    for (layer, level), g in res.spacings.groupby(["layer", "level"], sort=False):
+        chain = list(g["bar_a"]) + [g["bar_b"].iloc[-1]]
+        # consecutive rows share a bar: a chain across the set
+        assert all(a == b for a, b in zip(g["bar_b"].iloc[:-1], g["bar_a"].iloc[1:]))
+        assert len(set(chain)) == len(chain)
+        assert set(bars.loc[chain, "layer"]) == {layer}
+
+
+def test_missing_bar_counted(hard):
+    cap, design, res = hard
+    miss = cap.truth["missing"]
+    assert len(miss) == 1
+    key = (miss[0]["layer"], miss[0]["level"])
+    c = res.counts.set_index(["layer", "level"])
+    assert list(res.counts.columns) == ["layer", "level", "found", "expected", "missing", "extra"]
+    assert int(c.loc[key, "missing"]) == 1
+    for k in c.index:
+        if k != key:
+            assert int(c.loc[k, "missing"]) == 0
+        assert int(c.loc[k, "extra"]) == 0
+
+
+def test_bar_table_columns_and_axes_in_camera_frame(hard):
+    cap, _, res = hard
+    cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
+            "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "status", "reason"]
+    assert set(cols) <= set(res.bars.columns)
+    # axis end points project into the image (visible extent), and bar_points carry the pixels
+    K = cap.intrinsics
+    for r in res.bars[res.bars["status"] == MEASURED].itertuples():
+        for p in ((r.start_x_mm, r.start_y_mm, r.start_z_mm), (r.end_x_mm, r.end_y_mm, r.end_z_mm)):
+            u, v = K.fx * p[0] / p[2] + K.cx, K.fy * p[1] / p[2] + K.cy
+            assert -30 <= u <= K.width + 30 and -30 <= v <= K.height + 30
+        pts = res.bar_points[r.bar_id]
+        assert len(pts) >= r.n_points * 0.9
+        ids = cap.bar_ids[pts.pixels[:, 1], pts.pixels[:, 0]]
+        # the points given to a bar are (mostly) that bar's pixels
+        assert np.mean(ids == np.bincount(ids[ids > 0]).argmax()) > 0.8
+
+
+def test_one_lattice_only(one_lattice):
+    cap, design, res = one_lattice
+    t = cap.truth
+    assert set(res.bars["layer"]) == {"lower"}
+    assert abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
+    assert res.layer_distance.status == NOT_MEASURED and res.layer_distance.value_mm is None
+    assert res.layer_distance.reason
+    assert res.upper_top.status == NOT_MEASURED and res.top_cover.status == NOT_MEASURED
+    _assert_bars_ok(res, cap)
+    err = score_result(res, cap)["spacing_errors_mm"]
+    assert len(err) >= 3 and np.abs(err).max() <= SPACING_TOL_MM
+
+
+def test_no_formwork_visible(hard):
+    cap, design, _ = hard
+    bare = _bare(cap)
+    res = inspect(bare, design, rng=0)
+    t = cap.truth
+    assert res.cover.status == NOT_MEASURED and res.cover.value_mm is None and "formwork" in res.cover.reason
+    assert res.top_cover.status == NOT_MEASURED
+    # layers and spacing are still measured (relative quantities)
+    assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
+    _assert_bars_ok(res, cap)
+    err = score_result(res, cap)["spacing_errors_mm"]
+    assert len(err) >= 8 and np.abs(err).max() <= SPACING_TOL_MM
+    assert res.formwork.get("found") is False
+    assert json.loads(res.to_json())["cover_mm"] is None
+
+
+@pytest.mark.xfail(reason="geometry.find_bars drops a bar whose stretch holds under 20 % of a full bar's "
+                          "points before its min_points check, and count_bars does not expect it either "
+                          "(no formwork seen there): the bar vanishes silently", strict=True)
+def test_bar_with_too_few_points_is_not_measured(hard):
+    """A bar whose depth is almost all lost (here: 1 pixel in 48 of it kept, about 30 points after
+    the stride) is reported as "not measured" with a reason, not dropped silently and not given a
+    number."""
+    cap, design, _ = hard
+    t = cap.truth
+    target = max(_visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"])
+    mask = cap.bar_ids == target["id"] + 1
+    vv, uu = np.nonzero(mask)
+    drop = np.ones(len(vv), bool)
+    drop[::SPARSE_KEEP_EVERY] = False
+    depth = cap.depth_mm.copy()
+    depth[vv[drop], uu[drop]] = 0.0
+    res = inspect(_with_depth(cap, depth, "sparse"), design, rng=0)
+    m = score_result(res, cap)["matches"]
+    rows = m[m["truth_id"] == target["id"]]
+    assert len(rows) == 1, "the sparse bar must be reported"
+    row = res.bars.set_index("bar_id").loc[int(rows["bar_id"].iloc[0])]
+    assert row["status"] == NOT_MEASURED and row["reason"]
+
+
+# ------------------------------------------------------------------------------------------------
+# Bad input
+# ------------------------------------------------------------------------------------------------
+
+def test_empty_capture_is_an_input_error(hard):
+    cap, design, _ = hard
+    with pytest.raises(RebarInputError, match="depth"):
+        inspect(_with_depth(cap, np.zeros_like(cap.depth_mm), "empty"), design)
+
+
+def test_wrong_arguments_are_input_errors(hard):
+    cap, design, _ = hard
+    with pytest.raises(RebarInputError, match="method"):
+        inspect(cap, design, method="fast")
+    with pytest.raises(RebarInputError, match="design"):
+        inspect(cap, {"cover_mm": 20})
+    with pytest.raises(RebarInputError, match="capture"):
+        inspect(cap.depth_mm, design)
+
+
+def test_flat_formwork_only_measures_nothing(hard):
+    """All points on one plane: no bars, so no cover, no layer distance, no spacing — and no
+    made-up numbers."""
+    cap, design, _ = hard
+    K = cap.intrinsics
+    v, u = np.mgrid[0:K.height, 0:K.width]
+    # a tilted plane 500 mm away along the optical axis
+    depth = 500.0 / (1.0 + 0.2 * (v - K.cy) / K.fy)
+    res = inspect(_with_depth(cap, depth, "flat"), design, rng=0)
+    for m in (res.cover, res.layer_distance, res.upper_top, res.top_cover):
+        assert m.status == NOT_MEASURED and m.value_mm is None and m.reason
+    assert (res.bars["status"] != MEASURED).all() if len(res.bars) else True
+    assert len(res.spacings) == 0 or (res.spacings["status"] != MEASURED).all()
+
+
+def test_absurd_design_values_rejected():
+    with pytest.raises(RebarInputError):
+        paper_design(cover_mm=-5)
+    with pytest.raises(RebarInputError):
+        paper_design(layer_distance_mm=5)
+
+
+# ------------------------------------------------------------------------------------------------
+# Shipped examples (full resolution), both methods
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("slab,name", [("paper_slab", "B_500"), ("site_slab", "P1_500")])
+def test_examples_refined_accuracy(slab, name):
+    _, design = example_slab(slab)
+    cap = load_capture(example_capture(slab, name))
+    res = inspect(cap, design, rng=0)
+    t = cap.truth
+    assert abs(res.cover.value_mm - t["cover_mm"]) <= EXAMPLE_COVER_TOL_MM
+    assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= EXAMPLE_COVER_TOL_MM
+    s = _assert_bars_ok(res, cap)
+    assert np.abs(s["spacing_errors_mm"]).max() <= EXAMPLE_SPACING_TOL_MM
+    assert res.method == "refined" and res.capture == name
+
+
+def test_paper_method_on_example():
+    _, design = example_slab("paper_slab")
+    cap = load_capture(example_capture("paper_slab", "B_500"))
+    res = inspect(cap, design, method="paper", rng=0)
+    assert res.method == "paper"
+    assert abs(res.cover.value_mm - cap.truth["cover_mm"]) <= PAPER_COVER_TOL_MM
+    assert res.layer_distance.ok and len(res.bars) > 0
+    assert {"lower", "upper"} == set(res.bars["layer"])
+
+
+def test_same_seed_same_result(hard):
+    cap, design, res = hard
+    again = inspect(cap, design, rng=0)
+    assert again.to_json() != "" and json.loads(again.to_json())["bars"] == json.loads(res.to_json())["bars"]
+
+
+# ------------------------------------------------------------------------------------------------
+# rebar inspect
+# ------------------------------------------------------------------------------------------------
+
+def test_cli_writes_result_and_tables(tmp_path, capsys):
+    from rebarlib.cli import main
+
+    folder, _ = example_slab("paper_slab")
+    out = tmp_path / "results"
+    rc = main(["inspect", str(example_capture("paper_slab", "A_400")), "--design", str(folder / "design.toml"),
+               "--out", str(out)])
+    assert rc == 0
+    d = out / "A_400"
+    data = json.loads((d / "result.json").read_text())
+    for key in ("capture", "method", "cover_mm", "layer_distance_mm", "upper_top_mm", "top_cover_mm",
+                "measurements", "formwork", "camera", "bars", "spacings", "counts", "timings_s", "notes"):
+        assert key in data
+    assert data["capture"] == "A_400" and data["method"] == "refined"
+    assert math.isfinite(data["cover_mm"]) and data["measurements"]["cover"]["status"] == MEASURED
+    import pandas as pd
+
+    bars = pd.read_csv(d / "bars.csv")
+    assert len(bars) == len(data["bars"]) and "start_x_mm" in bars
+    assert len(pd.read_csv(d / "spacings.csv")) == len(data["spacings"])
+    assert (d / "counts.csv").exists()
+    line = capsys.readouterr().out
+    assert "A_400: cover" in line and "layer distance" in line
+
+
+def test_cli_never_writes_into_a_capture(tmp_path, capsys):
+    from rebarlib.cli import main
+
+    folder, _ = example_slab("paper_slab")
+    cap = example_capture("paper_slab", "A_400")
+    before = sorted(p.name for p in cap.iterdir())
+    rc = main(["inspect", str(cap), "--design", str(folder / "design.toml"), "--out", str(cap.parent)])
+    assert rc == 2 and "capture folder" in capsys.readouterr().err
+    assert sorted(p.name for p in cap.iterdir()) == before
+
+
+def test_cli_duplicate_names_and_missing_capture(tmp_path, capsys):
+    from rebarlib.cli import main
+
+    folder, _ = example_slab("paper_slab")
+    (tmp_path / "x" / "A_400").mkdir(parents=True)
+    (tmp_path / "y" / "A_400").mkdir(parents=True)
+    rc = main(["inspect", str(tmp_path / "x" / "A_400"), str(tmp_path / "y" / "A_400"), "--design",
+               str(folder / "design.toml"), "--out", str(tmp_path / "out")])
+    assert rc == 2 and "overwrite" in capsys.readouterr().err
+    rc = main(["inspect", str(tmp_path / "nope"), "--design", str(folder / "design.toml"), "--out",
+               str(tmp_path / "out")])
+    assert rc == 2 and "nope" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
