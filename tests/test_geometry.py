@@ -1,0 +1,236 @@
+"""The geometry stages one by one, on analytic point sets with exact truth.
+
+A lattice here is what a camera straight above sees: on a plan grid of pitch ``PITCH_MM``, the
+height of the highest bar surface over each grid point (top bars hide bottom bars), the formwork
+elsewhere, plus Gaussian noise. Then the points are put in a tilted camera frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rebarlib import RebarInputError
+from rebarlib.geometry import (Plane, assign_levels, find_bars, find_layer_split, fit_formwork,
+                               from_slab_frame, group_directions, measure_spacings, paper_find_bars,
+                               paper_fit_formwork, plane_frame, split_layers, to_slab_frame)
+
+PITCH_MM = 2.0
+NOISE_MM = 0.3
+PLANE_OFFSET_TOL_MM = 0.1  # refined plane offset, 0.3 mm noise, ~40k formwork points
+PLANE_ANGLE_TOL_DEG = 0.05
+AXIS_HEIGHT_TOL_MM = 0.3  # refined cylinder fit: axis height (no bias from the visible top)
+AXIS_OFFSET_TOL_MM = 0.5  # refined: axis position across the bar
+SPACING_TOL_MM = 0.6
+PAPER_HEIGHT_BIAS_MIN_MM = 2.0  # the paper's mean height of the visible points sits above the axis
+ANGLE_TOL_DEG = 1.0
+
+
+def _rot(axis, deg):
+    a = math.radians(deg)
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
+
+
+def lattice_points(*, bottom_offsets, top_offsets, angle_deg=30.0, r_bottom=8.1, r_top=8.1, cover=20.0,
+                   half=300.0, formwork=True, rng=0):
+    """Slab-frame points (a, b, h) of a two-level lattice on formwork (h = 0).
+
+    Bottom bars run along ``angle_deg`` at the given offsets, axis height cover + r_bottom; top
+    bars run across them, resting on them (axis height cover + 2 r_bottom + r_top).
+    """
+    rng = np.random.default_rng(rng)
+    g = np.arange(-half, half, PITCH_MM)
+    a, b = np.meshgrid(g, g)
+    a, b = a.ravel(), b.ravel()
+    h = np.full(a.shape, -np.inf)
+    th = math.radians(angle_deg)
+    d1 = np.array([math.cos(th), math.sin(th)])
+    n1 = np.array([-d1[1], d1[0]])
+    plan = np.c_[a, b]
+    hb = cover + r_bottom
+    ht = cover + 2 * r_bottom + r_top
+    for o in bottom_offsets:
+        x = plan @ n1 - o
+        inside = np.abs(x) < r_bottom
+        h[inside] = np.maximum(h[inside], hb + np.sqrt(r_bottom**2 - x[inside] ** 2))
+    for o in top_offsets:
+        x = plan @ d1 - o  # top bars run along n1: their offset is along d1
+        inside = np.abs(x) < r_top
+        h[inside] = np.maximum(h[inside], ht + np.sqrt(r_top**2 - x[inside] ** 2))
+    on_bar = np.isfinite(h)
+    if formwork:
+        h[~on_bar] = 0.0
+        keep = np.ones(len(h), bool)
+    else:
+        keep = on_bar
+    q = np.c_[a, b, h][keep]
+    q[:, 2] += rng.normal(0, NOISE_MM, len(q))
+    return q, on_bar[keep], dict(d1=d1, n1=n1, hb=hb, ht=ht)
+
+
+def to_camera(q, *, height=500.0, tilt_deg=12.0):
+    """Slab frame -> a camera frame looking down from ``height`` with a tilt."""
+    plane = Plane(np.array([0.0, 0.0, -1.0]), height)
+    p = from_slab_frame(q, plane)
+    R = _rot([1.0, 0.3, 0.0], tilt_deg)
+    return p @ R.T, R @ np.array([0.0, 0.0, -1.0])
+
+
+# ------------------------------------------------------------------------------------------------
+# Formwork plane and frames
+# ------------------------------------------------------------------------------------------------
+
+def test_fit_formwork_refined_is_exact_to_the_noise():
+    q, on_bar, _ = lattice_points(bottom_offsets=[-200, 0, 200], top_offsets=[-100, 100])
+    p, n_true = to_camera(q, height=520.0, tilt_deg=17.0)
+    plane, inl = fit_formwork(p, threshold_mm=8.0, rng=1)
+    ang = math.degrees(math.acos(min(1.0, abs(float(plane.normal @ n_true)))))
+    assert ang < PLANE_ANGLE_TOL_DEG
+    assert abs(plane.offset_mm - 520.0) < PLANE_OFFSET_TOL_MM
+    assert plane.normal @ -p.mean(axis=0) > 0  # normal toward the camera
+    assert abs(plane.noise_mm - NOISE_MM) < 0.05
+    # inliers: formwork points, no bar points
+    assert inl[~on_bar].mean() > 0.99 and not inl[on_bar].any()
+
+
+def test_paper_fit_formwork_threshold_and_trials():
+    q, on_bar, _ = lattice_points(bottom_offsets=[-200, 0, 200], top_offsets=[0])
+    p, _ = to_camera(q)
+    t1 = 0.8 * 20.0
+    plane, inl = paper_fit_formwork(p, threshold_mm=t1, max_trials=170, rng=0)
+    h = np.abs(plane.height(p))
+    # the paper's inliers are everything within t1 of its plane
+    assert abs(int(inl.sum()) - int((h <= t1).sum())) < 5
+    assert inl[~on_bar].mean() > 0.99
+    assert abs(plane.offset_mm - 500.0) < 1.0
+
+
+def test_fit_formwork_input_errors():
+    with pytest.raises(RebarInputError, match="points"):
+        fit_formwork(np.zeros((2, 3)), threshold_mm=5)
+    with pytest.raises(RebarInputError, match="points"):
+        paper_fit_formwork(np.zeros((0, 3)), threshold_mm=5)
+
+
+def test_slab_frame_round_trip_and_heights():
+    rng = np.random.default_rng(3)
+    n = np.array([0.1, -0.25, -1.0])
+    n /= np.linalg.norm(n)
+    plane = Plane(n, 480.0)
+    p = rng.uniform(-300, 300, (100, 3)) + [0, 0, 500]
+    q = to_slab_frame(p, plane)
+    assert np.allclose(q[:, 2], plane.height(p))
+    assert np.allclose(from_slab_frame(q, plane), p)
+    R = plane_frame(plane)
+    assert np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# Layers
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("cover,layer_distance", [(15, 54), (20, 85), (40, 120), (25, 35)])
+def test_layer_split_found_from_the_data(cover, layer_distance):
+    rng = np.random.default_rng(cover)
+    lower = rng.uniform(cover, cover + 28, 5000)
+    upper = rng.uniform(cover + layer_distance, cover + layer_distance + 24, 5000)
+    chairs = rng.uniform(cover + 28, cover + layer_distance, 40)  # a few points between the lattices
+    h = np.r_[lower, upper, chairs]
+    split = find_layer_split(h)
+    assert split is not None and cover + 28 < split < cover + layer_distance
+    lab = split_layers(h, split_mm=split)
+    assert (lab[:5000] == 0).all() and (lab[5000:10000] == 1).all()
+
+
+def test_one_lattice_has_no_split():
+    h = np.random.default_rng(0).uniform(20, 48, 8000)
+    assert find_layer_split(h) is None
+    assert (split_layers(h, split_mm=None) == 0).all()
+    assert find_layer_split(np.array([1.0, 2.0])) is None
+
+
+# ------------------------------------------------------------------------------------------------
+# Bars (refined) and spacing
+# ------------------------------------------------------------------------------------------------
+
+BOTTOM = [-210.0, -12.0, 195.0]  # spacing varies: 198, 207
+TOP = [-180.0, 22.0, 215.0]  # 202, 193
+
+
+@pytest.fixture(scope="module")
+def lattice():
+    q, on_bar, info = lattice_points(bottom_offsets=BOTTOM, top_offsets=TOP, angle_deg=33.0)
+    bars_q = q[on_bar]
+    bars = find_bars(bars_q, layer="lower", radius_mm=8.1, pitch_mm=PITCH_MM, rng=0)
+    return assign_levels(bars), info
+
+
+def test_find_bars_every_bar_once_no_phantom(lattice):
+    bars, info = lattice
+    measured = [b for b in bars if b.status == "measured"]
+    assert len(measured) == len(BOTTOM) + len(TOP)
+    assert sorted(b.level for b in measured) == ["bottom"] * 3 + ["top"] * 3
+    for b in measured:
+        want = 33.0 if b.level == "bottom" else 123.0
+        d = abs((b.plan_angle_deg - want + 90) % 180 - 90)
+        assert d < ANGLE_TOL_DEG
+
+
+def test_find_bars_axes_unbiased(lattice):
+    """The cylinder fit puts the axis at the true centre: heights not pulled toward the camera,
+    undersides at the cover."""
+    bars, info = lattice
+    for b in (b for b in bars if b.status == "measured"):
+        h_axis = b.centre_h_mm + b.h_slope * b.t_mid
+        if b.level == "bottom":
+            assert abs(h_axis - info["hb"]) < AXIS_HEIGHT_TOL_MM
+            assert abs(b.underside_mm - 20.0) < AXIS_HEIGHT_TOL_MM
+            off = float(b.plan_point(np.array([b.t_mid]))[0] @ info["n1"])
+            assert min(abs(off - o) for o in BOTTOM) < AXIS_OFFSET_TOL_MM
+        else:
+            assert abs(h_axis - info["ht"]) < AXIS_HEIGHT_TOL_MM
+            off = float(b.plan_point(np.array([b.t_mid]))[0] @ info["d1"])
+            assert min(abs(off - o) for o in TOP) < AXIS_OFFSET_TOL_MM
+
+
+def test_measure_spacings_in_order_with_deviation(lattice):
+    bars, _ = lattice
+    sp = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0, ("lower", "top"): 200.0})
+    assert len(sp) == 4
+    for level, offs in (("bottom", BOTTOM), ("top", TOP)):
+        got = np.sort(sp[sp["level"] == level]["spacing_mm"].to_numpy())
+        want = np.sort(np.diff(offs))
+        assert np.abs(got - want).max() < SPACING_TOL_MM
+        g = sp[sp["level"] == level]
+        assert (g["bar_b"].iloc[:-1].to_numpy() == g["bar_a"].iloc[1:].to_numpy()).all()
+    assert np.allclose(sp["deviation_mm"], sp["spacing_mm"] - 200.0)
+
+
+def test_find_bars_empty_and_tiny_inputs():
+    assert find_bars(np.zeros((0, 3)), layer="lower", radius_mm=7.0) == []
+    assert find_bars(np.zeros((5, 3)), layer="lower", radius_mm=7.0) == []
+
+
+# ------------------------------------------------------------------------------------------------
+# Paper method: sequential RANSAC lines, K-means directions
+# ------------------------------------------------------------------------------------------------
+
+def test_paper_bars_and_directions():
+    q, on_bar, info = lattice_points(bottom_offsets=[-150.0, 50.0], top_offsets=[-100.0, 100.0], angle_deg=-20.0,
+                                     r_bottom=7.0, r_top=7.0, half=250.0)
+    bars = paper_find_bars(q[on_bar], layer="lower", threshold_mm=0.5 * 14 + 1.0, max_trials=460, rng=0)
+    bars = group_directions(bars, rng=0)
+    assert len(bars) >= 4
+    groups = {}
+    for b in bars:
+        groups.setdefault(b.group, []).append(b.plan_angle_deg)
+    assert len(groups) == 2
+    med = sorted(float(np.median(v)) for v in groups.values())
+    assert abs(abs(med[1] - med[0]) - 90) < 2.0
+    # no cross-section model: the mean height of the visible points sits above the axis
+    hb = [b.centre_h_mm for b in bars if abs((b.plan_angle_deg + 20 + 90) % 180 - 90) < 5]
+    assert hb and min(hb) > info["hb"] + PAPER_HEIGHT_BIAS_MIN_MM
