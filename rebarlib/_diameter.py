@@ -771,6 +771,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
+        # two estimates further apart than their σ say: the σ are too small (Birge ratio)
+        sigma *= max(1.0, abs(med - dw) / math.hypot(sigma_m, sigma_c))
         if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
             width, sigma, source = med, sigma_m, "mask"
     elif not mask_problem:
