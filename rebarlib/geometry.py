@@ -290,6 +290,8 @@ class BarAxis:
     level: str = ""
     status: str = "measured"
     reason: str = ""
+    arc_deg: float = float("nan")  # span of the cross-section covered by the fitted points
+    axis_se_mm: float = float("nan")  # standard error of the axis position (offset / height)
 
     @property
     def normal2d(self) -> np.ndarray:
@@ -479,15 +481,23 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12):
     r = np.hypot(ds, dh) - radius
     keep = w > 0
     rms = float(np.sqrt(np.mean(r[keep] ** 2))) if keep.any() else float("nan")
+    # standard errors of the centred parameters (offset and height at the points' mean t)
+    rho = np.hypot(ds, dh) + 1e-9
+    J = np.column_stack([-ds / rho, -tc * ds / rho, -dh / rho, -tc * dh / rho])[keep]
+    try:
+        cov = np.linalg.inv(J.T @ J) * (rms**2 if np.isfinite(rms) else 1.0)
+        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    except np.linalg.LinAlgError:
+        se = np.full(4, np.inf)
     # back to t (not centred)
     a0 = a[0] - a[1] * t.mean()
     b0 = a[2] - a[3] * t.mean()
-    return (a0, a[1], b0, a[3]), w, rms
+    return (a0, a[1], b0, a[3]), w, rms, (float(se[0]), float(se[2]))
 
 
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
-              pitch_mm: float | None = None, rng=None) -> list:
+              pitch_mm: float | None = None, min_arc_deg: float = 90.0, rng=None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -503,6 +513,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         its points is not a bar
     max_rms_ratio : a candidate whose fit residual (rms) exceeds this multiple of the lattice's
         median bar residual is not a bar (the median is the sensor noise on bars)
+    min_arc_deg : a bar whose fitted points span less of its cross-section than this (seen only
+        along one edge) and that is sparsely sampled is kept with status "not measured"
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell.
@@ -540,14 +552,19 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         else:
             near = np.zeros(len(off), int)
             member = np.zeros(len(off), bool)
-        cand.append((g, d, n2, off, along, r, centres, near, member))
+        cand.append((g, d, n2, off, along, r, centres, near, member, win))
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
         ambiguous = cand[0][8] & cand[1][8]
     bars = []
-    for g, d, n2, off, along, r, centres, near, member in cand:
+    for g, d, n2, off, along, r, centres, near, member, win in cand:
         for k, c in enumerate(centres):
-            idx = np.where(member & (near == k) & ~ambiguous)[0]
+            band = member & (near == k)
+            # a "run" made mostly of points that also belong to crossing bars is the crossing
+            # bars themselves, not a bar of this direction
+            if (band & ambiguous).sum() > 0.5 * max(band.sum(), 1):
+                continue
+            idx = np.where(band & ~ambiguous)[0]
             if len(idx) == 0:
                 continue
             t = along[idx]
@@ -564,7 +581,19 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                                     r, len(idx), float("nan"), idx, g, status="not measured",
                                     reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit"))
                 continue
-            (a0, a1, b0, b1), w, rms = _fit_bar(t, off[idx] - c, h[idx], r)
+            fit = _fit_bar(t, off[idx] - c, h[idx], r)
+            # the candidate's centre is only good to a few mm: gather the points around the
+            # fitted axis again and refit (twice), so the band is centred on the bar
+            for _ in range(2):
+                (a0, a1, b0, b1), w, rms, _ = fit
+                pred = c + a0 + a1 * along
+                near_axis = (np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - 20) & (along <= t1 + 20)
+                idx2 = np.where(near_axis)[0]
+                if len(idx2) < min_points:
+                    break
+                idx, t = idx2, along[idx2]
+                fit = _fit_bar(t, off[idx] - c, h[idx], r)
+            (a0, a1, b0, b1), w, rms, se = fit
             keep = w > 0
             # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
             # (a spacer block, a tie, a chair)
@@ -573,8 +602,15 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             tt = t[keep]
             if tt.max() - tt.min() < min_length_mm:
                 continue
+            # how much of the cross-section the points cover: a bar seen only along one edge
+            # (the rest hidden by a bar above it) does not fix its axis
+            phi = np.degrees(np.arctan2(h[idx][keep] - (b0 + b1 * tt), off[idx][keep] - (c + a0 + a1 * tt)))
+            phi = (phi + 90.0) % 360.0 - 90.0  # the seen upper half, [0°, 180°], without a wrap
+            arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
+            status, reason = "measured", ""
             bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
-                                float(tt.max()), r, int(keep.sum()), rms, idx[keep], g))
+                                float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status, reason=reason,
+                                arc_deg=arc, axis_se_mm=float(max(se))))
     # something lying well below the other bars of its direction (a spacer block's top, the
     # stub of a chair) is not a bar of this lattice level
     for g in {b.group for b in bars}:
@@ -583,6 +619,20 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             floor = float(np.median(hs)) - 1.5 * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != "measured"
                     or b.centre_h_mm + b.h_slope * b.t_mid >= floor]
+    # a bar seen only along one edge (less than min_arc_deg of its cross-section) and sparsely
+    # (under a quarter of the layer's typical points per mm) does not fix its axis: the fixed-
+    # radius circle can slide along the visible arc
+    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
+    if dens:
+        typical = float(np.median(dens))
+        from dataclasses import replace as _replace
+
+        bars = [_replace(b, status="not measured",
+                         reason=(f"only {b.arc_deg:.0f}° of the bar's cross-section is seen, sparsely "
+                                 f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
+                                 f"{typical:.1f} typical): the rest is hidden, its axis cannot be placed"))
+                if b.status == "measured" and b.arc_deg < min_arc_deg
+                and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < 0.25 * typical else b for b in bars]
     # two bars of one direction cannot overlap: of two axes closer than the sum of their radii,
     # keep the one with more points (the other is the first one's edge or shadow fringe)
     bars = _drop_overlaps(bars)
@@ -949,9 +999,9 @@ def bars_table(bars: list, plane: Plane) -> pd.DataFrame:
             "axis_height_mm": b.centre_h_mm + b.h_slope * b.t_mid,
             "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
             "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
-            "fit_rms_mm": b.rms_mm, "status": b.status, "reason": b.reason,
+            "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "status": b.status, "reason": b.reason,
         })
     cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
             "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "axis_height_mm", "underside_mm", "radius_mm",
-            "fit_rms_mm", "status", "reason"]
+            "fit_rms_mm", "arc_deg", "axis_se_mm", "status", "reason"]
     return pd.DataFrame(rows, columns=cols)
