@@ -6,9 +6,9 @@ row. Each stage is timed (``result.timings_s``).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -19,9 +19,12 @@ from ._checks import RebarInputError
 from ._design import Design
 from ._results import InspectionResult, Measurement
 
-__all__ = ["inspect", "prepare_cloud", "METHODS"]
+__all__ = ["inspect", "prepare_cloud", "rebar_mask", "METHODS", "MASK_SOURCES"]
 
 METHODS = ("refined", "paper")
+#: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
+#: the depth alone, or both fused (ours: edges from colour, presence from depth).
+MASK_SOURCES = ("fused", "model", "depth")
 
 #: Refined: keep every ``STRIDE``-th pixel in each direction. At 400–600 mm a pixel covers
 #: 0.65–1 mm, so a stride of 2 still puts 5+ samples across the thinnest (Φ8) bar, and the
@@ -85,7 +88,38 @@ def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 
     return Measurement(float(v.mean()), unc, int(n_points))
 
 
-def inspect(capture: Capture, design: Design, *, method: str = "refined", rng=None) -> InspectionResult:
+@functools.lru_cache(maxsize=1)
+def _default_model():
+    from .segmentation import SegmentationModel
+
+    return SegmentationModel.default()
+
+
+def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None) -> np.ndarray:
+    """The rebar mask (H, W) bool of a capture for the diameter stage.
+
+    ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
+    what stands above the formwork, "fused" (default) = both (``segmentation.fuse_masks``).
+    ``plane``: the formwork plane if known (``(normal, offset_mm)``); ``model``: a
+    ``SegmentationModel`` (default: the shipped one).
+    """
+    from .segmentation import fuse_masks, mask_from_depth
+
+    if source not in MASK_SOURCES:
+        raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
+    if source == "depth":
+        return mask_from_depth(capture, plane=plane, rng=rng)
+    model = model or _default_model()
+    if source == "model":
+        return model.predict_mask(capture.color)
+    proba = model.predict_proba(capture.color)
+    colour = proba > model.threshold
+    depth = mask_from_depth(capture, plane=plane, rng=rng)
+    return fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
+
+
+def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
+            mask=None, mask_source: str | None = None, rng=None) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
 
     Parameters
@@ -94,6 +128,10 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", rng=No
     design : Design (``load_design``) — gives the bar sizes (envelope radii), spacings for counts
         and the paper's design-derived thresholds
     method : "refined" (default) or "paper"
+    diameters : also measure every bar's nominal diameter (method.md stage 3); the bar table then
+        has the diameter columns of ``measure_diameters``
+    mask : (H, W) bool rebar mask to use for the diameters (default: computed, see mask_source)
+    mask_source : "fused" (refined default), "model" (paper default) or "depth"
     rng : seed or Generator for the random parts (RANSAC, sampling)
 
     Returns
@@ -103,8 +141,37 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", rng=No
     _check(capture, design, method)
     rng = np.random.default_rng(rng)
     if method == "paper":
-        return _inspect_paper(capture, design, rng)
-    return _inspect_refined(capture, design, rng)
+        res = _inspect_paper(capture, design, rng)
+    else:
+        res = _inspect_refined(capture, design, rng)
+    if diameters:
+        _add_diameters(res, capture, design, method=method, mask=mask,
+                       mask_source=mask_source or ("model" if method == "paper" else "fused"), rng=rng)
+    return res
+
+
+def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, rng):
+    from ._diameter import measure_diameters
+
+    t = time.perf_counter()
+    if mask is None:
+        plane = None
+        if res.formwork.get("found"):
+            plane = (np.asarray(res.formwork["normal"], float), float(res.formwork["offset_mm"]))
+        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng)
+        res.extras["mask_source"] = mask_source
+    else:
+        mask = np.asarray(mask, bool)
+        if mask.shape != capture.depth_mm.shape:
+            raise RebarInputError(f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}")
+        res.extras["mask_source"] = "given"
+    res.timings_s["mask"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if len(res.bars):
+        dia = measure_diameters(capture, res.bars, mask, design=design, method=method)
+        new = [c for c in dia.columns if c not in res.bars.columns or c == "bar_id"]
+        res.bars = res.bars.merge(dia[new], on="bar_id", how="left")
+    res.timings_s["diameter"] = time.perf_counter() - t
 
 
 def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
