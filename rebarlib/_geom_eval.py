@@ -26,8 +26,14 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["match_bars", "score_result", "measurable_bars", "MEASURABLE_LENGTH_MM", "MEASURABLE_AREA_FRACTION",
-           "MAX_OFFSET_MM"]
+__all__ = [
+    "MAX_OFFSET_MM",
+    "MEASURABLE_AREA_FRACTION",
+    "MEASURABLE_LENGTH_MM",
+    "match_bars",
+    "measurable_bars",
+    "score_result",
+]
 
 MEASURABLE_LENGTH_MM = 100.0
 MAX_OFFSET_MM = 15.0
@@ -122,7 +128,7 @@ def score_result(result, capture) -> dict:
     m = match_bars(result.bars, truth)
     meas = measurable_bars(capture)
     ok = m[~m["phantom"]]
-    found_ids = set(int(x) for x in ok["truth_id"])
+    found_ids = {int(x) for x in ok["truth_id"]}
     missed = sorted(t["id"] for t in meas if t["id"] not in found_ids)
     phantoms = [int(r.bar_id) for r in m.itertuples() if r.phantom]
     wrong_level = [int(r.bar_id) for r in ok.itertuples() if r.level != r.truth_level]

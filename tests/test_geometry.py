@@ -13,9 +13,21 @@ import numpy as np
 import pytest
 
 from rebarlib import RebarInputError
-from rebarlib.geometry import (Plane, assign_levels, find_bars, find_layer_split, fit_formwork,
-                               from_slab_frame, group_directions, measure_spacings, paper_find_bars,
-                               paper_fit_formwork, plane_frame, split_layers, to_slab_frame)
+from rebarlib.geometry import (
+    Plane,
+    assign_levels,
+    find_bars,
+    find_layer_split,
+    fit_formwork,
+    from_slab_frame,
+    group_directions,
+    measure_spacings,
+    paper_find_bars,
+    paper_fit_formwork,
+    plane_frame,
+    split_layers,
+    to_slab_frame,
+)
 
 PITCH_MM = 2.0
 NOISE_MM = 0.3
@@ -69,7 +81,7 @@ def lattice_points(*, bottom_offsets, top_offsets, angle_deg=30.0, r_bottom=8.1,
         keep = on_bar
     q = np.c_[a, b, h][keep]
     q[:, 2] += rng.normal(0, NOISE_MM, len(q))
-    return q, on_bar[keep], dict(d1=d1, n1=n1, hb=hb, ht=ht)
+    return q, on_bar[keep], {"d1": d1, "n1": n1, "hb": hb, "ht": ht}
 
 
 def to_camera(q, *, height=500.0, tilt_deg=12.0):
@@ -170,7 +182,7 @@ def lattice():
 
 
 def test_find_bars_every_bar_once_no_phantom(lattice):
-    bars, info = lattice
+    bars, _ = lattice
     measured = [b for b in bars if b.status == "measured"]
     assert len(measured) == len(BOTTOM) + len(TOP)
     assert sorted(b.level for b in measured) == ["bottom"] * 3 + ["top"] * 3

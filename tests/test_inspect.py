@@ -20,8 +20,8 @@ from rebarlib._capture import Capture
 from rebarlib._geom_eval import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
-from rebarlib.data import example_capture, example_slab, paper_design, site_design
-from rebarlib.synth import Deviations, CameraPose, make_scene, render_capture, synth_capture
+from rebarlib.data import example_capture, example_slab, paper_design
+from rebarlib.synth import CameraPose, Deviations, make_scene, render_capture, synth_capture
 
 K_HALF = GEMINI2.scaled(0.5)
 COVER_TOL_MM = 0.8  # cover, half resolution
@@ -107,7 +107,6 @@ def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
 
 def test_every_visible_bar_found_once_with_its_level(hard):
     cap, _, res = hard
-    t = cap.truth
     # preconditions of the hard case: bars cut by the image border, lower bars partly hidden
     cut = [b for b in _visible_measurable(cap) if b["visible_length_mm"] < 0.95 * np.linalg.norm(
         np.subtract(b["axis_end_mm"], b["axis_start_mm"]))]
@@ -123,7 +122,7 @@ def test_every_visible_bar_found_once_with_its_level(hard):
 
 
 def test_spacing_varying_bar_to_bar(hard):
-    cap, design, res = hard
+    cap, _, res = hard
     s = score_result(res, cap)
     true_sp = np.array([x["spacing_mm"] for x in cap.truth["spacings"] if x["visible"]])
     assert true_sp.std() > 3.0  # precondition: spacings really vary
@@ -149,7 +148,7 @@ def test_spacings_in_order_across_the_bars(hard):
 
 
 def test_missing_bar_counted(hard):
-    cap, design, res = hard
+    cap, _, res = hard
     miss = cap.truth["missing"]
     assert len(miss) == 1
     key = (miss[0]["layer"], miss[0]["level"])
@@ -181,7 +180,7 @@ def test_bar_table_columns_and_axes_in_camera_frame(hard):
 
 
 def test_one_lattice_only(one_lattice):
-    cap, design, res = one_lattice
+    cap, _, res = one_lattice
     t = cap.truth
     assert set(res.bars["layer"]) == {"lower"}
     assert abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
@@ -217,7 +216,6 @@ def test_bar_with_too_few_points_is_not_measured(hard):
     the stride) is reported as "not measured" with a reason, not dropped silently and not given a
     number."""
     cap, design, _ = hard
-    t = cap.truth
     target = max(_visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"])
     mask = cap.bar_ids == target["id"] + 1
     vv, uu = np.nonzero(mask)
@@ -258,7 +256,7 @@ def test_flat_formwork_only_measures_nothing(hard):
     made-up numbers."""
     cap, design, _ = hard
     K = cap.intrinsics
-    v, u = np.mgrid[0:K.height, 0:K.width]
+    v = np.mgrid[0:K.height, 0:K.width][0]
     # a tilted plane 500 mm away along the optical axis
     depth = 500.0 / (1.0 + 0.2 * (v - K.cy) / K.fy)
     res = inspect(_with_depth(cap, depth, "flat"), design, rng=0)
