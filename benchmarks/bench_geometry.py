@@ -139,7 +139,7 @@ def run(quick: bool) -> pd.DataFrame:
         measurable = measurable_bars(cap)
         for method in ("paper", "refined"):
             t0 = time.perf_counter()
-            res = inspect(cap, design, method=method, rng=seed)
+            res = inspect(cap, design, method=method, diameters=False, rng=seed)
             dt = time.perf_counter() - t0
             mapping, missed, _ = match_bars(res, tr, measurable)
             sp = spacing_errors(res, tr, mapping)
