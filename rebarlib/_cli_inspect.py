@@ -23,6 +23,10 @@ def add_parser(sub):
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (one sub-folder per capture)")
     p.add_argument("--method", choices=("refined", "paper"), default="refined",
                    help="refined (default, ours) or paper (the published procedure)")
+    p.add_argument("--no-diameters", action="store_true",
+                   help="geometry only: skip the bar diameters (method.md stage 3)")
+    p.add_argument("--mask-source", choices=("fused", "model", "depth"), default=None,
+                   help="rebar mask for the diameters (default: fused for refined, model for paper)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the RANSAC / sampling steps")
     return p
 
@@ -82,7 +86,8 @@ def run(args) -> int:
     for c, tgt in zip(captures, targets):
         try:
             cap = load_capture(c)
-            res = inspect(cap, design, method=args.method, rng=args.seed)
+            res = inspect(cap, design, method=args.method, diameters=not args.no_diameters,
+                          mask_source=args.mask_source, rng=args.seed)
         except RebarInputError as exc:
             print(f"{c.name}: error: {exc}", file=sys.stderr)
             failed += 1

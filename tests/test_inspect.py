@@ -329,10 +329,26 @@ def test_cli_writes_result_and_tables(tmp_path, capsys):
 
     bars = pd.read_csv(d / "bars.csv")
     assert len(bars) == len(data["bars"]) and "start_x_mm" in bars
+    assert "nominal_mm" in bars  # the diameter stage's columns by default
     assert len(pd.read_csv(d / "spacings.csv")) == len(data["spacings"])
     assert (d / "counts.csv").exists()
     line = capsys.readouterr().out
     assert "A_400: cover" in line and "layer distance" in line
+
+
+def test_cli_geometry_only(tmp_path, capsys):
+    import pandas as pd
+
+    from rebarlib.cli import main
+
+    folder, _ = example_slab("site_slab")
+    out = tmp_path / "r"
+    rc = main(["inspect", str(example_capture("site_slab", "P1_500")), "--design", str(folder / "design.toml"),
+               "--out", str(out), "--no-diameters", "--method", "refined", "--seed", "3"])
+    assert rc == 0
+    bars = pd.read_csv(out / "P1_500" / "bars.csv")
+    assert "nominal_mm" not in bars and len(bars) >= 20
+    assert "P1_500: cover" in capsys.readouterr().out
 
 
 def test_cli_never_writes_into_a_capture(tmp_path, capsys):
