@@ -857,14 +857,21 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     ids = {id(b): i for i, b in enumerate(bars)}
     for layer in LAYERS:
         for level in LEVELS:
-            grp = [b for b in bars if b.layer == layer and b.level == level and b.status == "measured"]
+            # every bar found takes part in the order, so a bar whose axis could not be placed
+            # gives two "not measured" spacings instead of one spacing twice the real one
+            grp = [b for b in bars if b.layer == layer and b.level == level]
             ordered = _order_across(grp)
+            ds = (design_spacing or {}).get((layer, level))
             for a, b in zip(ordered[:-1], ordered[1:]):
+                row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
+                       "design_spacing_mm": ds}
+                bad = [x for x in (a, b) if x.status != "measured"]
+                if bad:
+                    rows.append({**row, "spacing_mm": None, "deviation_mm": None, "status": "not measured",
+                                 "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}"})
+                    continue
                 s = _pair_spacing(a, b)
-                ds = (design_spacing or {}).get((layer, level))
-                rows.append({"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
-                             "spacing_mm": s, "design_spacing_mm": ds,
-                             "deviation_mm": None if ds is None else s - ds,
+                rows.append({**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds,
                              "status": "measured", "reason": ""})
     return _spacing_frame(rows)
 
