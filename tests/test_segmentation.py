@@ -322,3 +322,14 @@ def test_mask_from_depth_needs_intrinsics_with_a_depth_map():
         mask_from_depth(np.full((4, 4), 500.0))
     with pytest.raises(RebarInputError, match="depth_mask"):
         fuse_masks(np.zeros((3, 3), bool), np.zeros((3, 4), bool))
+
+
+def test_runtime_does_not_import_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np; from rebarlib.segmentation import SegmentationModel; "
+            "SegmentationModel.default().predict_mask(np.zeros((8, 8, 3), np.uint8)); "
+            "print('torch' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
