@@ -11,7 +11,8 @@ import numpy as np
 from ._camera import Intrinsics, project
 
 __all__ = ["cloud_figure", "image_figure", "overlay_mask", "draw_axes", "decimate",
-           "LAYER_COLORS", "plane_mesh_trace", "axis_traces"]
+           "LAYER_COLORS", "plane_mesh_trace", "axis_traces", "table_axes", "draw_bar_table", "plan_figure",
+           "hex_rgb"]
 
 #: Colours used everywhere for the two lattices and the formwork.
 LAYER_COLORS = {"formwork": "#b0a48c", "lower": "#1f77b4", "upper": "#d62728", "noise": "#999999"}
@@ -141,3 +142,61 @@ def draw_axes(rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=
             cv2.putText(out, str(labels[i]), (int(m[0]) + 4, int(m[1]) - 4), cv2.FONT_HERSHEY_SIMPLEX,
                         0.5, col, 1, cv2.LINE_AA)
     return out
+
+
+def hex_rgb(color: str) -> tuple:
+    """``"#1f77b4"`` -> ``(31, 119, 180)``.
+
+    Examples
+    --------
+    >>> hex_rgb("#ff8000")
+    (255, 128, 0)
+    """
+    c = color.lstrip("#")
+    return tuple(int(c[i:i + 2], 16) for i in (0, 2, 4))
+
+
+def table_axes(bars) -> tuple[np.ndarray, np.ndarray]:
+    """Axis start and end points (K, 3) mm of a bar table (``start_x_mm`` ... ``end_z_mm``)."""
+    starts = bars[["start_x_mm", "start_y_mm", "start_z_mm"]].to_numpy(float)
+    ends = bars[["end_x_mm", "end_y_mm", "end_z_mm"]].to_numpy(float)
+    return starts, ends
+
+
+def draw_bar_table(rgb, bars, intrinsics: Intrinsics, *, color_by: str = "layer") -> np.ndarray:
+    """``rgb`` with every bar of a bar table drawn and labelled with its id, coloured by layer
+    (``color_by="layer"``) or grey for bars whose ``status`` is not "measured"."""
+    starts, ends = table_axes(bars)
+    colors = []
+    for rec in bars.itertuples():
+        if getattr(rec, "status", "measured") != "measured":
+            colors.append((160, 160, 160))
+        else:
+            colors.append(hex_rgb(LAYER_COLORS.get(getattr(rec, color_by), "#000000")))
+    return draw_axes(rgb, starts, ends, intrinsics, labels=bars["bar_id"].tolist(), colors=colors)
+
+
+def plan_figure(bars, spacings=None, *, title: str = "plan view"):
+    """A top view of the bar axes (camera x / y, mm) with each measured spacing written between
+    its two bars. Camera-frame x and y are close to plan coordinates for a camera looking down."""
+    import plotly.graph_objects as go
+
+    fig = go.Figure()
+    starts, ends = table_axes(bars)
+    mids = {}
+    for (rec, a, b) in zip(bars.itertuples(), starts, ends):
+        fig.add_trace(go.Scatter(x=[a[0], b[0]], y=[a[1], b[1]], mode="lines",
+                                 line=dict(color=LAYER_COLORS.get(rec.layer, "black"),
+                                           width=4 if rec.layer == "upper" else 3,
+                                           dash="solid" if getattr(rec, "status", "measured") == "measured" else "dot"),
+                                 name=f"bar {rec.bar_id} ({rec.layer} {rec.level})", showlegend=False))
+        mids[rec.bar_id] = (a + b) / 2
+    if spacings is not None:
+        for s in spacings.itertuples():
+            if s.bar_a in mids and s.bar_b in mids and np.isfinite(s.spacing_mm):
+                m = (mids[s.bar_a] + mids[s.bar_b]) / 2
+                fig.add_annotation(x=m[0], y=m[1], text=f"{s.spacing_mm:.1f}", showarrow=False,
+                                   font=dict(size=10, color=LAYER_COLORS.get(s.layer, "black")))
+    fig.update_layout(title=title, xaxis_title="x mm", yaxis_title="y mm", width=700, height=600,
+                      yaxis=dict(scaleanchor="x", autorange="reversed"), margin=dict(l=40, r=20, t=40, b=40))
+    return fig
