@@ -48,7 +48,7 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "count_bars", "envelope_mm",
+    "level_heights", "count_bars", "envelope_mm", "direction_sharpness",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -331,8 +331,17 @@ def envelope_mm(nominal_mm: float, system: str = "GB1499.2") -> float:
     return float(observed_width_mm(nominal_mm, system=system, deformed=True))
 
 
-def _sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
-    """How concentrated the plan offsets across each direction are (sum of squared bin counts)."""
+def direction_sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
+    """How concentrated the plan offsets (N, 2) mm across each direction are: the sum of squared
+    counts of a ``bin_mm`` histogram of the offsets, for each angle (radians) in ``angles_rad``.
+
+    Examples
+    --------
+    >>> pts = np.c_[np.arange(100.0), np.zeros(100)]          # a line along x
+    >>> s = direction_sharpness(pts, np.radians([0.0, 90.0]), 1.0)
+    >>> bool(s[0] > s[1])
+    True
+    """
     out = np.empty(len(angles_rad))
     for i, a in enumerate(angles_rad):
         o = -plan[:, 0] * math.sin(a) + plan[:, 1] * math.cos(a)
@@ -363,7 +372,7 @@ def bar_directions(plan, *, max_points: int = 8000, min_separation_deg: float = 
         return []
     sub = plan if len(plan) <= max_points else plan[rng.choice(len(plan), max_points, replace=False)]
     coarse = np.radians(np.arange(0.0, 180.0, 1.0))
-    s = _sharpness(sub, coarse, 4.0)
+    s = direction_sharpness(sub, coarse, 4.0)
     dirs = []
     first = int(np.argmax(s))
     base = float(np.median(s))
@@ -376,7 +385,7 @@ def bar_directions(plan, *, max_points: int = 8000, min_separation_deg: float = 
             cands.append(second)
     for c in cands:
         fine = np.radians(c + np.arange(-1.5, 1.5001, 0.05))
-        f = _sharpness(sub, fine, 1.0)
+        f = direction_sharpness(sub, fine, 1.0)
         dirs.append(float(np.degrees(fine[int(np.argmax(f))]) % 180.0))
     return dirs
 
