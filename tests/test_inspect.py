@@ -136,6 +136,22 @@ def test_spacing_varying_bar_to_bar(hard):
     assert (ok["design_spacing_mm"] == 200).all()
 
 
+@pytest.mark.xfail(reason="geometry.measure_spacings pairs the bars on either side of a hidden bar (a lower "
+                          "bar under the parallel upper bar) and reports ~2x the spacing as measured",
+                   strict=True)
+def test_no_spacing_measured_across_a_hidden_bar(hard):
+    """A lower bar hidden under the parallel upper bar right above it is not missing (counts say
+    so) — so the gap across it is not a spacing: every *measured* spacing must be between bars
+    that are adjacent in the mesh."""
+    cap, _, res = hard
+    seen = {(b["layer"], b["level"], b["index"]) for b in measurable_bars(cap)}
+    hidden = [b for b in cap.truth["bars"] if not b["visible"]
+              and {(b["layer"], b["level"], b["index"] + k) for k in (-1, 1)} <= seen]
+    assert hidden  # precondition: a hidden bar between two measurable ones
+    s = score_result(res, cap)
+    assert s["spacings_unscored"] == 0
+
+
 def test_spacings_in_order_across_the_bars(hard):
     _, _, res = hard
     bars = res.bars.set_index("bar_id")
