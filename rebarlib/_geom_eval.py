@@ -99,7 +99,18 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
 
 
 def measurable_bars(capture) -> list:
-    """The true bars of a synthetic capture that must be found (rule in the module docstring)."""
+    """The true bars of a synthetic capture that must be found (rule in the module docstring).
+
+    Examples
+    --------
+    >>> from rebarlib import GEMINI2
+    >>> from rebarlib.data import paper_design
+    >>> from rebarlib.synth import synth_capture
+    >>> cap = synth_capture(paper_design(), tilt_deg=0, intrinsics=GEMINI2.scaled(0.25), seed=1)
+    >>> bars = measurable_bars(cap)
+    >>> len(bars) > 8, {b["layer"] for b in bars} == {"lower", "upper"}
+    (True, True)
+    """
     K = capture.intrinsics
     f = 0.5 * (K.fx + K.fy)
     out = []
