@@ -121,6 +121,28 @@ def test_every_visible_bar_found_once_with_its_level(hard):
         assert abs(d - 90) < 2.0
 
 
+_BAD_FIT = pytest.mark.xfail(
+    reason="a lower bar seen in slivers beside the parallel upper bar above it is fitted 14 mm too high "
+           "(rms 4.2 mm, just under 3x the median) and kept as measured: cover +3.0 mm, layer distance "
+           "-3.1 mm; find_bars only rejects bars lying *below* their level", strict=True)
+
+
+@pytest.mark.parametrize("mesh_yaw_deg,height_mm,tilt_deg", [
+    (0.0, 400, 0.0), (45.0, 600, 12.0), pytest.param(90.0, 500, 6.0, marks=_BAD_FIT)])
+def test_any_yaw_straight_or_diagonal(mesh_yaw_deg, height_mm, tilt_deg):
+    """Bars parallel to the image axes (0°, 90°, no tilt) and diagonal (45°) alike."""
+    design = paper_design(cover_mm=25)
+    cap = synth_capture(design, height_mm=height_mm, tilt_deg=tilt_deg, deviations=Deviations(
+        mesh_yaw_deg=mesh_yaw_deg), intrinsics=K_HALF, seed=int(mesh_yaw_deg) + 7, name="yaw")
+    res = inspect(cap, design, diameters=False, rng=0)
+    t = cap.truth
+    assert abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
+    assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
+    s = _assert_bars_ok(res, cap)
+    assert s["found"] == s["measurable"]
+    assert len(s["spacing_errors_mm"]) >= 6 and np.abs(s["spacing_errors_mm"]).max() <= SPACING_TOL_MM
+
+
 def test_spacing_varying_bar_to_bar(hard):
     cap, _, res = hard
     s = score_result(res, cap)
