@@ -30,6 +30,10 @@ MASK_SOURCES = ("fused", "model", "depth")
 #: 0.65–1 mm, so a stride of 2 still puts 5+ samples across the thinnest (Φ8) bar, and the
 #: cloud is 4× smaller.
 STRIDE = 2
+#: Depth step (mm) that marks an occluding edge in prepare_cloud: well above the sensor noise
+#: (σz ≈ 1–2 mm at 600–800 mm) and well below the smallest step of a slab (bar top to formwork,
+#: cover + bar ≥ 20 mm; lower to upper lattice ≥ 40 mm).
+EDGE_MM = 10.0
 #: Paper: voxel grid (mm) and Open3D statistical outlier filter, as in method.md stage 0.
 PAPER_VOXEL_MM, PAPER_NB, PAPER_STD = 2.0, 20, 2.0
 #: Paper constants (method.md): t₁ = 0.8 × cover, k = 170; t₂ = 50 mm; 1.2·d; 1000 points; k = 460.
@@ -44,9 +48,22 @@ MIN_LATTICE_POINTS = 30
 MIN_BAR_LENGTH_MM = 50.0
 
 
-def prepare_cloud(capture: Capture, *, stride: int = STRIDE):
-    """Camera-frame cloud of a capture, every ``stride``-th pixel (pixel links kept)."""
+def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | None = EDGE_MM):
+    """Camera-frame cloud of a capture, every ``stride``-th pixel (pixel links kept).
+
+    ``edge_mm``: a pixel whose 3×3 neighbourhood holds a depth more than ``edge_mm`` nearer the
+    camera is dropped: it lies just behind an occluding edge, where stereo depth is a mix of the
+    two surfaces (flying pixels, edge fattening). Bars keep their own points (they are the near
+    side of the edge); what is lost is a 1-pixel fringe of the surface behind. ``None`` keeps all.
+    """
     depth = capture.depth_mm
+    if edge_mm is not None:
+        import cv2
+
+        d = depth.astype(np.float32)
+        near = np.where(d > 0, d, np.float32(1e9))
+        nearest = cv2.erode(near, np.ones((3, 3), np.uint8))
+        depth = np.where(d - nearest > edge_mm, 0.0, depth)
     if stride > 1:
         sub = np.zeros_like(depth)
         sub[::stride, ::stride] = depth[::stride, ::stride]

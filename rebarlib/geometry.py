@@ -523,7 +523,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     max_rms_ratio : a candidate whose fit residual (rms) exceeds this multiple of the lattice's
         median bar residual is not a bar (the median is the sensor noise on bars)
     min_arc_deg : a bar whose fitted points span less of its cross-section than this (seen only
-        along one edge) and that is sparsely sampled is kept with status "not measured"
+        along one edge) and that is sparsely sampled, or that spans less than 2/3 of it, is kept
+        with status "not measured"
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell.
@@ -628,9 +629,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             floor = float(np.median(hs)) - 1.5 * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != "measured"
                     or b.centre_h_mm + b.h_slope * b.t_mid >= floor]
-    # a bar seen only along one edge (less than min_arc_deg of its cross-section) and sparsely
-    # (under a quarter of the layer's typical points per mm) does not fix its axis: the fixed-
-    # radius circle can slide along the visible arc
+    # a bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
+    # along the visible arc. Not measured: under 2/3 of min_arc_deg of its cross-section seen, or
+    # under min_arc_deg and sparsely sampled (under a quarter of the layer's typical points/mm)
     dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
     if dens:
         typical = float(np.median(dens))
@@ -640,8 +641,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                          reason=(f"only {b.arc_deg:.0f}° of the bar's cross-section is seen, sparsely "
                                  f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
                                  f"{typical:.1f} typical): the rest is hidden, its axis cannot be placed"))
-                if b.status == "measured" and b.arc_deg < min_arc_deg
-                and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < 0.25 * typical else b for b in bars]
+                if b.status == "measured" and (b.arc_deg < 2 / 3 * min_arc_deg or (
+                    b.arc_deg < min_arc_deg and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < 0.25 * typical))
+                else b for b in bars]
     # two bars of one direction cannot overlap: of two axes closer than the sum of their radii,
     # keep the one with more points (the other is the first one's edge or shadow fringe)
     bars = _drop_overlaps(bars)
