@@ -291,6 +291,9 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     top_cover = _top_cover(design, upper_top)
 
     spacings = G.measure_spacings(bars, design_spacing=_design_spacing(design))
+    if has_formwork:
+        spacings = G.flag_hidden_gaps(spacings, bars, plane=plane, depth_mm=capture.depth_mm,
+                                      intrinsics=capture.intrinsics, min_length_mm=MIN_BAR_LENGTH_MM)
     heights = {}
     for b in bars:
         heights.setdefault((b.layer, b.level), []).append(b.centre_h_mm + b.h_slope * b.t_mid)

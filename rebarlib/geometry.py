@@ -48,7 +48,7 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "count_bars", "envelope_mm", "direction_sharpness",
+    "level_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -622,13 +622,21 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                                 float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status, reason=reason,
                                 arc_deg=arc, axis_se_mm=float(max(se))))
     # something lying well below the other bars of its direction (a spacer block's top, the
-    # stub of a chair) is not a bar of this lattice level
+    # stub of a chair) is not a bar of this lattice level; a bar fitted well above them was fitted
+    # on a sliver (seen beside a bar over it) and its axis is not where it seems
+    from dataclasses import replace as _replace
+
     for g in {b.group for b in bars}:
         hs = [b.centre_h_mm + b.h_slope * b.t_mid for b in bars if b.group == g and b.status == "measured"]
         if len(hs) >= 2:
-            floor = float(np.median(hs)) - 1.5 * radii.get(g, max_r)
+            med, tol = float(np.median(hs)), 1.5 * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != "measured"
-                    or b.centre_h_mm + b.h_slope * b.t_mid >= floor]
+                    or b.centre_h_mm + b.h_slope * b.t_mid >= med - tol]
+            bars = [_replace(b, status="not measured",
+                             reason=f"axis {b.centre_h_mm + b.h_slope * b.t_mid - med:.1f} mm above the other bars of "
+                                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed")
+                    if b.group == g and b.status == "measured" and b.centre_h_mm + b.h_slope * b.t_mid > med + tol
+                    else b for b in bars]
     # a bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
     # along the visible arc. Not measured: under 2/3 of min_arc_deg of its cross-section seen, or
     # under min_arc_deg and sparsely sampled (under a quarter of the layer's typical points/mm)
@@ -975,6 +983,34 @@ def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None, R: np.n
             rows.append({"layer": layer, "level": level, "found": found, "expected": int(expected),
                          "missing": int(missing), "extra": extra})
     return pd.DataFrame(rows, columns=["layer", "level", "found", "expected", "missing", "extra"])
+
+
+def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
+                     min_length_mm: float = 50.0) -> pd.DataFrame:
+    """Spacings that span more than 1.5 design spacings: if a bar between the two could be
+    hidden (under an upper bar, in a depth hole), the gap is not one spacing and the row becomes
+    "not measured"; if the formwork is seen all along the empty positions, the bar is missing and
+    the wide spacing stays measured (it is a real defect, and ``counts`` reports the missing bar).
+    """
+    out = spacings.copy()
+    for i, s in out.iterrows():
+        ds = s["design_spacing_mm"]
+        if s["status"] != "measured" or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
+            continue
+        a, b = bars[int(s["bar_a"])], bars[int(s["bar_b"])]
+        n2 = a.normal2d
+        oa = float(a.plan_point(a.t_mid) @ n2)
+        ob = float(b.plan_point(b.t_mid) @ n2)
+        k = int(round(abs(ob - oa) / ds))
+        h_axis = 0.5 * (a.centre_h_mm + a.h_slope * a.t_mid + b.centre_h_mm + b.h_slope * b.t_mid)
+        hidden = [j for j in range(1, k) if not _position_visible(a, oa + j * (ob - oa) / k, h_axis, a.radius_mm,
+                                                                  plane, depth_mm, intrinsics, min_length_mm)]
+        if hidden:
+            out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
+            out.loc[i, "status"] = "not measured"
+            out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between these bars "
+                                    "cannot be seen (hidden under an upper bar or without depth), so it is not one spacing")
+    return out
 
 
 def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane, depth_mm,
