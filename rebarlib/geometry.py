@@ -621,6 +621,10 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
                                 float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status, reason=reason,
                                 arc_deg=arc, axis_se_mm=float(max(se))))
+    # sparse bars: a stretch whose depth is mostly lost (too few points for the density test
+    # above) is still a bar if its few points sit at its direction's bar height; it is reported
+    # "not measured", never dropped silently and never given a number
+    bars += _sparse_bars(bars, cand, ambiguous, h, layer=layer, min_length_mm=min_length_mm)
     # something lying well below the other bars of its direction (a spacer block's top, the
     # stub of a chair) is not a bar of this lattice level; a bar fitted well above them was fitted
     # on a sliver (seen beside a bar over it) and its axis is not where it seems
@@ -660,6 +664,40 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         limit = max_rms_ratio * float(np.median(rms))
         bars = [b for b in bars if b.status != "measured" or b.rms_mm <= limit]
     return bars
+
+
+def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_length_mm: float,
+                 min_points: int = 8) -> list:
+    out = []
+    for g, d, n2, off, along, r, centres, near, member, win in cand:
+        same = [b for b in bars if b.group == g and b.status == "measured"]
+        if len(same) < 2:
+            continue
+        axis_h = float(np.median([b.centre_h_mm + b.h_slope * b.t_mid for b in same]))
+        top = axis_h + r
+        known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
+        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_length_mm, min_cell_points=1)
+        for c in loose:
+            if len(known) and np.min(np.abs(known - c)) < 2.5 * r:
+                continue
+            sel = (np.abs(off - c) < r) & ~ambiguous
+            hs = h[sel]
+            # the points of a bar seen from above lie on its upper half: between the axis and the top
+            on_bar = (hs > axis_h - 0.5 * r) & (hs < top + 0.5 * r)
+            if on_bar.sum() < min_points or on_bar.mean() < 0.8:
+                continue
+            idx = np.where(sel)[0][on_bar]
+            t = along[idx]
+            t0, t1 = _longest_run(t, cell_mm=5.0, max_gap_mm=max(60.0, 8 * r))
+            if t1 - t0 < min_length_mm:
+                continue
+            keep = (t >= t0) & (t <= t1)
+            out.append(BarAxis(layer, d, float(np.median(off[idx][keep])), 0.0, axis_h, 0.0, float(t0), float(t1), r,
+                               int(keep.sum()), float("nan"), idx[keep], g, status="not measured",
+                               reason=f"only {int(keep.sum())} points over {t1 - t0:.0f} mm (its depth is mostly "
+                                      "missing): too few to fit its cross-section"))
+            known = np.append(known, c)
+    return out
 
 
 def _drop_overlaps(bars: list) -> list:
