@@ -350,7 +350,7 @@ def direction_sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
     return out
 
 
-def bar_directions(plan, *, max_points: int = 8000, min_separation_deg: float = 30.0, rng=None) -> list:
+def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 30.0, rng=None) -> list:
     """The dominant bar directions (plan angles in degrees, [0, 180)) of one lattice's points.
 
     Bars are long and straight, so offsets across the true direction pile up into narrow peaks:
@@ -412,8 +412,7 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
     io = np.floor(off - o0).astype(np.int64)
     ia = np.floor((along - a0) / cell_mm).astype(np.int64)
     n_o, n_a = int(io.max()) + 2 * r + 1, int(ia.max()) + 1
-    count = np.zeros((n_o, n_a), np.int32)
-    np.add.at(count, (io, ia), 1)
+    count = np.bincount(io * n_a + ia, minlength=n_o * n_a).reshape(n_o, n_a).astype(np.int32)
     # occupancy within +-r rows: cumulative sum over rows
     cs = np.cumsum(np.vstack([np.zeros((1, n_a), np.int32), count]), axis=0)
     lo = np.clip(np.arange(n_o) - r, 0, n_o)
@@ -455,7 +454,7 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
     return np.array(centres)[order], np.array(runs)[order]
 
 
-def _fit_bar(t, s, h, radius, *, iters: int = 12):
+def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
     Model: across-offset ``a0 + a1·t``, height ``b0 + b1·t``; residual = distance to the axis −
@@ -463,11 +462,15 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12):
     """
     tc = t - t.mean()
     a = np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0])
-    w = np.ones(len(t))
+    # the iterations run on at most max_fit_points evenly spread points (1500 points place an
+    # axis to well under 0.1 mm); the final weights are then computed on all points
+    step_n = max(1, len(t) // max_fit_points)
+    ts, ss, hs = tc[::step_n], s[::step_n], h[::step_n]
+    w = np.ones(len(ts))
     sigma = 1.0
     for it in range(iters):
-        ds = s - a[0] - a[1] * tc
-        dh = h - a[2] - a[3] * tc
+        ds = ss - a[0] - a[1] * ts
+        dh = hs - a[2] - a[3] * ts
         rho = np.hypot(ds, dh) + 1e-9
         r = rho - radius
         if it > 0:
@@ -476,10 +479,11 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12):
         w = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         if w.sum() < 6:
             break
-        J = np.column_stack([-ds / rho, -tc * ds / rho, -dh / rho, -tc * dh / rho])
-        JW = J * w[:, None]
+        cs, ch = ds / rho, dh / rho
+        J = np.stack([-cs, -ts * cs, -ch, -ts * ch])
+        JW = J * w
         try:
-            step = np.linalg.solve(JW.T @ J + 1e-9 * np.eye(4), -JW.T @ r)
+            step = np.linalg.solve(JW @ J.T + 1e-9 * np.eye(4), -JW @ r)
         except np.linalg.LinAlgError:
             break
         a = a + step
@@ -488,6 +492,8 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12):
     ds = s - a[0] - a[1] * tc
     dh = h - a[2] - a[3] * tc
     r = np.hypot(ds, dh) - radius
+    u = r / (4.685 * sigma)
+    w = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
     keep = w > 0
     rms = float(np.sqrt(np.mean(r[keep] ** 2))) if keep.any() else float("nan")
     # standard errors of the centred parameters (offset and height at the points' mean t)
@@ -1002,9 +1008,6 @@ def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None, R: np.n
                 k = int(round((b_off - a_off) / s)) - 1
                 for j in range(1, k + 1):
                     candidates.append(a_off + j * (b_off - a_off) / (k + 1))
-            for j in range(1, 30):
-                candidates.append(offs[0] - j * s)
-                candidates.append(offs[-1] + j * s)
             seen_missing = 0
             if depth_mm is not None and intrinsics is not None and plane is not None and heights is not None:
                 h_axis = heights.get((layer, level))
@@ -1013,6 +1016,15 @@ def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None, R: np.n
                         if _position_visible(ref, off, h_axis, ref.radius_mm, plane, depth_mm, intrinsics,
                                              min_length_mm):
                             seen_missing += 1
+                    # beyond the outermost bars, outwards until a position leaves the image
+                    for start, sign in ((offs[0], -1), (offs[-1], 1)):
+                        for j in range(1, 200):
+                            off = start + sign * j * s
+                            if not _position_in_image(ref, off, h_axis, plane, intrinsics, min_length_mm):
+                                break
+                            if _position_visible(ref, off, h_axis, ref.radius_mm, plane, depth_mm, intrinsics,
+                                                 min_length_mm):
+                                seen_missing += 1
                 expected = found - extra + seen_missing
                 missing = seen_missing
             else:
@@ -1049,6 +1061,16 @@ def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_
             out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between these bars "
                                     "cannot be seen (hidden under an upper bar or without depth), so it is not one spacing")
     return out
+
+
+def _position_in_image(ref: BarAxis, off: float, h_axis: float, plane: Plane, intr: Intrinsics,
+                       min_length_mm: float) -> bool:
+    t = np.arange(-3000.0, 3000.0, 5.0)
+    plan = t[:, None] * ref.direction + off * ref.normal2d
+    cam = from_slab_frame(np.c_[plan, np.full(len(t), h_axis)], plane)
+    uv = project(cam, intr)
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
+    return inside.sum() * 5.0 >= min_length_mm
 
 
 def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane, depth_mm,
