@@ -918,25 +918,29 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     """
     rows = []
     ids = {id(b): i for i, b in enumerate(bars)}
+    # every bar found takes part in the order, so a bar whose axis could not be placed gives two
+    # "not measured" spacings instead of one spacing twice the real one
+    for layer, level, a, b in _adjacent_pairs(bars):
+        ds = (design_spacing or {}).get((layer, level))
+        row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)], "design_spacing_mm": ds}
+        bad = [x for x in (a, b) if x.status != "measured"]
+        if bad:
+            rows.append({**row, "spacing_mm": None, "deviation_mm": None, "status": "not measured",
+                         "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}"})
+            continue
+        s = _pair_spacing(a, b)
+        rows.append({**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds,
+                     "status": "measured", "reason": ""})
+    return _spacing_frame(rows)
+
+
+def _adjacent_pairs(bars: list):
+    """``(layer, level, bar, next bar)`` for every pair of neighbours across each direction group."""
     for layer in LAYERS:
         for level in LEVELS:
-            # every bar found takes part in the order, so a bar whose axis could not be placed
-            # gives two "not measured" spacings instead of one spacing twice the real one
-            grp = [b for b in bars if b.layer == layer and b.level == level]
-            ordered = _order_across(grp)
-            ds = (design_spacing or {}).get((layer, level))
+            ordered = _order_across([b for b in bars if b.layer == layer and b.level == level])
             for a, b in zip(ordered[:-1], ordered[1:]):
-                row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
-                       "design_spacing_mm": ds}
-                bad = [x for x in (a, b) if x.status != "measured"]
-                if bad:
-                    rows.append({**row, "spacing_mm": None, "deviation_mm": None, "status": "not measured",
-                                 "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}"})
-                    continue
-                s = _pair_spacing(a, b)
-                rows.append({**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds,
-                             "status": "measured", "reason": ""})
-    return _spacing_frame(rows)
+                yield layer, level, a, b
 
 
 def _spacing_frame(rows) -> pd.DataFrame:
@@ -954,22 +958,17 @@ def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | 
     rng = np.random.default_rng(rng)
     rows = []
     ids = {id(b): i for i, b in enumerate(bars)}
-    for layer in LAYERS:
-        for level in LEVELS:
-            grp = [b for b in bars if b.layer == layer and b.level == level]
-            ordered = _order_across(grp)
-            pts = points_by_layer.get(layer)
-            for a, b in zip(ordered[:-1], ordered[1:]):
-                p = pts[a.point_index]
-                if len(p) > n_sample:
-                    p = p[rng.choice(len(p), n_sample, replace=False)]
-                p0 = b.axis_points(np.array([b.t_mid]))
-                d3 = np.r_[b.direction, 0.0]
-                s = float(_line_distances(p, p0, d3[None])[0].mean())
-                ds = (design_spacing or {}).get((layer, level))
-                rows.append({"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
-                             "spacing_mm": s, "design_spacing_mm": ds,
-                             "deviation_mm": None if ds is None else s - ds, "status": "measured", "reason": ""})
+    for layer, level, a, b in _adjacent_pairs(bars):
+        p = points_by_layer.get(layer)[a.point_index]
+        if len(p) > n_sample:
+            p = p[rng.choice(len(p), n_sample, replace=False)]
+        p0 = b.axis_points(np.array([b.t_mid]))
+        d3 = np.r_[b.direction, 0.0]
+        s = float(_line_distances(p, p0, d3[None])[0].mean())
+        ds = (design_spacing or {}).get((layer, level))
+        rows.append({"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
+                     "spacing_mm": s, "design_spacing_mm": ds,
+                     "deviation_mm": None if ds is None else s - ds, "status": "measured", "reason": ""})
     return _spacing_frame(rows)
 
 
@@ -1001,8 +1000,6 @@ def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None, R: np.n
             extra = int(np.sum(np.diff(offs) < 0.5 * s))
             missing_inside = int(sum(max(0, int(round(g / s)) - 1) for g in np.diff(offs) if g > 1.5 * s))
             candidates = []
-            for g in np.diff(offs):
-                pass
             # candidate empty positions: inside gaps and beyond both ends
             for a_off, b_off in zip(offs[:-1], offs[1:]):
                 k = int(round((b_off - a_off) / s)) - 1
