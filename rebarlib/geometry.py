@@ -512,7 +512,8 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500):
 
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
-              pitch_mm: float | None = None, min_arc_deg: float = 90.0, rng=None) -> list:
+              pitch_mm: float | None = None, min_arc_deg: float = 90.0, max_arc_deg: float = 200.0,
+              rng=None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -531,6 +532,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     min_arc_deg : a bar whose fitted points span less of its cross-section than this (seen only
         along one edge) and that is sparsely sampled, or that spans less than 2/3 of it, is kept
         with status "not measured"
+    max_arc_deg : a camera above a bar sees at most a little more than its upper half; points
+        spanning more than this around the fitted axis (two flanks of a bar hidden under a bar
+        above it) mean the circle is misplaced: "not measured"
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell.
@@ -656,10 +660,10 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         from dataclasses import replace as _replace
 
         bars = [_replace(b, status="not measured",
-                         reason=(f"only {b.arc_deg:.0f}° of the bar's cross-section is seen, sparsely "
+                         reason=(f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
                                  f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
-                                 f"{typical:.1f} typical): the rest is hidden, its axis cannot be placed"))
-                if b.status == "measured" and (b.arc_deg < 2 / 3 * min_arc_deg or (
+                                 f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"))
+                if b.status == "measured" and (b.arc_deg < 2 / 3 * min_arc_deg or b.arc_deg > max_arc_deg or (
                     b.arc_deg < min_arc_deg and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < 0.25 * typical))
                 else b for b in bars]
     # two bars of one direction cannot overlap: of two axes closer than the sum of their radii,
