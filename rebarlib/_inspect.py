@@ -296,9 +296,9 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
                                       intrinsics=capture.intrinsics, min_length_mm=MIN_BAR_LENGTH_MM)
     heights = {}
     for b in bars:
-        heights.setdefault((b.layer, b.level), []).append(b.centre_h_mm + b.h_slope * b.t_mid)
+        heights.setdefault((b.layer, b.level), []).append(b.axis_height_mm)
     heights = {k: float(np.median(v)) for k, v in heights.items()}
-    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=plane, R=None,
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=plane,
                           depth_mm=capture.depth_mm, intrinsics=capture.intrinsics, heights=heights,
                           min_length_mm=MIN_BAR_LENGTH_MM)
     T["measure"] = time.perf_counter() - t
@@ -389,7 +389,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     t = time.perf_counter()
     pts_by_layer = {"lower": q[lower], "upper": q[~lower]}
     spacings = G.paper_spacings(bars, pts_by_layer, design_spacing=_design_spacing(design), rng=rng)
-    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=None, R=None)
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=None)
     T["spacing"] = time.perf_counter() - t
 
     res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,

@@ -454,6 +454,18 @@ def _table(r: dict, key: str) -> pd.DataFrame:
     return pd.DataFrame.from_records(recs) if recs else pd.DataFrame()
 
 
+def _group_records(df: pd.DataFrame, prefix: str, design: Design):
+    """``(layer, level, item, design value, record)`` for every row of a result table, grouped by
+    lattice and direction in the items' order (item = ``f"{prefix}_{layer}_{level}"``)."""
+    for la in LAYERS:
+        for lv in LEVELS:
+            item = f"{prefix}_{la}_{lv}"
+            dv = _design_value(item, design)
+            sub = df[(df["layer"] == la) & (df["level"] == lv)] if len(df) else df
+            for rec in sub.to_dict(orient="records"):
+                yield la, lv, item, dv, rec
+
+
 def _num(v):
     if v is None or isinstance(v, bool):
         return None
@@ -627,39 +639,28 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
             add(item, cap, "", "", "capture", _design_value(item, design),
                 _num(m.get("value_mm")) if ok else None, _num(m.get("uncertainty_mm")),
                 reason="" if ok else (m.get("reason") or "not in the result"))
-        sp = _table(r, "spacings")
-        for la in LAYERS:
-            for lv in LEVELS:
-                item = f"spacing_{la}_{lv}"
-                dv = _design_value(item, design)
-                sub = sp[(sp["layer"] == la) & (sp["level"] == lv)] if len(sp) else sp
-                for rec in sub.to_dict(orient="records"):
-                    v = _num(rec.get("spacing_mm"))
-                    ok = rec.get("status", "measured") == "measured" and v is not None
-                    add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
-                        _num(rec.get("design_spacing_mm")) or dv, v if ok else None,
-                        reason="" if ok else (rec.get("reason") or "spacing not measured"))
+        for la, lv, item, dv, rec in _group_records(_table(r, "spacings"), "spacing", design):
+            v = _num(rec.get("spacing_mm"))
+            ok = rec.get("status", "measured") == "measured" and v is not None
+            add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
+                _num(rec.get("design_spacing_mm")) or dv, v if ok else None,
+                reason="" if ok else (rec.get("reason") or "spacing not measured"))
         bars = _table(r, "bars")
         has_diam = len(bars) and ("nominal_mm" in bars.columns or "diameter_status" in bars.columns)
-        for la in LAYERS:
-            for lv in LEVELS:
-                item = f"bar_size_{la}_{lv}"
-                dv = _design_value(item, design)
-                sub = bars[(bars["layer"] == la) & (bars["level"] == lv)] if len(bars) else bars
-                for rec in sub.to_dict(orient="records"):
-                    what = f"bar {rec.get('bar_id')}"
-                    ddv = _num(rec.get("design_diameter_mm")) or dv
-                    hidden = is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
-                    if hidden:
-                        add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
-                            reason=rec.get("diameter_reason") or "hidden under crossing bars")
-                        continue
-                    nominal = _num(rec.get("nominal_mm"))
-                    ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
-                    reason = "" if ok else (rec.get("diameter_reason") or
-                                            ("diameter stage not run" if not has_diam else "diameter not measured"))
-                    add(item, cap, la, lv, what, ddv, nominal if ok else None,
-                        _num(rec.get("width_spread_mm")), reason=reason)
+        for la, lv, item, dv, rec in _group_records(bars, "bar_size", design):
+            what = f"bar {rec.get('bar_id')}"
+            ddv = _num(rec.get("design_diameter_mm")) or dv
+            hidden = is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
+            if hidden:
+                add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
+                    reason=rec.get("diameter_reason") or "hidden under crossing bars")
+                continue
+            nominal = _num(rec.get("nominal_mm"))
+            ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
+            reason = "" if ok else (rec.get("diameter_reason") or
+                                    ("diameter stage not run" if not has_diam else "diameter not measured"))
+            add(item, cap, la, lv, what, ddv, nominal if ok else None,
+                _num(rec.get("width_spread_mm")), reason=reason)
         counts = _table(r, "counts")
         for la in LAYERS:
             for lv in LEVELS:

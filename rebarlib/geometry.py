@@ -36,7 +36,7 @@ Two methods
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -52,6 +52,7 @@ __all__ = [
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
+_POSITION_STEP_MM = 5.0  # sampling of a would-be bar's axis when checking what the camera sees there
 
 
 # ----------------------------------------------------------------------------------------------
@@ -312,12 +313,17 @@ class BarAxis:
         return np.concatenate([self.plan_point(t), (self.centre_h_mm + self.h_slope * t)[..., None]], axis=-1)
 
     @property
+    def axis_height_mm(self) -> float:
+        """Height of the axis above the formwork at the middle of the visible extent."""
+        return float(self.centre_h_mm + self.h_slope * self.t_mid)
+
+    @property
     def underside_mm(self) -> float:
-        return float(self.centre_h_mm + self.h_slope * self.t_mid - self.radius_mm)
+        return self.axis_height_mm - self.radius_mm
 
     @property
     def top_mm(self) -> float:
-        return float(self.centre_h_mm + self.h_slope * self.t_mid + self.radius_mm)
+        return self.axis_height_mm + self.radius_mm
 
     @property
     def plan_angle_deg(self) -> float:
@@ -638,18 +644,16 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     # something lying well below the other bars of its direction (a spacer block's top, the
     # stub of a chair) is not a bar of this lattice level; a bar fitted well above them was fitted
     # on a sliver (seen beside a bar over it) and its axis is not where it seems
-    from dataclasses import replace as _replace
-
     for g in {b.group for b in bars}:
-        hs = [b.centre_h_mm + b.h_slope * b.t_mid for b in bars if b.group == g and b.status == "measured"]
+        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
         if len(hs) >= 2:
             med, tol = float(np.median(hs)), 1.5 * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != "measured"
-                    or b.centre_h_mm + b.h_slope * b.t_mid >= med - tol]
-            bars = [_replace(b, status="not measured",
-                             reason=f"axis {b.centre_h_mm + b.h_slope * b.t_mid - med:.1f} mm above the other bars of "
+                    or b.axis_height_mm >= med - tol]
+            bars = [replace(b, status="not measured",
+                             reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
                                     "its direction: fitted on the sliver of it that is seen, its axis cannot be placed")
-                    if b.group == g and b.status == "measured" and b.centre_h_mm + b.h_slope * b.t_mid > med + tol
+                    if b.group == g and b.status == "measured" and b.axis_height_mm > med + tol
                     else b for b in bars]
     # a bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
     # along the visible arc. Not measured: under 2/3 of min_arc_deg of its cross-section seen, or
@@ -657,9 +661,7 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
     if dens:
         typical = float(np.median(dens))
-        from dataclasses import replace as _replace
-
-        bars = [_replace(b, status="not measured",
+        bars = [replace(b, status="not measured",
                          reason=(f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
                                  f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
                                  f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"))
@@ -683,7 +685,7 @@ def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_length
         same = [b for b in bars if b.group == g and b.status == "measured"]
         if len(same) < 2:
             continue
-        axis_h = float(np.median([b.centre_h_mm + b.h_slope * b.t_mid for b in same]))
+        axis_h = float(np.median([b.axis_height_mm for b in same]))
         top = axis_h + r
         known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
         loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_length_mm, min_cell_points=1)
@@ -754,7 +756,7 @@ def level_heights(bars: list) -> dict:
     """Median axis height of each direction group: ``{group: height_mm}``."""
     out = {}
     for g in sorted({b.group for b in bars}):
-        hs = [b.centre_h_mm + b.h_slope * b.t_mid for b in bars if b.group == g and b.status == "measured"]
+        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
         if hs:
             out[g] = float(np.median(hs))
     return out
@@ -767,8 +769,6 @@ def assign_levels(bars: list) -> list:
     names = {g: ("bottom" if i == 0 else "top") for i, g in enumerate(order)}
     if len(order) == 1:
         names = {order[0]: "bottom"}
-    from dataclasses import replace
-
     return [replace(b, level=names.get(b.group, "bottom")) for b in bars]
 
 
@@ -850,8 +850,6 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
 def group_directions(bars: list, *, rng=None) -> list:
     """The paper's K-means (k = 2) on bar directions; angles are doubled so θ and θ + 180° agree.
     Returns the bars with ``group`` set (0 or 1)."""
-    from dataclasses import replace
-
     if not bars:
         return []
     ang = np.radians([b.plan_angle_deg for b in bars])
@@ -976,7 +974,7 @@ def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | 
     return _spacing_frame(rows)
 
 
-def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None, R: np.ndarray | None,
+def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None,
                depth_mm=None, intrinsics: Intrinsics | None = None, heights: dict | None = None,
                min_length_mm: float = 50.0) -> pd.DataFrame:
     """Found, expected, missing and extra bars per layer and level over the visible area.
@@ -1053,7 +1051,7 @@ def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_
         oa = float(a.plan_point(a.t_mid) @ n2)
         ob = float(b.plan_point(b.t_mid) @ n2)
         k = int(round(abs(ob - oa) / ds))
-        h_axis = 0.5 * (a.centre_h_mm + a.h_slope * a.t_mid + b.centre_h_mm + b.h_slope * b.t_mid)
+        h_axis = 0.5 * (a.axis_height_mm + b.axis_height_mm)
         hidden = [j for j in range(1, k) if not _position_visible(a, oa + j * (ob - oa) / k, h_axis, a.radius_mm,
                                                                   plane, depth_mm, intrinsics, min_length_mm)]
         if hidden:
@@ -1064,14 +1062,23 @@ def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_
     return out
 
 
+def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, intr: Intrinsics):
+    """Samples every 5 mm of a line parallel to ``ref`` at plan offset ``off`` and ``height_mm``:
+    (camera-frame points (N, 3), their pixels (N, 2))."""
+    t = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)
+    plan = t[:, None] * ref.direction + off * ref.normal2d
+    cam = from_slab_frame(np.c_[plan, np.full(len(t), height_mm)], plane)
+    return cam, project(cam, intr)
+
+
+def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:
+    return (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
+
+
 def _position_in_image(ref: BarAxis, off: float, h_axis: float, plane: Plane, intr: Intrinsics,
                        min_length_mm: float) -> bool:
-    t = np.arange(-3000.0, 3000.0, 5.0)
-    plan = t[:, None] * ref.direction + off * ref.normal2d
-    cam = from_slab_frame(np.c_[plan, np.full(len(t), h_axis)], plane)
-    uv = project(cam, intr)
-    inside = (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
-    return inside.sum() * 5.0 >= min_length_mm
+    cam, uv = _position_axis(ref, off, h_axis, plane, intr)
+    return _in_image(uv, cam, intr).sum() * _POSITION_STEP_MM >= min_length_mm
 
 
 def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane, depth_mm,
@@ -1079,20 +1086,16 @@ def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, pl
     """Would a bar at plan offset ``off`` (parallel to ``ref``) be seen? True when at least
     ``min_length_mm`` of its axis projects into the image onto pixels whose depth is not in front
     of the bar's top (nothing hides it) and not missing."""
-    t = np.arange(-3000.0, 3000.0, 5.0)
-    plan = t[:, None] * ref.direction + off * ref.normal2d
-    q = np.c_[plan, np.full(len(t), h_axis + radius)]
-    cam = from_slab_frame(q, plane)
-    uv = project(cam, intr)
-    u, v = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
-    inside = (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height) & (cam[:, 2] > 0)
-    if inside.sum() * 5.0 < min_length_mm:
+    cam, uv = _position_axis(ref, off, h_axis + radius, plane, intr)
+    uv = np.round(uv)
+    inside = _in_image(uv, cam, intr)
+    if inside.sum() * _POSITION_STEP_MM < min_length_mm:
         return False
-    z_meas = np.asarray(depth_mm)[v[inside], u[inside]]
-    z_bar = cam[inside, 2]
+    u, v = uv[inside, 0].astype(int), uv[inside, 1].astype(int)
+    z_meas = np.asarray(depth_mm)[v, u]
     # seen: measured depth is at or behind the bar's top (formwork / empty), not in front of it
-    ok = (z_meas > 0) & (z_meas > z_bar - 3.0)
-    return ok.sum() * 5.0 >= min_length_mm
+    ok = (z_meas > 0) & (z_meas > cam[inside, 2] - 3.0)
+    return ok.sum() * _POSITION_STEP_MM >= min_length_mm
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1111,7 +1114,7 @@ def bars_table(bars: list, plane: Plane) -> pd.DataFrame:
             "start_x_mm": ends[0, 0], "start_y_mm": ends[0, 1], "start_z_mm": ends[0, 2],
             "end_x_mm": ends[1, 0], "end_y_mm": ends[1, 1], "end_z_mm": ends[1, 2],
             "visible_length_mm": b.t1_mm - b.t0_mm, "n_points": int(b.n_points),
-            "axis_height_mm": b.centre_h_mm + b.h_slope * b.t_mid,
+            "axis_height_mm": b.axis_height_mm,
             "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
             "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
             "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "status": b.status, "reason": b.reason,
