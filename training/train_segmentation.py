@@ -30,41 +30,72 @@ IN_W, IN_H = 640, 400
 MEAN = [123.7, 116.3, 103.5]  # RGB, 0-255 units
 STD = [58.4, 57.1, 57.4]
 TRAIN_SEED = 7
+ARCHS = ["unet", "deeplab", "deeplab_fine", "deeplab_fine_w"]
 
 
 # ---------------------------------------------------------------------------------------------
 # data
 
 
+def _render_one(job):
+    import cv2
+
+    from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
+
+    i, folder, quality = job
+    f_img, f_mask = folder / f"{i:04d}.jpg", folder / f"{i:04d}.png"
+    if f_img.exists() and f_mask.exists():
+        return i
+    # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly as
+    # SegmentationModel does at run time; the label stays at full resolution, so the loss sees
+    # the bar edges to the full-resolution pixel (logits upsampled x2, as at run time)
+    cap = synth_segmentation_capture(i, seed=DATASET_SEED)
+    small = cv2.resize(cap.color, (IN_W, IN_H), interpolation=cv2.INTER_AREA)
+    tmp_img, tmp_mask = f_img.with_suffix(".tmp.jpg"), f_mask.with_suffix(".tmp.png")
+    cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
+    cv2.imwrite(str(tmp_mask), (cap.labels > 0).astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    tmp_img.replace(f_img)
+    tmp_mask.replace(f_mask)
+    return i
+
+
 def cmd_data(args):
-    from rebarlib import GEMINI2
-    from rebarlib.segmentation import DATASET_SEED, split_indices, synth_segmentation_capture
+    """Render the train and validation captures (the test captures are the benchmark's alone).
+
+    Indices ``0..DATASET_SIZE-1`` are split 6:2:2 by ``split_indices``; ``--extra N`` adds indices
+    ``DATASET_SIZE..DATASET_SIZE+N-1``, all of them training captures, so the validation and test
+    splits stay the same whatever the training set's size.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    from rebarlib.segmentation import DATASET_SEED, split_indices
 
     work = Path(args.work)
     (work / "data").mkdir(parents=True, exist_ok=True)
     split = split_indices(args.n, seed=DATASET_SEED)
-    wanted = sorted(int(i) for k in ("train", "val") for i in split[k])
+    split = {"train": [int(i) for i in split["train"]] + list(range(args.n, args.n + args.extra)),
+             "val": [int(i) for i in split["val"]], "test": [int(i) for i in split["test"]]}
+    wanted = sorted(split["train"] + split["val"])
     t0 = time.time()
-    for n, i in enumerate(wanted):
-        f = work / "data" / f"{i:04d}.npz"
-        if f.exists():
-            continue
-        cap = synth_segmentation_capture(i, seed=DATASET_SEED, intrinsics=GEMINI2.scaled(0.5))
-        np.savez_compressed(f, color=cap.color, mask=cap.labels > 0)
-        if n % 20 == 0:
-            print(f"{n}/{len(wanted)} {time.time() - t0:.0f} s", flush=True)
-    (work / "split.json").write_text(json.dumps({k: [int(i) for i in v] for k, v in split.items()}))
-    print("done", time.time() - t0)
+    jobs = [(i, work / "data", args.jpeg_quality) for i in wanted]
+    with ProcessPoolExecutor(args.jobs) as ex:
+        for n, _ in enumerate(ex.map(_render_one, jobs, chunksize=4)):
+            if n % 20 == 0:
+                print(f"{n}/{len(wanted)} {time.time() - t0:.0f} s", flush=True)
+    (work / "split.json").write_text(json.dumps(split))
+    print("done", round(time.time() - t0), "s")
 
 
 def _load(work: Path, part: str):
+    """(images (N, IN_H, IN_W, 3) uint8 RGB, full-resolution masks (N, 2*IN_H, 2*IN_W) bool)."""
+    import cv2
+
     split = json.loads((work / "split.json").read_text())
     imgs, masks = [], []
     for i in split[part]:
-        z = np.load(work / "data" / f"{i:04d}.npz")
-        imgs.append(z["color"])
-        masks.append(z["mask"])
-    return np.stack(imgs), np.stack(masks)
+        imgs.append(cv2.imread(str(work / "data" / f"{i:04d}.jpg"))[:, :, ::-1])
+        masks.append(cv2.imread(str(work / "data" / f"{i:04d}.png"), cv2.IMREAD_GRAYSCALE) > 0)
+    return np.ascontiguousarray(np.stack(imgs)), np.stack(masks)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -114,23 +145,36 @@ def build_model(arch: str):
             return self.head(y)
 
     class DeepLabLite(nn.Module):
-        """DeepLabV3+-style: separable backbone to 1/16, ASPP, decoder at 1/4, bilinear to input."""
+        """DeepLabV3+-style: separable backbone to 1/16, ASPP, decoder at 1/4, bilinear to input.
 
-        def __init__(self):
+        ``fine=True`` adds a second decoder stage at 1/2 of the input with the stem's features
+        as the skip (the bar edges then come from 1/2-resolution features, not 1/4); ``width``
+        scales every channel count.
+        """
+
+        def __init__(self, fine=False, width=1.0):
             super().__init__()
-            self.stem = cbr(3, 16, s=2)
-            self.l1 = nn.Sequential(ds(16, 24, s=2), ds(24, 24))
-            self.l2 = nn.Sequential(ds(24, 48, s=2), ds(48, 48))
-            self.l3 = nn.Sequential(ds(48, 96, s=2), ds(96, 96), ds(96, 96, d=2))
-            self.a0 = cbr(96, 48, k=1)
-            self.a1 = ds(96, 48, d=2)
-            self.a2 = ds(96, 48, d=4)
-            self.a3 = ds(96, 48, d=8)
-            self.pool = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Conv2d(96, 48, 1), nn.ReLU(inplace=True))
-            self.proj = cbr(240, 64, k=1)
-            self.low = cbr(24, 16, k=1)
-            self.dec = nn.Sequential(ds(80, 48), ds(48, 48))
-            self.head = nn.Conv2d(48, 1, 1)
+            c = lambda n: max(8, int(round(n * width / 8)) * 8)  # noqa: E731
+            c16, c24, c48, c96, c64 = 16, c(24), c(48), c(96), c(64)
+            self.fine = fine
+            self.stem = cbr(3, c16, s=2)
+            self.l1 = nn.Sequential(ds(c16, c24, s=2), ds(c24, c24))
+            self.l2 = nn.Sequential(ds(c24, c48, s=2), ds(c48, c48))
+            self.l3 = nn.Sequential(ds(c48, c96, s=2), ds(c96, c96), ds(c96, c96, d=2))
+            self.a0 = cbr(c96, c48, k=1)
+            self.a1 = ds(c96, c48, d=2)
+            self.a2 = ds(c96, c48, d=4)
+            self.a3 = ds(c96, c48, d=8)
+            self.pool = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Conv2d(c96, c48, 1), nn.ReLU(inplace=True))
+            self.proj = cbr(5 * c48, c64, k=1)
+            self.low = cbr(c24, 16, k=1)
+            self.dec = nn.Sequential(ds(c64 + 16, c48), ds(c48, c48))
+            if fine:
+                self.low2 = cbr(c16, 8, k=1)
+                self.dec2 = nn.Sequential(ds(c48 + 8, 24), ds(24, 24))
+                self.head = nn.Conv2d(24, 1, 1)
+            else:
+                self.head = nn.Conv2d(c48, 1, 1)
 
         def forward(self, x):
             s = self.stem(x)
@@ -139,49 +183,118 @@ def build_model(arch: str):
             g = self.pool(f).expand(-1, -1, f.shape[2], f.shape[3])
             a = self.proj(torch.cat([self.a0(f), self.a1(f), self.a2(f), self.a3(f), g], 1))
             y = self.dec(torch.cat([up(a, low), self.low(low)], 1))
+            if self.fine:
+                y = self.dec2(torch.cat([up(y, s), self.low2(s)], 1))
             return up(self.head(y), x)
 
-    return {"unet": UNetSmall, "deeplab": DeepLabLite}[arch]()
+    archs = {"unet": UNetSmall, "deeplab": DeepLabLite,
+             "deeplab_fine": lambda: DeepLabLite(fine=True),
+             "deeplab_fine_w": lambda: DeepLabLite(fine=True, width=1.5)}
+    return archs[arch]()
 
 
 # ---------------------------------------------------------------------------------------------
 # training
 
 
-def _normalise(img_u8):
+def _normalise(x_u8):
+    """(N, H, W, 3) uint8 RGB tensor (any device) -> normalised float NCHW."""
     import torch
 
-    x = torch.from_numpy(img_u8).float().permute(0, 3, 1, 2)
-    mean = torch.tensor(MEAN).view(1, 3, 1, 1)
-    std = torch.tensor(STD).view(1, 3, 1, 1)
+    x = x_u8.float().permute(0, 3, 1, 2)
+    mean = torch.tensor(MEAN, device=x.device).view(1, 3, 1, 1)
+    std = torch.tensor(STD, device=x.device).view(1, 3, 1, 1)
     return (x - mean) / std
 
 
-def _batch(imgs, masks, rng, size, bs):
-    import cv2
+def _upsample2(logits):
+    """Input-resolution logits -> full (x2) resolution, bilinear, as SegmentationModel does."""
+    import torch.nn.functional as F
 
-    n, H, W = masks.shape
-    xb = np.empty((bs, size, size, 3), np.uint8)
-    yb = np.empty((bs, size, size), np.float32)
+    return F.interpolate(logits, scale_factor=2, mode="bilinear", align_corners=False)
+
+
+def _shadow(x, g):
+    """Cast-shadow augmentation: darken the part of each image behind a random soft-edged
+    line or band (penumbra 1-8 px) to 25-70 % and tint it towards sky light, so that bars in
+    shadow are seen with every formwork, colour and light the renderer makes.
+    x: (B, 3, H, W) float 0-255 on any device; g: torch.Generator on x's device."""
+    import torch
+
+    B, _, H, W = x.shape
+    dev = x.device
+    r = lambda *shape: torch.rand(*shape, generator=g, device=dev)  # noqa: E731
+    yy, xx = torch.meshgrid(torch.arange(H, device=dev, dtype=torch.float32),
+                            torch.arange(W, device=dev, dtype=torch.float32), indexing="ij")
+    th = r(B) * 2 * math.pi
+    cx, cy = r(B) * W, r(B) * H
+    d = (xx[None] - cx[:, None, None]) * torch.cos(th)[:, None, None] + \
+        (yy[None] - cy[:, None, None]) * torch.sin(th)[:, None, None]
+    band = r(B) < 0.5  # a band (a shadow of a bar or a board) rather than a half-plane
+    half_w = 4 + r(B) * 60
+    d = torch.where(band[:, None, None], half_w[:, None, None] - d.abs(), d)
+    soft = 1 + r(B) * 7
+    inside = torch.sigmoid(d / soft[:, None, None])[:, None]
+    dark = 0.25 + 0.45 * r(B)
+    tint = torch.stack([0.92 + 0.05 * r(B), 0.96 + 0.03 * r(B), torch.ones(B, device=dev)], 1)
+    factor = 1 - inside * (1 - dark[:, None, None, None] * tint[:, :, None, None])
+    use = (r(B) < 0.5).float()[:, None, None, None]
+    return x * (1 - use + use * factor)
+
+
+def _batch(imgs, masks, g, size, bs):
+    """A training batch on the data's device: random crops (input size x size, label 2size x
+    2size), flips, transposition, gain / gamma / blur / noise jitter and cast shadows."""
+    import torch
+    import torch.nn.functional as F
+
+    dev = imgs.device
+    n, H, W = imgs.shape[:3]
+    r = lambda *shape: torch.rand(*shape, generator=g, device=dev)  # noqa: E731
+    idx = (r(bs) * n).long().tolist()
+    y0 = (r(bs) * (H - size + 1)).long().tolist()
+    x0 = (r(bs) * (W - size + 1)).long().tolist()
+    flips = (r(bs, 3) < 0.5).tolist()
+    xs, ys = [], []
     for k in range(bs):
-        i = rng.integers(n)
-        y0, x0 = rng.integers(0, H - size + 1), rng.integers(0, W - size + 1)
-        im = imgs[i, y0:y0 + size, x0:x0 + size].astype(np.float32)
-        m = masks[i, y0:y0 + size, x0:x0 + size]
-        if rng.random() < 0.5:
-            im, m = im[:, ::-1], m[:, ::-1]
-        if rng.random() < 0.5:
-            im, m = im[::-1], m[::-1]
-        if rng.random() < 0.5:
-            im, m = im.transpose(1, 0, 2), m.T
-        # photometric jitter beyond the renderer's own: gain per channel, gamma, slight blur
-        im = im * rng.uniform(0.85, 1.15, 3) * rng.uniform(0.8, 1.2)
-        im = 255 * (np.clip(im, 0, 255) / 255) ** rng.uniform(0.8, 1.25)
-        if rng.random() < 0.3:
-            im = cv2.GaussianBlur(np.ascontiguousarray(im), (0, 0), rng.uniform(0.3, 0.8))
-        xb[k] = np.clip(im, 0, 255).astype(np.uint8)
-        yb[k] = m
-    return xb, yb
+        im = imgs[idx[k], y0[k]:y0[k] + size, x0[k]:x0[k] + size]
+        m = masks[idx[k], 2 * y0[k]:2 * (y0[k] + size), 2 * x0[k]:2 * (x0[k] + size)]
+        if flips[k][0]:
+            im, m = im.flip(1), m.flip(1)
+        if flips[k][1]:
+            im, m = im.flip(0), m.flip(0)
+        if flips[k][2]:
+            im, m = im.transpose(0, 1), m.transpose(0, 1)
+        xs.append(im)
+        ys.append(m)
+    x = torch.stack(xs).permute(0, 3, 1, 2).float()
+    y = torch.stack(ys)[:, None].float()
+    x = _shadow(x, g)
+    # photometric jitter beyond the renderer's own: gain per channel and overall, gamma
+    x = x * (0.85 + 0.3 * r(bs, 3, 1, 1)) * (0.8 + 0.4 * r(bs, 1, 1, 1))
+    x = 255 * (x.clamp(0, 255) / 255) ** (0.8 + 0.45 * r(bs, 1, 1, 1))
+    # slight blur on some images (a 5-tap Gaussian of random sigma), sensor noise on some
+    sig = 0.3 + 0.5 * r(bs)
+    t = torch.arange(-2, 3, device=dev, dtype=torch.float32)
+    k1 = torch.exp(-t[None] ** 2 / (2 * sig[:, None] ** 2))
+    k1 = k1 / k1.sum(1, keepdim=True)
+    blur = r(bs) < 0.3
+    if blur.any():
+        xb = x[blur]
+        kb = k1[blur]
+        B = xb.shape[0]
+        xb = xb.reshape(1, B * 3, size, size)
+        kh = kb.repeat_interleave(3, 0)[:, None, None, :]
+        kv = kb.repeat_interleave(3, 0)[:, None, :, None]
+        xb = F.conv2d(F.pad(xb, (2, 2, 0, 0), mode="replicate"), kh, groups=B * 3)
+        xb = F.conv2d(F.pad(xb, (0, 0, 2, 2), mode="replicate"), kv, groups=B * 3)
+        x[blur] = xb.reshape(B, 3, size, size)
+    noisy = (r(bs) < 0.3).float()[:, None, None, None]
+    x = x + noisy * torch.randn(x.shape, generator=g, device=dev) * (6 * r(bs, 1, 1, 1))
+    x = x.clamp(0, 255).round()
+    mean = torch.tensor(MEAN, device=dev).view(1, 3, 1, 1)
+    std = torch.tensor(STD, device=dev).view(1, 3, 1, 1)
+    return (x - mean) / std, y
 
 
 def _iou_counts(logits, masks):
@@ -192,16 +305,24 @@ def _iou_counts(logits, masks):
     return tp, fp, fn
 
 
-def evaluate(model, imgs, masks, bs=4):
+def _logits_full(model, imgs, bs=4):
+    """Full-resolution logits of whole images (float32, on the images' device)."""
     import torch
 
-    model.eval()
-    tp = fp = fn = 0
+    out = []
     with torch.no_grad():
         for s in range(0, len(imgs), bs):
-            out = model(_normalise(imgs[s:s + bs]))[:, 0].numpy()
-            a, b, c = _iou_counts(out, masks[s:s + bs])
-            tp, fp, fn = tp + a, fp + b, fn + c
+            out.append(_upsample2(model(_normalise(imgs[s:s + bs])).float())[:, 0])
+    return torch.cat(out)
+
+
+def evaluate(model, imgs, masks, bs=4):
+    """Validation IoU and Dice at full resolution (logits upsampled x2, threshold p = 0.5)."""
+    model.eval()
+    tp = fp = fn = 0
+    for s in range(0, len(imgs), bs):
+        a, b, c = _iou_counts(_logits_full(model, imgs[s:s + bs]), masks[s:s + bs])
+        tp, fp, fn = tp + a, fp + b, fn + c
     model.train()
     return tp / max(tp + fp + fn, 1), 2 * tp / max(2 * tp + fp + fn, 1)
 
@@ -210,19 +331,27 @@ def cmd_train(args):
     import torch
     import torch.nn.functional as F
 
-    torch.set_num_threads(args.threads)
+    dev = torch.device(args.device if args.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu"))
+    if dev.type == "cpu":
+        torch.set_num_threads(args.threads)
     torch.manual_seed(TRAIN_SEED)
-    rng = np.random.default_rng(TRAIN_SEED)
+    g = torch.Generator(device=dev)
+    g.manual_seed(TRAIN_SEED)
     work = Path(args.work)
-    imgs, masks = _load(work, "train")
-    vimgs, vmasks = _load(work, "val")
-    model = build_model(args.arch)
+    out_dir = Path(args.out_dir or work)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tag = args.tag or args.arch
+    imgs, masks = (torch.from_numpy(a).to(dev) for a in _load(work, "train"))
+    vimgs, vmasks = (torch.from_numpy(a).to(dev) for a in _load(work, "val"))
+    model = build_model(args.arch).to(dev)
     if args.init:
         # continue from an earlier run (a second, longer stage of the same recipe)
-        model.load_state_dict(torch.load(args.init))
+        model.load_state_dict(torch.load(args.init, map_location=dev))
     n_params = sum(p.numel() for p in model.parameters())
-    print(f"{args.arch}: {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures", flush=True)
+    print(f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
+          f"device {dev}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=1e-4)
+    amp = dict(device_type="cuda", dtype=torch.bfloat16) if dev.type == "cuda" else dict(device_type="cpu", enabled=False)
     budget = args.minutes * 60
     t0 = time.time()
     last_val = t0
@@ -234,41 +363,42 @@ def cmd_train(args):
         if frac >= 1:
             break
         # warm-up then cosine decay over the wall-clock budget
-        lr = args.lr * min(1.0, (it + 1) / 50) * 0.5 * (1 + math.cos(math.pi * frac))
-        for g in opt.param_groups:
-            g["lr"] = lr
-        xb, yb = _batch(imgs, masks, rng, args.crop, args.batch)
-        x = _normalise(xb)
-        y = torch.from_numpy(yb)[:, None]
-        out = model(x)
+        lr = args.lr * min(1.0, (it + 1) / 100) * 0.5 * (1 + math.cos(math.pi * frac))
+        for grp in opt.param_groups:
+            grp["lr"] = lr
+        x, y = _batch(imgs, masks, g, args.crop, args.batch)
+        with torch.autocast(**amp):
+            out = _upsample2(model(x)).float()
         p = torch.sigmoid(out)
         dice = 1 - (2 * (p * y).sum() + 1) / (p.sum() + y.sum() + 1)
         loss = F.binary_cross_entropy_with_logits(out, y) + dice
-        opt.zero_grad()
+        opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
         it += 1
-        if it % 25 == 0:
+        if it % 200 == 0:
             print(f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True)
-        if time.time() - last_val > args.val_every_s or (time.time() - t0) >= budget:
+        if time.time() - last_val > args.val_every_s:
             v_iou, v_dice = evaluate(model, vimgs, vmasks)
             last_val = time.time()
             log.append({"it": it, "t_s": round(last_val - t0), "val_iou": v_iou, "val_dice": v_dice})
             print(f"VAL it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
             if v_iou > best:
                 best = v_iou
-                torch.save(model.state_dict(), work / f"{args.tag or args.arch}.pt")
+                torch.save(model.state_dict(), out_dir / f"{tag}.pt")
     v_iou, v_dice = evaluate(model, vimgs, vmasks)
     log.append({"it": it, "t_s": round(time.time() - t0), "val_iou": v_iou, "val_dice": v_dice})
     print(f"VAL final it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
     if v_iou > best:
         best = v_iou
-        torch.save(model.state_dict(), work / f"{args.tag or args.arch}.pt")
+        torch.save(model.state_dict(), out_dir / f"{tag}.pt")
     info = {"arch": args.arch, "init": args.init, "parameters": n_params, "iterations": it, "batch": args.batch,
-            "crop_px": args.crop, "lr": args.lr, "minutes": args.minutes, "threads": args.threads,
+            "crop_px": args.crop, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
+            "device_name": torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu",
+            "threads": args.threads if dev.type == "cpu" else None, "torch": torch.__version__,
             "train_seed": TRAIN_SEED, "best_val_iou": best, "log": log,
             "train_captures": len(imgs), "val_captures": len(vimgs)}
-    (work / f"{args.tag or args.arch}.json").write_text(json.dumps(info, indent=1))
+    (out_dir / f"{tag}.json").write_text(json.dumps(info, indent=1))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -283,15 +413,14 @@ def cmd_export(args):
     out.mkdir(parents=True, exist_ok=True)
     model = build_model(args.arch)
     tag = args.tag or args.arch
-    model.load_state_dict(torch.load(work / f"{tag}.pt"))
+    run_dir = Path(args.run_dir or work)
+    model.load_state_dict(torch.load(run_dir / f"{tag}.pt", map_location="cpu"))
     model.eval()
-    # pick the probability threshold on the validation split (never on the test split)
+    # pick the probability threshold on the validation split (never on the test split), at
+    # full resolution as SegmentationModel thresholds it
     vimgs, vmasks = _load(work, "val")
-    logits = []
-    with torch.no_grad():
-        for k in range(0, len(vimgs), 4):
-            logits.append(model(_normalise(vimgs[k:k + 4]))[:, 0].numpy())
-    logits = np.concatenate(logits)
+    vimgs = torch.from_numpy(vimgs)
+    logits = _logits_full(model, vimgs).numpy()
     best_t, best_iou = 0.0, -1.0
     for t in np.arange(-2.0, 1.01, 0.25):
         tp, fp, fn = _iou_counts(logits - t, vmasks)
@@ -304,7 +433,7 @@ def cmd_export(args):
     onnx_path = out / f"{args.name}.onnx"
     torch.onnx.export(model, (x,), str(onnx_path), input_names=["image"], output_names=["logits"],
                       opset_version=17, dynamo=False)
-    info_path = work / f"{tag}.json"
+    info_path = run_dir / f"{tag}.json"
     info = json.loads(info_path.read_text()) if info_path.exists() else \
         {"parameters": sum(p.numel() for p in model.parameters()), "best_val_iou": None}
     sidecar = {
@@ -326,9 +455,12 @@ def main(argv=None):
     a = sub.add_parser("data")
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--n", type=int, default=None)
+    a.add_argument("--extra", type=int, default=0, help="extra training captures beyond the 6:2:2 set")
+    a.add_argument("--jobs", type=int, default=2)
+    a.add_argument("--jpeg-quality", type=int, default=90)
     a = sub.add_parser("train")
     a.add_argument("--work", default="/tmp/rebar_seg")
-    a.add_argument("--arch", choices=["unet", "deeplab"], required=True)
+    a.add_argument("--arch", choices=ARCHS, required=True)
     a.add_argument("--minutes", type=float, default=18)
     a.add_argument("--threads", type=int, default=1)
     a.add_argument("--batch", type=int, default=8)
@@ -336,13 +468,16 @@ def main(argv=None):
     a.add_argument("--lr", type=float, default=3e-3)
     a.add_argument("--val-every-s", type=float, default=240)
     a.add_argument("--init", default=None, help="state dict to start from (continue training)")
+    a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
+    a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
     a = sub.add_parser("export")
     a.add_argument("--work", default="/tmp/rebar_seg")
-    a.add_argument("--arch", choices=["unet", "deeplab"], required=True)
+    a.add_argument("--arch", choices=ARCHS, required=True)
     a.add_argument("--out", default="rebarlib/models")
     a.add_argument("--name", default="rebar_seg")
     a.add_argument("--tag", default=None, help="which trained run (default: the arch)")
+    a.add_argument("--run-dir", default=None, help="where the run's state dict and log are (default: --work)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.segmentation import DATASET_SIZE
