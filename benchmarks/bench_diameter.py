@@ -23,6 +23,7 @@ wrong size with high confidence; ≤ 0.2 s per capture (median).
 from __future__ import annotations
 
 import argparse
+import re
 import time
 from collections import defaultdict
 
@@ -117,7 +118,16 @@ def _mask_sources():
     if model is not None:
         sources["model"] = lambda cap: np.asarray(model.predict_mask(cap.color), bool)
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
-            sources["fused"] = lambda cap: np.asarray(
+            # as the pipeline builds it (rebarlib._inspect.rebar_mask): colour mask, the
+            # network's probability for the hysteresis, the depth mask (its own plane fit)
+            def fused(cap):
+                proba = model.predict_proba(cap.color)
+                return np.asarray(seg.fuse_masks(proba > model.threshold, seg.mask_from_depth(cap, rng=0),
+                                                 color_proba=proba, depth_valid=cap.depth_mm > 0), bool)
+
+            sources["fused"] = fused
+            # without the probability (no hysteresis): what this benchmark called "fused" before
+            sources["fused-nohyst"] = lambda cap: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
                                depth_valid=cap.depth_mm > 0), bool)
         else:
@@ -200,8 +210,17 @@ def _match(bars, truth):
     return np.array(out, int)
 
 
-def _score(df, bars, truth, axes_name):
-    """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such."""
+def _truly_hidden(cap, design):
+    """Ids of the visible bars that lie mostly under nearer bars: what ``measure_diameters``
+    reports hidden with the true axes and the true mask (the ground truth of "hidden")."""
+    df = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design)
+    return {int(i) for i in df.bar_id[df.hidden]}
+
+
+def _score(df, bars, truth, axes_name, truly_hidden=frozenset()):
+    """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such:
+    (records, missed, missed and truly hidden). A bar that lies under nearer bars cannot be seen,
+    so an axis detector that does not find it has missed no visible bar: it counts as hidden."""
     tb = {int(b["id"]): b for b in truth["bars"]}
     visible = {int(i) for i in bars_from_truth(truth).bar_id}
     if axes_name in ("truth", "jitter1", "designr", "designr+"):  # bar ids are the truth's
@@ -219,8 +238,8 @@ def _score(df, bars, truth, axes_name):
         recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
                          true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r,
                          wrong_size=bool(tb[t]["wrong_size"])))
-    n_missed = len(visible - seen)
-    return recs, n_missed
+    missed = visible - seen
+    return recs, len(missed), len(missed & set(truly_hidden))
 
 
 def main() -> None:
@@ -236,6 +255,8 @@ def main() -> None:
                     help="refined: use_cloud True (fuse), 'veto' or False (off)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
+    ap.add_argument("--reasons", action="store_true",
+                    help="print why bars were not measured (diameter_reason, numbers left out) per combination")
     args = ap.parse_args()
     mask_src, notes = _mask_sources()
     axis_src, notes2 = _axis_sources()
@@ -252,6 +273,8 @@ def main() -> None:
     times = defaultdict(list)
     cpu = defaultdict(list)  # the machine may be shared: CPU time is the fairer figure
     missed = defaultdict(int)
+    missed_hidden = defaultdict(int)
+    reasons = defaultdict(lambda: defaultdict(int))
     for name, design, kw in scenarios(args.quick, args.seed_offset):
         if args.only not in name:
             continue
@@ -264,6 +287,8 @@ def main() -> None:
             except Exception as e:  # noqa: BLE001 - a failing detector is reported, not fatal
                 print(f"note: {name}: axes '{a}' failed: {e!r}")
         row = {"capture": name, "bars": len(bars_from_truth(cap.truth))}
+        hidden_truth = _truly_hidden(cap, design) if any(a not in ("truth", "jitter1", "designr", "designr+")
+                                                          for a in axes) else set()
         for combo in combos:
             m, k, a = combo
             if a not in axes:
@@ -274,17 +299,25 @@ def main() -> None:
                                    use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud])
             times[combo].append(time.perf_counter() - t0)
             cpu[combo].append(time.process_time() - c0)
-            rr, n_missed = _score(df, axes[a], cap.truth, a)
+            rr, n_missed, n_missed_hidden = _score(df, axes[a], cap.truth, a, hidden_truth)
             recs[combo] += rr
             missed[combo] += n_missed
+            missed_hidden[combo] += n_missed_hidden
+            for r in rr:
+                if r["kind"] == "bar" and r["status"] != "measured":
+                    reasons[combo][f"{r['status']}: " + re.sub(r"-?\d+(\.\d+)?", "#", r["row"].diameter_reason)] += 1
+            if n_missed > n_missed_hidden:
+                reasons[combo]["no axis found for the bar"] += n_missed - n_missed_hidden
+            if n_missed_hidden:
+                reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
             bars_rr = [r for r in rr if r["kind"] == "bar"]
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
                         print(f"    wrong {combo}: true Φ{r['true']:g} (envelope {r['env']}) -> {r['row']}")
             row[combo] = (sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in bars_rr),
-                          sum(r["status"] == "hidden" for r in bars_rr),
-                          sum(r["status"] == "not measured" for r in bars_rr) + n_missed)
+                          sum(r["status"] == "hidden" for r in bars_rr) + n_missed_hidden,
+                          sum(r["status"] == "not measured" for r in bars_rr) + n_missed - n_missed_hidden)
         per_capture.append(row)
         print(f"  done {name}", flush=True)
 
@@ -296,15 +329,16 @@ def main() -> None:
         cells = [("%d/%d/%d" % row[c]) if c in row else "-" for c in combos]
         print(f"{row['capture']:<22}{row['bars']:>5} " + " ".join(f"{c:>17}" for c in cells))
 
-    print(f"\nSummary over {len(per_capture)} captures")
+    print(f"\nSummary over {len(per_capture)} captures (hidden: reported hidden, or not found by the axes and "
+          "hidden under nearer bars by the truth; of those, 'h.noax' had no axis)")
     print(f"{'method':<8}{'mask':<8}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
-          f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'extra':>6}{'median s':>9}{'cpu s':>7}")
+          f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'extra':>6}{'h.noax':>7}{'median s':>9}{'cpu s':>7}")
     for combo in combos:
         rr = [r for r in recs[combo] if r["kind"] == "bar"]
         if not rr and not missed[combo]:
             continue
         nb = len(rr) + missed[combo]
-        hidden = sum(r["status"] == "hidden" for r in rr)
+        hidden = sum(r["status"] == "hidden" for r in rr) + missed_hidden[combo]
         meas = [r for r in rr if r["status"] == "measured"]
         wrong = [r for r in meas if r["nominal"] != r["true"]]
         wrong_hi = [r for r in wrong if r["conf"] >= HIGH_CONFIDENCE]
@@ -313,7 +347,7 @@ def main() -> None:
         m, k, a = combo
         print(f"{m:<8}{k:<8}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
-              f"{extra:>6}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
+              f"{extra:>6}{missed_hidden[combo]:>7}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
           "not measured, missed (measured as another size)")
@@ -323,9 +357,9 @@ def main() -> None:
         if not ws:
             continue
         flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
-        missed = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
+        as_other = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
         m, k, a = combo
-        print(f"{m:<8}{k:<8}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - missed:>6}{missed:>8}")
+        print(f"{m:<8}{k:<8}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{as_other:>8}")
 
     print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
           "bars measured with the true axes")
@@ -341,6 +375,15 @@ def main() -> None:
         ae = np.abs(err)
         print(f"{m:<8}{k:<8}{len(err):>6}{np.median(err):>7.2f}{np.median(ae):>13.2f}"
               f"{np.percentile(ae, 90):>7.2f}{np.percentile(ae, 99):>7.2f}{ae.max():>7.2f}")
+
+    if args.reasons:
+        print("\nWhy bars were not measured (diameter_reason, numbers left out), per combination")
+        for combo in combos:
+            if not reasons[combo]:
+                continue
+            print("  " + "|".join(combo))
+            for why, n in sorted(reasons[combo].items(), key=lambda kv: -kv[1]):
+                print(f"    {n:5d}  {why}")
 
 
 if __name__ == "__main__":

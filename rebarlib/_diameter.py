@@ -415,6 +415,7 @@ class _RefinedParams:
     cloud_only_confidence: float = 0.85  # cap for a size from the point cloud alone (relies on the axis)
     depth_core: float = 0.5  # point-cloud points from the middle this fraction of each run
     colour_tolerance_px: float = 0.5  # colour and mask widths may differ this much (cylinder shading)
+    colour_offset_bars: int = 5  # bars needed to learn the capture's colour-minus-mask offset
     edge_search_px: float = 2.5  # how far from the mask edge the colour edge may lie
     edge_min_contrast: float = 12.0  # grey levels between bar and background, else keep the mask
     edge_peak_share: float = 0.3  # the gradient peak must carry this share of the step per pixel
@@ -728,6 +729,46 @@ def _paper_vote(Ds, system):
     return float(sizes[win]), float(counts[win] / len(Ds))
 
 
+def _colour_calibration(results, prepared, prm) -> None:
+    """Learn from the capture's own bars how far to trust its colour edges against its mask.
+
+    Stores in every bar's info ``colour_offset_px``, the capture's typical colour-minus-mask
+    width (px: the colour edges of a round bar sit inside its silhouette by an amount set by the
+    light), and ``colour_weight`` in 0..1, the share of a colour-mask disagreement that is blamed
+    on the mask. Bars of the same design size have the same true width, so the spread of their
+    widths between bars (robust, around each size's median) is each estimator's error per bar:
+    s_mask for the mask widths, s_colour for the offset-corrected colour widths. A disagreement
+    r = colour − mask then says the mask is off by about r · s_mask² / (s_mask² + s_colour²)
+    (the part of r that the mask's error explains); the part of r beyond ``prm.veto_k`` times
+    their combined spread hypot(s_mask, s_colour) is more than either explains and counts in
+    full (``colour_spread_mm``), so a mask gone wrong on one bar is still caught. Both need
+    ``prm.colour_offset_bars`` bars with both widths; otherwise offset 0 and weight 1 (the
+    whole disagreement counts).
+    """
+    have = [i for i, r in enumerate(results)
+            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"])]
+    off, weight, spread = 0.0, 1.0, 0.0
+    if len(have) >= prm.colour_offset_bars:
+        med = {i: float(np.median(results[i][0])) for i in have}
+        off = float(np.median([(results[i][3]["colour_width_mm"] - med[i]) / results[i][3]["px_mm"] for i in have]))
+        dm, dc = [], []
+        for size in {prepared[i].design_mm for i in have}:
+            grp = [i for i in have if prepared[i].design_mm == size]
+            if len(grp) < 3:
+                continue
+            m = np.array([med[i] for i in grp])
+            c = np.array([results[i][3]["colour_width_mm"] - off * results[i][3]["px_mm"] for i in grp])
+            dm.extend(m - np.median(m))
+            dc.extend(c - np.median(c))
+        if len(dm) >= prm.colour_offset_bars:
+            s_m = 1.4826 * float(np.median(np.abs(dm)))
+            s_c = 1.4826 * float(np.median(np.abs(dc)))
+            if s_m + s_c > 0:
+                weight, spread = s_m ** 2 / (s_m ** 2 + s_c ** 2), math.hypot(s_m, s_c)
+    for r in results:
+        r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
+
+
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
@@ -738,7 +779,13 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     capped because it relies on the axis lying at the bar's centre.
     """
     px_mm, off = info["px_mm"], abs(info["centre_mm"])
-    cdiff = abs(info["colour_width_mm"] - med) if math.isfinite(info["colour_width_mm"]) else 0.0
+    # the colour edges of a round bar sit inside its silhouette by an amount set by the light
+    # (shading towards the limbs): that common offset of the capture is not the mask's error
+    cdiff = 0.0
+    if math.isfinite(info["colour_width_mm"]):
+        r = abs(info["colour_width_mm"] - med - info.get("colour_offset_px", 0.0) * px_mm)
+        typical = prm.veto_k * info.get("colour_spread_mm", 0.0)
+        cdiff = info.get("colour_weight", 1.0) * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
     # sections: part of the spread is kept as a systematic term.
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), prm.quantisation_px * px_mm,
@@ -900,6 +947,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
                for i, bar in enumerate(prepared)]
+    _colour_calibration(results, prepared, prm)
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []

@@ -124,6 +124,44 @@ def test_snap_diameter_per_system():
         bar_system("JIS")
 
 
+def test_colour_calibration_by_hand():
+    # six bars of one design size at 0.5 mm/px; colour edges sit 1 px inside the mask edges
+    # (shading) plus some scatter e. Offset = median((colour - mask)/px) = -1 px; the spread
+    # between bars (1.4826 MAD around the median) is 0.14826 mm for the mask widths and
+    # 0.51891 mm for the offset-corrected colour widths, so a colour-mask disagreement is blamed
+    # on the mask with weight 0.14826^2 / (0.14826^2 + 0.51891^2) = 0.075471.
+    from rebarlib._diameter import _Bar, _colour_calibration, _refined_decision, _RefinedParams
+
+    prm = _RefinedParams()
+    mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
+    e = [0.0, 0.0, 0.2, -0.2, 0.4, -0.4]
+    results = [(np.full(prm.min_sections, m), None, None,
+                {"colour_width_mm": m - 0.5 + ei, "px_mm": 0.5}) for m, ei in zip(mask, e)]
+    g = imaginary_plane([0.0, 0.0, 500.0], [100.0, 0.0, 500.0])
+    prepared = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, 12.0, 13.9) for k in range(6)]
+    _colour_calibration(results, prepared, prm)
+    s_m, s_c = 1.4826 * 0.1, 1.4826 * 0.35
+    for r in results:
+        assert r[3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
+        assert r[3]["colour_weight"] == pytest.approx(s_m ** 2 / (s_m ** 2 + s_c ** 2), abs=1e-9)
+        assert r[3]["colour_spread_mm"] == pytest.approx(math.hypot(s_m, s_c), abs=1e-9)
+    # too few bars to learn from: no offset, the whole disagreement counts (weight 1)
+    few = results[:prm.colour_offset_bars - 1]
+    _colour_calibration(few, prepared, prm)
+    assert few[0][3]["colour_offset_px"] == 0.0 and few[0][3]["colour_weight"] == 1.0
+
+    # a Φ12 bar (envelope 13.9) whose mask reads 14.0 mm: colour edges within the capture's usual
+    # disagreement leave it measured; 3 mm beyond it (the mask is off on this bar) make it
+    # ambiguous, not measured
+    info = dict(results[0][3], px_mm=0.5, centre_mm=0.0, depth_width_mm=math.nan, depth_spread_mm=math.nan,
+                depth_points=0, z_mm=500.0)
+    kw = dict(system="GB1499.2", deformed=True, use_cloud=False)
+    ok = _refined_decision(14.0, 0.2, 100, dict(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw)
+    assert ok["diameter_status"] == "measured" and ok["nominal_mm"] == 12.0 and ok["confidence"] >= 0.9
+    off = _refined_decision(14.0, 0.2, 100, dict(info, colour_width_mm=14.0 - 0.5 - 3.0), False, prm, **kw)
+    assert off["diameter_status"] == "not measured" and "ambiguous" in off["diameter_reason"]
+
+
 def test_bars_from_truth_and_input_checks():
     cap = synth_capture(_design(14, 12), height_mm=500, tilt_deg=0, sensor=SensorModel.ideal(),
                         intrinsics=GEMINI2.scaled(0.25), seed=0)
