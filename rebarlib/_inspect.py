@@ -254,6 +254,7 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
             rad_by_group = {b.group: radii[b.level] for b in found}
             found = G.assign_levels(G.find_bars(q[sel], layer=lname, radius_mm=rad_by_group,
                                                 min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, rng=rng))
+        found = G.flag_border_cut(found, q[sel], plane=plane, intrinsics=K)
         for b in found:
             bar_clouds.append(cloud.subset(bar_sel[sel[b.point_index]]))
         bars.extend(found)

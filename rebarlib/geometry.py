@@ -48,7 +48,7 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps",
+    "level_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps", "flag_border_cut",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -543,7 +543,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         above it) mean the circle is misplaced: "not measured"
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
-        there; without it, 2 points per cell.
+        there; without it, 2 points per cell. The sampled extent of a bar falls short of its
+        visible length by about one pitch, so ``min_length_mm`` applies to extent + pitch.
 
     Returns
     -------
@@ -555,6 +556,10 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     if len(q) < min_points:
         return []
     plan, h = q[:, :2], q[:, 2]
+    # the extent between a bar's outermost samples falls short of its true visible length by
+    # about one sample pitch (half a pitch at each end): a bar of min_length_mm is accepted when
+    # its sampled extent reaches min_length_mm - pitch_mm
+    min_extent = min_length_mm - (pitch_mm or 0.0)
     dirs = bar_directions(plan, rng=rng)
     radii = radius_mm if isinstance(radius_mm, dict) else {0: float(radius_mm), 1: float(radius_mm)}
     max_r = max(radii.values())
@@ -568,7 +573,7 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         along = plan @ d
         r = radii.get(g, max_r)
         min_cell = 2 if pitch_mm is None else max(2, int(0.2 * 5.0 * 2 * r / pitch_mm**2))
-        centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_length_mm, min_cell_points=min_cell)
+        centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent, min_cell_points=min_cell)
         win = window_mm if window_mm is not None else r + 3.0
         if len(centres):
             j = np.searchsorted(centres, off)
@@ -600,7 +605,7 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             sel = (t >= t0) & (t <= t1)
             idx, t = idx[sel], t[sel]
             length = float(t1 - t0)
-            if length < min_length_mm:
+            if length < min_extent:
                 continue
             if len(idx) < min_points:
                 bars.append(BarAxis(layer, d, float(c), 0.0, float(np.median(h[idx])) - r, 0.0, float(t0), float(t1),
@@ -610,10 +615,17 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             fit = _fit_bar(t, off[idx] - c, h[idx], r)
             # the candidate's centre is only good to a few mm: gather the points around the
             # fitted axis again and refit (twice), so the band is centred on the bar
+            # the band also keeps to the bar's height (within a radius of the fitted axis, plus 3
+            # times the fit's residual, at least 3 mm): a refit band that moved across picks up
+            # points of the crossing bars beside the original band (not "ambiguous" there), which
+            # lie a bar diameter above this bar's surface and would drag the fit off
             for _ in range(2):
                 (a0, a1, b0, b1), w, rms, _ = fit
                 pred = c + a0 + a1 * along
-                near_axis = (np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - 20) & (along <= t1 + 20)
+                h_axis = b0 + b1 * along
+                reach = r + max(3.0, 3.0 * rms if np.isfinite(rms) else 3.0)
+                near_axis = ((np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - 20) & (along <= t1 + 20)
+                             & (np.abs(h - h_axis) < reach))
                 idx2 = np.where(near_axis)[0]
                 if len(idx2) < min_points:
                     break
@@ -626,7 +638,7 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             if keep.mean() < min_inlier_fraction or keep.sum() < min_points:
                 continue
             tt = t[keep]
-            if tt.max() - tt.min() < min_length_mm:
+            if tt.max() - tt.min() < min_extent:
                 continue
             # how much of the cross-section the points cover: a bar seen only along one edge
             # (the rest hidden by a bar above it) does not fix its axis
@@ -640,7 +652,7 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     # sparse bars: a stretch whose depth is mostly lost (too few points for the density test
     # above) is still a bar if its few points sit at its direction's bar height; it is reported
     # "not measured", never dropped silently and never given a number
-    bars += _sparse_bars(bars, cand, ambiguous, h, layer=layer, min_length_mm=min_length_mm)
+    bars += _sparse_bars(bars, cand, ambiguous, h, layer=layer, min_extent_mm=min_extent)
     # something lying well below the other bars of its direction (a spacer block's top, the
     # stub of a chair) is not a bar of this lattice level; a bar fitted well above them was fitted
     # on a sliver (seen beside a bar over it) and its axis is not where it seems
@@ -675,12 +687,38 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     if len(rms) >= 3:
         limit = max_rms_ratio * float(np.median(rms))
         bars = [b for b in bars if b.status != "measured" or b.rms_mm <= limit]
-    return bars
+    return _approximate_axes(bars, {c[0]: c[3] for c in cand})
 
 
-def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_length_mm: float,
+def _approximate_axes(bars: list, offsets: dict) -> list:
+    """A bar reported "not measured" only says that a bar is there: its fitted axis (if any) is
+    the misplaced circle that made it "not measured" (slid along a sliver, tilted in height by
+    a few one-sided points). Its axis in the table is replaced by an approximate one: the
+    direction's plan direction, across at the median of its points' offsets, at the median axis
+    height of the measured bars of its direction (its level), level along its length.
+    ``offsets``: ``{group: the layer's points' offsets across that group's direction}``."""
+    levels = level_heights(bars)
+    out = []
+    for b in bars:
+        if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
+            out.append(b)
+            continue
+        off = float(np.median(offsets[b.group][b.point_index]))
+        out.append(replace(b, offset_mm=off, slope=0.0, h_slope=0.0,
+                           centre_h_mm=levels.get(b.group, b.axis_height_mm)))
+    return out
+
+
+def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float,
                  min_points: int = 8) -> list:
     out = []
+    # points already fitted as part of a bar (the crossing bars above or below, a neighbour)
+    # are not evidence of another bar: without them, what is left along a loose run is the
+    # hidden bar's own few points and whatever else lies there (spacers, ties)
+    claimed = np.zeros(len(h), bool)
+    for b in bars:
+        if b.point_index is not None:
+            claimed[b.point_index] = True
     for g, d, n2, off, along, r, centres, near, member, win in cand:
         same = [b for b in bars if b.group == g and b.status == "measured"]
         if len(same) < 2:
@@ -688,20 +726,29 @@ def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_length
         axis_h = float(np.median([b.axis_height_mm for b in same]))
         top = axis_h + r
         known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
-        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_length_mm, min_cell_points=1)
+        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1)
         for c in loose:
             if len(known) and np.min(np.abs(known - c)) < 2.5 * r:
                 continue
-            sel = (np.abs(off - c) < r) & ~ambiguous
+            sel = (np.abs(off - c) < r) & ~ambiguous & ~claimed
             hs = h[sel]
             # the points of a bar seen from above lie on its upper half: between the axis and the top
             on_bar = (hs > axis_h - 0.5 * r) & (hs < top + 0.5 * r)
-            if on_bar.sum() < min_points or on_bar.mean() < 0.8:
+            if on_bar.sum() < min_points:
                 continue
             idx = np.where(sel)[0][on_bar]
             t = along[idx]
             t0, t1 = _longest_run(t, cell_mm=5.0, max_gap_mm=max(60.0, 8 * r))
-            if t1 - t0 < min_length_mm:
+            if t1 - t0 < min_extent_mm:
+                continue
+            # along that stretch, what lies at the position must be at the bar's height: at least
+            # 80 % of the 5 mm cells holding points there hold points at the bar's height. Counted
+            # in cells, not points: a spacer block under the bar is sampled far more densely than
+            # the hidden bar's few specks, yet covers only a few cm of it
+            ta = along[sel]
+            inside = (ta >= t0) & (ta <= t1)
+            n_cells = len(np.unique(np.floor(ta[inside] / 5.0)))
+            if len(np.unique(np.floor(ta[inside & on_bar] / 5.0))) < 0.8 * n_cells:
                 continue
             keep = (t >= t0) & (t <= t1)
             out.append(BarAxis(layer, d, float(np.median(off[idx][keep])), 0.0, axis_h, 0.0, float(t0), float(t1), r,
@@ -1059,6 +1106,60 @@ def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_
             out.loc[i, "status"] = "not measured"
             out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between these bars "
                                     "cannot be seen (hidden under an upper bar or without depth), so it is not one spacing")
+    return out
+
+
+def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics, min_whole_fraction: float = 0.5,
+                    margin_px: float = 1.0) -> list:
+    """Bars of one lattice that the image border cuts lengthwise, fitted off their level, become
+    "not measured".
+
+    Where the border runs along a bar, the image holds only a strip of its cross-section (one
+    flank, or the crest without the flanks); near the image corners the depth noise also lies
+    along steep rays, across the bar as much as in height. A circle of fixed radius fitted to
+    such a strip is held only across the strip and can slide along it, moving the axis by
+    millimetres in height and across while its residuals look fine. A bar's cross-section at
+    ``t`` is *whole* when both its flanks (axis ± radius across, at axis height) and its crest
+    project inside the image (``margin_px`` from the edge). Most bars cut this way still fit
+    well; what gives a slid circle away is its height: a measured bar with under
+    ``min_whole_fraction`` of its points at whole cross-sections, whose axis lies more than half
+    a radius off the median axis height of the other measured bars of its direction, is
+    reported "not measured", with an approximate axis as for any such bar. (A bar seen whole
+    that far off its level is a real finding and stays measured.)
+
+    ``points``: the lattice's slab-frame points that ``bars[i].point_index`` refers to.
+    """
+    q = np.asarray(points, float)
+    W, H = intrinsics.width, intrinsics.height
+    out = []
+    for b in bars:
+        if b.status != "measured" or b.point_index is None or len(b.point_index) == 0:
+            out.append(b)
+            continue
+        t = q[b.point_index, :2] @ b.direction
+        grid = np.arange(float(t.min()), float(t.max()) + _POSITION_STEP_MM, _POSITION_STEP_MM)
+        ax = b.axis_points(grid)
+        n3 = np.r_[b.normal2d, 0.0]
+        whole = np.ones(len(grid), bool)
+        for probe in (ax - b.radius_mm * n3, ax + b.radius_mm * n3, ax + np.array([0.0, 0.0, b.radius_mm])):
+            cam = from_slab_frame(probe, plane)
+            uv = project(cam, intrinsics)
+            whole &= ((uv[:, 0] >= margin_px) & (uv[:, 0] <= W - 1 - margin_px) & (uv[:, 1] >= margin_px)
+                      & (uv[:, 1] <= H - 1 - margin_px) & (cam[:, 2] > 0))
+        pw = whole[np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)]
+        others = [o.axis_height_mm for o in bars if o.group == b.group and o.status == "measured" and o is not b]
+        level = float(np.median(others)) if len(others) >= 2 else b.axis_height_mm
+        dh = b.axis_height_mm - level
+        if pw.mean() >= min_whole_fraction or abs(dh) <= 0.5 * b.radius_mm:
+            out.append(b)
+            continue
+        seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
+        off = float(np.median(q[b.point_index, :2] @ b.normal2d))
+        out.append(replace(b, offset_mm=off, slope=0.0, h_slope=0.0, centre_h_mm=level,
+                           status="not measured",
+                           reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, over {seen:.0f} mm, "
+                                  f"at whole cross-sections) and the circle fitted to the strip seen sits {dh:+.1f} mm "
+                                  "off the other bars of its direction: its axis cannot be placed"))
     return out
 
 

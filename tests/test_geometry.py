@@ -12,13 +12,15 @@ import math
 import numpy as np
 import pytest
 
-from rebarlib import RebarInputError
+from rebarlib import GEMINI2, RebarInputError
 from rebarlib.geometry import (
+    BarAxis,
     Plane,
     assign_levels,
     find_bars,
     find_layer_split,
     fit_formwork,
+    flag_border_cut,
     from_slab_frame,
     group_directions,
     measure_spacings,
@@ -220,6 +222,64 @@ def test_measure_spacings_in_order_with_deviation(lattice):
         g = sp[sp["level"] == level]
         assert (g["bar_b"].iloc[:-1].to_numpy() == g["bar_a"].iloc[1:].to_numpy()).all()
     assert np.allclose(sp["deviation_mm"], sp["spacing_mm"] - 200.0)
+
+
+def test_hidden_bar_beside_a_spacer_is_reported_not_measured():
+    """A bottom bar seen only in scattered specks (a tenth of its surface points), with a
+    densely sampled spacer block at formwork-top height beside it: reported "not measured" (not
+    dropped, not fitted), its approximate axis at its level's height and level along its length;
+    every other bar measured, nothing else found."""
+    hidden = 95.0
+    q, on_bar, info = lattice_points(bottom_offsets=BOTTOM + [hidden], top_offsets=TOP, angle_deg=33.0)
+    q = q[on_bar]
+    across = q[:, :2] @ info["n1"]
+    along = q[:, :2] @ info["d1"]
+    of_hidden = (np.abs(across - hidden) < 8.1) & (q[:, 2] < info["hb"] + 8.1 + 1.0)
+    rng = np.random.default_rng(5)
+    q = q[~of_hidden | (rng.random(len(q)) < 0.1)]
+    # the spacer's top, 60 mm along, beside the bar's axis, at the cover height
+    ta, oa = np.meshgrid(np.arange(-130.0, -70.0, 1.0), np.arange(hidden + 4.0, hidden + 12.0, 1.0))
+    spacer = ta.ravel()[:, None] * info["d1"] + oa.ravel()[:, None] * info["n1"]
+    q = np.vstack([q, np.c_[spacer, np.full(len(spacer), 20.0)]])
+    bars = assign_levels(find_bars(q, layer="lower", radius_mm=8.1, pitch_mm=PITCH_MM, rng=0))
+    measured = [b for b in bars if b.status == "measured"]
+    assert len(measured) == len(BOTTOM) + len(TOP)
+    others = [b for b in bars if b.status != "measured"]
+    assert len(others) == 1
+    b = others[0]
+    assert abs(b.plan_angle_deg - 33.0) < ANGLE_TOL_DEG
+    assert abs(float(b.plan_point(np.array([b.t_mid]))[0] @ info["n1"]) - hidden) < 8.1
+    assert b.h_slope == 0.0 and abs(b.axis_height_mm - info["hb"]) < AXIS_HEIGHT_TOL_MM
+    assert b.reason
+
+
+def test_border_cut_bar_off_its_level_is_not_measured():
+    """A bar whose axis runs along the image's top row (half its cross-section outside the
+    image): measured while its fitted axis sits at its level; "not measured" when the fit on the
+    strip puts it more than half a radius off the other bars' height. A bar seen whole that far
+    off its level is a finding and stays measured."""
+    plane = Plane(np.array([0.0, 0.0, -1.0]), 500.0)
+    r, level = 7.0, 40.0
+    # slab frame here: a = camera x, b = -camera y, h = 500 - z; image row 0 at the axis height
+    b_edge = GEMINI2.cy * (500.0 - level) / GEMINI2.fy
+    t = np.arange(-100.0, 100.0, 2.0)
+    pts, bars = [], []
+
+    def bar(off, h_axis):
+        idx = np.arange(len(pts) * len(t), (len(pts) + 1) * len(t))
+        pts.append(np.c_[t, np.full(len(t), off), np.full(len(t), h_axis + r)])
+        bars.append(BarAxis("upper", np.array([1.0, 0.0]), off, 0.0, h_axis, 0.0, -100.0, 98.0, r, len(t), 0.5, idx, 0))
+
+    bar(0.0, level)
+    bar(-200.0, level)
+    bar(-100.0, level - 5.0)  # whole, off its level
+    bar(b_edge, level - 1.0)  # border-cut, near its level
+    bar(b_edge + 30.0, level - 5.0)  # border-cut (wholly outside its lower flank), off its level
+    out = flag_border_cut(bars, np.vstack(pts), plane=plane, intrinsics=GEMINI2)
+    assert [b.status for b in out] == ["measured"] * 4 + ["not measured"]
+    assert "border" in out[4].reason
+    # its approximate axis: level along it, at the other bars' median height
+    assert out[4].h_slope == 0.0 and abs(out[4].axis_height_mm - np.median([40.0, 40.0, 35.0, 39.0])) < 1e-9
 
 
 def test_find_bars_empty_and_tiny_inputs():
