@@ -331,7 +331,7 @@ def main() -> None:
 
     print(f"\nSummary over {len(per_capture)} captures (hidden: reported hidden, or not found by the axes and "
           "hidden under nearer bars by the truth; of those, 'h.noax' had no axis)")
-    print(f"{'method':<8}{'mask':<8}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
+    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
           f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'extra':>6}{'h.noax':>7}{'median s':>9}{'cpu s':>7}")
     for combo in combos:
         rr = [r for r in recs[combo] if r["kind"] == "bar"]
@@ -345,13 +345,13 @@ def main() -> None:
         extra = sum(r["kind"] == "extra" for r in recs[combo])
         base = max(nb - hidden, 1)
         m, k, a = combo
-        print(f"{m:<8}{k:<8}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
+        print(f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
               f"{extra:>6}{missed_hidden[combo]:>7}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
           "not measured, missed (measured as another size)")
-    print(f"{'method':<8}{'mask':<8}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'missed':>8}")
+    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'missed':>8}")
     for combo in combos:
         ws = [r for r in recs[combo] if r["kind"] == "bar" and r["wrong_size"]]
         if not ws:
@@ -359,11 +359,11 @@ def main() -> None:
         flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
         as_other = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
         m, k, a = combo
-        print(f"{m:<8}{k:<8}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{as_other:>8}")
+        print(f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{as_other:>8}")
 
     print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
           "bars measured with the true axes")
-    print(f"{'method':<8}{'mask':<8}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}")
+    print(f"{'method':<8}{'mask':<13}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}")
     for combo in combos:
         m, k, a = combo
         if a != "truth":
@@ -373,7 +373,7 @@ def main() -> None:
         if len(err) == 0:
             continue
         ae = np.abs(err)
-        print(f"{m:<8}{k:<8}{len(err):>6}{np.median(err):>7.2f}{np.median(ae):>13.2f}"
+        print(f"{m:<8}{k:<13}{len(err):>6}{np.median(err):>7.2f}{np.median(ae):>13.2f}"
               f"{np.percentile(ae, 90):>7.2f}{np.percentile(ae, 99):>7.2f}{ae.max():>7.2f}")
 
     if args.reasons:

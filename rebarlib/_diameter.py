@@ -579,8 +579,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     edged = has_seed & (left >= 0) & (right < K)
     # an "edge" where the profile leaves the image is the border, not the bar's edge
     rr = np.arange(M)
-    edged &= inside_px[rr, np.clip(left, 0, K - 1)] & inside_px[rr, np.clip(right, 0, K - 1)]
-    info["no_edge"] = int((ok & ~edged).sum())
+    at_border = edged & ~(inside_px[rr, np.clip(left, 0, K - 1)] & inside_px[rr, np.clip(right, 0, K - 1)])
+    edged &= ~at_border
+    info["border"] += int((ok & at_border).sum())
+    info["no_edge"] = int((ok & ~edged & ~at_border).sum())
     ok &= edged
     rows = np.flatnonzero(ok)
     if len(rows):
