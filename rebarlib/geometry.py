@@ -31,6 +31,10 @@ Two methods
    common visible stretch, so it is centre to centre whatever the bars' diameters.
 6. **Counts**: a design position with no bar is counted missing only if the depth image shows the
    formwork there (a position hidden by an upper bar or outside the image is not "missing").
+7. **Found, but not measured**: a bar whose axis the data cannot place (seen as a sliver, as
+   specks beside the bar above it, or as a strip along the image border with its fit off its
+   level: ``flag_border_cut``) is reported "not measured" with an approximate axis, never
+   dropped and never given the failed fit's axis.
 """
 
 from __future__ import annotations
