@@ -754,7 +754,8 @@ def _colour_calibration(results, prepared, prm) -> None:
         med = {i: float(np.median(results[i][0])) for i in have}
         off = float(np.median([(results[i][3]["colour_width_mm"] - med[i]) / results[i][3]["px_mm"] for i in have]))
         dm, dc = [], []
-        for size in {prepared[i].design_mm for i in have}:
+        # without a design size the bars' true widths are unknown: no between-bar spread
+        for size in {prepared[i].design_mm for i in have if math.isfinite(prepared[i].design_mm)}:
             grp = [i for i in have if prepared[i].design_mm == size]
             if len(grp) < 3:
                 continue

@@ -145,6 +145,11 @@ def test_colour_calibration_by_hand():
         assert r[3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
         assert r[3]["colour_weight"] == pytest.approx(s_m ** 2 / (s_m ** 2 + s_c ** 2), abs=1e-9)
         assert r[3]["colour_spread_mm"] == pytest.approx(math.hypot(s_m, s_c), abs=1e-9)
+    # without design sizes the bars' true widths are unknown: offset learnt, weight 1
+    unsized = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, math.nan, 13.9) for k in range(6)]
+    _colour_calibration(results, unsized, prm)
+    assert results[0][3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
+    assert results[0][3]["colour_weight"] == 1.0
     # too few bars to learn from: no offset, the whole disagreement counts (weight 1)
     few = results[:prm.colour_offset_bars - 1]
     _colour_calibration(few, prepared, prm)
