@@ -404,7 +404,8 @@ class _RefinedParams:
     shadow_ratio: float = 0.5  # section centre darker than this x the bar's median: in shadow
     hidden_fraction: float = 0.5
     min_confidence: float = 0.8  # below: ambiguous between two sizes, not measured
-    quantisation_px: float = 0.4  # std. uncertainty floor of a width from pixel edges
+    quantisation_px: float = 0.4  # std. uncertainty of a width from pixel edges (two edges, each
+    # uniform over a pixel: 1/√6 = 0.41 px); divided by √(pixel phases the edges sweep, ≥ 1)
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
     colour_edges: object = "check"  # colour edges near the mask edges: "check" the mask, "replace" it, False
@@ -657,6 +658,14 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the axis is off: either way the width may be wrong by twice the offset.
     info["centre_mm"] = float(np.median(c)) if len(c) else math.nan
     info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
+    # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
+    # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same
+    # rounding; a slanted bar's edges cross the grid min(|du|, |dv|) times and the rounding
+    # averages out over the sections.
+    info["phase_sweep_px"] = 0.0
+    if len(kept) >= 2:
+        uv_k = project(st[kept[[0, -1]]], intr)
+        info["phase_sweep_px"] = float(np.abs(uv_k[1] - uv_k[0]).min())
     info["z_mm"] = float(np.median(st[:, 2]))
     info["lum"] = math.nan
     if gray is not None and in_img.any():
@@ -791,7 +800,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         cdiff = info.get("colour_weight", 1.0) * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
     # sections: part of the spread is kept as a systematic term.
-    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), prm.quantisation_px * px_mm,
+    quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.get("phase_sweep_px", 0.0)))
+    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), quant_px * px_mm,
                          prm.mask_spread_sys * spread, 2 * max(off - prm.axis_sigma_mm, 0.0),
                          max(cdiff - prm.colour_tolerance_px * px_mm, 0.0))
     mask_problem = ""
