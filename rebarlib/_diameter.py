@@ -740,6 +740,27 @@ def _paper_vote(Ds, system):
     return float(sizes[win]), float(counts[win] / len(Ds))
 
 
+def _mask_between_spread(results, prepared, prm) -> None:
+    """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
+    widths between the capture's bars of the same design size, around each size's median.
+
+    Bars of one size have one true width, so this is the mask's error per bar as this capture
+    shows it: pixel rounding on bars along pixel rows, and a learnt mask's bias per bar that its
+    own spread along the bar does not show (a mask that eats both sides of a bar evenly). Needs
+    ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
+    """
+    have = [i for i, r in enumerate(results)
+            if len(r[0]) >= prm.min_sections and math.isfinite(prepared[i].design_mm)]
+    dev = []
+    for size in {prepared[i].design_mm for i in have}:
+        m = np.array([float(np.median(results[i][0])) for i in have if prepared[i].design_mm == size])
+        if len(m) >= 3:
+            dev.extend(m - np.median(m))
+    s_m = 1.4826 * float(np.median(np.abs(dev))) if len(dev) >= prm.colour_offset_bars else 0.0
+    for r in results:
+        r[3]["mask_between_mm"] = s_m
+
+
 def _colour_calibration(results, prepared, prm) -> None:
     """Learn from the capture's own bars how far to trust its colour edges against its mask.
 
@@ -801,8 +822,10 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
     # sections: part of the spread is kept as a systematic term.
     quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.get("phase_sweep_px", 0.0)))
-    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), quant_px * px_mm,
-                         prm.mask_spread_sys * spread, 2 * max(off - prm.axis_sigma_mm, 0.0),
+    # the mask's error per bar: pixel rounding and the part of its spread that is a bias of the
+    # whole bar, or what the capture's bars of one size show between them if that is more
+    per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.get("mask_between_mm", 0.0))
+    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
                          max(cdiff - prm.colour_tolerance_px * px_mm, 0.0))
     mask_problem = ""
     if off > prm.max_offcentre_rel * med:
@@ -961,6 +984,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
+    _mask_between_spread(results, prepared, prm)
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []

@@ -130,7 +130,8 @@ def test_colour_calibration_by_hand():
     # between bars (1.4826 MAD around the median) is 0.14826 mm for the mask widths and
     # 0.51891 mm for the offset-corrected colour widths, so a colour-mask disagreement is blamed
     # on the mask with weight 0.14826^2 / (0.14826^2 + 0.51891^2) = 0.075471.
-    from rebarlib._diameter import _Bar, _colour_calibration, _refined_decision, _RefinedParams
+    from rebarlib._diameter import (_Bar, _colour_calibration, _mask_between_spread, _refined_decision,
+                                    _RefinedParams)
 
     prm = _RefinedParams()
     mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
@@ -145,6 +146,9 @@ def test_colour_calibration_by_hand():
         assert r[3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
         assert r[3]["colour_weight"] == pytest.approx(s_m ** 2 / (s_m ** 2 + s_c ** 2), abs=1e-9)
         assert r[3]["colour_spread_mm"] == pytest.approx(math.hypot(s_m, s_c), abs=1e-9)
+    # the mask's error per bar as the capture shows it: the same between-bar spread
+    _mask_between_spread(results, prepared, prm)
+    assert results[0][3]["mask_between_mm"] == pytest.approx(s_m, abs=1e-9)
     # without design sizes the bars' true widths are unknown: offset learnt, weight 1
     unsized = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, math.nan, 13.9) for k in range(6)]
     _colour_calibration(results, unsized, prm)
@@ -158,8 +162,9 @@ def test_colour_calibration_by_hand():
     # a Φ12 bar (envelope 13.9) whose mask reads 14.0 mm: colour edges within the capture's usual
     # disagreement leave it measured; 3 mm beyond it (the mask is off on this bar) make it
     # ambiguous, not measured
-    info = dict(results[0][3], px_mm=0.5, centre_mm=0.0, depth_width_mm=math.nan, depth_spread_mm=math.nan,
-                depth_points=0, z_mm=500.0)
+    info = dict(px_mm=0.5, centre_mm=0.0, depth_width_mm=math.nan, depth_spread_mm=math.nan, depth_points=0,
+                z_mm=500.0, colour_offset_px=-1.0, colour_weight=s_m ** 2 / (s_m ** 2 + s_c ** 2),
+                colour_spread_mm=math.hypot(s_m, s_c), mask_between_mm=s_m, phase_sweep_px=0.0)
     kw = dict(system="GB1499.2", deformed=True, use_cloud=False)
     ok = _refined_decision(14.0, 0.2, 100, dict(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw)
     assert ok["diameter_status"] == "measured" and ok["nominal_mm"] == 12.0 and ok["confidence"] >= 0.9
