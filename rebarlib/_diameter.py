@@ -12,7 +12,10 @@ Two methods:
 - ``"refined"`` (default): many cross-sections per bar; both edges found per section at sub-pixel
   precision on the mask profile; sections at crossings, under a nearer bar, at the image border
   or in deep shadow are dropped; the median width is snapped to the observed (rib-envelope)
-  width of a standard size with a confidence; weak evidence gives "not measured".
+  width of a standard size with a confidence; weak evidence gives "not measured". How far the
+  colour edges and the mask can be trusted is learnt from the capture's own bars of one design
+  size (their true widths are equal): the colour edges' shading offset, each width's spread
+  between bars.
 """
 
 from __future__ import annotations
@@ -911,7 +914,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         have two clean mask edges)
     colour_edges : refined: ``"check"`` (default) finds the colour edge within 2.5 px of each
         mask edge and widens the width's uncertainty by the disagreement between the colour and
-        mask widths (a biased mask then gives "not measured", not a wrong size); ``"replace"``
+        mask widths (a biased mask then gives "not measured", not a wrong size), less the
+        capture's shading offset and weighted by how the two widths scatter between the
+        capture's bars of one size (:func:`_colour_calibration`); ``"replace"``
         measures between the colour edges instead; False uses the mask alone
     use_cloud : refined: also measure the diameter from the point cloud (twice the median
         distance of the bar's depth points from its axis) and combine it with the mask width
