@@ -743,6 +743,22 @@ def _paper_vote(Ds, system):
     return float(sizes[win]), float(counts[win] / len(Ds))
 
 
+def _between_bar_deviations(values: dict, prepared) -> list:
+    """Deviations of per-bar values ``{bar index: value}`` from the median of their design size
+    (sizes with at least 3 bars; bars without a design size are left out). Bars of one size have
+    one true width, so these are the values' errors per bar."""
+    dev = []
+    for size in {prepared[i].design_mm for i in values if math.isfinite(prepared[i].design_mm)}:
+        v = np.array([values[i] for i in values if prepared[i].design_mm == size])
+        if len(v) >= 3:
+            dev.extend(v - np.median(v))
+    return dev
+
+
+def _robust_sigma(dev) -> float:
+    return 1.4826 * float(np.median(np.abs(dev)))
+
+
 def _mask_between_spread(results, prepared, prm) -> None:
     """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
     widths between the capture's bars of the same design size, around each size's median.
@@ -752,14 +768,9 @@ def _mask_between_spread(results, prepared, prm) -> None:
     own spread along the bar does not show (a mask that eats both sides of a bar evenly). Needs
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
-    have = [i for i, r in enumerate(results)
-            if len(r[0]) >= prm.min_sections and math.isfinite(prepared[i].design_mm)]
-    dev = []
-    for size in {prepared[i].design_mm for i in have}:
-        m = np.array([float(np.median(results[i][0])) for i in have if prepared[i].design_mm == size])
-        if len(m) >= 3:
-            dev.extend(m - np.median(m))
-    s_m = 1.4826 * float(np.median(np.abs(dev))) if len(dev) >= prm.colour_offset_bars else 0.0
+    dev = _between_bar_deviations({i: float(np.median(r[0])) for i, r in enumerate(results)
+                                   if len(r[0]) >= prm.min_sections}, prepared)
+    s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
     for r in results:
         r[3]["mask_between_mm"] = s_m
 
@@ -786,19 +797,12 @@ def _colour_calibration(results, prepared, prm) -> None:
     if len(have) >= prm.colour_offset_bars:
         med = {i: float(np.median(results[i][0])) for i in have}
         off = float(np.median([(results[i][3]["colour_width_mm"] - med[i]) / results[i][3]["px_mm"] for i in have]))
-        dm, dc = [], []
         # without a design size the bars' true widths are unknown: no between-bar spread
-        for size in {prepared[i].design_mm for i in have if math.isfinite(prepared[i].design_mm)}:
-            grp = [i for i in have if prepared[i].design_mm == size]
-            if len(grp) < 3:
-                continue
-            m = np.array([med[i] for i in grp])
-            c = np.array([results[i][3]["colour_width_mm"] - off * results[i][3]["px_mm"] for i in grp])
-            dm.extend(m - np.median(m))
-            dc.extend(c - np.median(c))
+        dm = _between_bar_deviations(med, prepared)
+        dc = _between_bar_deviations({i: results[i][3]["colour_width_mm"] - off * results[i][3]["px_mm"]
+                                      for i in have}, prepared)
         if len(dm) >= prm.colour_offset_bars:
-            s_m = 1.4826 * float(np.median(np.abs(dm)))
-            s_c = 1.4826 * float(np.median(np.abs(dc)))
+            s_m, s_c = _robust_sigma(dm), _robust_sigma(dc)
             if s_m + s_c > 0:
                 weight, spread = s_m ** 2 / (s_m ** 2 + s_c ** 2), math.hypot(s_m, s_c)
     for r in results:

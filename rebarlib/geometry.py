@@ -707,10 +707,15 @@ def _approximate_axes(bars: list, offsets: dict) -> list:
         if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
             out.append(b)
             continue
-        off = float(np.median(offsets[b.group][b.point_index]))
-        out.append(replace(b, offset_mm=off, slope=0.0, h_slope=0.0,
-                           centre_h_mm=levels.get(b.group, b.axis_height_mm)))
+        out.append(_level_axis(b, float(np.median(offsets[b.group][b.point_index])),
+                               levels.get(b.group, b.axis_height_mm)))
     return out
+
+
+def _level_axis(b: BarAxis, offset_mm: float, height_mm: float, **changes) -> BarAxis:
+    """``b`` with an approximate axis: its direction, at ``offset_mm`` across and ``height_mm``,
+    level and parallel to its direction."""
+    return replace(b, offset_mm=offset_mm, slope=0.0, h_slope=0.0, centre_h_mm=height_mm, **changes)
 
 
 def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float,
@@ -1159,11 +1164,10 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
             continue
         seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
         off = float(np.median(q[b.point_index, :2] @ b.normal2d))
-        out.append(replace(b, offset_mm=off, slope=0.0, h_slope=0.0, centre_h_mm=level,
-                           status="not measured",
-                           reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, over {seen:.0f} mm, "
-                                  f"at whole cross-sections) and the circle fitted to the strip seen sits {dh:+.1f} mm "
-                                  "off the other bars of its direction: its axis cannot be placed"))
+        out.append(_level_axis(b, off, level, status="not measured",
+                               reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, over {seen:.0f} mm, "
+                                      f"at whole cross-sections) and the circle fitted to the strip seen sits {dh:+.1f} mm "
+                                      "off the other bars of its direction: its axis cannot be placed"))
     return out
 
 

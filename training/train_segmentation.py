@@ -199,9 +199,13 @@ def build_model(arch: str):
 
 def _normalise(x_u8):
     """(N, H, W, 3) uint8 RGB tensor (any device) -> normalised float NCHW."""
+    return _standardise(x_u8.float().permute(0, 3, 1, 2))
+
+
+def _standardise(x):
+    """(N, 3, H, W) float RGB in 0-255 -> (x - mean) / std, the model's input."""
     import torch
 
-    x = x_u8.float().permute(0, 3, 1, 2)
     mean = torch.tensor(MEAN, device=x.device).view(1, 3, 1, 1)
     std = torch.tensor(STD, device=x.device).view(1, 3, 1, 1)
     return (x - mean) / std
@@ -291,10 +295,7 @@ def _batch(imgs, masks, g, size, bs):
         x[blur] = xb.reshape(B, 3, size, size)
     noisy = (r(bs) < 0.3).float()[:, None, None, None]
     x = x + noisy * torch.randn(x.shape, generator=g, device=dev) * (6 * r(bs, 1, 1, 1))
-    x = x.clamp(0, 255).round()
-    mean = torch.tensor(MEAN, device=dev).view(1, 3, 1, 1)
-    std = torch.tensor(STD, device=dev).view(1, 3, 1, 1)
-    return (x - mean) / std, y
+    return _standardise(x.clamp(0, 255).round()), y
 
 
 def _iou_counts(logits, masks):
