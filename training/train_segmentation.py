@@ -346,8 +346,17 @@ def cmd_train(args):
     vimgs, vmasks = (torch.from_numpy(a).to(dev) for a in _load(work, "val"))
     model = build_model(args.arch).to(dev)
     if args.init:
-        # continue from an earlier run (a second, longer stage of the same recipe)
-        model.load_state_dict(torch.load(args.init, map_location=dev))
+        # continue from an earlier run (a second, longer stage of the same recipe), or start a
+        # larger architecture from a smaller one's weights: every tensor whose name and shape
+        # match is copied, the rest keep their fresh initialisation and are listed
+        own = model.state_dict()
+        given = torch.load(args.init, map_location=dev)
+        same = {k: v for k, v in given.items() if k in own and own[k].shape == v.shape}
+        model.load_state_dict(same, strict=False)
+        fresh = sorted({k.split(".")[0] for k in own if k not in same})
+        if fresh:
+            print(f"init from {args.init}: {len(same)} of {len(own)} tensors copied; "
+                  f"freshly initialised: {', '.join(fresh)}", flush=True)
     n_params = sum(p.numel() for p in model.parameters())
     print(f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
           f"device {dev}", flush=True)
