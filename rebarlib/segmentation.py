@@ -134,6 +134,7 @@ _LAYOUTS = ("NCHW", "NHWC")
 _DTYPES = {"float32": ("tensor(float)", np.float32), "uint8": ("tensor(uint8)", np.uint8),
            "float16": ("tensor(float16)", np.float16)}
 _KINDS = ("logits", "probability", "labels")
+_FLIPS = ("h", "v", "hv")  # test-time flips: horizontal, vertical, both
 
 
 def _bad(path, problem):
@@ -181,11 +182,16 @@ def _read_sidecar(path: Path) -> dict:
     value_scale = inp.get("value_scale", 1.0)
     if not isinstance(value_scale, (int, float)) or value_scale <= 0:
         raise _bad(path, f"input.value_scale: expected a positive number, got {value_scale!r}")
+    flips = inp.get("flips", [])
+    if not (isinstance(flips, list) and all(f in _FLIPS for f in flips) and len(set(flips)) == len(flips)):
+        raise _bad(path, f"input.flips: expected a list of distinct flips from {_FLIPS}, got {flips!r}")
     inp.update(size=size, scale=float(scale), pad_to=pad_to, channel_order=order, layout=layout,
-               dtype=dtype, value_scale=float(value_scale))
+               dtype=dtype, value_scale=float(value_scale), flips=list(flips))
     kind = out.get("kind")
     if kind not in _KINDS:
         raise _bad(path, f"output.kind: expected one of {_KINDS}, got {kind!r}")
+    if flips and kind == "labels":
+        raise _bad(path, "input.flips: a label-map output cannot be averaged over flips; use logits or probability")
     classes = out.get("rebar_classes", [1] if kind != "probability" else [0])
     if not (isinstance(classes, list) and classes and all(isinstance(c, int) and c >= 0 for c in classes)):
         raise _bad(path, f"output.rebar_classes: expected a non-empty list of class indices, got {classes!r}")
@@ -361,9 +367,22 @@ class SegmentationModel:
         H, W = np.asarray(color).shape[:2]
         t, (h, w), (hp, wp) = self._prepare(color)
         is_logit = False
-        y = self._session.run([self._output_name], {self._input_name: t})[0]
         out = self._out
-        y = np.asarray(y)[0]
+        y = np.asarray(self._session.run([self._output_name], {self._input_name: t})[0])
+        if self._inp["flips"]:
+            # test-time flips: the outputs (logits or probabilities) of the mirrored images,
+            # mirrored back, are averaged with the plain one (a network's errors at edges differ
+            # between an image and its mirror image, so the mean is closer to the truth)
+            t_hw = (2, 3) if self._inp["layout"] == "NCHW" else (1, 2)
+            y_hw = (2, 3) if y.ndim == 4 and out["layout"] == "NCHW" else (1, 2)
+            acc = y.astype(np.float32)
+            for f in self._inp["flips"]:
+                ax_t = tuple(a for a, c in zip(t_hw, "vh") if c in f)
+                ax_y = tuple(a for a, c in zip(y_hw, "vh") if c in f)
+                tf = np.ascontiguousarray(np.flip(t, ax_t))
+                acc += np.flip(np.asarray(self._session.run([self._output_name], {self._input_name: tf})[0]), ax_y)
+            y = acc / (1 + len(self._inp["flips"]))
+        y = y[0]
         if out["kind"] == "labels":
             if y.ndim == 3:  # (1, H, W) or (H, W, 1)
                 y = y.reshape(y.shape[-2:]) if y.shape[0] == 1 else y[..., 0]

@@ -165,6 +165,32 @@ def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
     assert mask[:, :70].all() and not mask[:, 90:].any()
 
 
+def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
+    """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
+    the left), so test-time flips change its answer in a way that can be computed by hand."""
+    weight = helper.make_tensor("w", TensorProto.FLOAT, [1, 3, 1, 3], [1 / 16, 0, 0, 0, 0, 0, 0, 0, 0])
+    bias = helper.make_tensor("b", TensorProto.FLOAT, [1], [-4.0])
+    graph = helper.make_graph(
+        [helper.make_node("Conv", ["image", "w", "b"], ["logit"], pads=[0, 1, 0, 1])], "left_neighbour",
+        [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, "H", "W"])],
+        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, [1, 1, "H", "W"])], [weight, bias])
+    return _save(tmp_path, name, graph, sidecar)
+
+
+@pytest.mark.parametrize("flips, columns", [([], [21]), (["v"], [21]), (["h"], [19, 21]), (["h", "v", "hv"], [19, 21])])
+def test_in_test_model_with_test_time_flips(tmp_path, flips, columns):
+    # one red column at x = 20: the plain model marks x = 21 (logit 200/16 - 4 = 8.5); its mirror
+    # image marks x = 19, and the mean of the two logits is 200/32 - 4 = 2.25 > 0 at both
+    sidecar = {"input": {"flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="flips" + "_".join(flips)))
+    img = np.zeros((30, 40, 3), np.uint8)
+    img[:, 20, 0] = 200
+    mask = model.predict_mask(img)
+    assert np.array_equal(np.unique(np.nonzero(mask)[1]), columns) and mask[:, columns].all()
+    if flips == ["h"]:
+        assert np.allclose(model.predict_proba(img)[:, 19], 1 / (1 + np.exp(-2.25)), atol=1e-5)
+
+
 # ---------------------------------------------------------------------------------------------
 # errors name the file and the problem
 
@@ -190,6 +216,10 @@ def test_corrupt_model_and_sidecar(tmp_path):
     (tmp_path / "badjson.json").write_text(json.dumps({"input": {}, "output": {"kind": "heatmap"}}))
     with pytest.raises(RebarInputError, match=r"badjson\.json: output.kind"):
         SegmentationModel(path)
+    for flips, kind in ((["x"], "logits"), (["h", "h"], "logits"), (["h"], "labels")):
+        (tmp_path / "badjson.json").write_text(json.dumps({"input": {"flips": flips}, "output": {"kind": kind}}))
+        with pytest.raises(RebarInputError, match=r"badjson\.json: input.flips"):
+            SegmentationModel(path)
 
 
 @pytest.mark.parametrize("sidecar, message", [

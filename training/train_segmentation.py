@@ -306,14 +306,21 @@ def _iou_counts(logits, masks):
     return tp, fp, fn
 
 
-def _logits_full(model, imgs, bs=4):
-    """Full-resolution logits of whole images (float32, on the images' device)."""
+def _logits_full(model, imgs, bs=4, flips=()):
+    """Full-resolution logits of whole images (float32, on the images' device); with ``flips``
+    (any of "h", "v", "hv") averaged with the mirrored images' logits, mirrored back, as
+    SegmentationModel does for a sidecar with ``input.flips``."""
     import torch
 
     out = []
     with torch.no_grad():
         for s in range(0, len(imgs), bs):
-            out.append(_upsample2(model(_normalise(imgs[s:s + bs])).float())[:, 0])
+            x = _normalise(imgs[s:s + bs])
+            y = model(x).float()
+            for f in flips:
+                dims = [d for d, c in ((2, "v"), (3, "h")) if c in f]
+                y = y + model(x.flip(dims)).float().flip(dims)
+            out.append(_upsample2(y / (1 + len(flips)))[:, 0])
     return torch.cat(out)
 
 
@@ -430,7 +437,7 @@ def cmd_export(args):
     # full resolution as SegmentationModel thresholds it
     vimgs, vmasks = _load(work, "val")
     vimgs = torch.from_numpy(vimgs)
-    logits = _logits_full(model, vimgs).numpy()
+    logits = _logits_full(model, vimgs, flips=args.flips).numpy()
     best_t, best_iou = 0.0, -1.0
     for t in np.arange(-2.0, 1.01, 0.25):
         tp, fp, fn = _iou_counts(logits - t, vmasks)
@@ -449,7 +456,7 @@ def cmd_export(args):
     sidecar = {
         "format": "rebarlib-segmentation/1",
         "input": {"name": "image", "size": [IN_W, IN_H], "channel_order": "RGB",
-                  "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32"},
+                  "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32", "flips": list(args.flips)},
         "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
         "model": {"architecture": args.arch, "trained_by": "training/train_segmentation.py",
                   "parameters": info["parameters"], "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
@@ -488,6 +495,8 @@ def main(argv=None):
     a.add_argument("--name", default="rebar_seg")
     a.add_argument("--tag", default=None, help="which trained run (default: the arch)")
     a.add_argument("--run-dir", default=None, help="where the run's state dict and log are (default: --work)")
+    a.add_argument("--flips", nargs="*", default=[], choices=["h", "v", "hv"],
+                   help="test-time flips written into the sidecar (the threshold is chosen with them)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.segmentation import DATASET_SIZE
