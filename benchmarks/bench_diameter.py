@@ -350,16 +350,26 @@ def main() -> None:
               f"{extra:>6}{missed_hidden[combo]:>7}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
-          "not measured, missed (measured as another size)")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'missed':>8}")
+          "not measured (of those, 'alerted': the reason says 'possible wrong size' and names the true size), "
+          "missed (measured as another size); 'false alerts': bars of the design size given that reason")
+    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'alerted':>9}{'missed':>8}"
+          f"{'false alerts':>14}")
+
+    def alert(r):
+        reason = getattr(r.get("row"), "diameter_reason", "") or ""
+        return r["status"] != "measured" and reason.startswith("possible wrong size")
+
     for combo in combos:
         ws = [r for r in recs[combo] if r["kind"] == "bar" and r["wrong_size"]]
         if not ws:
             continue
         flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
         as_other = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
+        alerted = sum(alert(r) and f"Φ{r['true']:g} " in r["row"].diameter_reason for r in ws)
+        false_alerts = sum(alert(r) for r in recs[combo] if r["kind"] == "bar" and not r["wrong_size"])
         m, k, a = combo
-        print(f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{as_other:>8}")
+        print(f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{alerted:>9}"
+              f"{as_other:>8}{false_alerts:>14}")
 
     print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
           "bars measured with the true axes")
