@@ -809,6 +809,19 @@ def _colour_calibration(results, prepared, prm) -> None:
         r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
 
 
+def _alert_other_size(out: dict, med, sigma_m, dw, prm, *, system, deformed) -> None:
+    """A bar vetoed by a cloud that echoes an assumed radius: where the mask alone is clear about
+    another size than the cloud's, the reason says so and names it. The cloud cannot confirm it,
+    so the bar stays "not measured", but the inspector learns which bar may be of another size."""
+    nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+    nom_c = snap_diameter(dw, system=system, deformed=deformed)[0]
+    if math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence:
+        out["diameter_reason"] = (
+            f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
+            f"the point cloud {dw:.1f} mm gives Φ{nom_c:g}, but its axis was fitted with an assumed radius, "
+            "so the cloud cannot confirm another size: check this bar by hand")
+
+
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
@@ -858,16 +871,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
             snap_diameter(med, system=system, deformed=deformed)[0]
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
-            nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
-            nom_c = snap_diameter(dw, system=system, deformed=deformed)[0]
-            if veto_only and math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence:
-                # the mask alone is clear about another size than the one the axis was fitted
-                # with: the cloud cannot confirm it (it echoes the assumed radius), but the
-                # inspector must hear that this bar may be of another size, not just "unmeasured"
-                out["diameter_reason"] = (
-                    f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence "
-                    f"{conf_m:.2f}), the point cloud {dw:.1f} mm gives Φ{nom_c:g}, but its axis was fitted with "
-                    "an assumed radius, so the cloud cannot confirm another size: check this bar by hand")
+            if veto_only:
+                _alert_other_size(out, med, sigma_m, dw, prm, system=system, deformed=deformed)
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
