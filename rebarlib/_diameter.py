@@ -809,12 +809,12 @@ def _colour_calibration(results, prepared, prm) -> None:
         r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
 
 
-def _alert_other_size(out: dict, med, sigma_m, dw, prm, *, system, deformed) -> None:
+def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deformed) -> None:
     """A bar vetoed by a cloud that echoes an assumed radius: where the mask alone is clear about
-    another size than the cloud's, the reason says so and names it. The cloud cannot confirm it,
-    so the bar stays "not measured", but the inspector learns which bar may be of another size."""
+    another size than the cloud's (``nom_c``, snapped from the cloud width ``dw``), the reason says
+    so and names it. The cloud cannot confirm it, so the bar stays "not measured", but the
+    inspector learns which bar may be of another size."""
     nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
-    nom_c = snap_diameter(dw, system=system, deformed=deformed)[0]
     if math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence:
         out["diameter_reason"] = (
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
@@ -867,12 +867,12 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     if not mask_problem and cloud:
         # With an assumed axis radius the cloud width echoes the design: a mask disagreeing
         # with it can never be confirmed, so in veto mode the two must give the same size.
-        strict = veto_only and snap_diameter(dw, system=system, deformed=deformed)[0] != \
-            snap_diameter(med, system=system, deformed=deformed)[0]
+        nom_c = snap_diameter(dw, system=system, deformed=deformed)[0] if veto_only else math.nan
+        strict = veto_only and nom_c != snap_diameter(med, system=system, deformed=deformed)[0]
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
             if veto_only:
-                _alert_other_size(out, med, sigma_m, dw, prm, system=system, deformed=deformed)
+                _alert_other_size(out, med, sigma_m, dw, nom_c, prm, system=system, deformed=deformed)
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"

@@ -368,19 +368,18 @@ class SegmentationModel:
         t, (h, w), (hp, wp) = self._prepare(color)
         is_logit = False
         out = self._out
-        y = np.asarray(self._session.run([self._output_name], {self._input_name: t})[0])
+        run = lambda x: np.asarray(self._session.run([self._output_name], {self._input_name: x})[0])  # noqa: E731
+        y = run(t)
         if self._inp["flips"]:
             # test-time flips: the outputs (logits or probabilities) of the mirrored images,
             # mirrored back, are averaged with the plain one (a network's errors at edges differ
             # between an image and its mirror image, so the mean is closer to the truth)
             t_hw = (2, 3) if self._inp["layout"] == "NCHW" else (1, 2)
             y_hw = (2, 3) if y.ndim == 4 and out["layout"] == "NCHW" else (1, 2)
+            axes = lambda hw, f: tuple(a for a, c in zip(hw, "vh") if c in f)  # noqa: E731
             acc = y.astype(np.float32)
             for f in self._inp["flips"]:
-                ax_t = tuple(a for a, c in zip(t_hw, "vh") if c in f)
-                ax_y = tuple(a for a, c in zip(y_hw, "vh") if c in f)
-                tf = np.ascontiguousarray(np.flip(t, ax_t))
-                acc += np.flip(np.asarray(self._session.run([self._output_name], {self._input_name: tf})[0]), ax_y)
+                acc += np.flip(run(np.ascontiguousarray(np.flip(t, axes(t_hw, f)))), axes(y_hw, f))
             y = acc / (1 + len(self._inp["flips"]))
         y = y[0]
         if out["kind"] == "labels":
