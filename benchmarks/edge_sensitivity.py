@@ -1,11 +1,11 @@
 """How edge-heavy are the segmentation benchmark's subsets? The truth mask grown / shrunk by one
-pixel at every edge, scored overall and on the shadow and rust subsets of 20 test captures.
+pixel at every edge, scored overall and on the shadow, rust and unlit subsets of 20 test captures.
 
     python benchmarks/edge_sensitivity.py
 
 A mask that is wrong by the same pixel at every edge, wherever the light is, loses more IoU on a
 subset whose bar pixels are more often edge pixels: this separates "bars in shadow are harder"
-from "the shadow subset is made of bar flanks".
+from "the subset is made of bar flanks" (the unlit subset: every bar's self-shaded side).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from rebarlib import GEMINI2
 from rebarlib.segmentation import (DATASET_SEED, DATASET_SIZE, confusion_counts, iou, split_indices,
                                    synth_eval_regions, synth_segmentation_capture)
 
-SUBSETS = ("all", "shadow", "rust")
+SUBSETS = ("all", "shadow", "rust", "unlit")
 N_CAPTURES = 20
 
 

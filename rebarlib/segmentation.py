@@ -30,7 +30,7 @@ __all__ = [
     "SegmentationModel", "confusion_counts", "pixel_accuracy", "iou", "dice",
     "fit_formwork_plane", "height_above_plane", "mask_from_depth", "fuse_masks",
     "DATASET_SEED", "DATASET_SIZE", "segmentation_scene_params", "synth_segmentation_capture",
-    "split_indices", "synth_eval_regions",
+    "split_indices", "synth_eval_regions", "soft_mask",
 ]
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
@@ -638,6 +638,43 @@ def fuse_masks(color_mask, depth_mask, *, color_proba=None, low_proba: float = 0
     return kept
 
 
+def soft_mask(mask, proba, *, threshold: float = 0.5) -> np.ndarray:
+    """A binary mask made soft again: the model's probability where the two agree, 1 / 0 where
+    the mask overrides the model (pixels ``fuse_masks`` added from depth or hysteresis, or
+    removed as shadow lines).
+
+    The diameter stage finds a bar's edges where its profile crosses 0.5: on a binary mask that
+    is always half-way between two pixel centres, on the probability it is sub-pixel, so widths
+    of bars lying along the pixel grid lose the half-pixel rounding of each edge.
+
+    Parameters
+    ----------
+    mask : (H, W) bool, e.g. from :func:`fuse_masks`
+    proba : (H, W) float rebar probability of the colour model (``predict_proba``)
+    threshold : the model's threshold (``SegmentationModel.threshold``): the probability is
+        rescaled piecewise-linearly so that it lies at 0.5
+
+    Returns
+    -------
+    (H, W) float32 in 0..1, ``>= 0.5`` exactly where ``mask`` is True
+
+    Examples
+    --------
+    >>> soft_mask(np.array([[True, True, False, False]]), np.array([[0.9, 0.3, 0.7, 0.1]])).tolist()
+    [[0.8999999761581421, 1.0, 0.0, 0.10000000149011612]]
+    """
+    m = np.asarray(mask).astype(bool)
+    p = np.asarray(proba, dtype=np.float32)
+    if p.shape != m.shape or m.ndim != 2:
+        raise RebarInputError(f"proba: expected the shape of mask {m.shape}, got {p.shape}")
+    if not 0 < threshold < 1:
+        raise RebarInputError(f"threshold: expected a probability strictly between 0 and 1, got {threshold!r}")
+    p = np.nan_to_num(np.clip(p, 0, 1), nan=0.0)
+    if threshold != 0.5:
+        p = np.where(p < threshold, 0.5 * p / threshold, 0.5 + 0.5 * (p - threshold) / (1 - threshold))
+    return np.where(m, np.where(p >= 0.5, p, 1.0), np.where(p >= 0.5, 0.0, p)).astype(np.float32)
+
+
 # ---------------------------------------------------------------------------------------------
 # Synthetic data for training and evaluating segmentation models
 
@@ -734,16 +771,23 @@ def split_indices(n: int = DATASET_SIZE, *, seed: int = DATASET_SEED) -> dict:
             "test": np.sort(perm[n_train + n_val:])}
 
 
-def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, rust_margin_px: int | None = None) -> dict:
+def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, margin_px: int | None = None) -> dict:
     """The hard-case subsets of a data-set capture, for the shadow / rust breakdown.
 
-    * ``shadow``: pixels that receive no direct sunlight (in a cast shadow, or facing away from
-      the sun), bar and formwork alike. Found by rendering the same scene again with no ambient
-      light and no noise: those pixels come out exactly black.
-    * ``rust``: pixels of bars with ``truth rust > 0``, grown by ``rust_margin_px`` (default
-      3 px per 1280 px of width) so that false positives around rusty bars count too.
+    * ``shadow`` (bars in shadow, the paper's hard case): bar pixels that lie in a *cast* shadow
+      (sunlight blocked by another bar, a chair or a spacer), grown by ``margin_px`` so that
+      false positives around them count too.
+    * ``unlit``: every pixel that receives no direct sunlight, bar and formwork alike: cast
+      shadows plus the *attached* shadow of every bar (its half facing away from the sun). A
+      harder, edge-dominated subset: the dark side of every bar lies along its edge (about twice
+      the edge share of the bar pixels overall, ``benchmarks/edge_sensitivity.py``), so it scores
+      the edge placement on the dark side rather than bars in shadow. Reported beside ``shadow``.
+    * ``rust``: pixels of bars with ``truth rust > 0``, grown by ``margin_px``.
 
-    Metrics on a subset count only its pixels (``confusion_counts(..., region=...)``).
+    ``margin_px`` defaults to 3 px per 1280 px of width. Unlit pixels are found by rendering the
+    same scene again with no ambient light and no noise (they come out exactly black); attached
+    shadow by rendering it once more without cast shadows. Metrics on a subset count only its
+    pixels (``confusion_counts(..., region=...)``).
 
     Parameters
     ----------
@@ -758,17 +802,25 @@ def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, rust_ma
 
     p = segmentation_scene_params(index, seed=seed)
     app = Appearance(**p["appearance"])
-    dark = replace(app, ambient=0.0, exposure=1.0, noise_sigma=0.0, blur_px=0.0, jpeg_quality=None)
-    ref = synth_capture(design_from_dict(p["design"], source="segmentation data set"),
-                        height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
-                        target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
-                        sensor=SensorModel.ideal(), appearance=dark, intrinsics=capture.intrinsics,
-                        seed=p["render_seed"])
-    shadow = ref.color.max(axis=2) == 0
+
+    def black(cast_shadows):
+        dark = replace(app, ambient=0.0, exposure=1.0, noise_sigma=0.0, blur_px=0.0, jpeg_quality=None,
+                       cast_shadows=cast_shadows)
+        ref = synth_capture(design_from_dict(p["design"], source="segmentation data set"),
+                            height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
+                            target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
+                            sensor=SensorModel.ideal(), appearance=dark, intrinsics=capture.intrinsics,
+                            seed=p["render_seed"])
+        return ref.color.max(axis=2) == 0
+
+    margin = margin_px if margin_px is not None else max(1, round(3 * capture.intrinsics.width / 1280))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1))
+
+    def grow(mask):
+        return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool) if margin > 0 and mask.any() else mask
+
+    unlit = black(True)
+    cast = unlit & ~black(False)
     rusty = [b["id"] + 1 for b in capture.truth["bars"] if b["rust"] > 0]
-    rust = np.isin(capture.bar_ids, rusty)
-    margin = rust_margin_px if rust_margin_px is not None else max(1, round(3 * capture.intrinsics.width / 1280))
-    if margin > 0 and rust.any():
-        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1))
-        rust = cv2.dilate(rust.astype(np.uint8), k).astype(bool)
-    return {"shadow": shadow, "rust": rust}
+    return {"shadow": grow(cast & (capture.bar_ids > 0)), "unlit": unlit,
+            "rust": grow(np.isin(capture.bar_ids, rusty))}

@@ -152,6 +152,8 @@ class Appearance:
     ambient : share of light that reaches shadowed surfaces
     exposure : overall gain; noise_sigma : colour sensor noise (8-bit units)
     blur_px : Gaussian blur sigma; jpeg_quality : JPEG round trip of the colour image
+    cast_shadows : False renders no cast shadows (surfaces facing away from the sun stay dark);
+        used only to tell cast from attached shadow when evaluating
     """
 
     formwork: str | None = None
@@ -163,6 +165,7 @@ class Appearance:
     noise_sigma: float = 2.5
     blur_px: float = 0.0
     jpeg_quality: int | None = None
+    cast_shadows: bool = True
 
     def __post_init__(self):
         if self.formwork is not None and self.formwork not in FORMWORKS:
@@ -649,7 +652,9 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     lit = hit & (lambert > 0)
     idx = np.flatnonzero(lit)
     shadow = np.zeros(len(t), bool)
-    shadow[idx] = caster.occluded(p[idx] + normal[idx] * lift[idx, None], np.broadcast_to(light, (len(idx), 3)).copy(), 1e5)
+    if app.cast_shadows:
+        shadow[idx] = caster.occluded(p[idx] + normal[idx] * lift[idx, None],
+                                      np.broadcast_to(light, (len(idx), 3)).copy(), 1e5)
     direct = np.where(shadow, 0.0, lambert)
     # specular sheen on steel and film-faced board
     view = -d_world / np.linalg.norm(d_world, axis=1, keepdims=True)
