@@ -116,14 +116,22 @@ def _mask_sources():
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
-        sources["model"] = lambda cap: np.asarray(model.predict_mask(cap.color), bool)
+        # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
+        # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
+        # method takes the pixels at >= 0.5
+        def soft_model(cap):
+            proba = model.predict_proba(cap.color)
+            return seg.soft_mask(proba > model.threshold, proba, threshold=model.threshold)
+
+        sources["model"] = soft_model
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebarlib._inspect.rebar_mask): colour mask, the
             # network's probability for the hysteresis, the depth mask (its own plane fit)
             def fused(cap):
                 proba = model.predict_proba(cap.color)
-                return np.asarray(seg.fuse_masks(proba > model.threshold, seg.mask_from_depth(cap, rng=0),
-                                                 color_proba=proba, depth_valid=cap.depth_mm > 0), bool)
+                fused = seg.fuse_masks(proba > model.threshold, seg.mask_from_depth(cap, rng=0),
+                                       color_proba=proba, depth_valid=cap.depth_mm > 0)
+                return seg.soft_mask(fused, proba, threshold=model.threshold)
 
             sources["fused"] = fused
             # without the probability (no hysteresis): what this benchmark called "fused" before
@@ -236,7 +244,7 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset()):
         seen.add(t)
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
         recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
-                         true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r,
+                         true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r, true_id=int(t),
                          wrong_size=bool(tb[t]["wrong_size"])))
     missed = visible - seen
     return recs, len(missed), len(missed & set(truly_hidden))
@@ -255,6 +263,7 @@ def main() -> None:
                     help="refined: use_cloud True (fuse), 'veto' or False (off)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
+    ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
     args = ap.parse_args()
@@ -269,6 +278,7 @@ def main() -> None:
         print("note:", n)
     app = Appearance(rust_fraction=0.3)  # random sun per seed: shadows of the upper bars on the lower
     per_capture = []
+    dump = []  # every bar row joined to the truth (--dump)
     recs = defaultdict(list)
     times = defaultdict(list)
     cpu = defaultdict(list)  # the machine may be shared: CPU time is the fairer figure
@@ -311,6 +321,8 @@ def main() -> None:
             if n_missed_hidden:
                 reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
             bars_rr = [r for r in rr if r["kind"] == "bar"]
+            dump += [{"capture": name, "method": m, "mask": k, "axes": a, "true_id": r["true_id"], "true_mm": r["true"], "true_envelope_mm": r["env"],
+                      "wrong_size": r["wrong_size"], **r["row"]._asdict()} for r in bars_rr]
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
@@ -323,6 +335,11 @@ def main() -> None:
 
     # Table 6 shape: per capture, bars, then wrong / hidden / not measured per combination
     heads = [f"{m[:3]}|{k[:5]}|{a[:3]}" for m, k, a in combos]
+    if args.dump:
+        import pandas as pd
+
+        pd.DataFrame(dump).to_csv(args.dump, index=False)
+        print(f"\n{len(dump)} bar rows written to {args.dump}")
     print("\nPer capture: wrong/hidden/not measured (method|mask|axes)")
     print(f"{'capture':<22}{'bars':>5} " + " ".join(f"{h:>17}" for h in heads))
     for row in per_capture:

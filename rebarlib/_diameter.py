@@ -275,7 +275,20 @@ def _check_inputs(capture, bars, mask, method):
     h, w = capture.intrinsics.height, capture.intrinsics.width
     if m.shape != (h, w):
         raise RebarInputError(f"mask: expected shape ({h}, {w}) like the capture, got {m.shape}")
-    return m.astype(bool)
+    if not np.issubdtype(m.dtype, np.floating):  # bool, or integer labels (any non-zero is rebar)
+        if not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
+            raise RebarInputError(f"mask: expected bool, integer or a float rebar probability in 0..1, "
+                                  f"got dtype {m.dtype}")
+        m = m.astype(bool)
+        return m, m.astype(np.float32)
+    soft = m.astype(np.float32)
+    if not np.isfinite(soft).all():
+        raise RebarInputError(f"mask: a float mask must be a rebar probability in 0..1; "
+                              f"{int((~np.isfinite(soft)).sum())} values are NaN or infinite")
+    if soft.min() < 0 or soft.max() > 1:
+        raise RebarInputError(f"mask: a float mask must be a rebar probability in 0..1, got values "
+                              f"{float(soft.min()):.3g}..{float(soft.max()):.3g}")
+    return soft >= 0.5, soft
 
 
 # --------------------------------------------------------------------------------------------
@@ -923,7 +936,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     bars : pandas.DataFrame with :data:`BAR_COLUMNS`: axis end points over the visible extent in
         the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"; optional
         ``axis_radius_mm`` or ``radius_mm`` (see ``use_cloud``)
-    mask : (H, W) bool, rebar pixels (any bar)
+    mask : (H, W) bool, rebar pixels (any bar); or a float rebar probability in 0..1 (e.g.
+        ``segmentation.soft_mask``): the refined method then finds each edge where the profile
+        crosses 0.5 to a fraction of a pixel, the paper's method uses ``mask >= 0.5``
     design : Design or None; gives each bar's design size (window size, ``matches_design``)
     method : "refined" (default) or "paper" (method.md Stage 3, faithfully)
     system : bar-size standard for snapping; default the design's ``bar_system`` or "GB1499.2"
@@ -977,7 +992,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     """
     import pandas as pd
 
-    m = _check_inputs(capture, bars, mask, method)
+    m, maskf = _check_inputs(capture, bars, mask, method)
     if system is None:
         system = getattr(design, "bar_system", None) or "GB1499.2"
     bar_system(system)  # validates the name
@@ -990,7 +1005,6 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     if colour_edges not in ("check", "replace", False, None):
         raise RebarInputError(f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}")
     prm = _RefinedParams(colour_edges=colour_edges or False)
-    maskf = m.astype(np.float32)
     gray = rgb = None
     if capture.color is not None:
         import cv2

@@ -112,27 +112,32 @@ def _default_model():
     return SegmentationModel.default()
 
 
-def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None) -> np.ndarray:
+def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
+               soft: bool = False) -> np.ndarray:
     """The rebar mask (H, W) bool of a capture for the diameter stage.
 
     ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
     what stands above the formwork, "fused" (default) = both (``segmentation.fuse_masks``).
     ``plane``: the formwork plane if known (``(normal, offset_mm)``); ``model``: a
-    ``SegmentationModel`` (default: the shipped one).
+    ``SegmentationModel`` (default: the shipped one). ``soft``: return (H, W) float32 instead,
+    the model's probability wherever it agrees with the mask (``segmentation.soft_mask``), so
+    the refined diameter stage places the edges to a fraction of a pixel.
     """
-    from .segmentation import fuse_masks, mask_from_depth
+    from .segmentation import fuse_masks, mask_from_depth, soft_mask
 
     if source not in MASK_SOURCES:
         raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
     if source == "depth":
-        return mask_from_depth(capture, plane=plane, rng=rng)
+        depth = mask_from_depth(capture, plane=plane, rng=rng)
+        return depth.astype(np.float32) if soft else depth
     model = model or _default_model()
-    if source == "model":
-        return model.predict_mask(capture.color)
     proba = model.predict_proba(capture.color)
     colour = proba > model.threshold
+    if source == "model":
+        return soft_mask(colour, proba, threshold=model.threshold) if soft else colour
     depth = mask_from_depth(capture, plane=plane, rng=rng)
-    return fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
+    fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
+    return soft_mask(fused, proba, threshold=model.threshold) if soft else fused
 
 
 def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
@@ -147,7 +152,8 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     method : "refined" (default) or "paper"
     diameters : also measure every bar's nominal diameter (method.md stage 3); the bar table then
         has the diameter columns of ``measure_diameters``
-    mask : (H, W) bool rebar mask to use for the diameters (default: computed, see mask_source)
+    mask : (H, W) rebar mask to use for the diameters: bool, or a float rebar probability in 0..1
+        (edges at 0.5, to a fraction of a pixel) (default: computed, see mask_source)
     mask_source : "fused" (refined default), "model" (paper default) or "depth"
     rng : seed or Generator for the random parts (RANSAC, sampling)
 
@@ -175,10 +181,12 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
         plane = None
         if res.formwork.get("found"):
             plane = (np.asarray(res.formwork["normal"], float), float(res.formwork["offset_mm"]))
-        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng)
+        # the refined stage finds edges to a fraction of a pixel on the soft mask; the paper's
+        # takes boundary pixels of the binary one
+        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=method == "refined")
         res.extras["mask_source"] = mask_source
     else:
-        mask = np.asarray(mask, bool)
+        mask = np.asarray(mask)
         if mask.shape != capture.depth_mm.shape:
             raise RebarInputError(f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}")
         res.extras["mask_source"] = "given"

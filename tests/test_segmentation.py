@@ -11,7 +11,8 @@ import pytest
 from rebarlib import GEMINI2, RebarInputError
 from rebarlib.segmentation import (
     DATASET_SEED, SegmentationModel, confusion_counts, dice, fit_formwork_plane, fuse_masks, iou,
-    mask_from_depth, pixel_accuracy, split_indices, synth_segmentation_capture)
+    mask_from_depth, pixel_accuracy, soft_mask, split_indices, synth_eval_regions,
+    synth_segmentation_capture)
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
@@ -364,3 +365,35 @@ def test_runtime_does_not_import_torch():
             "print('torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_soft_mask_keeps_the_binary_decision():
+    mask = np.array([[True, True, False, False]])
+    proba = np.array([[0.9, 0.3, 0.7, 0.1]])
+    # agree: the probability; the mask overrides: 1 (added) or 0 (removed)
+    assert np.allclose(soft_mask(mask, proba), [[0.9, 1.0, 0.0, 0.1]])
+    # a model threshold of 0.2 is moved to 0.5, piecewise linearly
+    out = soft_mask(np.array([[True, True, False]]), np.array([[0.2, 0.6, 0.1]]), threshold=0.2)
+    assert np.allclose(out, [[0.5, 0.5 + 0.5 * 0.4 / 0.8, 0.25]])
+    rng = np.random.default_rng(0)
+    m, p = rng.random((30, 40)) > 0.5, rng.random((30, 40))
+    assert np.array_equal(soft_mask(m, p) >= 0.5, m)
+    with pytest.raises(RebarInputError, match="proba"):
+        soft_mask(m, p[:, :10])
+    with pytest.raises(RebarInputError, match="threshold"):
+        soft_mask(m, p, threshold=1.0)
+
+
+def test_eval_regions_separate_cast_from_attached_shadow():
+    cap = synth_segmentation_capture(3, intrinsics=GEMINI2.scaled(0.5))
+    r = synth_eval_regions(3, cap)
+    bars = cap.labels > 0
+    # every bar has a side facing away from the sun (attached shadow): many unlit bar pixels are
+    # left out of the shadow subset, which starts from bar pixels in a cast shadow
+    unlit_bars = r["unlit"] & bars
+    assert (r["shadow"] & bars).any()
+    assert (unlit_bars & ~r["shadow"]).sum() > 0.2 * unlit_bars.sum()
+    # the shadow subset is unlit bar pixels grown by the margin (2 px at 640 wide): nothing else
+    import cv2
+    near = cv2.dilate(unlit_bars.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert not (r["shadow"] & ~near).any()
