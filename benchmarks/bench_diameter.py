@@ -191,7 +191,7 @@ def _axis_sources():
         from rebarlib._inspect import inspect
     except ImportError as e:
         return sources, [f"no rebarlib._inspect ({e}): detected axes skipped"]
-    sources["detected"] = lambda cap, design: inspect(cap, design).bars
+    sources["detected"] = lambda cap, design: inspect(cap, design, diameters=False, rng=0).bars  # reproducible
     return sources, []
 
 
@@ -221,11 +221,22 @@ def _match(bars, truth):
 def _truly_hidden(cap, design):
     """Ids of the visible bars that lie mostly under nearer bars: what ``measure_diameters``
     reports hidden with the true axes and the true mask (the ground truth of "hidden")."""
+    return _unsizeable(cap, design)[0]
+
+
+def _unsizeable(cap, design):
+    """(hidden, cut): ids of the visible bars that no mask can size, by the true axes and the true
+    mask: mostly under nearer bars (reported hidden), or cut by the image border (in view, but
+    fewer than the minimum cross-sections have both edges in the image, or the axis is outside
+    it: half a bar along the border shows one edge only)."""
     df = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design)
-    return {int(i) for i in df.bar_id[df.hidden]}
+    reason = df.diameter_reason.fillna("")
+    cut = (df.diameter_status == "not measured") & (reason.str.contains("at the image border")
+                                                   | reason.str.contains("outside the image"))
+    return {int(i) for i in df.bar_id[df.hidden]}, {int(i) for i in df.bar_id[cut]}
 
 
-def _score(df, bars, truth, axes_name, truly_hidden=frozenset()):
+def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()):
     """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such:
     (records, missed, missed and truly hidden). A bar that lies under nearer bars cannot be seen,
     so an axis detector that does not find it has missed no visible bar: it counts as hidden."""
@@ -245,8 +256,10 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset()):
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
         recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
                          true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r, true_id=int(t),
-                         wrong_size=bool(tb[t]["wrong_size"])))
+                         wrong_size=bool(tb[t]["wrong_size"]), cut=t in cut))
     missed = visible - seen
+    missed_cut = missed & set(cut) - set(truly_hidden)
+    recs += [dict(kind="missed-cut")] * len(missed_cut)
     return recs, len(missed), len(missed & set(truly_hidden))
 
 
@@ -297,8 +310,9 @@ def main() -> None:
             except Exception as e:  # noqa: BLE001 - a failing detector is reported, not fatal
                 print(f"note: {name}: axes '{a}' failed: {e!r}")
         row = {"capture": name, "bars": len(bars_from_truth(cap.truth))}
-        hidden_truth = _truly_hidden(cap, design) if any(a not in ("truth", "jitter1", "designr", "designr+")
-                                                          for a in axes) else set()
+        hidden_truth, cut_truth = _unsizeable(cap, design)
+        if all(a in ("truth", "jitter1", "designr", "designr+") for a in axes):
+            hidden_truth = set()  # all bars have axes: the measurement reports hidden ones itself
         for combo in combos:
             m, k, a = combo
             if a not in axes:
@@ -309,7 +323,7 @@ def main() -> None:
                                    use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud])
             times[combo].append(time.perf_counter() - t0)
             cpu[combo].append(time.process_time() - c0)
-            rr, n_missed, n_missed_hidden = _score(df, axes[a], cap.truth, a, hidden_truth)
+            rr, n_missed, n_missed_hidden = _score(df, axes[a], cap.truth, a, hidden_truth, cut_truth)
             recs[combo] += rr
             missed[combo] += n_missed
             missed_hidden[combo] += n_missed_hidden
@@ -347,9 +361,13 @@ def main() -> None:
         print(f"{row['capture']:<22}{row['bars']:>5} " + " ".join(f"{c:>17}" for c in cells))
 
     print(f"\nSummary over {len(per_capture)} captures (hidden: reported hidden, or not found by the axes and "
-          "hidden under nearer bars by the truth; of those, 'h.noax' had no axis)")
+          "hidden under nearer bars by the truth; of those, 'h.noax' had no axis; 'cut': of the other bars, "
+          "those the true axes and true mask cannot size because the image border cuts them (one edge "
+          "only, or under 8 cross-sections with both); 'meas.%¬cut': measured % of the bars neither "
+          "hidden nor cut)")
     print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
-          f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'extra':>6}{'h.noax':>7}{'median s':>9}{'cpu s':>7}")
+          f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'cut':>5}{'meas.%¬cut':>11}{'extra':>6}{'h.noax':>7}"
+          f"{'median s':>9}{'cpu s':>7}")
     for combo in combos:
         rr = [r for r in recs[combo] if r["kind"] == "bar"]
         if not rr and not missed[combo]:
@@ -361,9 +379,12 @@ def main() -> None:
         wrong_hi = [r for r in wrong if r["conf"] >= HIGH_CONFIDENCE]
         extra = sum(r["kind"] == "extra" for r in recs[combo])
         base = max(nb - hidden, 1)
+        cut = sum(r["status"] != "hidden" and r["cut"] for r in rr) + sum(r["kind"] == "missed-cut" for r in recs[combo])
+        meas_uncut = sum(not r["cut"] for r in meas)
         m, k, a = combo
         print(f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
+              f"{cut:>5}{100 * meas_uncut / max(base - cut, 1):>11.1f}"
               f"{extra:>6}{missed_hidden[combo]:>7}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
