@@ -114,7 +114,7 @@ def _default_model():
 
 def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
                soft: bool = False) -> np.ndarray:
-    """The rebar mask (H, W) bool of a capture for the diameter stage.
+    """The rebar mask of a capture for the diameter stage: (H, W) bool, or float32 with ``soft``.
 
     ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
     what stands above the formwork, "fused" (default) = both (``segmentation.fuse_masks``).

@@ -106,7 +106,8 @@ def image_figure(rgb, *, title: str = "", width: int = 800):
 
 
 def overlay_mask(rgb, mask, *, color=(255, 0, 0), alpha: float = 0.5) -> np.ndarray:
-    """``rgb`` with the pixels of ``mask`` (H, W) bool tinted by ``color``.
+    """``rgb`` with the pixels of ``mask`` (H, W) bool tinted by ``color`` (a float mask, a
+    rebar probability such as ``rebar_mask(..., soft=True)``, counts where it is >= 0.5).
 
     Examples
     --------
@@ -115,7 +116,8 @@ def overlay_mask(rgb, mask, *, color=(255, 0, 0), alpha: float = 0.5) -> np.ndar
     [100, 0, 0]
     """
     out = np.asarray(rgb).astype(np.float32).copy()
-    m = np.asarray(mask, bool)
+    m = np.asarray(mask)
+    m = m >= 0.5 if np.issubdtype(m.dtype, np.floating) else m.astype(bool)
     out[m] = (1 - alpha) * out[m] + alpha * np.asarray(color, np.float32)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
