@@ -97,7 +97,8 @@ def _capture(name, design, kw, app, cache):
 
 
 def _mask_sources():
-    """Callables capture -> (H, W) bool for each available mask, and notes on the others."""
+    """Callables capture -> (H, W) mask (bool, or a float probability for the soft ones) for each
+    available mask, and notes on the others."""
     sources = {"truth": lambda cap: cap.labels > 0,
                # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
                "dilated": lambda cap: _morph(cap.labels > 0, +1),
@@ -116,24 +117,16 @@ def _mask_sources():
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
+        from rebarlib._inspect import rebar_mask
+
         # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
         # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
         # method takes the pixels at >= 0.5
-        def soft_model(cap):
-            proba = model.predict_proba(cap.color)
-            return seg.soft_mask(proba > model.threshold, proba, threshold=model.threshold)
-
-        sources["model"] = soft_model
+        sources["model"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True)
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
-            # as the pipeline builds it (rebarlib._inspect.rebar_mask): colour mask, the
-            # network's probability for the hysteresis, the depth mask (its own plane fit)
-            def fused(cap):
-                proba = model.predict_proba(cap.color)
-                fused = seg.fuse_masks(proba > model.threshold, seg.mask_from_depth(cap, rng=0),
-                                       color_proba=proba, depth_valid=cap.depth_mm > 0)
-                return seg.soft_mask(fused, proba, threshold=model.threshold)
-
-            sources["fused"] = fused
+            # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
+            # the hysteresis, the depth mask (its own plane fit)
+            sources["fused"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
             # without the probability (no hysteresis): what this benchmark called "fused" before
             sources["fused-nohyst"] = lambda cap: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
@@ -218,12 +211,6 @@ def _match(bars, truth):
     return np.array(out, int)
 
 
-def _truly_hidden(cap, design):
-    """Ids of the visible bars that lie mostly under nearer bars: what ``measure_diameters``
-    reports hidden with the true axes and the true mask (the ground truth of "hidden")."""
-    return _unsizeable(cap, design)[0]
-
-
 def _unsizeable(cap, design):
     """(hidden, cut): ids of the visible bars that no mask can size, by the true axes and the true
     mask: mostly under nearer bars (reported hidden), or cut by the image border (in view, but
@@ -258,7 +245,7 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()
                          true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r, true_id=int(t),
                          wrong_size=bool(tb[t]["wrong_size"]), cut=t in cut))
     missed = visible - seen
-    missed_cut = missed & set(cut) - set(truly_hidden)
+    missed_cut = (missed & set(cut)) - set(truly_hidden)
     recs += [dict(kind="missed-cut")] * len(missed_cut)
     return recs, len(missed), len(missed & set(truly_hidden))
 

@@ -275,12 +275,11 @@ def _check_inputs(capture, bars, mask, method):
     h, w = capture.intrinsics.height, capture.intrinsics.width
     if m.shape != (h, w):
         raise RebarInputError(f"mask: expected shape ({h}, {w}) like the capture, got {m.shape}")
-    if not np.issubdtype(m.dtype, np.floating):  # bool, or integer labels (any non-zero is rebar)
-        if not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
-            raise RebarInputError(f"mask: expected bool, integer or a float rebar probability in 0..1, "
-                                  f"got dtype {m.dtype}")
+    if m.dtype == bool or np.issubdtype(m.dtype, np.integer):  # integer labels: any non-zero is rebar
         m = m.astype(bool)
         return m, m.astype(np.float32)
+    if not np.issubdtype(m.dtype, np.floating):
+        raise RebarInputError(f"mask: expected bool, integer or a float rebar probability in 0..1, got dtype {m.dtype}")
     soft = m.astype(np.float32)
     if not np.isfinite(soft).all():
         raise RebarInputError(f"mask: a float mask must be a rebar probability in 0..1; "
