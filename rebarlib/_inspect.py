@@ -266,6 +266,12 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
         for b in found:
             bar_clouds.append(cloud.subset(bar_sel[sel[b.point_index]]))
         bars.extend(found)
+    # a second look, at full resolution, at the positions of each row where no bar was found
+    more, more_clouds = G.find_missed_bars(bars, depth_mm=capture.depth_mm, intrinsics=K, plane=plane,
+                                           design_spacing=_design_spacing(design), noise_mm=plane.noise_mm,
+                                           min_length_mm=MIN_BAR_LENGTH_MM)
+    bars.extend(more)
+    bar_clouds.extend(more_clouds)
     T["bars"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -1171,6 +1171,158 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
     return out
 
 
+def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Plane, design_spacing: dict,
+                     noise_mm: float | None = None, min_length_mm: float = 50.0, min_points: int = 8,
+                     search_fraction: float = 0.25, step_mm: float = 0.25) -> tuple[list, list]:
+    """A second look, at full resolution, at every position of a row where no bar was found.
+
+    The bar search works on a thinned cloud with the pixels just behind occluding edges removed
+    (``prepare_cloud``). Two kinds of bar lose most of their points there: a lower bar seen only
+    as 1–2 pixel slivers beside the upper bar right above it (the slivers are edge pixels, and a
+    stride of 2 keeps a quarter of them), and a bar cut by an image corner to a few centimetres.
+    Each such bar sits where its row says a bar should be: between two found bars of its
+    direction whose gap spans several design spacings, or beyond the outermost one.
+
+    At each empty position (found bars' row continued at the design spacing, no found bar within
+    half a spacing) the full-resolution depth pixels of a corridor ``± search_fraction`` ×
+    spacing wide are turned into points. A bar there is a cylinder of its level's radius with its
+    axis at the level's height (median of the measured bars of its direction), so its points lie
+    within ``tol`` of that cylinder: ``tol`` = max(2 mm, 3 × the sensor noise measured on the
+    formwork), covering the depth noise and 1 mm storage steps. The axis offset is scanned across
+    the corridor; the best offset is a bar when its cylinder points run continuously (gaps up to
+    10 mm) along at least ``min_length_mm`` minus one pixel footprint, with at least
+    ``min_points`` of them. What else could lie on that cylinder does not run along it: a crossing
+    bar is a bar width long, a tie or chair a few centimetres, and the mixed depths of pixels
+    along an upper bar's edge (flying pixels) land on a given surface only now and then, so
+    their hits are far apart.
+
+    A bar found this way is reported with status "not measured" (it is there, but a sliver does
+    not place its axis to the millimetre): its axis is the scanned offset at its level's height.
+    It counts as found, so the position is no longer "hidden" or "missing", and both spacings
+    to its neighbours are "not measured" rather than one spacing twice the real one.
+
+    Returns ``(bars, clouds)``: the new bars and, for each, its points (camera frame, with pixels).
+    """
+    depth = np.asarray(depth_mm, float)
+    H, W = depth.shape
+    tol = max(2.0, 3.0 * (noise_mm if noise_mm and np.isfinite(noise_mm) else 0.0))
+    new, clouds = [], []
+    for layer in LAYERS:
+        for level in LEVELS:
+            grp = _order_across([b for b in bars if b.layer == layer and b.level == level])
+            s = design_spacing.get((layer, level))
+            measured = [b for b in grp if b.status == "measured"]
+            if len(grp) < 2 or len(measured) < 2 or not s or not np.isfinite(s):
+                continue
+            ref = measured[0]
+            d, n2 = ref.direction, ref.normal2d
+            r = float(np.median([b.radius_mm for b in measured]))
+            h_axis = float(np.median([b.axis_height_mm for b in measured]))
+            offs = np.array([float(b.plan_point(b.t_mid) @ n2) for b in grp])
+            cand = []
+            for a_off, b_off in zip(offs[:-1], offs[1:]):
+                k = int(round((b_off - a_off) / s)) - 1
+                cand += [a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1)]
+            for start, sign in ((offs[0], -1), (offs[-1], 1)):
+                for j in range(1, 200):
+                    off = start + sign * j * s
+                    if not _surface_in_image(ref, off, h_axis, r, plane, intrinsics):
+                        break
+                    cand.append(off)
+            half = search_fraction * s
+            for off in cand:
+                if np.min(np.abs(offs - off)) < 0.5 * s:
+                    continue
+                found = _look_at_position(ref, off, half, h_axis, r, depth, intrinsics, plane, tol, step_mm,
+                                          min_length_mm, min_points)
+                if found is None:
+                    continue
+                c, t0, t1, cloud = found
+                new.append(BarAxis(layer, d, c, 0.0, h_axis, 0.0, t0, t1, r, len(cloud), float("nan"), None,
+                                   ref.group, level=level, status="not measured",
+                                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over {t1 - t0:.0f} mm "
+                                           "(slivers beside a bar above it, or cut by the image border): it is "
+                                           "there, but its axis cannot be placed to the millimetre")))
+                clouds.append(cloud)
+                offs = np.sort(np.append(offs, c))
+    return new, clouds
+
+
+def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: float, depth, intr: Intrinsics,
+                      plane: Plane, tol: float, step_mm: float, min_length_mm: float, min_points: int):
+    """Full-resolution points of the corridor ``off ± half`` on the cylinder of radius ``r`` at
+    height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None."""
+    import cv2
+
+    from ._camera import backproject
+
+    H, W = depth.shape
+    inside = np.zeros(int(round(6000.0 / _POSITION_STEP_MM)), bool)
+    for do, dh in ((-r, 0.0), (r, 0.0), (0.0, r)):
+        cam, uv = _position_axis(ref, off + do, h_axis + dh, plane, intr)
+        inside |= _in_image(uv, cam, intr)
+    if inside.sum() < 2:
+        return None
+    t_all = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)
+    ta, tb = t_all[inside].min() - 2 * half, t_all[inside].max() + 2 * half
+    # the corridor's footprint in the image, over the heights a bar there can show (its axis to its top)
+    corners = []
+    for t in (ta, tb):
+        for o in (off - half - r, off + half + r):
+            for hh in (h_axis - 0.5 * r, h_axis + 1.5 * r):
+                corners.append(np.r_[t * ref.direction + o * ref.normal2d, hh])
+    cc = from_slab_frame(np.array(corners), plane)
+    if np.any(cc[:, 2] <= 0):
+        return None
+    pc = project(cc, intr)
+    mask = np.zeros((H, W), np.uint8)
+    hull = cv2.convexHull(np.round(np.clip(pc, -4 * W, 4 * W)).astype(np.int32))
+    cv2.fillConvexPoly(mask, hull, 1)
+    v, u = np.nonzero((mask > 0) & (depth > 0))
+    if len(u) < min_points:
+        return None
+    pix = np.column_stack((u, v)).astype(np.int32)
+    pts = backproject(pix, depth[v, u], intr)
+    q = to_slab_frame(pts, plane)
+    o = q[:, :2] @ ref.normal2d
+    t = q[:, :2] @ ref.direction
+    band = (np.abs(o - off) < half + r) & (q[:, 2] > h_axis - 0.5 * r) & (q[:, 2] < h_axis + 1.5 * r)
+    if band.sum() < min_points:
+        return None
+    o, t, hz, pix, pts = o[band], t[band], q[band, 2], pix[band], pts[band]
+    # the footprint of one pixel on the bar: the bars' gaps are judged against it
+    pitch = float(np.median(pts[:, 2])) / (0.5 * (intr.fx + intr.fy))
+    # the camera sees the side of a cylinder that faces it: a point on the far flank of a circle
+    # is not on it (without this, a strip of one flank fits a circle on either side of it)
+    eye = to_slab_frame(np.zeros((1, 3)), plane)[0]
+    eye_o, eye_h = float(eye[:2] @ ref.normal2d), float(eye[2])
+
+    def on_cylinder(c):
+        ro, rh = o - c, hz - h_axis
+        return (np.abs(np.hypot(ro, rh) - r) < tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
+
+    scores = []  # (offset, run start, run end, points on the cylinder along the run)
+    for c in np.arange(off - half, off + half + step_mm, step_mm):
+        on = on_cylinder(c)
+        if on.sum() < min_points:
+            continue
+        t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
+        scores.append((float(c), t0, t1, int(np.sum(on & (t >= t0) & (t <= t1)))))
+    ok = [x for x in scores if x[2] - x[1] >= min_length_mm - pitch and x[3] >= min_points]
+    if not ok:
+        return None
+    # the offsets that explain the most points along a long run; several neighbouring offsets do
+    # about as well (the tolerance band is wider than the scan step): take their middle
+    longest = max(x[2] - x[1] for x in ok)
+    ok = [x for x in ok if x[2] - x[1] >= 0.9 * longest]
+    most = max(x[3] for x in ok)
+    c = float(np.median([x[0] for x in ok if x[3] >= 0.95 * most]))
+    on = on_cylinder(c)
+    t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
+    on &= (t >= t0) & (t <= t1)
+    return c, t0, t1, Cloud(pts[on], pix[on])
+
+
 def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, intr: Intrinsics):
     """Samples every 5 mm of a line parallel to ``ref`` at plan offset ``off`` and ``height_mm``:
     (camera-frame points (N, 3), their pixels (N, 2))."""
@@ -1178,6 +1330,16 @@ def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, int
     plan = t[:, None] * ref.direction + off * ref.normal2d
     cam = from_slab_frame(np.c_[plan, np.full(len(t), height_mm)], plane)
     return cam, project(cam, intr)
+
+
+def _surface_in_image(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane,
+                      intr: Intrinsics) -> bool:
+    """Does any of a would-be bar's surface (its two flanks and its crest) project into the image?"""
+    for do, dh in ((-radius, 0.0), (radius, 0.0), (0.0, radius)):
+        cam, uv = _position_axis(ref, off + do, h_axis + dh, plane, intr)
+        if _in_image(uv, cam, intr).any():
+            return True
+    return False
 
 
 def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:

@@ -64,6 +64,9 @@ class Deviations:
     height_sigma_mm : std dev of each bar's height (local cover deviations)
     bow_mm : in-plan sagitta of each bar over its full length (random sign)
     mesh_yaw_deg : rotation of the whole mesh in plan
+    stacked : each upper bar right above the lower bar of its direction (before the position
+        jitter; where both sets have one spacing): the lower bars are then seen only as slivers
+        beside the upper bars
     missing : number of bars left out (never the outermost of a set)
     wrong_size : number of bars of another standard size than designed
     ribs : deformed bars, drawn with their rib envelope (GB 1499.2 d1 + 2h)
@@ -76,6 +79,7 @@ class Deviations:
     height_sigma_mm: float = 0.5
     bow_mm: float = 0.0
     mesh_yaw_deg: float = 0.0
+    stacked: bool = False
     missing: int = 0
     wrong_size: int = 0
     ribs: bool = True
@@ -270,12 +274,17 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     env = (lambda d: rib_envelope_mm(d)) if dev.ribs else (lambda d: float(d))
 
     # Design positions of every set, then pick missing / wrong-size bars among inner positions.
-    sets = []
+    sets, lower_phase = [], {}
     for layer in ("lower", "upper"):
         lat = design.lattice(layer)
         for level in ("bottom", "top"):
             s = lat.level(level).spacing_mm
             phase = rng.uniform(-s / 2, s / 2)
+            below = lower_phase.get(level)
+            if dev.stacked and layer == "upper" and below is not None and below[1] == s:
+                phase = below[0]  # right above the lower bars of its direction
+            if layer == "lower":
+                lower_phase[level] = (phase, s)
             n = int((2 * half - 2 * 25) // s) + 1
             first = -(n - 1) * s / 2 + phase
             sets.append((layer, level, [first + k * s for k in range(n)]))
