@@ -1191,10 +1191,14 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     formwork), covering the depth noise and 1 mm storage steps. The axis offset is scanned across
     the corridor; the best offset is a bar when its cylinder points run continuously (gaps up to
     10 mm) along at least ``min_length_mm`` minus one pixel footprint, with at least
-    ``min_points`` of them. What else could lie on that cylinder does not run along it: a crossing
-    bar is a bar width long, a tie or chair a few centimetres, and the mixed depths of pixels
-    along an upper bar's edge (flying pixels) land on a given surface only now and then, so
-    their hits are far apart.
+    ``min_points`` of them. Only the side of the cylinder facing the camera counts (else a strip
+    of one flank fits a circle on either side of it). What else could lie on that cylinder does
+    not run along it: a crossing bar is a bar width long, a tie or chair a few centimetres, and
+    the mixed depths of pixels along an upper bar's edge (flying pixels) land on a given surface
+    only now and then, so their hits are far apart. And a bar is solid: where more points lie
+    inside the cylinder, or beyond it on rays from the camera that pass through it, than half the
+    points on it, something else is there (the formwork seen where the bar would be, the edge of
+    a board), and the position stays empty.
 
     A bar found this way is reported with status "not measured" (it is there, but a sliver does
     not place its axis to the millimetre): its axis is the scanned offset at its level's height.
@@ -1204,7 +1208,6 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     Returns ``(bars, clouds)``: the new bars and, for each, its points (camera frame, with pixels).
     """
     depth = np.asarray(depth_mm, float)
-    H, W = depth.shape
     tol = max(2.0, 3.0 * (noise_mm if noise_mm and np.isfinite(noise_mm) else 0.0))
     new, clouds = [], []
     for layer in LAYERS:
@@ -1265,11 +1268,11 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
         return None
     t_all = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)
     ta, tb = t_all[inside].min() - 2 * half, t_all[inside].max() + 2 * half
-    # the corridor's footprint in the image, over the heights a bar there can show (its axis to its top)
+    # the corridor's footprint in the image, from the formwork to a little over a bar's top
     corners = []
     for t in (ta, tb):
         for o in (off - half - r, off + half + r):
-            for hh in (h_axis - 0.5 * r, h_axis + 1.5 * r):
+            for hh in (0.0, h_axis + 1.5 * r):
                 corners.append(np.r_[t * ref.direction + o * ref.normal2d, hh])
     cc = from_slab_frame(np.array(corners), plane)
     if np.any(cc[:, 2] <= 0):
@@ -1286,7 +1289,9 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     q = to_slab_frame(pts, plane)
     o = q[:, :2] @ ref.normal2d
     t = q[:, :2] @ ref.direction
-    band = (np.abs(o - off) < half + r) & (q[:, 2] > h_axis - 0.5 * r) & (q[:, 2] < h_axis + 1.5 * r)
+    corridor = (np.abs(o - off) < half + r) & (q[:, 2] < h_axis + 1.5 * r)
+    o_all, t_all, h_all = o[corridor], t[corridor], q[corridor, 2]
+    band = corridor & (q[:, 2] > h_axis - 0.5 * r)
     if band.sum() < min_points:
         return None
     o, t, hz, pix, pts = o[band], t[band], q[band, 2], pix[band], pts[band]
@@ -1320,6 +1325,21 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     on = on_cylinder(c)
     t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
     on &= (t >= t0) & (t <= t1)
+    # a bar is solid: the camera sees neither into it nor through it. A point lying inside the
+    # cylinder (by more than ``tol``), or lying beyond it on a ray from the camera that passes
+    # inside it, could not be seen if the bar were there. Many such points (the formwork seen
+    # where the bar would be, the top of a board lower than a bar) mean there is no bar there,
+    # whatever lies on its flanks; a bar's own slivers never give them. In the cross-section
+    # plane (the cylinder runs along t): distance from the axis to the segment camera -> point.
+    along = (t_all >= t0) & (t_all <= t1)
+    eo, eh = o_all[along] - eye_o, h_all[along] - eye_h
+    wo, wh = c - eye_o, h_axis - eye_h
+    s_ = np.clip((wo * eo + wh * eh) / np.maximum(eo * eo + eh * eh, 1e-9), 0.0, 1.0)
+    closest = np.hypot(wo - s_ * eo, wh - s_ * eh)
+    dist = np.hypot(o_all[along] - c, h_all[along] - h_axis)
+    contrary = int(np.sum(((closest < r - tol) & (dist > r + tol)) | (dist < r - tol)))
+    if contrary > 0.5 * on.sum():
+        return None
     return c, t0, t1, Cloud(pts[on], pix[on])
 
 
