@@ -1173,7 +1173,7 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
 
 def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Plane, design_spacing: dict,
                      noise_mm: float | None = None, min_length_mm: float = 50.0, min_points: int = 8,
-                     search_fraction: float = 0.25, step_mm: float = 0.25) -> tuple[list, list]:
+                     search_fraction: float = 0.25, step_mm: float = 0.5) -> tuple[list, list]:
     """A second look, at full resolution, at every position of a row where no bar was found.
 
     The bar search works on a thinned cloud with the pixels just behind occluding edges removed
@@ -1278,12 +1278,18 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     if np.any(cc[:, 2] <= 0):
         return None
     pc = project(cc, intr)
-    mask = np.zeros((H, W), np.uint8)
     hull = cv2.convexHull(np.round(np.clip(pc, -4 * W, 4 * W)).astype(np.int32))
-    cv2.fillConvexPoly(mask, hull, 1)
-    v, u = np.nonzero((mask > 0) & (depth > 0))
+    # fill the hull within its bounding box only (a corridor is a thin slice of the image)
+    x0, y0, bw, bh = cv2.boundingRect(hull)
+    u0, v0, u1, v1 = max(x0, 0), max(y0, 0), min(x0 + bw, W), min(y0 + bh, H)
+    if u1 <= u0 or v1 <= v0:
+        return None
+    mask = np.zeros((v1 - v0, u1 - u0), np.uint8)
+    cv2.fillConvexPoly(mask, hull - np.array([u0, v0], np.int32), 1)
+    v, u = np.nonzero((mask > 0) & (depth[v0:v1, u0:u1] > 0))
     if len(u) < min_points:
         return None
+    u, v = u + u0, v + v0
     pix = np.column_stack((u, v)).astype(np.int32)
     pts = backproject(pix, depth[v, u], intr)
     q = to_slab_frame(pts, plane)
@@ -1306,8 +1312,15 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
         ro, rh = o - c, hz - h_axis
         return (np.abs(np.hypot(ro, rh) - r) < tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
 
+    offsets = np.arange(off - half, off + half + step_mm, step_mm)
+    # how many points each offset's cylinder holds, all offsets at once (the facing test is
+    # left to the loop): only offsets that can reach min_points are looked at further
+    near = np.zeros(len(offsets), int)
+    for k in range(0, len(offsets), 64):
+        c_ = offsets[k:k + 64, None]
+        near[k:k + 64] = (np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < tol).sum(axis=1)
     scores = []  # (offset, run start, run end, points on the cylinder along the run)
-    for c in np.arange(off - half, off + half + step_mm, step_mm):
+    for c in offsets[near >= min_points]:
         on = on_cylinder(c)
         if on.sum() < min_points:
             continue
