@@ -45,7 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from ._camera import Cloud, Intrinsics, project
+from ._camera import Cloud, Intrinsics, backproject, project
 from ._checks import RebarInputError
 
 __all__ = [
@@ -57,6 +57,7 @@ __all__ = [
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
 _POSITION_STEP_MM = 5.0  # sampling of a would-be bar's axis when checking what the camera sees there
+_POSITION_T = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)  # along a would-be bar, mm
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1257,17 +1258,14 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None."""
     import cv2
 
-    from ._camera import backproject
-
     H, W = depth.shape
-    inside = np.zeros(int(round(6000.0 / _POSITION_STEP_MM)), bool)
+    inside = np.zeros(len(_POSITION_T), bool)
     for do, dh in ((-r, 0.0), (r, 0.0), (0.0, r)):
         cam, uv = _position_axis(ref, off + do, h_axis + dh, plane, intr)
         inside |= _in_image(uv, cam, intr)
     if inside.sum() < 2:
         return None
-    t_all = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)
-    ta, tb = t_all[inside].min() - 2 * half, t_all[inside].max() + 2 * half
+    ta, tb = _POSITION_T[inside].min() - 2 * half, _POSITION_T[inside].max() + 2 * half
     # the corridor's footprint in the image, from the formwork to a little over a bar's top
     corners = []
     for t in (ta, tb):
@@ -1359,7 +1357,7 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
 def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, intr: Intrinsics):
     """Samples every 5 mm of a line parallel to ``ref`` at plan offset ``off`` and ``height_mm``:
     (camera-frame points (N, 3), their pixels (N, 2))."""
-    t = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)
+    t = _POSITION_T
     plan = t[:, None] * ref.direction + off * ref.normal2d
     cam = from_slab_frame(np.c_[plan, np.full(len(t), height_mm)], plane)
     return cam, project(cam, intr)

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from rebarlib import GEMINI2, RebarInputError, load_capture
+from rebarlib._camera import project
 from rebarlib._capture import Capture
 from rebarlib._geom_eval import measurable_bars, score_result
 from rebarlib._inspect import inspect
@@ -248,8 +249,7 @@ def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
         a = 0.5 * (np.array(lo["axis_start_mm"]) + np.array(hi["axis_start_mm"]))
         b = 0.5 * (np.array(lo["axis_end_mm"]) + np.array(hi["axis_end_mm"]))
         p = a + np.linspace(0, 1, 400)[:, None] * (b - a)
-        p = p[p[:, 2] > 1]
-        u, v = K.fx * p[:, 0] / p[:, 2] + K.cx, K.fy * p[:, 1] / p[:, 2] + K.cy
+        u, v = project(p[p[:, 2] > 1], K).T
         n += int(np.sum((u >= 0) & (u < K.width) & (v >= 0) & (v < K.height)) > 20)
     return n
 
