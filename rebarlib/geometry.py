@@ -1174,7 +1174,8 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
 
 def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Plane, design_spacing: dict,
                      noise_mm: float | None = None, min_length_mm: float = 50.0, min_points: int = 8,
-                     search_fraction: float = 0.25, step_mm: float = 0.5) -> tuple[list, list]:
+                     min_fill: float = 0.25, search_fraction: float = 0.25,
+                     step_mm: float = 0.5) -> tuple[list, list]:
     """A second look, at full resolution, at every position of a row where no bar was found.
 
     The bar search works on a thinned cloud with the pixels just behind occluding edges removed
@@ -1192,7 +1193,9 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     formwork), covering the depth noise and 1 mm storage steps. The axis offset is scanned across
     the corridor; the best offset is a bar when its cylinder points run continuously (gaps up to
     10 mm) along at least ``min_length_mm`` minus one pixel footprint, with at least
-    ``min_points`` of them. Only the side of the cylinder facing the camera counts (else a strip
+    ``min_points`` of them and at least one per 1 / ``min_fill`` pixels of its length (a bar in view,
+    or a sliver of it, is a continuous stripe in the image; chance hits of flying pixels along
+    an edge are sparser). Only the side of the cylinder facing the camera counts (else a strip
     of one flank fits a circle on either side of it). What else could lie on that cylinder does
     not run along it: a crossing bar is a bar width long, a tie or chair a few centimetres, and
     the mixed depths of pixels along an upper bar's edge (flying pixels) land on a given surface
@@ -1216,7 +1219,7 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
             grp = _order_across([b for b in bars if b.layer == layer and b.level == level])
             s = design_spacing.get((layer, level))
             measured = [b for b in grp if b.status == "measured"]
-            if len(grp) < 2 or len(measured) < 2 or not s or not np.isfinite(s):
+            if not measured or not s or not np.isfinite(s):
                 continue
             ref = measured[0]
             d, n2 = ref.direction, ref.normal2d
@@ -1238,7 +1241,7 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
                 if np.min(np.abs(offs - off)) < 0.5 * s:
                     continue
                 found = _look_at_position(ref, off, half, h_axis, r, depth, intrinsics, plane, tol, step_mm,
-                                          min_length_mm, min_points)
+                                          min_length_mm, min_points, min_fill)
                 if found is None:
                     continue
                 c, t0, t1, cloud = found
@@ -1253,7 +1256,8 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
 
 
 def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: float, depth, intr: Intrinsics,
-                      plane: Plane, tol: float, step_mm: float, min_length_mm: float, min_points: int):
+                      plane: Plane, tol: float, step_mm: float, min_length_mm: float, min_points: int,
+                      min_fill: float):
     """Full-resolution points of the corridor ``off ± half`` on the cylinder of radius ``r`` at
     height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None."""
     import cv2
@@ -1350,6 +1354,11 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     dist = np.hypot(o_all[along] - c, h_all[along] - h_axis)
     contrary = int(np.sum(((closest < r - tol) & (dist > r + tol)) | (dist < r - tol)))
     if contrary > 0.5 * on.sum():
+        return None
+    # a bar in view is a continuous stripe in the image, a sliver of it at least a pixel wide:
+    # along its run, at least ``min_fill`` of the pixels' length must hold one of its points.
+    # Chance hits of mixed depths (flying pixels along an edge) are sparser than that
+    if on.sum() < min_fill * (t1 - t0) / pitch:
         return None
     return c, t0, t1, Cloud(pts[on], pix[on])
 
