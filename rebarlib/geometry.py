@@ -1186,8 +1186,9 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     direction whose gap spans several design spacings, or beyond the outermost one.
 
     At each empty position (found bars' row continued at the design spacing, no found bar within
-    half a spacing) the full-resolution depth pixels of a corridor ``± search_fraction`` ×
-    spacing wide are turned into points. A bar there is a cylinder of its level's radius with its
+    half a spacing; a row needs one measured bar, which gives its level's height) the
+    full-resolution depth pixels of a corridor ``± search_fraction`` × spacing wide are turned
+    into points. A bar there is a cylinder of its level's radius with its
     axis at the level's height (median of the measured bars of its direction), so its points lie
     within ``tol`` of that cylinder: ``tol`` = max(2 mm, 3 × the sensor noise measured on the
     formwork), covering the depth noise and 1 mm storage steps. The axis offset is scanned across
