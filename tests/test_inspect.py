@@ -22,7 +22,7 @@ from rebarlib._geom_eval import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
 from rebarlib.data import example_capture, example_slab, paper_design
-from rebarlib.synth import CameraPose, Deviations, make_scene, render_capture, synth_capture
+from rebarlib.synth import CameraPose, Deviations, SensorModel, make_scene, render_capture, synth_capture
 
 K_HALF = GEMINI2.scaled(0.5)
 COVER_TOL_MM = 0.8  # cover, half resolution
@@ -237,6 +237,23 @@ def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar():
         # precondition: an empty lower position in view, right under an upper bar
         assert _empty_lower_positions_in_view_under_upper_bars(cap) >= 1
 
+
+
+def test_second_look_ignores_flying_pixels():
+    """A sensor with over three times the default flying pixels at depth edges (mixed depths
+    between the two surfaces): their chance hits on a would-be bar's cylinder are sparser than a
+    bar's stripe of pixels, so the second look places no bar on them. (Without its fill rule it
+    placed one in each of these captures.)"""
+    design = paper_design(cover_mm=20)
+    sensor = SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5)
+    for k, h, tilt, stacked in ((1, 500, 15, True), (2, 600, 5, False)):
+        cap = synth_capture(design, sensor=sensor, height_mm=h, tilt_deg=tilt, yaw_deg=47.0 * k,
+                            deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
+                            seed=500 + k, scene_seed=600 + k)
+        res = inspect(cap, design, diameters=False, rng=0)
+        s = score_result(res, cap)
+        second = set(res.bars.loc[res.bars["reason"].str.startswith("seen only at full resolution"), "bar_id"])
+        assert not second & set(s["phantoms"]), f"capture {k}: second-look phantoms {second & set(s['phantoms'])}"
 
 def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
     K = cap.intrinsics
