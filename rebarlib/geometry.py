@@ -1214,6 +1214,7 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     """
     depth = np.asarray(depth_mm, float)
     tol = max(2.0, 3.0 * (noise_mm if noise_mm and np.isfinite(noise_mm) else 0.0))
+    eye = to_slab_frame(np.zeros((1, 3)), plane)[0]  # the camera in the slab frame
     new, clouds = [], []
     for layer in LAYERS:
         for level in LEVELS:
@@ -1227,22 +1228,25 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
             r = float(np.median([b.radius_mm for b in measured]))
             h_axis = float(np.median([b.axis_height_mm for b in measured]))
             offs = np.array([float(b.plan_point(b.t_mid) @ n2) for b in grp])
+            # candidate positions, each with the samples along it where its surface is in view
             cand = []
             for a_off, b_off in zip(offs[:-1], offs[1:]):
                 k = int(round((b_off - a_off) / s)) - 1
-                cand += [a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1)]
+                cand += [(o, _surface_in_image(ref, o, h_axis, r, plane, intrinsics))
+                         for o in (a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1))]
             for start, sign in ((offs[0], -1), (offs[-1], 1)):
                 for j in range(1, 200):
                     off = start + sign * j * s
-                    if not _surface_in_image(ref, off, h_axis, r, plane, intrinsics):
+                    inside = _surface_in_image(ref, off, h_axis, r, plane, intrinsics)
+                    if not inside.any():
                         break
-                    cand.append(off)
+                    cand.append((off, inside))
             half = search_fraction * s
-            for off in cand:
+            for off, inside in cand:
                 if np.min(np.abs(offs - off)) < 0.5 * s:
                     continue
-                found = _look_at_position(ref, off, half, h_axis, r, depth, intrinsics, plane, tol, step_mm,
-                                          min_length_mm, min_points, min_fill)
+                found = _look_at_position(ref, off, inside, half, h_axis, r, depth, intrinsics, plane, eye, tol,
+                                          step_mm, min_length_mm, min_points, min_fill)
                 if found is None:
                     continue
                 c, t0, t1, cloud = found
@@ -1256,18 +1260,16 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     return new, clouds
 
 
-def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: float, depth, intr: Intrinsics,
-                      plane: Plane, tol: float, step_mm: float, min_length_mm: float, min_points: int,
-                      min_fill: float):
+def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: float, r: float, depth,
+                      intr: Intrinsics, plane: Plane, eye, tol: float, step_mm: float, min_length_mm: float,
+                      min_points: int, min_fill: float):
     """Full-resolution points of the corridor ``off ± half`` on the cylinder of radius ``r`` at
-    height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None."""
+    height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None. ``inside``:
+    the samples of ``_POSITION_T`` where the position's surface is in the image; ``eye``: the
+    camera in the slab frame."""
     import cv2
 
     H, W = depth.shape
-    inside = np.zeros(len(_POSITION_T), bool)
-    for do, dh in ((-r, 0.0), (r, 0.0), (0.0, r)):
-        cam, uv = _position_axis(ref, off + do, h_axis + dh, plane, intr)
-        inside |= _in_image(uv, cam, intr)
     if inside.sum() < 2:
         return None
     ta, tb = _POSITION_T[inside].min() - 2 * half, _POSITION_T[inside].max() + 2 * half
@@ -1308,7 +1310,6 @@ def _look_at_position(ref: BarAxis, off: float, half: float, h_axis: float, r: f
     pitch = float(np.median(pts[:, 2])) / (0.5 * (intr.fx + intr.fy))
     # the camera sees the side of a cylinder that faces it: a point on the far flank of a circle
     # is not on it (without this, a strip of one flank fits a circle on either side of it)
-    eye = to_slab_frame(np.zeros((1, 3)), plane)[0]
     eye_o, eye_h = float(eye[:2] @ ref.normal2d), float(eye[2])
 
     def on_cylinder(c):
@@ -1374,13 +1375,14 @@ def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, int
 
 
 def _surface_in_image(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane,
-                      intr: Intrinsics) -> bool:
-    """Does any of a would-be bar's surface (its two flanks and its crest) project into the image?"""
+                      intr: Intrinsics) -> np.ndarray:
+    """(len(_POSITION_T),) bool: where along it a would-be bar's surface (either flank or its
+    crest) projects into the image."""
+    inside = np.zeros(len(_POSITION_T), bool)
     for do, dh in ((-radius, 0.0), (radius, 0.0), (0.0, radius)):
         cam, uv = _position_axis(ref, off + do, h_axis + dh, plane, intr)
-        if _in_image(uv, cam, intr).any():
-            return True
-    return False
+        inside |= _in_image(uv, cam, intr)
+    return inside
 
 
 def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:
