@@ -306,6 +306,7 @@ class _Bar:
     design_mm: float
     expected_mm: float  # observed width expected from the design size (window sizing)
     axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
+    axis_ok: bool = True  # the axis was measured (not only located): one-sided widths may use it
 
 
 def _prepare(bars, design, system, deformed, default_expected_mm):
@@ -322,8 +323,11 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         # the radius the axis was placed with: ours, or the geometry stage's fixed-radius fit
         assumed = getattr(r, "axis_radius_mm", getattr(r, "radius_mm", math.nan))
         assumed = float(assumed) if assumed is not None else math.nan
+        # a bar the geometry stage only located (status "not measured", e.g. its second look)
+        # has an axis good for finding its pixels, not for measuring from one edge to it
+        axis_ok = str(getattr(r, "status", "measured")) == "measured"
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
-                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed))
+                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok))
     return out
 
 
@@ -544,6 +548,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     widths = np.full(M, np.nan)
     centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
     colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
+    d_centre = np.full(M, np.nan)  # middle and width of the band the point cloud is read in
+    d_width = np.full(M, np.nan)
     cut = np.zeros(M, bool)
     ok = in_img.copy()
 
@@ -573,6 +579,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         behind = b & ((dz <= 0) | (dz > z + bar.expected_mm / 2 + prm.behind_mm))
     kc = K // 2
     idx = np.arange(K)
+    rr = np.arange(M)
     # seed: the bar pixel nearest the expected axis within a third of the expected width
     near = np.abs(t) <= bar.expected_mm / 3
     dist = np.where(b & ~behind & near[None, :], np.abs(idx - kc)[None, :], K + 1)
@@ -592,17 +599,30 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     too_far_hi = (right >= K) | (t[np.clip(right, 0, K - 1)] > fp.half_mm[i])
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
+    # An edge is where the run meets a non-bar sample inside the image; a run that meets the
+    # image border there has that side cut off by the border (not the bar's edge).
+    in_lo = inside_px[rr, np.clip(left, 0, K - 1)]
+    in_hi = inside_px[rr, np.clip(right, 0, K - 1)]
+    lo_edge, hi_edge = has_seed & (left >= 0) & in_lo, has_seed & (right < K) & in_hi
+    lo_border, hi_border = has_seed & (left >= 0) & ~in_lo, has_seed & (right < K) & ~in_hi
     edged = has_seed & (left >= 0) & (right < K)
-    # an "edge" where the profile leaves the image is the border, not the bar's edge
-    rr = np.arange(M)
-    at_border = edged & ~(inside_px[rr, np.clip(left, 0, K - 1)] & inside_px[rr, np.clip(right, 0, K - 1)])
+    at_border = edged & ~(in_lo & in_hi)
     edged &= ~at_border
     info["border"] += int((ok & at_border).sum())
     info["no_edge"] = int((ok & ~edged & ~at_border).sum())
     ok &= edged
-    rows = np.flatnonzero(ok)
+    # One-sided sections: one edge, the other side cut by the image border (or, below, inside
+    # another bar's footprint). The width is then twice the edge's distance from the axis: it
+    # needs the axis in the bar's middle to a fraction of a millimetre, so only for axes the
+    # geometry stage measured, only where the axis itself is in view (at least half the bar's
+    # width is), and only where too few sections show both edges (see below).
+    one_lo = lo_edge & hi_border & in_img & bar.axis_ok  # the low edge only
+    one_hi = hi_edge & lo_border & in_img & bar.axis_ok
+    one_sided = np.zeros(M, bool)
+    usable = ok | one_lo | one_hi
+    rows = np.flatnonzero(usable)
     if len(rows):
-        la, ra = left[rows], right[rows]
+        la, ra = np.clip(left[rows], 0, K - 2), np.clip(right[rows], 1, K - 1)
         ma0, ma1 = m[rows, la], m[rows, la + 1]
         mb0, mb1 = m[rows, ra - 1], m[rows, ra]
         dt = t[1] - t[0]
@@ -613,18 +633,22 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         cut_lo, cut_hi = behind[rows, la], behind[rows, ra]
         t_lo = np.where(cut_lo, t[la] + dt / 2, t_lo)
         t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
-        cut[rows] = cut_lo | cut_hi
-        if rgb is not None and prm.colour_edges:
-            g = _remap(rgb, u[rows], v[rows])
-            c_lo, c_hi, moved = _colour_edges_rgb(g, t, t_lo, t_hi, st[rows, 2] / intr.fx, prm)
+        two = ok[rows]
+        has_lo, has_hi = two | one_lo[rows], two | one_hi[rows]
+        # a one-sided section's edge must be a clean mask edge
+        has_lo &= ~(cut_lo & ~two)
+        has_hi &= ~(cut_hi & ~two)
+        cut[rows] = two & (cut_lo | cut_hi)
+        if rgb is not None and prm.colour_edges and two.any():
+            r2 = rows[two]
+            g = _remap(rgb, u[r2], v[r2])
+            c_lo, c_hi, moved = _colour_edges_rgb(g, t, t_lo[two], t_hi[two], st[r2, 2] / intr.fx, prm)
             info["colour_edges"] = int(moved.sum())
-            both = ~cut_lo & ~cut_hi & (c_lo != t_lo) & (c_hi != t_hi)
-            colour_w[rows[both]] = (c_hi - c_lo)[both]
+            both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
+            colour_w[r2[both]] = (c_hi - c_lo)[both]
             if prm.colour_edges == "replace":
-                t_lo = np.where(cut_lo, t_lo, c_lo)
-                t_hi = np.where(cut_hi, t_hi, c_hi)
-        widths[rows] = t_hi - t_lo
-        centres[rows] = (t_hi + t_lo) / 2
+                t_lo[two] = np.where(cut_lo[two], t_lo[two], c_lo)
+                t_hi[two] = np.where(cut_hi[two], t_hi[two], c_hi)
         # An edge is trusted unless it may belong to another bar: inside the footprint of a
         # nearer bar (ours is occluded there), or beyond our own expected width and inside a
         # farther bar's footprint (our run merged with the bar behind).
@@ -634,36 +658,64 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
             inside, nearer = _hits_footprints(P, fp, cand)
             beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
-            bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1).any(axis=1)
-            info["crossing"] = int(bad.sum())
-            ok[rows[bad]] = False
-        # shadow: the middle of the section much darker than the bar usually is
+            bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
+            bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
+            info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
+            # the side at another bar is lost; the other side may still give a one-sided width
+            if bar.axis_ok:
+                has_lo &= ~bad_lo
+                has_hi &= ~bad_hi
+            else:
+                has_lo &= ~(bad_lo | bad_hi)
+                has_hi &= ~(bad_lo | bad_hi)
+        is_two = has_lo & has_hi
+        is_one = has_lo ^ has_hi
+        ok[rows] = is_two
+        one_sided[rows] = is_one
+        widths[rows] = np.where(is_two, t_hi - t_lo, np.where(has_lo, -2 * t_lo, 2 * t_hi))
+        centres[rows] = np.where(is_two, (t_hi + t_lo) / 2, 0.0)
+        # the point cloud of a one-sided section: from the visible half, between edge and axis
+        d_centre[rows] = np.where(is_two, centres[rows], np.where(has_lo, t_lo, t_hi) / 2)
+        d_width[rows] = np.where(is_two, widths[rows], widths[rows] / 2)
+        # one-sided sections only where the sections with both edges are too few to size the
+        # bar and fewer than the one-sided ones (a bar along the image border, or along a bar
+        # over it): elsewhere the width does not depend on where the axis lies across the bar
+        if int(ok.sum()) >= max(prm.min_sections, int(one_sided.sum())):
+            one_sided[:] = False
+        # shadow: the middle of the section much darker than the bar usually is (the station on
+        # the axis; the middle of the visible part for a one-sided section)
         if gray is not None:
-            rows = np.flatnonzero(ok)
+            rows = np.flatnonzero(ok | one_sided)
             if len(rows) >= prm.min_sections:
-                uvc = project(st[rows], intr)
+                pos = np.where(ok[rows], 0.0, (t[np.clip(left[rows] + 1, 0, K - 1)]
+                                               + t[np.clip(right[rows] - 1, 0, K - 1)]) / 2)
+                uvc = project(st[rows] + pos[:, None] * pl.across, intr)
                 lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
                 dark = lum < prm.shadow_ratio * np.median(lum)
                 if (len(rows) - dark.sum()) >= prm.min_sections:
                     info["shadow"] = int(dark.sum())
                     ok[rows[dark]] = False
+                    one_sided[rows[dark]] = False
+    info["one_sided_sections"] = int(one_sided.sum())
     # edges from the mask are sharper than edges at depth steps: use the latter only if needed
     if (ok & ~cut).sum() >= prm.min_sections:
         info["depth_cut"] = int((ok & cut).sum())
         ok &= ~cut
-    kept = np.flatnonzero(ok)
-    w = _tangent_correct(widths[ok], pl.offset_mm)
-    c = centres[ok]
-    cw = _tangent_correct(colour_w[ok], pl.offset_mm)
+    sel = ok | one_sided
+    kept = np.flatnonzero(sel)
+    w = _tangent_correct(widths[sel], pl.offset_mm)
+    c = centres[sel]
+    cw = _tangent_correct(colour_w[sel], pl.offset_mm)
     if len(w) >= 3:
         med = np.median(w)
         mad = 1.4826 * np.median(np.abs(w - med))
-        px_mm = float(np.median(st[ok, 2])) / intr.fx
+        px_mm = float(np.median(st[sel, 2])) / intr.fx
         keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
         info["outlier"] = int((~keep).sum())
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
+    info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
-        depth_img, intr, pl, st[kept], c, widths[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
+        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
@@ -671,7 +723,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info["colour_width_mm"] = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
-    info["centre_mm"] = float(np.median(c)) if len(c) else math.nan
+    two_kept = ~one_sided[kept]  # a one-sided section has no centre of its own
+    info["centre_mm"] = float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
     info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
     # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
     # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same
@@ -771,6 +824,12 @@ def _robust_sigma(dev) -> float:
     return 1.4826 * float(np.median(np.abs(dev)))
 
 
+def _two_sided(result) -> bool:
+    # the capture's calibrations learn from bars measured between their two edges only: a
+    # width from one edge and the axis carries the axis's error too
+    return result[3].get("one_sided_share", 0.0) == 0.0
+
+
 def _mask_between_spread(results, prepared, prm) -> None:
     """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
     widths between the capture's bars of the same design size, around each size's median.
@@ -781,7 +840,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
     dev = _between_bar_deviations({i: float(np.median(r[0])) for i, r in enumerate(results)
-                                   if len(r[0]) >= prm.min_sections}, prepared)
+                                   if len(r[0]) >= prm.min_sections and _two_sided(r)}, prepared)
     s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
     for r in results:
         r[3]["mask_between_mm"] = s_m
@@ -804,7 +863,7 @@ def _colour_calibration(results, prepared, prm) -> None:
     whole disagreement counts).
     """
     have = [i for i, r in enumerate(results)
-            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"])]
+            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"]) and _two_sided(r)]
     off, weight, spread = 0.0, 1.0, 0.0
     if len(have) >= prm.colour_offset_bars:
         med = {i: float(np.median(results[i][0])) for i in have}
@@ -857,8 +916,10 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     # the mask's error per bar: pixel rounding and the part of its spread that is a bias of the
     # whole bar, or what the capture's bars of one size show between them if that is more
     per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.get("mask_between_mm", 0.0))
+    # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
+    one_sided = 2 * prm.axis_sigma_mm * info.get("one_sided_share", 0.0)
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0))
+                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided)
     mask_problem = ""
     if off > prm.max_offcentre_rel * med:
         mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
@@ -1044,7 +1105,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             q1, med, q3 = np.percentile(w, [25, 50, 75])
             row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
         few = len(w) < (1 if method == "paper" else prm.min_sections)
-        if n_in == 0:
+        if n_in == 0 and not len(w):
             row["diameter_reason"] = "bar axis is outside the image"
         elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,

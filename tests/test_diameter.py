@@ -384,3 +384,65 @@ def test_soft_mask_input_checks():
     for bad in (cap.labels * 2.0, np.full(cap.labels.shape, np.nan)):
         with pytest.raises(RebarInputError, match="mask.*probability"):
             measure_diameters(cap, bars, bad)
+
+
+def _cropped(cap, width_px):
+    """The capture's left ``width_px`` columns: an image border through the scene."""
+    from dataclasses import replace
+
+    from rebarlib import Capture
+
+    k = replace(cap.intrinsics, width=int(width_px))
+    return Capture(np.ascontiguousarray(cap.color[:, :width_px]), np.ascontiguousarray(cap.depth_mm[:, :width_px]),
+                   k, dict(cap.metadata), np.ascontiguousarray(cap.labels[:, :width_px]),
+                   np.ascontiguousarray(cap.bar_ids[:, :width_px]))
+
+
+@pytest.fixture(scope="module")
+def border_scene():
+    # an upper bar running down the image, and image borders cutting it lengthwise
+    from rebarlib._camera import project
+
+    design = _design(14, 12)
+    cap = synth_capture(design, height_mm=450, tilt_deg=0, seed=3, sensor=SensorModel.ideal(), intrinsics=GEMINI2)
+    bars = bars_from_truth(cap.truth)
+    r = bars[(bars.layer == "upper") & (bars.level == "top")].iloc[2]
+    p = np.array([[r.start_x_mm, r.start_y_mm, r.start_z_mm], [r.end_x_mm, r.end_y_mm, r.end_z_mm]])
+    u = project(p, cap.intrinsics)[:, 0]
+    assert abs(u[1] - u[0]) < 1  # runs along the image's columns
+    width_px = observed_width_mm(12) * cap.intrinsics.fx / p[:, 2].mean()
+    return design, cap, int(r.bar_id), float(u.mean()), width_px
+
+
+def test_a_bar_cut_lengthwise_by_the_border_is_sized_from_its_one_edge(border_scene):
+    # The border leaves the axis and 30 % of the width beyond it in view: one edge only. Its
+    # distance from the axis is half the width (the axis is true here), so the bar is sized.
+    design, cap, bar_id, u_axis, width_px = border_scene
+    crop = _cropped(cap, int(u_axis + 0.3 * width_px))
+    bars = bars_from_truth(crop.truth)
+    t = _truth_table(crop, measure_diameters(crop, bars, crop.labels > 0, design=design)).set_index("bar_id")
+    b = t.loc[bar_id]
+    assert b.diameter_status == "measured", b.diameter_reason
+    assert b.nominal_mm == 12 and b.matches_design is True
+    assert abs(b.width_median_mm - b.envelope_mm) <= WIDTH_TOL_MM
+    assert b.confidence < 1.0  # the axis's own uncertainty counts: a one-edge width is not exact
+    # the same bar in the full image is measured between its two edges, to the same size
+    full = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
+    assert full.loc[bar_id].nominal_mm == 12
+    # an axis the geometry stage only located (status "not measured") is not measured from
+    assert "status" not in bars
+    located = bars.assign(status=np.where(bars.bar_id == bar_id, "not measured", "measured"))
+    t2 = measure_diameters(crop, located, crop.labels > 0, design=design).set_index("bar_id")
+    assert t2.loc[bar_id].diameter_status == "not measured"
+    assert "image border" in t2.loc[bar_id].diameter_reason
+
+
+def test_a_bar_whose_axis_is_beyond_the_border_is_not_sized(border_scene):
+    # Less than half the bar in view: its one edge and no axis to measure from. Not measured,
+    # and never a size.
+    design, cap, bar_id, u_axis, width_px = border_scene
+    crop = _cropped(cap, int(u_axis - 0.2 * width_px))
+    t = measure_diameters(crop, bars_from_truth(crop.truth), crop.labels > 0, design=design).set_index("bar_id")
+    b = t.loc[bar_id]
+    assert b.diameter_status == "not measured" and not math.isfinite(b.nominal_mm)
+    assert "outside the image" in b.diameter_reason
