@@ -995,7 +995,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     capture : Capture, for the intrinsics and the colour image (shadow check)
     bars : pandas.DataFrame with :data:`BAR_COLUMNS`: axis end points over the visible extent in
         the camera frame (mm), ``layer`` "lower"/"upper", ``level`` "bottom"/"top"; optional
-        ``axis_radius_mm`` or ``radius_mm`` (see ``use_cloud``)
+        ``axis_radius_mm`` or ``radius_mm`` (see ``use_cloud``); optional ``status`` (the
+        geometry stage's: a bar whose axis is not "measured" is never sized from one edge)
     mask : (H, W) bool, rebar pixels (any bar); or a float rebar probability in 0..1 (e.g.
         ``segmentation.soft_mask``): the refined method then finds each edge where the profile
         crosses 0.5 to a fraction of a pixel, the paper's method uses ``mask >= 0.5``
@@ -1028,8 +1029,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     Returns
     -------
     pandas.DataFrame, one row per bar, columns :data:`DIAMETER_COLUMNS`: ``width_median_mm`` and
-    ``width_spread_mm`` (robust σ, IQR/1.349) of the widths over ``n_sections`` cross-sections,
-    ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
+    ``width_spread_mm`` (robust σ, IQR/1.349) of the widths over ``n_sections`` cross-sections
+    (refined: between the two edges; where too few sections show both, as on a bar cut lengthwise
+    by the image border, also twice one edge's distance from the axis), ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
     "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
     ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
@@ -1105,7 +1107,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             q1, med, q3 = np.percentile(w, [25, 50, 75])
             row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
         few = len(w) < (1 if method == "paper" else prm.min_sections)
-        if n_in == 0 and not len(w):
+        if n_in == 0:
             row["diameter_reason"] = "bar axis is outside the image"
         elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,
