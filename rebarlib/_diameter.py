@@ -622,7 +622,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     usable = ok | one_lo | one_hi
     rows = np.flatnonzero(usable)
     if len(rows):
-        la, ra = np.clip(left[rows], 0, K - 2), np.clip(right[rows], 1, K - 1)
+        la, ra = left[rows], right[rows]  # both in the profile: every usable row has its two run ends
         ma0, ma1 = m[rows, la], m[rows, la + 1]
         mb0, mb1 = m[rows, ra - 1], m[rows, ra]
         dt = t[1] - t[0]
@@ -661,13 +661,12 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
             bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
             info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
-            # the side at another bar is lost; the other side may still give a one-sided width
-            if bar.axis_ok:
-                has_lo &= ~bad_lo
-                has_hi &= ~bad_hi
-            else:
-                has_lo &= ~(bad_lo | bad_hi)
-                has_hi &= ~(bad_lo | bad_hi)
+            # the side at another bar is lost; the other side may still give a one-sided width,
+            # if the axis may be measured from
+            if not bar.axis_ok:
+                bad_lo = bad_hi = bad_lo | bad_hi
+            has_lo &= ~bad_lo
+            has_hi &= ~bad_hi
         is_two = has_lo & has_hi
         is_one = has_lo ^ has_hi
         ok[rows] = is_two
@@ -696,7 +695,6 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
                     info["shadow"] = int(dark.sum())
                     ok[rows[dark]] = False
                     one_sided[rows[dark]] = False
-    info["one_sided_sections"] = int(one_sided.sum())
     # edges from the mask are sharper than edges at depth steps: use the latter only if needed
     if (ok & ~cut).sum() >= prm.min_sections:
         info["depth_cut"] = int((ok & cut).sum())
