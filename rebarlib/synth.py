@@ -156,6 +156,11 @@ class Appearance:
     ambient : share of light that reaches shadowed surfaces
     exposure : overall gain; noise_sigma : colour sensor noise (8-bit units)
     blur_px : Gaussian blur sigma; jpeg_quality : JPEG round trip of the colour image
+    pixel_samples : the colour of a pixel is the mean of ``pixel_samples`` x ``pixel_samples``
+        rays spread over its area (in linear light), as a camera's pixel integrates the light
+        falling on it: an edge crossing a pixel gives it a mixed colour. 1: one ray through the
+        pixel's centre, so every edge is a hard step placed to the nearest pixel (aliased), and
+        a bar along the pixel rows shows a width rounded to whole pixels whatever its true width
     cast_shadows : False renders no cast shadows (surfaces facing away from the sun stay dark);
         used only to tell cast from attached shadow when evaluating
     """
@@ -170,10 +175,15 @@ class Appearance:
     blur_px: float = 0.0
     jpeg_quality: int | None = None
     cast_shadows: bool = True
+    pixel_samples: int = 1
 
     def __post_init__(self):
         if self.formwork is not None and self.formwork not in FORMWORKS:
             raise RebarInputError(f"formwork: expected one of {FORMWORKS}, got {self.formwork!r}")
+        if (isinstance(self.pixel_samples, bool) or not isinstance(self.pixel_samples, (int, np.integer))
+                or not 1 <= self.pixel_samples <= 8):
+            raise RebarInputError(f"pixel_samples: expected a whole number of rays per pixel side "
+                                  f"from 1 to 8, got {self.pixel_samples!r}")
 
 
 @dataclass(frozen=True)
@@ -648,6 +658,21 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     n_rusty = int(round(app.rust_fraction * len(scene.bars)))
     if n_rusty:
         rust_of_bar[slab_rng.permutation(len(scene.bars))[:n_rusty]] = slab_rng.uniform(0.5, 1.0, n_rusty)
+    n_s = int(app.pixel_samples)
+    p_centre = p  # the truth is about the pixel centres
+    if n_s > 1:  # the colour pass casts n_s² rays spread over each pixel (see Appearance)
+        off = (np.arange(n_s) + 0.5) / n_s - 0.5
+        oy, ox = np.meshgrid(off, off, indexing="ij")
+        v, u = np.mgrid[0:H, 0:W]
+        px = np.stack([np.column_stack(((u + dx).ravel(), (v + dy).ravel())) for dx, dy in zip(ox.ravel(), oy.ravel())])
+        d_world = ray_directions(intrinsics, px.reshape(-1, 2)) @ pose.rotation
+        origins = np.broadcast_to(pose.centre, d_world.shape).copy()
+        t, obj, normal = caster.first_hit(origins, d_world)
+        hit = np.isfinite(t)
+        p = origins + d_world * np.where(hit, t, 0)[:, None]
+        kind = np.where(hit, geo.obj_kind[np.maximum(obj, 0)], -1)
+        bar_of = np.where(kind == K_BAR, geo.obj_bar[np.maximum(obj, 0)], -1)
+        lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[np.maximum(obj, 0)], 0.0)
     albedo = np.zeros((len(t), 3))
     extent = scene.deviations.slab_size_mm * 2
     fw = kind == K_FORMWORK
@@ -672,7 +697,8 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     spec = spec_k * np.clip((normal * half_v).sum(1), 0, 1) ** 30 * (~shadow)
     shade = app.ambient + (1 - app.ambient) * 1.25 * direct
     rgb = albedo * shade[:, None] + spec[:, None]
-    rgb = np.where(hit[:, None], rgb, 0.0).reshape(H, W, 3) * app.exposure
+    rgb = np.where(hit[:, None], rgb, 0.0)
+    rgb = (rgb.reshape(n_s * n_s, H * W, 3).mean(axis=0) if n_s > 1 else rgb).reshape(H, W, 3) * app.exposure
     if app.blur_px > 0:
         rgb = cv2.GaussianBlur(rgb, (0, 0), app.blur_px)
     img = np.clip(rgb ** (1 / 1.8) * 255 + rng.normal(0, app.noise_sigma, rgb.shape), 0, 255).astype(np.uint8)
@@ -680,7 +706,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         ok, buf = cv2.imencode(".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(app.jpeg_quality)])
         img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
 
-    truth = _truth(scene, pose, intrinsics, bar_ids, p, formwork, light, rust_of_bar, sensor, app)
+    truth = _truth(scene, pose, intrinsics, bar_ids, p_centre, formwork, light, rust_of_bar, sensor, app)
     meta = {"depth_scale_mm": sensor.depth_scale_mm, "device": "rebarlib synthetic (Gemini-2-like)",
             "name": name, "truth": truth}
     return Capture(img, depth, intrinsics, meta, labels, bar_ids)
