@@ -88,7 +88,8 @@ def _capture(name, design, kw, app, cache):
 
     from rebarlib import load_capture, save_capture
 
-    folder = Path(cache) / "".join(c if c.isalnum() else "_" for c in name)
+    px = f"__px{app.pixel_samples}" if app.pixel_samples > 1 else ""
+    folder = Path(cache) / ("".join(c if c.isalnum() else "_" for c in name) + px)
     if (folder / "truth.json").is_file():
         return load_capture(folder)
     cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
@@ -121,12 +122,17 @@ def _mask_sources():
 
         # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
         # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
-        # method takes the pixels at >= 0.5
-        sources["model"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True)
+        # method takes the pixels at >= 0.5. "model" and "fused" run the network on full-resolution
+        # tiles of the image, as rebarlib.inspect does for the refined method; "-whole": on the
+        # whole image down-scaled to the network's input (as for the paper's method, and what
+        # these masks were before)
+        sources["model"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True, tiled=True)
+        sources["model-whole"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True)
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
             # the hysteresis, the depth mask (its own plane fit)
-            sources["fused"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
+            sources["fused"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True, tiled=True)
+            sources["fused-whole"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
             # without the probability (no hysteresis): what this benchmark called "fused" before
             sources["fused-nohyst"] = lambda cap: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
@@ -263,6 +269,8 @@ def main() -> None:
                     help="refined: use_cloud True (fuse), 'veto' or False (off)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
+    ap.add_argument("--pixel-samples", type=int, default=1,
+                    help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
     ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
@@ -276,7 +284,7 @@ def main() -> None:
     combos = [(m, k, a) for a in axis_src for k in mask_src for m in methods]
     for n in notes:
         print("note:", n)
-    app = Appearance(rust_fraction=0.3)  # random sun per seed: shadows of the upper bars on the lower
+    app = Appearance(rust_fraction=0.3, pixel_samples=args.pixel_samples)  # random sun per seed: shadows of the upper bars on the lower
     per_capture = []
     dump = []  # every bar row joined to the truth (--dump)
     recs = defaultdict(list)

@@ -113,7 +113,7 @@ def _default_model():
 
 
 def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
-               soft: bool = False) -> np.ndarray:
+               soft: bool = False, tiled: bool = False) -> np.ndarray:
     """The rebar mask of a capture for the diameter stage: (H, W) bool, or float32 with ``soft``.
 
     ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
@@ -121,7 +121,10 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
     ``plane``: the formwork plane if known (``(normal, offset_mm)``); ``model``: a
     ``SegmentationModel`` (default: the shipped one). ``soft``: return (H, W) float32 instead,
     the model's probability wherever it agrees with the mask (``segmentation.soft_mask``), so
-    the refined diameter stage places the edges to a fraction of a pixel.
+    the refined diameter stage places the edges to a fraction of a pixel. ``tiled``: run the
+    model on full-resolution tiles of the image (``SegmentationModel.predict_proba``): a bar's
+    edges placed about twice as finely as from the image down-scaled to the model's input; the
+    refined method uses it (README, "Bar diameters").
     """
     from .segmentation import fuse_masks, mask_from_depth, soft_mask
 
@@ -131,7 +134,7 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
         depth = mask_from_depth(capture, plane=plane, rng=rng)
         return depth.astype(np.float32) if soft else depth
     model = model or _default_model()
-    proba = model.predict_proba(capture.color)
+    proba = model.predict_proba(capture.color, tiled=tiled)
     colour = proba > model.threshold
     if source == "model":
         return soft_mask(colour, proba, threshold=model.threshold) if soft else colour
@@ -183,7 +186,8 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
             plane = (np.asarray(res.formwork["normal"], float), float(res.formwork["offset_mm"]))
         # the refined stage finds edges to a fraction of a pixel on the soft mask; the paper's
         # takes boundary pixels of the binary one
-        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=method == "refined")
+        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=method == "refined",
+                          tiled=method == "refined")
         res.extras["mask_source"] = mask_source
     else:
         mask = np.asarray(mask)

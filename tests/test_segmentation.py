@@ -167,6 +167,29 @@ def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
     assert mask[:, :70].all() and not mask[:, 90:].any()
 
 
+@pytest.mark.parametrize("flips", [[], ["h", "v", "hv"]])
+def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips):
+    # a pointwise model (logit = (R - B) / 16) on an image 4 x its input each way: run on tiles at
+    # the image's own resolution, every pixel gets exactly its own logit whatever tile it lies in
+    # and however the overlapping tiles are blended; down-scaled to the input, a one-pixel red
+    # line is averaged away with its blue neighbours
+    sidecar = {"input": {"size": [40, 25], "flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="tiled" + "_".join(flips), fixed=(25, 40)))
+    img, _ = _red_left_blue_right(100, 160)
+    img[:, 71] = (200, 0, 0)  # the edge one pixel right of the middle
+    img[:, 123] = (200, 0, 0)  # a one-pixel red line in the blue half
+    img[37, :] = (90, 0, 30)  # and a row of another logit across both
+    want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
+    tiled = model.predict_proba(img, tiled=True)
+    assert tiled.shape == (100, 160) and tiled.dtype == np.float32
+    assert np.allclose(tiled, want, atol=1e-5)
+    whole = model.predict_proba(img)
+    assert whole[50, 123] < 0.5 < tiled[50, 123]
+    # an image of the input's size, or a smaller one, is scored as without tiles
+    small = np.ascontiguousarray(img[:25, :40])
+    assert np.array_equal(model.predict_proba(small, tiled=True), model.predict_proba(small))
+
+
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""
