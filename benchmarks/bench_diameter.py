@@ -100,10 +100,10 @@ def _capture(name, design, kw, app, cache):
 def _mask_sources():
     """Callables capture -> (H, W) mask (bool, or a float probability for the soft ones) for each
     available mask, and notes on the others."""
-    sources = {"truth": lambda cap: cap.labels > 0,
+    sources = {"truth": lambda cap, design: cap.labels > 0,
                # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
-               "dilated": lambda cap: _morph(cap.labels > 0, +1),
-               "eroded": lambda cap: _morph(cap.labels > 0, -1)}
+               "dilated": lambda cap, design: _morph(cap.labels > 0, +1),
+               "eroded": lambda cap, design: _morph(cap.labels > 0, -1)}
     notes = []
     try:
         from rebarlib import segmentation as seg
@@ -118,7 +118,7 @@ def _mask_sources():
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
-        from rebarlib._inspect import rebar_mask
+        from rebarlib._inspect import rebar_mask, widest_bar_px
 
         # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
         # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
@@ -126,15 +126,17 @@ def _mask_sources():
         # tiles of the image, as rebarlib.inspect does for the refined method; "-whole": on the
         # whole image down-scaled to the network's input (as for the paper's method, and what
         # these masks were before)
-        sources["model"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True, tiled=True)
-        sources["model-whole"] = lambda cap: rebar_mask(cap, source="model", model=model, soft=True)
+        sources["model"] = lambda cap, design: rebar_mask(cap, source="model", model=model, soft=True, tiled=True,
+                                                          bar_width_px=widest_bar_px(cap, design))
+        sources["model-whole"] = lambda cap, design: rebar_mask(cap, source="model", model=model, soft=True)
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
             # the hysteresis, the depth mask (its own plane fit)
-            sources["fused"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True, tiled=True)
-            sources["fused-whole"] = lambda cap: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
+            sources["fused"] = lambda cap, design: rebar_mask(cap, source="fused", model=model, rng=0, soft=True,
+                                                              tiled=True, bar_width_px=widest_bar_px(cap, design))
+            sources["fused-whole"] = lambda cap, design: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
             # without the probability (no hysteresis): what this benchmark called "fused" before
-            sources["fused-nohyst"] = lambda cap: np.asarray(
+            sources["fused-nohyst"] = lambda cap, design: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
                                depth_valid=cap.depth_mm > 0), bool)
         else:
@@ -297,7 +299,7 @@ def main() -> None:
         if args.only not in name:
             continue
         cap = _capture(name, design, kw, app, args.cache)
-        masks = {k: f(cap) for k, f in mask_src.items()}
+        masks = {k: f(cap, design) for k, f in mask_src.items()}
         axes = {}
         for a, f in axis_src.items():
             try:

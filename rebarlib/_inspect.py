@@ -113,7 +113,7 @@ def _default_model():
 
 
 def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
-               soft: bool = False, tiled: bool = False) -> np.ndarray:
+               soft: bool = False, tiled: bool = False, bar_width_px=None) -> np.ndarray:
     """The rebar mask of a capture for the diameter stage: (H, W) bool, or float32 with ``soft``.
 
     ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
@@ -124,7 +124,9 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
     the refined diameter stage places the edges to a fraction of a pixel. ``tiled``: run the
     model on full-resolution tiles of the image (``SegmentationModel.predict_proba``): a bar's
     edges placed about twice as finely as from the image down-scaled to the model's input; the
-    refined method uses it (README, "Bar diameters").
+    refined method uses it (README, "Bar diameters"). ``bar_width_px``: the widest bar's width in
+    the image (:func:`widest_bar_px`), so that the tiles are down-scaled where the bars would be
+    wider than the model knows (``SegmentationModel.tile_scale``).
     """
     from .segmentation import fuse_masks, mask_from_depth, soft_mask
 
@@ -134,13 +136,27 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
         depth = mask_from_depth(capture, plane=plane, rng=rng)
         return depth.astype(np.float32) if soft else depth
     model = model or _default_model()
-    proba = model.predict_proba(capture.color, tiled=tiled)
+    proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
     colour = proba > model.threshold
     if source == "model":
         return soft_mask(colour, proba, threshold=model.threshold) if soft else colour
     depth = mask_from_depth(capture, plane=plane, rng=rng)
     fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
     return soft_mask(fused, proba, threshold=model.threshold) if soft else fused
+
+
+def widest_bar_px(capture: Capture, design: Design) -> float:
+    """Width in the image, in pixels, of the widest bar of the design (its rib envelope) at the
+    nearest depth in the capture (1st percentile of the valid depths: the tops of the nearest
+    bars, or anything nearer); NaN without valid depth."""
+    from ._barsizes import observed_width_mm
+
+    z = capture.depth_mm[capture.depth_mm > 0]
+    if z.size == 0:
+        return math.nan
+    widest = max(observed_width_mm(design.lattice(layer).level(level).diameter_mm, system=design.bar_system)
+                 for layer in ("lower", "upper") for level in ("bottom", "top"))
+    return float(widest * capture.intrinsics.fx / np.percentile(z, 1))
 
 
 def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
@@ -186,8 +202,9 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
             plane = (np.asarray(res.formwork["normal"], float), float(res.formwork["offset_mm"]))
         # the refined stage finds edges to a fraction of a pixel on the soft mask; the paper's
         # takes boundary pixels of the binary one
-        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=method == "refined",
-                          tiled=method == "refined")
+        refined = method == "refined"
+        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=refined, tiled=refined,
+                          bar_width_px=widest_bar_px(capture, design) if refined else None)
         res.extras["mask_source"] = mask_source
     else:
         mask = np.asarray(mask)

@@ -185,8 +185,13 @@ def _read_sidecar(path: Path) -> dict:
     flips = inp.get("flips", [])
     if not (isinstance(flips, list) and all(f in _FLIPS for f in flips) and len(set(flips)) == len(flips)):
         raise _bad(path, f"input.flips: expected a list of distinct flips from {_FLIPS}, got {flips!r}")
+    max_bar_px = inp.get("max_bar_px")
+    if max_bar_px is not None and (isinstance(max_bar_px, bool) or not isinstance(max_bar_px, (int, float))
+                                   or max_bar_px <= 0):
+        raise _bad(path, f"input.max_bar_px: expected a positive number of input pixels, got {max_bar_px!r}")
     inp.update(size=size, scale=float(scale), pad_to=pad_to, channel_order=order, layout=layout,
-               dtype=dtype, value_scale=float(value_scale), flips=list(flips))
+               dtype=dtype, value_scale=float(value_scale), flips=list(flips),
+               max_bar_px=None if max_bar_px is None else float(max_bar_px))
     kind = out.get("kind")
     if kind not in _KINDS:
         raise _bad(path, f"output.kind: expected one of {_KINDS}, got {kind!r}")
@@ -412,23 +417,42 @@ class SegmentationModel:
             score = cv2.resize(np.ascontiguousarray(score), (W, H), interpolation=interp)
         return score, thr, is_logit
 
-    def _score_tiled(self, color):
+    def tile_scale(self, bar_width_px=None) -> float:
+        """The scale (≤ 1) at which :meth:`predict_proba` with ``tiled`` runs the network on an
+        image whose widest bar is ``bar_width_px`` pixels wide: 1 (full resolution) unless that
+        bar would be wider than the sidecar's ``input.max_bar_px`` (the widest bar the model is
+        known to segment, in input pixels; none: no limit), else the scale that makes it that wide.
+        """
+        limit = self._inp["max_bar_px"]
+        if bar_width_px is None or limit is None or not np.isfinite(bar_width_px) or bar_width_px <= limit:
+            return 1.0
+        return float(limit / bar_width_px)
+
+    def _score_tiled(self, color, bar_width_px=None):
         """The score map of an image larger than the model's fixed input, from the network run
-        on input-sized tiles of the image at its own resolution (nothing is down-scaled).
+        on input-sized tiles of the image at full resolution, or at :meth:`tile_scale` where its
+        bars would be too wide for the model there (``bar_width_px``: the widest bar's width).
 
         Tiles overlap by half a tile; where they overlap the scores are blended with weights
         that fall linearly to near 0 over the outer eighth of a tile on its sides inside the
         image (a network sees less context near a tile's border). No test-time flips: each tile
-        is run once. Images no larger than the input, models without a fixed input size, and
-        images smaller than the input in one direction are scored as by :meth:`predict_proba`.
+        is run once. Models without a fixed input size, and images that at that scale are no
+        larger than the input or smaller than it in one direction, are scored as by
+        :meth:`predict_proba` without tiles.
         """
+        import cv2
+
         img = np.asarray(color)
         if img.ndim != 3:
             return self._score(color)
-        H, W = img.shape[:2]
+        H0, W0 = img.shape[:2]
         size = self._inp["size"]
+        s = self.tile_scale(bar_width_px)
+        W, H = (W0, H0) if s == 1.0 else (max(1, round(W0 * s)), max(1, round(H0 * s)))
         if size is None or W < size[0] or H < size[1] or (W, H) == tuple(size):
             return self._score(color)
+        if (W, H) != (W0, H0):
+            img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
         tw, th = size
 
         def starts(n, t):
@@ -453,17 +477,22 @@ class SegmentationModel:
                 wgt = np.outer(ramp(th, y0 > 0, y0 + th < H), ramp(tw, x0 > 0, x0 + tw < W))
                 acc[y0:y0 + th, x0:x0 + tw] += wgt * s
                 wsum[y0:y0 + th, x0:x0 + tw] += wgt
-        return (acc / wsum).astype(np.float32), thr, is_logit
+        score = (acc / wsum).astype(np.float32)
+        if (W, H) != (W0, H0):
+            score = cv2.resize(score, (W0, H0), interpolation=cv2.INTER_LINEAR)
+        return score, thr, is_logit
 
-    def predict_proba(self, color, *, tiled: bool = False) -> np.ndarray:
+    def predict_proba(self, color, *, tiled: bool = False, bar_width_px=None) -> np.ndarray:
         """Rebar probability per pixel, (H, W) float32 in [0, 1] at the image's resolution.
 
         Label-map models give 0 or 1. ``tiled``: for an image larger than the model's fixed
         input, run the network on input-sized tiles of the image at full resolution instead of
         on the whole image down-scaled to the input (finer edges, about 9 network runs for a
-        1280 × 800 image into a 640 × 400 input, no test-time flips; see :meth:`_score_tiled`).
+        1280 × 800 image into a 640 × 400 input, no test-time flips; see :meth:`_score_tiled`);
+        ``bar_width_px``, the widest bar's width in the image, lowers that resolution where the
+        bars would otherwise be wider than the model knows (:meth:`tile_scale`).
         """
-        score, _, is_logit = self._score_tiled(color) if tiled else self._score(color)
+        score, _, is_logit = self._score_tiled(color, bar_width_px) if tiled else self._score(color)
         if is_logit:
             return (1.0 / (1.0 + np.exp(-score))).astype(np.float32)
         return np.clip(score, 0, 1).astype(np.float32)

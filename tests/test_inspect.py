@@ -482,3 +482,17 @@ def test_cli_duplicate_names_and_missing_capture(tmp_path, capsys):
                str(tmp_path / "out")])
     assert rc == 2 and "nope" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_widest_bar_px_is_the_widest_envelope_at_the_nearest_depth(paper_design):
+    from rebarlib import Capture, Intrinsics
+    from rebarlib._inspect import widest_bar_px
+
+    K = Intrinsics(500.0, 500.0, 50.0, 40.0, 100, 80)
+    depth = np.full((80, 100), 600.0)
+    depth[:, :50] = 0.0  # no depth on half the image: not counted
+    depth[:10, 50:] = 400.0  # the nearest 12.5 % of the valid pixels
+    cap = Capture(np.zeros((80, 100, 3), np.uint8), depth, K)
+    # the paper slab's widest bar is Φ14 (rib envelope 16.2 mm): 16.2 x 500 / 400 px
+    assert widest_bar_px(cap, paper_design) == pytest.approx(16.2 * 500 / 400)
+    assert np.isnan(widest_bar_px(Capture(cap.color, np.zeros((80, 100)), K), paper_design))

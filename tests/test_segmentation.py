@@ -190,6 +190,25 @@ def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips)
     assert np.array_equal(model.predict_proba(small, tiled=True), model.predict_proba(small))
 
 
+def test_in_test_model_tiles_are_down_scaled_where_bars_would_be_too_wide(tmp_path):
+    # the sidecar says the model knows bars up to 10 input pixels wide: a 20 px bar halves the
+    # tiles' resolution, a 40 px bar brings the image down to the input (the plain whole-image run)
+    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="maxbar", fixed=(25, 40)))
+    assert model.tile_scale(None) == 1.0 and model.tile_scale(8) == 1.0
+    assert model.tile_scale(20) == pytest.approx(0.5) and model.tile_scale(40) == pytest.approx(0.25)
+    img, _ = _red_left_blue_right(100, 160)
+    img[:, 123] = (200, 0, 0)
+    want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
+    assert np.allclose(model.predict_proba(img, tiled=True, bar_width_px=8), want, atol=1e-5)
+    half = model.predict_proba(img, tiled=True, bar_width_px=20)
+    assert half.shape == (100, 160) and not np.allclose(half, want, atol=1e-2)
+    assert np.array_equal(model.predict_proba(img, tiled=True, bar_width_px=40), model.predict_proba(img))
+    bad = {"input": {"size": [40, 25], "max_bar_px": -3}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    with pytest.raises(RebarInputError, match="max_bar_px"):
+        SegmentationModel(_red_minus_blue_model(tmp_path, bad, name="badmax", fixed=(25, 40)))
+
+
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""
