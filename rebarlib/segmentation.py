@@ -447,8 +447,8 @@ class SegmentationModel:
             return self._score(color)
         H0, W0 = img.shape[:2]
         size = self._inp["size"]
-        s = self.tile_scale(bar_width_px)
-        W, H = (W0, H0) if s == 1.0 else (max(1, round(W0 * s)), max(1, round(H0 * s)))
+        scale = self.tile_scale(bar_width_px)
+        W, H = (W0, H0) if scale == 1.0 else (max(1, round(W0 * scale)), max(1, round(H0 * scale)))
         if size is None or W < size[0] or H < size[1] or (W, H) == tuple(size):
             return self._score(color)
         if (W, H) != (W0, H0):
@@ -473,9 +473,9 @@ class SegmentationModel:
         thr, is_logit = 0.5, False
         for y0 in starts(H, th):
             for x0 in starts(W, tw):
-                s, thr, is_logit = self._score(np.ascontiguousarray(img[y0:y0 + th, x0:x0 + tw]), flips=False)
+                tile, thr, is_logit = self._score(np.ascontiguousarray(img[y0:y0 + th, x0:x0 + tw]), flips=False)
                 wgt = np.outer(ramp(th, y0 > 0, y0 + th < H), ramp(tw, x0 > 0, x0 + tw < W))
-                acc[y0:y0 + th, x0:x0 + tw] += wgt * s
+                acc[y0:y0 + th, x0:x0 + tw] += wgt * tile
                 wsum[y0:y0 + th, x0:x0 + tw] += wgt
         score = (acc / wsum).astype(np.float32)
         if (W, H) != (W0, H0):
