@@ -628,23 +628,30 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     geo = _build_geometry(scene)
     caster = _Caster(geo)
 
-    d_cam = ray_directions(intrinsics)  # z = 1: t along these rays is the z-depth
-    d_world = d_cam @ pose.rotation  # rows: R^T d
-    origins = np.broadcast_to(pose.centre, d_world.shape).copy()
-    t, obj, normal = caster.first_hit(origins, d_world)
-    hit = np.isfinite(t)
+    def cast(pixels=None):
+        """What the rays through ``pixels`` (default: every pixel's centre) hit: world ray
+        directions, z-depth t (inf on a miss), normal, hit, point, object kind, bar index (-1:
+        none) and how far off the surface a shadow ray from it starts."""
+        d_world = ray_directions(intrinsics, pixels) @ pose.rotation  # rows: R^T d; z = 1, so t is the z-depth
+        origins = np.broadcast_to(pose.centre, d_world.shape).copy()
+        t, obj, normal = caster.first_hit(origins, d_world)
+        hit = np.isfinite(t)
+        p = origins + d_world * np.where(hit, t, 0)[:, None]
+        o = np.maximum(obj, 0)
+        kind = np.where(hit, geo.obj_kind[o], -1)
+        bar_of = np.where(kind == K_BAR, geo.obj_bar[o], -1)
+        # Shadow rays start just off the surface; on bars, outside the circumscribing prism
+        # (up to 2 % of the radius beyond the true cylinder), or a bar would shadow itself.
+        lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[o], 0.0)
+        return d_world, t, normal, hit, p, kind, bar_of, lift
+
+    d_world, t, normal, hit, p, kind, bar_of, lift = cast()
     z_true = np.where(hit, t, 0.0).reshape(H, W)
-    p = origins + d_world * np.where(hit, t, 0)[:, None]
-    kind = np.where(hit, geo.obj_kind[np.maximum(obj, 0)], -1)
-    bar_of = np.where(kind == K_BAR, geo.obj_bar[np.maximum(obj, 0)], -1)
     layer_of_bar = np.array([LABEL_LOWER if b.layer == "lower" else LABEL_UPPER for b in scene.bars] + [0])
     labels = layer_of_bar[bar_of].astype(np.uint8).reshape(H, W)
     bar_ids = (bar_of + 1).astype(np.int32).reshape(H, W)
 
     # ---- depth sensor
-    # Shadow rays start just off the surface; on bars, outside the circumscribing prism
-    # (up to 2 % of the radius beyond the true cylinder), or a bar would shadow itself.
-    lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[np.maximum(obj, 0)], 0.0)
     depth = _sensor_depth(z_true, p, normal, hit, pose, intrinsics, sensor, caster, rng, lift)
 
     # ---- colour
@@ -665,14 +672,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         oy, ox = np.meshgrid(off, off, indexing="ij")
         v, u = np.mgrid[0:H, 0:W]
         px = np.stack([np.column_stack(((u + dx).ravel(), (v + dy).ravel())) for dx, dy in zip(ox.ravel(), oy.ravel())])
-        d_world = ray_directions(intrinsics, px.reshape(-1, 2)) @ pose.rotation
-        origins = np.broadcast_to(pose.centre, d_world.shape).copy()
-        t, obj, normal = caster.first_hit(origins, d_world)
-        hit = np.isfinite(t)
-        p = origins + d_world * np.where(hit, t, 0)[:, None]
-        kind = np.where(hit, geo.obj_kind[np.maximum(obj, 0)], -1)
-        bar_of = np.where(kind == K_BAR, geo.obj_bar[np.maximum(obj, 0)], -1)
-        lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[np.maximum(obj, 0)], 0.0)
+        d_world, t, normal, hit, p, kind, bar_of, lift = cast(px.reshape(-1, 2))
     albedo = np.zeros((len(t), 3))
     extent = scene.deviations.slab_size_mm * 2
     fw = kind == K_FORMWORK
