@@ -40,7 +40,7 @@ BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_
 DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
                     "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
                     "matches_design", "hidden", "occluded_fraction", "cloud_width_mm", "width_source",
-                    "width_used_mm")
+                    "width_used_mm", "circle_width_mm", "circle_sigma_mm")
 
 MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 
@@ -434,6 +434,7 @@ class _RefinedParams:
     mask_spread_sys: float = 0.5  # share of the mask widths' spread that is a bias of the whole bar
     cloud_only_confidence: float = 0.85  # cap for a size from the point cloud alone (relies on the axis)
     depth_core: float = 0.5  # point-cloud points from the middle this fraction of each run
+    circle_core: float = 0.8  # the circle fit reads the cloud over this fraction of each run
     colour_tolerance_px: float = 0.5  # colour and mask widths may differ this much (cylinder shading)
     colour_offset_bars: int = 5  # bars needed to learn the capture's colour-minus-mask offset
     edge_search_px: float = 2.5  # how far from the mask edge the colour edge may lie
@@ -526,6 +527,91 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     d = 2 * np.linalg.norm(radial, axis=1)
     q1, med, q3 = np.percentile(d, [25, 50, 75])
     return float(med), float((q3 - q1) / 1.349), int(good.sum())
+
+
+def _circle_fit(a, b, r0, *, iters: int = 30):
+    """Robust fit of the near half of a circle, b = b0 − √(r² − (a − a0)²), to points (a, b)
+    whose noise lies along b (a depth camera's: along the line of sight).
+
+    Least squares on the residuals along b, not on the distances to the circle: with depth noise
+    the latter shrink the circle (on an arc of ±50° a σ of 0.6 mm on a 7 mm radius gives about
+    6.5 mm); the former is unbiased. Gauss–Newton from the centre (0, 5th percentile of b + r0) with
+    radius ``r0``, then Tukey weights at 4.685 robust σ (MAD, at least 0.05 mm). Returns
+    (a0, b0, r, σ_r, weights): σ_r is the radius's standard error from the normal matrix and
+    the weighted residual variance, the points taken as independent; NaN where the fit fails.
+    """
+    p = np.array([0.0, float(np.percentile(b, 5)) + r0, float(r0)])  # crest: the nearest points
+    w = np.ones(len(a))
+    fail = (math.nan, math.nan, math.nan, math.nan, w)
+    for k in range(iters):
+        da = a - p[0]
+        q = np.sqrt(np.maximum(p[2] ** 2 - da ** 2, 1e-6))
+        res = b - (p[1] - q)
+        w = (np.abs(da) < 0.98 * p[2]).astype(float)
+        if k:  # the first step from the starting guess is unweighted
+            mid = float(np.median(res[w > 0])) if w.any() else 0.0
+            s = max(1.4826 * float(np.median(np.abs(res - mid))), 0.05)
+            u = (res - mid) / (4.685 * s)
+            w *= np.where(np.abs(u) < 1, (1 - u ** 2) ** 2, 0.0)
+        J = np.column_stack((-da / q, np.ones_like(q), -p[2] / q))  # d(b0 − q)/d(a0, b0, r)
+        JW = J * w[:, None]
+        A = J.T @ JW
+        try:
+            step = np.linalg.solve(A, JW.T @ res)
+        except np.linalg.LinAlgError:
+            return fail
+        p = p + step
+        if not np.all(np.isfinite(p)) or p[2] <= 0:
+            return fail
+        if np.abs(step).max() < 1e-5:
+            break
+    res = b - (p[1] - np.sqrt(np.maximum(p[2] ** 2 - (a - p[0]) ** 2, 1e-6)))
+    var = float((w * res ** 2).sum()) / max(float(w.sum()) - 3.0, 1.0)
+    try:
+        cov = np.linalg.inv(A) * var
+    except np.linalg.LinAlgError:
+        return fail
+    return float(p[0]), float(p[1]), float(p[2]), float(math.sqrt(max(cov[2, 2], 0.0))), w
+
+
+def _cloud_circle(depth, intr, plane: BarPlane, stations, centres, widths, prm):
+    """Diameter of the bar from the shape of its point cloud alone: a circle fitted to the depth
+    points across the sections' mask runs, in the cross-section plane (across, normal of γ).
+
+    Unlike :func:`_depth_width`, it needs no axis at the bar's centre, only its direction and
+    roughly its place: an axis placed with an assumed radius (the geometry stage's fixed-radius
+    cylinder) gives the same circle. The points are read over the middle ``prm.circle_core`` of
+    each run (the flanks beyond face the camera at a grazing angle, where a stereo camera's
+    depth is least reliable). Returns (diameter, σ, points): σ is the fit's standard error with
+    neighbouring points counted as sharing their noise (``prm.depth_correlated_px``); NaN where
+    too few points or the fit fails.
+    """
+    if len(stations) < prm.min_sections:
+        return math.nan, math.nan, 0
+    H, W = depth.shape
+    px_mm = float(np.median(stations[:, 2])) / intr.fx
+    n = int(np.clip(np.ceil(np.nanmedian(widths) * prm.circle_core / px_mm), 5, 41))
+    f = np.linspace(-prm.circle_core, prm.circle_core, n)
+    t = centres[:, None] + f[None, :] * widths[:, None] / 2
+    X = stations[:, None, :] + t[..., None] * plane.across
+    uv = project(X.reshape(-1, 3), intr)
+    ui, vi = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    inside = (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
+    key = np.unique(vi[inside].astype(np.int64) * W + ui[inside])  # each depth pixel once
+    vi, ui = key // W, key % W
+    z = depth[vi, ui].astype(float)
+    good = z > 0
+    if good.sum() < prm.min_sections * 5:
+        return math.nan, math.nan, int(good.sum())
+    ui, vi, z = ui[good], vi[good], z[good]
+    P = np.column_stack(((ui - intr.cx) / intr.fx * z, (vi - intr.cy) / intr.fy * z, z)) - plane.foot_mm
+    a, b = P @ plane.across, P @ plane.normal
+    r0 = float(np.nanmedian(widths)) / 2
+    a0, b0, r, s_r, w = _circle_fit(a, b, r0)
+    if not (math.isfinite(r) and 0.25 * r0 < r < 4 * r0):
+        return math.nan, math.nan, int(good.sum())
+    s_r *= math.sqrt(prm.depth_correlated_px)
+    return 2 * r, 2 * s_r, int((w > 0).sum())
 
 
 def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None):
@@ -714,6 +800,9 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
         depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
+    two_k = kept[~one_sided[kept]]
+    info["circle_width_mm"], info["circle_sigma_mm"], info["circle_points"] = _cloud_circle(
+        depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm) if depth_img is not None else (math.nan, math.nan, 0)
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
@@ -844,6 +933,24 @@ def _mask_between_spread(results, prepared, prm) -> None:
         r[3]["mask_between_mm"] = s_m
 
 
+def _circle_between_spread(results, prepared, prm) -> None:
+    """Store in every bar's info ``circle_between_mm``: the spread (RMS) of the point-cloud
+    circle widths between the capture's bars of the same design size (as for the mask widths,
+    :func:`_mask_between_spread`). It is the circle fit's error per bar as this capture shows
+    it, with what its own residuals do not show: depth quantisation that repeats in every
+    section of a bar at one depth, noise correlated over more pixels than assumed. Needs
+    ``prm.colour_offset_bars`` bars with a circle width and a design size; else NaN (the circle
+    width is then not used)."""
+    dev = _between_bar_deviations({i: r[3]["circle_width_mm"] for i, r in enumerate(results)
+                                   if math.isfinite(r[3].get("circle_width_mm", math.nan))}, prepared)
+    # the root-mean-square, not a robust spread: the fit's errors have heavy tails (a bar whose
+    # flank is lost to the projector's shadow, depth quantisation on a bar at one depth), and a
+    # robust spread would hide them
+    s_c = float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= prm.colour_offset_bars else math.nan
+    for r in results:
+        r[3]["circle_between_mm"] = s_c
+
+
 def _colour_calibration(results, prepared, prm) -> None:
     """Learn from the capture's own bars how far to trust its colour edges against its mask.
 
@@ -889,6 +996,29 @@ def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deform
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
             f"the point cloud {dw:.1f} mm gives Φ{nom_c:g}, but its axis was fitted with an assumed radius, "
             "so the cloud cannot confirm another size: check this bar by hand")
+
+
+def _with_circle(med, sigma_m, info, prm):
+    """The mask width fused with the point cloud's circle width (:func:`_cloud_circle`), for an
+    axis placed with an assumed radius, whose own cloud width only echoes that radius.
+
+    Returns (width, σ, circle width, σ of the circle width), or None where there is no sound
+    circle width (too few points, or fewer than ``prm.colour_offset_bars`` bars to learn its
+    between-bar spread from) or where it disagrees with the mask by more than ``prm.veto_k``
+    combined σ. The circle width's σ is the larger of the fit's own standard error (neighbouring
+    points sharing their noise) and the spread of the circle widths between the capture's bars
+    of one design size; two estimates further apart than their σ say have their σ enlarged
+    (Birge ratio)."""
+    cw, s_fit, s_between = (info.get("circle_width_mm", math.nan), info.get("circle_sigma_mm", math.nan),
+                            info.get("circle_between_mm", math.nan))
+    if not (math.isfinite(cw) and math.isfinite(s_fit) and math.isfinite(s_between)):
+        return None
+    sigma_c = max(s_fit, s_between)
+    gap = abs(med - cw) / math.hypot(sigma_m, sigma_c)
+    if gap > prm.veto_k:
+        return None
+    wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
+    return (wm * med + wc * cw) / (wm + wc), max(1.0, gap) / math.sqrt(wm + wc), cw, sigma_c
 
 
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
@@ -944,6 +1074,14 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
             if veto_only:
                 _alert_other_size(out, med, sigma_m, dw, nom_c, prm, system=system, deformed=deformed)
+                # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
+                # it confirms the size the mask alone gives clearly, that size is measured
+                nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+                both = _with_circle(med, sigma_m, info, prm) if conf_m >= prm.min_confidence else None
+                if both is not None:
+                    nominal, conf = snap_diameter(both[0], system=system, deformed=deformed, sigma_mm=both[1])
+                    if nominal == nom_m and conf >= prm.min_confidence:
+                        return _measured(out, nominal, conf, both, in_shadow, prm)
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
@@ -963,6 +1101,13 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     if not math.isfinite(nominal):
         out["diameter_reason"] = f"width {width:.1f} mm matches no {system} size"
         return out
+    if conf < prm.min_confidence and veto_only and cloud and not mask_problem:
+        # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it
+        both = _with_circle(med, sigma_m, info, prm)
+        if both is not None:
+            n2, c2 = snap_diameter(both[0], system=system, deformed=deformed, sigma_mm=both[1])
+            if math.isfinite(n2) and c2 >= prm.min_confidence:
+                return _measured(out, n2, c2, both, in_shadow, prm)
     if conf < prm.min_confidence:
         out["confidence"] = conf
         out["diameter_reason"] = (f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} "
@@ -975,6 +1120,19 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED,
                diameter_reason=reason, width_source=source, width_used_mm=round(width, 3))
+    return out
+
+
+def _measured(out, nominal, conf, both, in_shadow, prm) -> dict:
+    """``out`` as a bar sized from its mask and its cloud's circle width (``both`` from
+    :func:`_with_circle`)."""
+    reason = (f"the axis was fitted with an assumed radius: size from the mask and the shape of the "
+              f"point cloud (circle fit {both[2]:.1f} ± {both[3]:.1f} mm)")
+    if in_shadow:
+        conf = min(conf, prm.shadow_confidence)
+        reason += "; bar in shadow: confidence capped"
+    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
+               width_source="mask+circle", width_used_mm=round(both[0], 3))
     return out
 
 
@@ -1083,6 +1241,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
+    _circle_between_spread(results, prepared, prm)
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []
@@ -1097,7 +1256,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
-               "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan}
+               "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
+               "circle_width_mm": info.get("circle_width_mm", math.nan),
+               "circle_sigma_mm": info.get("circle_sigma_mm", math.nan)}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)
