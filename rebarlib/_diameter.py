@@ -1126,8 +1126,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
 def _measured(out, nominal, conf, both, in_shadow, prm) -> dict:
     """``out`` as a bar sized from its mask and its cloud's circle width (``both`` from
     :func:`_with_circle`)."""
-    reason = (f"the axis was fitted with an assumed radius: size from the mask and the shape of the "
-              f"point cloud (circle fit {both[2]:.1f} ± {both[3]:.1f} mm)")
+    reason = f"size from the mask and the point cloud's shape (circle fit {both[2]:.1f} ± {both[3]:.1f} mm)"
     if in_shadow:
         conf = min(conf, prm.shadow_confidence)
         reason += "; bar in shadow: confidence capped"
@@ -1178,7 +1177,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         rules out mask sizes it contradicts, "not measured"), or False (mask widths alone).
         A bar whose row in ``bars`` has a finite ``axis_radius_mm`` (the radius its axis was
         placed with; else the geometry stage's ``radius_mm`` of its fixed-radius cylinder fit)
-        is always treated as ``"veto"``
+        is always treated as ``"veto"``. In veto mode, where the mask alone is ambiguous or
+        clearly gives another size than the cloud's echo, the circle fitted to the bar's cloud
+        (``circle_width_mm``, independent of where the axis lies) is combined with the mask
+        instead (:func:`_with_circle`): the bar is measured where the two agree and their
+        combined width is clear, ``width_source`` "mask+circle"
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -1192,8 +1195,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
     ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
-    its axis), ``width_source`` ("mask", "cloud" or "mask+cloud": what the size came from) and
-    ``width_used_mm`` (the width that was snapped).
+    its axis), ``width_source`` ("mask", "cloud", "mask+cloud" or "mask+circle": what the size
+    came from), ``width_used_mm`` (the width that was snapped), ``circle_width_mm`` and
+    ``circle_sigma_mm`` (refined: the diameter of the circle fitted to the bar's point cloud,
+    :func:`_cloud_circle`, and the σ it is used with: the fit's standard error or the spread of
+    the circle widths between the capture's bars of one design size, whichever is larger).
 
     Examples
     --------
@@ -1258,7 +1264,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
                "circle_width_mm": info.get("circle_width_mm", math.nan),
-               "circle_sigma_mm": info.get("circle_sigma_mm", math.nan)}
+               # the σ it is used with: the fit's, or the between-bar spread if that is larger
+               "circle_sigma_mm": float(np.fmax(info.get("circle_sigma_mm", math.nan),
+                                                info.get("circle_between_mm", math.nan)))}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)
