@@ -534,7 +534,7 @@ def _circle_fit(a, b, r0, *, iters: int = 30):
     whose noise lies along b (a depth camera's: along the line of sight).
 
     Least squares on the residuals along b, not on the distances to the circle: with depth noise
-    the latter shrink the circle (on an arc of ±50° a σ of 0.6 mm on a 7 mm radius gives about
+    the latter shrink the circle (on an arc of ±53° a σ of 0.6 mm on a 7 mm radius gives about
     6.5 mm); the former is unbiased. Gauss–Newton from the centre (0, 5th percentile of b + r0) with
     radius ``r0``, then Tukey weights at 4.685 robust σ (MAD, at least 0.05 mm). Returns
     (a0, b0, r, σ_r, weights): σ_r is the radius's standard error from the normal matrix and
