@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._barsizes import bar_system, observed_width_mm, snap_diameter
-from ._camera import Intrinsics, project, ray_directions
+from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 
 __all__ = ["BarPlane", "imaginary_plane", "intersect_rays_plane", "cross_section_direction",
@@ -497,6 +497,21 @@ def _colour_edges_rgb(c, t, t_lo, t_hi, px_mm, prm):
     return res[0], res[1], moved
 
 
+def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, *, unique=False):
+    """Camera-frame points, less the foot A of γ, of the depth pixels at ``f`` (fractions of each
+    half-width) across the mask run of every cross-section; pixels without depth are left out,
+    and with ``unique`` each pixel is taken once."""
+    H, W = depth.shape
+    t = centres[:, None] + f[None, :] * widths[:, None] / 2
+    uv = np.rint(project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)).astype(int)
+    uv = uv[(uv[:, 0] >= 0) & (uv[:, 0] < W) & (uv[:, 1] >= 0) & (uv[:, 1] < H)]
+    if unique:
+        uv = np.unique(uv, axis=0)
+    z = depth[uv[:, 1], uv[:, 0]]
+    good = z > 0
+    return backproject(uv[good], z[good], intr) - plane.foot_mm
+
+
 def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
@@ -508,25 +523,14 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     """
     if len(stations) < prm.min_sections:
         return math.nan, math.nan, 0
-    H, W = depth.shape
-    n = 7
-    f = np.linspace(-prm.depth_core, prm.depth_core, n)  # across the middle of each run
-    t = centres[:, None] + f[None, :] * widths[:, None] / 2
-    X = stations[:, None, :] + t[..., None] * plane.across  # (S, n, 3) points of γ
-    uv = project(X.reshape(-1, 3), intr)
-    ui, vi = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
-    inside = (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
-    z = np.zeros(len(uv))
-    z[inside] = depth[vi[inside], ui[inside]]
-    good = z > 0
-    if good.sum() < prm.min_sections * 3:
-        return math.nan, math.nan, int(good.sum())
-    rays = np.column_stack(((ui[good] - intr.cx) / intr.fx, (vi[good] - intr.cy) / intr.fy, np.ones(good.sum())))
-    P = rays * z[good][:, None] - plane.foot_mm
+    f = np.linspace(-prm.depth_core, prm.depth_core, 7)  # across the middle of each run
+    P = _section_points(depth, intr, plane, stations, centres, widths, f)
+    if len(P) < prm.min_sections * 3:
+        return math.nan, math.nan, len(P)
     radial = P - np.outer(P @ plane.direction, plane.direction)
     d = 2 * np.linalg.norm(radial, axis=1)
     q1, med, q3 = np.percentile(d, [25, 50, 75])
-    return float(med), float((q3 - q1) / 1.349), int(good.sum())
+    return float(med), float((q3 - q1) / 1.349), len(P)
 
 
 def _circle_fit(a, b, r0, *, iters: int = 30):
@@ -582,39 +586,27 @@ def _cloud_circle(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     roughly its place: an axis placed with an assumed radius (the geometry stage's fixed-radius
     cylinder) gives the same circle. The points are read over the middle ``prm.circle_core`` of
     each run (the flanks beyond face the camera at a grazing angle, where a stereo camera's
-    depth is least reliable). Returns (diameter, σ, points): σ is the fit's standard error with
+    depth is least reliable). Returns (diameter, σ): σ is the fit's standard error with
     neighbouring points counted as sharing their noise (``prm.depth_correlated_px``); NaN where
     too few points or the fit fails.
     """
     if len(stations) < prm.min_sections:
-        return math.nan, math.nan, 0
-    H, W = depth.shape
+        return math.nan, math.nan
     px_mm = float(np.median(stations[:, 2])) / intr.fx
     n = int(np.clip(np.ceil(np.nanmedian(widths) * prm.circle_core / px_mm), 5, 41))
     f = np.linspace(-prm.circle_core, prm.circle_core, n)
-    t = centres[:, None] + f[None, :] * widths[:, None] / 2
-    X = stations[:, None, :] + t[..., None] * plane.across
-    uv = project(X.reshape(-1, 3), intr)
-    ui, vi = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
-    inside = (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
-    key = np.unique(vi[inside].astype(np.int64) * W + ui[inside])  # each depth pixel once
-    vi, ui = key // W, key % W
-    z = depth[vi, ui].astype(float)
-    good = z > 0
-    if good.sum() < prm.min_sections * 5:
-        return math.nan, math.nan, int(good.sum())
-    ui, vi, z = ui[good], vi[good], z[good]
-    P = np.column_stack(((ui - intr.cx) / intr.fx * z, (vi - intr.cy) / intr.fy * z, z)) - plane.foot_mm
-    a, b = P @ plane.across, P @ plane.normal
+    P = _section_points(depth, intr, plane, stations, centres, widths, f, unique=True)
+    if len(P) < prm.min_sections * 5:
+        return math.nan, math.nan
     r0 = float(np.nanmedian(widths)) / 2
-    a0, b0, r, s_r, w = _circle_fit(a, b, r0)
+    _, _, r, s_r, _ = _circle_fit(P @ plane.across, P @ plane.normal, r0)
     if not (math.isfinite(r) and 0.25 * r0 < r < 4 * r0):
-        return math.nan, math.nan, int(good.sum())
-    s_r *= math.sqrt(prm.depth_correlated_px)
-    return 2 * r, 2 * s_r, int((w > 0).sum())
+        return math.nan, math.nan
+    return 2 * r, 2 * s_r * math.sqrt(prm.depth_correlated_px)
 
 
-def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None):
+def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None,
+                 circle=False):
     H, W = maskf.shape
     pl = bar.plane
     st = _stations(bar, intr, prm.step_px, prm.max_sections)
@@ -800,9 +792,11 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
         depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
-    two_k = kept[~one_sided[kept]]
-    info["circle_width_mm"], info["circle_sigma_mm"], info["circle_points"] = _cloud_circle(
-        depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm) if depth_img is not None else (math.nan, math.nan, 0)
+    info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
+    if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
+        two_k = kept[~one_sided[kept]]
+        info["circle_width_mm"], info["circle_sigma_mm"] = _cloud_circle(
+            depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm)
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
@@ -934,13 +928,15 @@ def _mask_between_spread(results, prepared, prm) -> None:
 
 
 def _circle_between_spread(results, prepared, prm) -> None:
-    """Store in every bar's info ``circle_between_mm``: the spread (RMS) of the point-cloud
-    circle widths between the capture's bars of the same design size (as for the mask widths,
-    :func:`_mask_between_spread`). It is the circle fit's error per bar as this capture shows
-    it, with what its own residuals do not show: depth quantisation that repeats in every
-    section of a bar at one depth, noise correlated over more pixels than assumed. Needs
-    ``prm.colour_offset_bars`` bars with a circle width and a design size; else NaN (the circle
-    width is then not used)."""
+    """Store in every bar's info ``circle_between_mm``, the spread (RMS) of the point-cloud
+    circle widths between the capture's bars of the same design size, and make its
+    ``circle_sigma_mm`` the σ the circle width is used with: the larger of the fit's own σ and
+    that spread (as for the mask widths,
+    :func:`_mask_between_spread`). That spread is the circle fit's error per bar as this
+    capture shows it, with what its own residuals do not show: depth quantisation that repeats
+    in every section of a bar at one depth, noise correlated over more pixels than assumed.
+    Needs ``prm.colour_offset_bars`` bars with a circle width and a design size; else NaN (the
+    circle width is then not used)."""
     dev = _between_bar_deviations({i: r[3]["circle_width_mm"] for i, r in enumerate(results)
                                    if math.isfinite(r[3].get("circle_width_mm", math.nan))}, prepared)
     # the root-mean-square, not a robust spread: the fit's errors have heavy tails (a bar whose
@@ -949,6 +945,7 @@ def _circle_between_spread(results, prepared, prm) -> None:
     s_c = float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= prm.colour_offset_bars else math.nan
     for r in results:
         r[3]["circle_between_mm"] = s_c
+        r[3]["circle_sigma_mm"] = float(np.fmax(r[3]["circle_sigma_mm"], s_c))
 
 
 def _colour_calibration(results, prepared, prm) -> None:
@@ -998,27 +995,35 @@ def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deform
             "so the cloud cannot confirm another size: check this bar by hand")
 
 
-def _with_circle(med, sigma_m, info, prm):
-    """The mask width fused with the point cloud's circle width (:func:`_cloud_circle`), for an
-    axis placed with an assumed radius, whose own cloud width only echoes that radius.
+def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size=math.nan):
+    """``out`` as a bar sized from its mask width and its point cloud's circle width
+    (:func:`_cloud_circle`), for an axis placed with an assumed radius, whose own cloud width
+    only echoes that radius; None where the two do not settle the size.
 
-    Returns (width, σ, circle width, σ of the circle width), or None where there is no sound
-    circle width (too few points, or fewer than ``prm.colour_offset_bars`` bars to learn its
-    between-bar spread from) or where it disagrees with the mask by more than ``prm.veto_k``
-    combined σ. The circle width's σ is the larger of the fit's own standard error (neighbouring
-    points sharing their noise) and the spread of the circle widths between the capture's bars
-    of one design size; two estimates further apart than their σ say have their σ enlarged
-    (Birge ratio)."""
-    cw, s_fit, s_between = (info.get("circle_width_mm", math.nan), info.get("circle_sigma_mm", math.nan),
-                            info.get("circle_between_mm", math.nan))
-    if not (math.isfinite(cw) and math.isfinite(s_fit) and math.isfinite(s_between)):
+    Needs a sound circle width (enough points, and ``prm.colour_offset_bars`` bars to learn its
+    between-bar spread from) within ``prm.veto_k`` combined σ of the mask width. Their weighted
+    mean, its σ enlarged where the two lie further apart than their σ say (Birge ratio), must
+    snap to a size with confidence ≥ ``prm.min_confidence`` (and to ``size`` where one is
+    given). The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_between_spread`).
+    """
+    cw, sigma_c = info["circle_width_mm"], info["circle_sigma_mm"]
+    if not (math.isfinite(cw) and math.isfinite(sigma_c) and math.isfinite(info["circle_between_mm"])):
         return None
-    sigma_c = max(s_fit, s_between)
     gap = abs(med - cw) / math.hypot(sigma_m, sigma_c)
     if gap > prm.veto_k:
         return None
     wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
-    return (wm * med + wc * cw) / (wm + wc), max(1.0, gap) / math.sqrt(wm + wc), cw, sigma_c
+    width, sigma = (wm * med + wc * cw) / (wm + wc), max(1.0, gap) / math.sqrt(wm + wc)
+    nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
+    if not math.isfinite(nominal) or conf < prm.min_confidence or (math.isfinite(size) and nominal != size):
+        return None
+    reason = f"size from the mask and the point cloud's shape (circle fit {cw:.1f} ± {sigma_c:.1f} mm)"
+    if in_shadow:
+        conf = min(conf, prm.shadow_confidence)
+        reason += "; bar in shadow: confidence capped"
+    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
+               width_source="mask+circle", width_used_mm=round(width, 3))
+    return out
 
 
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
@@ -1077,11 +1082,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
                 # it confirms the size the mask alone gives clearly, that size is measured
                 nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
-                both = _with_circle(med, sigma_m, info, prm) if conf_m >= prm.min_confidence else None
-                if both is not None:
-                    nominal, conf = snap_diameter(both[0], system=system, deformed=deformed, sigma_mm=both[1])
-                    if nominal == nom_m and conf >= prm.min_confidence:
-                        return _measured(out, nominal, conf, both, in_shadow, prm)
+                if conf_m >= prm.min_confidence:
+                    return _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system,
+                                               deformed=deformed, size=nom_m) or out
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
@@ -1103,11 +1106,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         return out
     if conf < prm.min_confidence and veto_only and cloud and not mask_problem:
         # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it
-        both = _with_circle(med, sigma_m, info, prm)
-        if both is not None:
-            n2, c2 = snap_diameter(both[0], system=system, deformed=deformed, sigma_mm=both[1])
-            if math.isfinite(n2) and c2 >= prm.min_confidence:
-                return _measured(out, n2, c2, both, in_shadow, prm)
+        settled = _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed)
+        if settled is not None:
+            return settled
     if conf < prm.min_confidence:
         out["confidence"] = conf
         out["diameter_reason"] = (f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} "
@@ -1120,18 +1121,6 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED,
                diameter_reason=reason, width_source=source, width_used_mm=round(width, 3))
-    return out
-
-
-def _measured(out, nominal, conf, both, in_shadow, prm) -> dict:
-    """``out`` as a bar sized from its mask and its cloud's circle width (``both`` from
-    :func:`_with_circle`)."""
-    reason = f"size from the mask and the point cloud's shape (circle fit {both[2]:.1f} ± {both[3]:.1f} mm)"
-    if in_shadow:
-        conf = min(conf, prm.shadow_confidence)
-        reason += "; bar in shadow: confidence capped"
-    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
-               width_source="mask+circle", width_used_mm=round(both[0], 3))
     return out
 
 
@@ -1180,7 +1169,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         is always treated as ``"veto"``. In veto mode, where the mask alone is ambiguous or
         clearly gives another size than the cloud's echo, the circle fitted to the bar's cloud
         (``circle_width_mm``, independent of where the axis lies) is combined with the mask
-        instead (:func:`_with_circle`): the bar is measured where the two agree and their
+        instead (:func:`_settle_with_circle`): the bar is measured where the two agree and their
         combined width is clear, ``width_source`` "mask+circle"
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
@@ -1197,9 +1186,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud" or "mask+circle": what the size
     came from), ``width_used_mm`` (the width that was snapped), ``circle_width_mm`` and
-    ``circle_sigma_mm`` (refined: the diameter of the circle fitted to the bar's point cloud,
-    :func:`_cloud_circle`, and the σ it is used with: the fit's standard error or the spread of
-    the circle widths between the capture's bars of one design size, whichever is larger).
+    ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
+    diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, and the σ it
+    is used with: the fit's standard error or the spread of the circle widths between the
+    capture's bars of one design size, whichever is larger; else NaN).
 
     Examples
     --------
@@ -1243,7 +1233,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         owner = np.full(m.shape, -1, np.int32)  # bar index of each boundary pixel
         owner[vv, uu] = _attribute_pixels(np.column_stack((uu, vv)), prepared, intr)
     depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
-    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img)
+    # an axis placed with an assumed radius: its cloud width echoes that radius, so it may only
+    # veto, and the circle fitted to its cloud is what can size the bar
+    cloud_mode = ["veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud for bar in prepared]
+    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img, circle=cloud_mode[i] == "veto")
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
@@ -1264,9 +1257,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
                "circle_width_mm": info.get("circle_width_mm", math.nan),
-               # the σ it is used with: the fit's, or the between-bar spread if that is larger
-               "circle_sigma_mm": float(np.fmax(info.get("circle_sigma_mm", math.nan),
-                                                info.get("circle_between_mm", math.nan)))}
+               "circle_sigma_mm": info["circle_sigma_mm"]}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)
@@ -1294,11 +1285,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:
             row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
-                                         system=system, deformed=deformed,
-                                         # an axis placed with an assumed radius: its cloud
-                                         # width echoes that radius, so it may only veto
-                                         use_cloud=("veto" if use_cloud and math.isfinite(bar.axis_radius_mm)
-                                                    else use_cloud)))
+                                         system=system, deformed=deformed, use_cloud=cloud_mode[i]))
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)
