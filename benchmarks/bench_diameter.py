@@ -29,7 +29,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from rebarlib import GEMINI2, design_from_dict
+from rebarlib import GEMINI2, Intrinsics, design_from_dict
 from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
 from rebarlib.data import paper_design, site_design
 from rebarlib.synth import Appearance, Deviations, SensorModel, rib_envelope_mm, synth_capture
@@ -81,18 +81,30 @@ def _morph(mask, px):
     return op(mask.astype(np.uint8), k).astype(bool)
 
 
-def _capture(name, design, kw, app, cache):
+#: Cameras the captures can be rendered with (``--camera``), with the same active-stereo noise
+#: model (50 mm baseline, as both units have). "d435-848": a RealSense D435 at 848 × 480, the
+#: depth resolution its maker recommends: the 1280 × 720 focal length of docs/sensors.md
+#: (f ≈ 638 px) scaled to 848 px wide. Bars are then about 2/3 as many pixels wide as on the
+#: Gemini 2: a check that nothing depends on the reference camera's resolution.
+CAMERAS = {"gemini2": GEMINI2,
+           "d435-848": Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5,
+                                  width=848, height=480)}
+
+
+def _capture(name, design, kw, app, cache, camera="gemini2"):
+    intr = CAMERAS[camera]
     if not cache:
-        return synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
+        return synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=intr, **kw)
     from pathlib import Path
 
     from rebarlib import load_capture, save_capture
 
     px = f"__px{app.pixel_samples}" if app.pixel_samples > 1 else ""
+    px += "" if camera == "gemini2" else f"__{camera}"
     folder = Path(cache) / ("".join(c if c.isalnum() else "_" for c in name) + px)
     if (folder / "truth.json").is_file():
         return load_capture(folder)
-    cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=GEMINI2, **kw)
+    cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=intr, **kw)
     save_capture(cap, folder)
     return load_capture(folder)
 
@@ -273,6 +285,8 @@ def main() -> None:
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     ap.add_argument("--pixel-samples", type=int, default=1,
                     help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
+    ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
+                    help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another")
     ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
@@ -298,7 +312,7 @@ def main() -> None:
     for name, design, kw in scenarios(args.quick, args.seed_offset):
         if args.only not in name:
             continue
-        cap = _capture(name, design, kw, app, args.cache)
+        cap = _capture(name, design, kw, app, args.cache, args.camera)
         masks = {k: f(cap, design) for k, f in mask_src.items()}
         axes = {}
         for a, f in axis_src.items():

@@ -984,15 +984,15 @@ def _colour_calibration(results, prepared, prm) -> None:
 
 def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deformed) -> None:
     """A bar vetoed by a cloud that echoes an assumed radius: where the mask alone is clear about
-    another size than the cloud's (``nom_c``, snapped from the cloud width ``dw``), the reason says
-    so and names it. The cloud cannot confirm it, so the bar stays "not measured", but the
+    another size than the one the axis was placed with (``nom_c``), the reason says so and names
+    it. The cloud (width ``dw``) cannot confirm it, so the bar stays "not measured", but the
     inspector learns which bar may be of another size."""
     nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
     if math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence:
         out["diameter_reason"] = (
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
-            f"the point cloud {dw:.1f} mm gives Φ{nom_c:g}, but its axis was fitted with an assumed radius, "
-            "so the cloud cannot confirm another size: check this bar by hand")
+            f"but the axis was fitted with the radius of Φ{nom_c:g}, so the point cloud ({dw:.1f} mm) "
+            "cannot confirm another size: check this bar by hand")
 
 
 def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size=math.nan):
@@ -1026,7 +1026,8 @@ def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, defo
     return out
 
 
-def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud) -> dict:
+def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
+                      assumed_mm=math.nan) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
     The mask width and the point-cloud width are two independent measurements, each with a
@@ -1071,9 +1072,15 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
     cap = 1.0
     if not mask_problem and cloud:
-        # With an assumed axis radius the cloud width echoes the design: a mask disagreeing
-        # with it can never be confirmed, so in veto mode the two must give the same size.
-        nom_c = snap_diameter(dw, system=system, deformed=deformed)[0] if veto_only else math.nan
+        # With an assumed axis radius the cloud width echoes it: a mask giving another size can
+        # never be confirmed by the cloud, so in veto mode the mask must give the assumed size.
+        # That size is the assumed radius's where it is known, not the echo's: where the axis is
+        # off across the bar, the echo drifts with it, and so does a width from one edge to the
+        # axis; the two would then agree on a wrong size (seen on a bar seen from one side only)
+        nom_c = math.nan
+        if veto_only:
+            nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
+                     else snap_diameter(dw, system=system, deformed=deformed)[0])
         strict = veto_only and nom_c != snap_diameter(med, system=system, deformed=deformed)[0]
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
@@ -1105,8 +1112,11 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         out["diameter_reason"] = f"width {width:.1f} mm matches no {system} size"
         return out
     if conf < prm.min_confidence and veto_only and cloud and not mask_problem:
-        # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it
-        settled = _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed)
+        # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
+        # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
+        # confirm what the mask leans to but never overturn it
+        settled = _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed,
+                                      size=nominal)
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
@@ -1285,7 +1295,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
         else:
             row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
-                                         system=system, deformed=deformed, use_cloud=cloud_mode[i]))
+                                         system=system, deformed=deformed, use_cloud=cloud_mode[i],
+                                         assumed_mm=bar.axis_radius_mm))
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)

@@ -342,6 +342,41 @@ def test_axes_placed_with_the_design_radius_never_confirm_another_size_alone():
     assert w.diameter_reason.startswith("possible wrong size") and f"Φ{wrong['diameter_mm']:g}" in w.diameter_reason
 
 
+def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_or_a_circle():
+    # Decisions for axes placed with an assumed radius (veto mode), by hand.
+    from rebarlib._diameter import _refined_decision, _RefinedParams
+
+    prm = _RefinedParams()
+    kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
+    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                mask_between_mm=0.3, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                circle_width_mm=math.nan, circle_sigma_mm=math.nan, circle_between_mm=math.nan)
+    # A Φ10 bar (envelope 11.6) seen from one side only, its axis placed with the Φ10 radius but
+    # off across the bar: the width from its edge to the axis (9.6 mm) and the cloud's echo
+    # (10.0 mm) drift together and both read Φ8. Their agreement confirms nothing: the mask
+    # gives another size than the one the axis was placed with, so the bar is not measured and
+    # the inspector is told which size it may be.
+    one = dict(base, one_sided_share=1.0, depth_width_mm=10.0)
+    r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, **kw)
+    assert r["diameter_status"] == "not measured"
+    assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
+    assert "Φ10" in r["diameter_reason"]
+    # the same bar with the axis where it belongs is measured as Φ10
+    r = _refined_decision(11.5, 0.2, 100, dict(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0
+    # A mask width between Φ14 (16.2) and Φ16 (18.4), nearer Φ14, with a large error per bar;
+    # the circle fit reads 19.1 ± 1.1 mm. Their weighted mean would snap to Φ16, but the circle's
+    # errors have heavy tails: it may settle the mask's nearer size, never overturn it.
+    amb = dict(base, depth_width_mm=16.2, mask_between_mm=1.4, circle_width_mm=19.14, circle_sigma_mm=1.08,
+               circle_between_mm=1.08)
+    r = _refined_decision(16.95, 0.3, 150, amb, False, prm, assumed_mm=16.2 / 2, **kw)
+    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
+    # a circle that agrees with the mask's nearer size settles it
+    r = _refined_decision(16.95, 0.3, 150, dict(amb, circle_width_mm=16.3, mask_between_mm=0.6), False, prm,
+                          assumed_mm=16.2 / 2, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
+
+
 def test_circle_fit_by_hand():
     from rebarlib._diameter import _circle_fit
 
