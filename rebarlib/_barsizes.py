@@ -109,6 +109,28 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     return _gb_like_envelope(float(nominal_mm))
 
 
+def _half_gaps(obs, i) -> tuple[float, float]:
+    lo = (obs[i] - obs[i - 1]) / 2 if i > 0 else (obs[1] - obs[0]) / 2
+    hi = (obs[i + 1] - obs[i]) / 2 if i + 1 < len(obs) else (obs[-1] - obs[-2]) / 2
+    return lo, hi
+
+
+def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: bool = True) -> tuple[float, float]:
+    """Half the distances (mm) from the observed width of size ``nominal_mm`` to those of the
+    next smaller and next larger sizes of ``system`` (at the ends of the table, the nearest
+    step): a width beyond them snaps to another size.
+
+    Examples
+    --------
+    >>> [round(g, 2) for g in size_half_gaps_mm(14)]  # envelopes 13.9, 16.2, 18.4
+    [1.15, 1.1]
+    """
+    sysm = bar_system(system)
+    obs = sysm.envelope_mm if deformed else sysm.sizes_mm
+    i = min(range(len(obs)), key=lambda k: abs(sysm.sizes_mm[k] - nominal_mm))
+    return _half_gaps(obs, i)
+
+
 def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True,
                   sigma_mm: float = 0.0) -> tuple[float, float]:
     """Nominal size whose observed width is nearest to ``width_mm``, and a confidence in 0..1.
@@ -140,8 +162,7 @@ def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool =
     sizes = sysm.sizes_mm
     obs = sysm.envelope_mm if deformed else sizes
     i = min(range(len(obs)), key=lambda k: abs(obs[k] - w))
-    lo_gap = (obs[i] - obs[i - 1]) / 2 if i > 0 else (obs[1] - obs[0]) / 2
-    hi_gap = (obs[i + 1] - obs[i]) / 2 if i + 1 < len(obs) else (obs[-1] - obs[-2]) / 2
+    lo_gap, hi_gap = _half_gaps(obs, i)
     d = w - obs[i]
     gap = hi_gap if d >= 0 else lo_gap
     if abs(d) > gap:  # beyond the largest or below the smallest size

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import bar_system, observed_width_mm, snap_diameter
+from ._barsizes import bar_system, observed_width_mm, size_half_gaps_mm, snap_diameter
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 
@@ -927,23 +927,49 @@ def _mask_between_spread(results, prepared, prm) -> None:
         r[3]["mask_between_mm"] = s_m
 
 
-def _circle_between_spread(results, prepared, prm) -> None:
-    """Store in every bar's info ``circle_between_mm``, the spread (RMS) of the point-cloud
-    circle widths between the capture's bars of the same design size, and make its
-    ``circle_sigma_mm`` the σ the circle width is used with: the larger of the fit's own σ and
-    that spread (as for the mask widths,
-    :func:`_mask_between_spread`). That spread is the circle fit's error per bar as this
-    capture shows it, with what its own residuals do not show: depth quantisation that repeats
-    in every section of a bar at one depth, noise correlated over more pixels than assumed.
-    Needs ``prm.colour_offset_bars`` bars with a circle width and a design size; else NaN (the
-    circle width is then not used)."""
-    dev = _between_bar_deviations({i: r[3]["circle_width_mm"] for i, r in enumerate(results)
-                                   if math.isfinite(r[3].get("circle_width_mm", math.nan))}, prepared)
-    # the root-mean-square, not a robust spread: the fit's errors have heavy tails (a bar whose
-    # flank is lost to the projector's shadow, depth quantisation on a bar at one depth), and a
-    # robust spread would hide them
-    s_c = float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= prm.colour_offset_bars else math.nan
+def _circle_calibration(results, prm, *, system, deformed) -> None:
+    """Calibrate the point-cloud circle widths of a capture against the bars its masks size
+    clearly, and store in every bar's info ``circle_offset_mm`` (subtracted from
+    ``circle_width_mm``), ``circle_between_mm`` and the ``circle_sigma_mm`` the circle width is
+    used with.
+
+    A bar whose mask width lies within a quarter of a size step of a size's envelope (robustly
+    one size) has that envelope as its true width; its circle width minus that envelope is the
+    circle's error on that bar. The median of those errors is a bias the whole capture shares
+    (depth quantised in disparity flattens or bulges every bar's arc alike: +1.4 mm, median, on
+    848 × 480 captures at 400-600 mm) and is removed; their root-mean-square around it (not a
+    robust spread: the fit's errors have heavy tails, which a robust spread would hide) is the
+    circle's error per bar, what its own residuals do not show (quantisation repeating in every
+    section of a bar at one depth, noise correlated over more pixels than assumed). The
+    circle's σ is the larger of the fit's own and that spread. Learning from the mask's sizes,
+    not the design's, keeps a bar of another size than designed from counting its true
+    difference as the circle's error. Needs ``prm.colour_offset_bars`` such bars; else the
+    circle width is not used (``circle_between_mm`` NaN)."""
+    dev = []
     for r in results:
+        cw = r[3].get("circle_width_mm", math.nan)
+        if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
+            continue
+        med = float(np.median(r[0]))
+        nominal, _ = snap_diameter(med, system=system, deformed=deformed)
+        if not math.isfinite(nominal):
+            continue
+        env = observed_width_mm(nominal, system=system, deformed=deformed)
+        lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
+        if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
+            dev.append(cw - env)
+    off, s_c = 0.0, math.nan
+    if len(dev) >= prm.colour_offset_bars:
+        off = float(np.median(dev))
+        # learnt from a dozen bars or so, the spread may fall short of the errors' tails: the
+        # upper 90 % confidence bound of σ from k = n - 1 degrees of freedom (χ² quantile by the
+        # Wilson-Hilferty approximation)
+        k = len(dev) - 1
+        chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
+        s_c = float(np.sqrt(np.sum(np.square(np.asarray(dev) - off)) / chi2_10))
+    for r in results:
+        r[3]["circle_offset_mm"] = off
+        r[3]["circle_width_mm"] = r[3].get("circle_width_mm", math.nan) - off
         r[3]["circle_between_mm"] = s_c
         r[3]["circle_sigma_mm"] = float(np.fmax(r[3]["circle_sigma_mm"], s_c))
 
@@ -1004,7 +1030,7 @@ def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, defo
     between-bar spread from) within ``prm.veto_k`` combined σ of the mask width. Their weighted
     mean, its σ enlarged where the two lie further apart than their σ say (Birge ratio), must
     snap to a size with confidence ≥ ``prm.min_confidence`` (and to ``size`` where one is
-    given). The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_between_spread`).
+    given). The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_calibration`).
     """
     cw, sigma_c = info["circle_width_mm"], info["circle_sigma_mm"]
     if not (math.isfinite(cw) and math.isfinite(sigma_c) and math.isfinite(info["circle_between_mm"])):
@@ -1197,9 +1223,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud" or "mask+circle": what the size
     came from), ``width_used_mm`` (the width that was snapped), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
-    diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, and the σ it
-    is used with: the fit's standard error or the spread of the circle widths between the
-    capture's bars of one design size, whichever is larger; else NaN).
+    diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, less the
+    offset the capture's circles share against the bars their masks size clearly, and the σ it
+    is used with: the fit's standard error or the circle's error per bar learnt from those bars,
+    whichever is larger, :func:`_circle_calibration`; else NaN).
 
     Examples
     --------
@@ -1250,7 +1277,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
-    _circle_between_spread(results, prepared, prm)
+    _circle_calibration(results, prm, system=system, deformed=deformed)
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []

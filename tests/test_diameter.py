@@ -377,6 +377,37 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
+def test_circle_calibration_by_hand():
+    # Six bars whose masks read clearly Φ14 (envelope 16.2) and one clearly Φ16 (18.4, another
+    # size than designed: it must not count as a circle error); their circles read 1.4 mm wide
+    # (a bias the capture shares) plus e. Offset = median(circle − envelope) = 1.4; spread = RMS
+    # of e around it, raised to its upper 90 % bound from k = 6 degrees of freedom:
+    # χ²(0.10; 6) ≈ 2.204 (Wilson–Hilferty), σ = √(Σe² / 2.204). An ambiguous mask (15.2 mm)
+    # is not learnt from.
+    from rebarlib._diameter import _circle_calibration, _RefinedParams
+
+    prm = _RefinedParams()
+    masks = [16.2, 16.3, 16.1, 16.2, 16.25, 16.15, 18.4, 15.2]
+    e = [0.0, 0.3, -0.3, 0.1, -0.1, 0.2, 0.0, 5.0]
+    env = [16.2] * 6 + [18.4, 16.2]
+    results = [(np.full(prm.min_sections, m), None, None,
+                {"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05})
+               for m, v, ei in zip(masks, env, e)]
+    _circle_calibration(results, prm, system="GB1499.2", deformed=True)
+    dev = np.array(e[:7])
+    k = len(dev) - 1
+    chi2 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
+    sigma = math.sqrt(np.sum((dev - np.median(dev)) ** 2) / chi2)
+    for r, v, ei in zip(results, env, e):
+        assert r[3]["circle_offset_mm"] == pytest.approx(1.4 + np.median(dev), abs=1e-9)
+        assert r[3]["circle_width_mm"] == pytest.approx(v + ei - np.median(dev), abs=1e-9)
+        assert r[3]["circle_sigma_mm"] == pytest.approx(sigma, abs=1e-9)
+    # too few bars to learn from: the circle is not used (its spread unknown)
+    few = [(np.full(prm.min_sections, 16.2), None, None, {"circle_width_mm": 17.6, "circle_sigma_mm": 0.05})] * 3
+    _circle_calibration(few, prm, system="GB1499.2", deformed=True)
+    assert math.isnan(few[0][3]["circle_between_mm"])
+
+
 def test_circle_fit_by_hand():
     from rebarlib._diameter import _circle_fit
 
