@@ -8,7 +8,9 @@ sensor, sun shadows (random sun) and 30 % rusty bars. Each capture is measured w
 axes (``bars_from_truth``) and, when ``rebarlib._inspect.inspect`` exists, with the detected
 axes; with the true mask, the true mask dilated / eroded by 1 px (the typical bias of a
 learnt mask), the shipped model's mask (``SegmentationModel.default()``) and the
-fused colour + depth mask (``fuse_masks``) when those exist.
+fused colour + depth mask (``fuse_masks``) when those exist. ``--camera d435-848`` renders the
+same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of them,
+``--pixel-samples 3`` anti-aliased colour images.
 
 Per capture: bars (visible bars in the truth), wrong (measured, nominal size not the true one),
 hidden (reported hidden under upper bars), nm (not measured). Summary: correct % =
