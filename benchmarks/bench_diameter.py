@@ -31,7 +31,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from rebarlib import GEMINI2, Intrinsics, design_from_dict
+from _cameras import CAMERAS
+from rebarlib import design_from_dict
 from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
 from rebarlib.data import paper_design, site_design
 from rebarlib.synth import Appearance, Deviations, SensorModel, rib_envelope_mm, synth_capture
@@ -81,16 +82,6 @@ def _morph(mask, px):
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * abs(px) + 1, 2 * abs(px) + 1))
     op = cv2.dilate if px > 0 else cv2.erode
     return op(mask.astype(np.uint8), k).astype(bool)
-
-
-#: Cameras the captures can be rendered with (``--camera``), with the same active-stereo noise
-#: model (50 mm baseline, as both units have). "d435-848": a RealSense D435 at 848 × 480, the
-#: depth resolution its maker recommends: the 1280 × 720 focal length of docs/sensors.md
-#: (f ≈ 638 px) scaled to 848 px wide. Bars are then about 2/3 as many pixels wide as on the
-#: Gemini 2: a check that nothing depends on the reference camera's resolution.
-CAMERAS = {"gemini2": GEMINI2,
-           "d435-848": Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5,
-                                  width=848, height=480)}
 
 
 def _capture(name, design, kw, app, cache, camera="gemini2"):
