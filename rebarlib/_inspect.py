@@ -277,6 +277,7 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     t = time.perf_counter()
     bars, bar_clouds = [], []
     K = capture.intrinsics
+    camera = G.to_slab_frame(np.zeros((1, 3)), plane)[0]  # where the bars' visible sides face
     for li, lname in enumerate(layer_names):
         sel = np.where(layer_of == li)[0]
         if len(sel) == 0:
@@ -287,12 +288,13 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
         # direction groups do not know their level yet: fit with the larger radius first, then
         # refit each group with its level's radius once the levels are known
         found = G.find_bars(q[sel], layer=lname, radius_mm=max(radii.values()), min_length_mm=MIN_BAR_LENGTH_MM,
-                            pitch_mm=pitch, rng=rng)
+                            pitch_mm=pitch, camera=camera, rng=rng)
         found = G.assign_levels(found)
         if radii["bottom"] != radii["top"]:
             rad_by_group = {b.group: radii[b.level] for b in found}
             found = G.assign_levels(G.find_bars(q[sel], layer=lname, radius_mm=rad_by_group,
-                                                min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, rng=rng))
+                                                min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, camera=camera,
+                                                rng=rng))
         found = G.flag_border_cut(found, q[sel], plane=plane, intrinsics=K)
         for b in found:
             bar_clouds.append(cloud.subset(bar_sel[sel[b.point_index]]))

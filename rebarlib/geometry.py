@@ -465,14 +465,17 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
     return np.array(centres)[order], np.array(runs)[order]
 
 
-def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500):
+def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
     Model: across-offset ``a0 + a1·t``, height ``b0 + b1·t``; residual = distance to the axis −
-    radius. Gauss–Newton with Tukey weights at 4 robust std devs. Returns (params, weights, rms).
+    radius. Gauss–Newton with Tukey weights at 4 robust std devs, from ``start`` (offset, drift,
+    height, height drift at the points' mean ``t``) or from under the points' top.
+    Returns (params, weights, rms).
     """
     tc = t - t.mean()
-    a = np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0])
+    a = (np.array(start, float) if start is not None
+         else np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0]))
     # the iterations run on at most max_fit_points evenly spread points (1500 points place an
     # axis to well under 0.1 mm); the final weights are then computed on all points
     step_n = max(1, len(t) // max_fit_points)
@@ -521,10 +524,41 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500):
     return (a0, a[1], b0, a[3]), w, rms, (float(se[0]), float(se[2]))
 
 
+def _facing_share(fit, t, s, h, camera, c, n2) -> float:
+    """Share of a fit's inlier points whose outward normal (from the axis) points towards the
+    camera (slab frame; ``s`` are offsets across less ``c``, ``n2`` the plan normal)."""
+    (a0, a1, b0, b1), w, _, _ = fit
+    keep = w > 0
+    if not keep.any():
+        return 0.0
+    ds = s[keep] - a0 - a1 * t[keep]
+    dh = h[keep] - b0 - b1 * t[keep]
+    to_cam_s = float(np.asarray(camera[:2]) @ n2) - c - s[keep]
+    to_cam_h = float(camera[2]) - h[keep]
+    return float(np.mean(ds * to_cam_s + dh * to_cam_h > 0))
+
+
+def _facing_fit(fit, t, s, h, r, camera, c, n2):
+    """``fit`` if most of its points face the camera; else the fit from its centre mirrored
+    through the points (the other side of a flank), if that one's do. Returns (fit, facing)."""
+    if _facing_share(fit, t, s, h, camera, c, n2) >= 0.5:
+        return fit, True
+    (a0, a1, b0, b1), w, _, _ = fit
+    tm = float(t.mean())
+    keep = w > 0
+    mid = float(np.median(s[keep] - a1 * (t[keep] - tm))) if keep.any() else float(np.median(s))
+    a0c = a0 + a1 * tm
+    start = (2 * mid - a0c, a1, b0 + b1 * tm, b1)
+    other = _fit_bar(t, s, h, r, start=start)
+    if _facing_share(other, t, s, h, camera, c, n2) >= 0.5:
+        return other, True
+    return fit, False
+
+
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
               pitch_mm: float | None = None, min_arc_deg: float = 90.0, max_arc_deg: float = 200.0,
-              rng=None) -> list:
+              camera=None, rng=None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -546,6 +580,12 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     max_arc_deg : a camera above a bar sees at most a little more than its upper half; points
         spanning more than this around the fitted axis (two flanks of a bar hidden under a bar
         above it) mean the circle is misplaced: "not measured"
+    camera : the camera's position in the slab frame (``to_slab_frame`` of the origin), or None.
+        The points of a bar face the camera; a fixed-radius circle through a flank seen alone
+        (the top hidden by a bar over it) also fits with its centre on the far side of the
+        points, a diameter away, where they would face away from the camera. Given the camera,
+        such a fit is refitted from the mirrored centre, and kept only if its points then face
+        the camera (else the bar is "not measured").
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell. The sampled extent of a bar falls short of its
@@ -636,6 +676,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                     break
                 idx, t = idx2, along[idx2]
                 fit = _fit_bar(t, off[idx] - c, h[idx], r)
+            if camera is not None:
+                fit, facing = _facing_fit(fit, t, off[idx] - c, h[idx], r, camera, c, n2)
             (a0, a1, b0, b1), w, rms, se = fit
             keep = w > 0
             # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
@@ -651,6 +693,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
             phi = (phi + 90.0) % 360.0 - 90.0  # the seen upper half, [0°, 180°], without a wrap
             arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
             status, reason = "measured", ""
+            if camera is not None and not facing:
+                status, reason = "not measured", ("its points face away from the camera from either side of "
+                                                  "them: a flank seen alone, its axis cannot be placed")
             bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
                                 float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status, reason=reason,
                                 arc_deg=arc, axis_se_mm=float(max(se))))

@@ -211,6 +211,32 @@ def test_find_bars_axes_unbiased(lattice):
             assert min(abs(off - o) for o in TOP) < AXIS_OFFSET_TOL_MM
 
 
+def test_a_flank_seen_alone_is_not_fitted_from_its_far_side():
+    # A bar (r = 8 mm, axis at offset 0, height 20) seen only on its left flank (the top hidden
+    # by a bar over it): normals from 120° to 180° (in the plane across, height), camera up and
+    # to the left. A fixed-radius circle also fits those points with its centre a diameter away
+    # on their far side, where they would face away from the camera; started there, the fit
+    # stays there. Knowing the camera, the fit is refitted from the mirrored centre.
+    from rebarlib.geometry import _facing_fit, _facing_share, _fit_bar
+
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = rng.uniform(0, 300, n)
+    phi = np.radians(rng.uniform(120, 180, n))
+    s = 8 * np.cos(phi) + rng.normal(0, 0.3, n)
+    h = 20 + 8 * np.sin(phi) + rng.normal(0, 0.3, n)
+    camera, c, n2 = np.array([0.0, -300.0, 500.0]), 0.0, np.array([0.0, 1.0])  # bar along a: offset = b
+    mirrored = _fit_bar(t, s, h, 8.0, start=(-13.0, 0.0, 21.0, 0.0))
+    assert abs(mirrored[0][0] + 13.0) < 1.5  # the far-side solution
+    assert _facing_share(mirrored, t, s, h, camera, c, n2) < 0.5
+    fit, facing = _facing_fit(mirrored, t, s, h, 8.0, camera, c, n2)
+    (a0, a1, b0, b1), *_ = fit
+    assert facing and abs(a0) < 0.3 and abs(b0 - 20.0) < 0.3
+    # the right solution is left as it is
+    again, facing = _facing_fit(fit, t, s, h, 8.0, camera, c, n2)
+    assert facing and again is fit
+
+
 def test_measure_spacings_in_order_with_deviation(lattice):
     bars, _ = lattice
     sp = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0, ("lower", "top"): 200.0})
