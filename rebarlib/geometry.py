@@ -465,12 +465,13 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
     return np.array(centres)[order], np.array(runs)[order]
 
 
-def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None):
+def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None, parallel=False):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
     Model: across-offset ``a0 + a1·t``, height ``b0 + b1·t``; residual = distance to the axis −
     radius. Gauss–Newton with Tukey weights at 4 robust std devs, from ``start`` (offset, drift,
-    height, height drift at the points' mean ``t``) or from under the points' top.
+    height, height drift at the points' mean ``t``) or from under the points' top. ``parallel``
+    keeps the drift across at 0: the axis parallel to its direction.
     Returns (params, weights, rms).
     """
     tc = t - t.mean()
@@ -496,10 +497,15 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
         cs, ch = ds / rho, dh / rho
         J = np.stack([-cs, -ts * cs, -ch, -ts * ch])
         JW = J * w
+        if parallel:
+            J[1] = 0.0
+            a[1] = 0.0
         try:
             step = np.linalg.solve(JW @ J.T + 1e-9 * np.eye(4), -JW @ r)
         except np.linalg.LinAlgError:
             break
+        if parallel:
+            step[1] = 0.0
         a = a + step
         if np.abs(step).max() < 1e-4:
             break
@@ -522,6 +528,17 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
     a0 = a[0] - a[1] * t.mean()
     b0 = a[2] - a[3] * t.mean()
     return (a0, a[1], b0, a[3]), w, rms, (float(se[0]), float(se[2]))
+
+
+def _rms_on(fit, ref, t, s, h, radius) -> float:
+    """Root-mean-square residual of ``fit``'s cylinder over the points ``ref`` kept (the same
+    points for both, so that a fit that drops more points does not look better)."""
+    (a0, a1, b0, b1) = fit[0]
+    keep = ref[1] > 0
+    if not keep.any():
+        return math.inf
+    r = np.hypot(s[keep] - a0 - a1 * t[keep], h[keep] - b0 - b1 * t[keep]) - radius
+    return float(np.sqrt(np.mean(r ** 2)))
 
 
 def _facing_share(fit, t, s, h, camera, c, n2) -> float:
@@ -558,7 +575,7 @@ def _facing_fit(fit, t, s, h, r, camera, c, n2):
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
               pitch_mm: float | None = None, min_arc_deg: float = 90.0, max_arc_deg: float = 200.0,
-              camera=None, rng=None) -> list:
+              camera=None, skew_check_deg: float = 2.0, rng=None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -586,6 +603,11 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         points, a diameter away, where they would face away from the camera. Given the camera,
         such a fit is refitted from the mirrored centre, and kept only if its points then face
         the camera (else the bar is "not measured").
+    skew_check_deg : the bars of a mesh run parallel to within about a degree. A bar fitted more
+        skewed than this off its direction is refitted parallel to it, and the parallel axis is
+        kept unless the skewed one fits its points more than 10 % better (root-mean-square
+        residual over the points the skewed fit keeps): over a short sliver a free fit tilts by 10° and more, while a bar truly laid
+        askew over a long stretch fits a parallel axis far worse and keeps its skew.
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell. The sampled extent of a bar falls short of its
@@ -676,6 +698,12 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                     break
                 idx, t = idx2, along[idx2]
                 fit = _fit_bar(t, off[idx] - c, h[idx], r)
+            if abs(fit[0][1]) > math.tan(math.radians(skew_check_deg)):
+                # more skewed than a mesh's bars are: unless the skew fits the points clearly
+                # better, the bar runs parallel to its direction (a short sliver tilts a free fit)
+                par = _fit_bar(t, off[idx] - c, h[idx], r, parallel=True)
+                if _rms_on(par, fit, t, off[idx] - c, h[idx], r) <= 1.1 * fit[2]:
+                    fit = par
             if camera is not None:
                 fit, facing = _facing_fit(fit, t, off[idx] - c, h[idx], r, camera, c, n2)
             (a0, a1, b0, b1), w, rms, se = fit

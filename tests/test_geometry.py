@@ -211,6 +211,34 @@ def test_find_bars_axes_unbiased(lattice):
             assert min(abs(off - o) for o in TOP) < AXIS_OFFSET_TOL_MM
 
 
+def test_a_bar_laid_askew_keeps_its_skew():
+    # A bottom bar laid 4° off its direction over the whole slab (a real defect) fits a parallel
+    # axis far worse than its own: the skew check (refit parallel, keep unless the skew fits
+    # >10 % better) must not straighten it.
+    q, on_bar, _ = lattice_points(bottom_offsets=[BOTTOM[0], BOTTOM[2]], top_offsets=TOP, angle_deg=33.0)
+    qs, on_s, _ = lattice_points(bottom_offsets=[BOTTOM[1]], top_offsets=[], angle_deg=37.0, formwork=False, rng=1)
+    pts = np.vstack([q[on_bar], qs[on_s]])
+    bars = assign_levels(find_bars(pts, layer="lower", radius_mm=8.1, pitch_mm=PITCH_MM, rng=0))
+    bottom = [b for b in bars if b.level == "bottom" and b.status == "measured"]
+    assert len(bottom) == 3
+    # the axis's own direction: its direction group's plus its drift across
+    angles = sorted((b.plan_angle_deg + math.degrees(math.atan(b.slope))) % 180 for b in bottom)
+    assert sum(abs(a - 37.0) < ANGLE_TOL_DEG for a in angles) == 1
+    assert sum(abs(a - 33.0) < ANGLE_TOL_DEG for a in angles) == 2
+
+
+def test_fit_bar_parallel_keeps_the_axis_along_its_direction():
+    from rebarlib.geometry import _fit_bar
+
+    rng = np.random.default_rng(5)
+    t = rng.uniform(0, 60, 800)
+    phi = np.radians(rng.uniform(20, 160, 800))
+    s = 3.0 + 8 * np.cos(phi) + rng.normal(0, 0.3, 800)
+    h = 30 + 8 * np.sin(phi) + rng.normal(0, 0.3, 800)
+    (a0, a1, b0, b1), *_ = _fit_bar(t, s, h, 8.0, parallel=True)
+    assert a1 == 0.0 and abs(a0 - 3.0) < 0.2 and abs(b0 + b1 * t.mean() - 30.0) < 0.2
+
+
 def test_a_flank_seen_alone_is_not_fitted_from_its_far_side():
     # A bar (r = 8 mm, axis at offset 0, height 20) seen only on its left flank (the top hidden
     # by a bar over it): normals from 120° to 180° (in the plane across, height), camera up and
