@@ -1008,12 +1008,12 @@ def _colour_calibration(results, prepared, prm) -> None:
         r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
 
 
-def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deformed) -> None:
+def _alert_other_size(out: dict, med, nom_m, conf_m, dw, nom_c, prm) -> None:
     """A bar vetoed by a cloud that echoes an assumed radius: where the mask alone is clear about
-    another size than the one the axis was placed with (``nom_c``), the reason says so and names
-    it. The cloud (width ``dw``) cannot confirm it, so the bar stays "not measured", but the
-    inspector learns which bar may be of another size."""
-    nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+    another size (``nom_m`` with confidence ``conf_m``, from the mask width ``med``) than the one
+    the axis was placed with (``nom_c``), the reason says so and names it. The cloud (width
+    ``dw``) cannot confirm it, so the bar stays "not measured", but the inspector learns which
+    bar may be of another size."""
     if math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence:
         out["diameter_reason"] = (
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
@@ -1021,7 +1021,7 @@ def _alert_other_size(out: dict, med, sigma_m, dw, nom_c, prm, *, system, deform
             "cannot confirm another size: check this bar by hand")
 
 
-def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size=math.nan):
+def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     """``out`` as a bar sized from its mask width and its point cloud's circle width
     (:func:`_cloud_circle`), for an axis placed with an assumed radius, whose own cloud width
     only echoes that radius; None where the two do not settle the size.
@@ -1029,8 +1029,8 @@ def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, defo
     Needs a sound circle width (enough points, and ``prm.colour_offset_bars`` bars to learn its
     between-bar spread from) within ``prm.veto_k`` combined σ of the mask width. Their weighted
     mean, its σ enlarged where the two lie further apart than their σ say (Birge ratio), must
-    snap to a size with confidence ≥ ``prm.min_confidence`` (and to ``size`` where one is
-    given). The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_calibration`).
+    snap to ``size`` (the mask's own: the circle confirms, never overturns) with confidence
+    ≥ ``prm.min_confidence``. The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_calibration`).
     """
     cw, sigma_c = info["circle_width_mm"], info["circle_sigma_mm"]
     if not (math.isfinite(cw) and math.isfinite(sigma_c) and math.isfinite(info["circle_between_mm"])):
@@ -1041,7 +1041,7 @@ def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, defo
     wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
     width, sigma = (wm * med + wc * cw) / (wm + wc), max(1.0, gap) / math.sqrt(wm + wc)
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
-    if not math.isfinite(nominal) or conf < prm.min_confidence or (math.isfinite(size) and nominal != size):
+    if nominal != size or conf < prm.min_confidence:
         return None
     reason = f"size from the mask and the point cloud's shape (circle fit {cw:.1f} ± {sigma_c:.1f} mm)"
     if in_shadow:
@@ -1107,14 +1107,14 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         if veto_only:
             nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
                      else snap_diameter(dw, system=system, deformed=deformed)[0])
-        strict = veto_only and nom_c != snap_diameter(med, system=system, deformed=deformed)[0]
+        nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+        strict = veto_only and nom_c != nom_m
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
             if veto_only:
-                _alert_other_size(out, med, sigma_m, dw, nom_c, prm, system=system, deformed=deformed)
+                _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm)
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
                 # it confirms the size the mask alone gives clearly, that size is measured
-                nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
                 if conf_m >= prm.min_confidence:
                     return _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system,
                                                deformed=deformed, size=nom_m) or out

@@ -479,6 +479,8 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
          else np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0]))
     # the iterations run on at most max_fit_points evenly spread points (1500 points place an
     # axis to well under 0.1 mm); the final weights are then computed on all points
+    if parallel:
+        a[1] = 0.0
     step_n = max(1, len(t) // max_fit_points)
     ts, ss, hs = tc[::step_n], s[::step_n], h[::step_n]
     w = np.ones(len(ts))
@@ -496,16 +498,13 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
             break
         cs, ch = ds / rho, dh / rho
         J = np.stack([-cs, -ts * cs, -ch, -ts * ch])
-        JW = J * w
-        if parallel:
+        if parallel:  # no drift across: its column is left out (its step is 0)
             J[1] = 0.0
-            a[1] = 0.0
+        JW = J * w
         try:
             step = np.linalg.solve(JW @ J.T + 1e-9 * np.eye(4), -JW @ r)
         except np.linalg.LinAlgError:
             break
-        if parallel:
-            step[1] = 0.0
         a = a + step
         if np.abs(step).max() < 1e-4:
             break
@@ -530,26 +529,30 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
     return (a0, a[1], b0, a[3]), w, rms, (float(se[0]), float(se[2]))
 
 
+def _from_axis(params, t, s, h):
+    """Offsets across and heights of points ``(t, s, h)`` from a bar axis ``(a0, a1, b0, b1)``
+    (as :func:`_fit_bar` returns it)."""
+    a0, a1, b0, b1 = params
+    return s - a0 - a1 * t, h - b0 - b1 * t
+
+
 def _rms_on(fit, ref, t, s, h, radius) -> float:
     """Root-mean-square residual of ``fit``'s cylinder over the points ``ref`` kept (the same
     points for both, so that a fit that drops more points does not look better)."""
-    (a0, a1, b0, b1) = fit[0]
     keep = ref[1] > 0
     if not keep.any():
         return math.inf
-    r = np.hypot(s[keep] - a0 - a1 * t[keep], h[keep] - b0 - b1 * t[keep]) - radius
-    return float(np.sqrt(np.mean(r ** 2)))
+    ds, dh = _from_axis(fit[0], t[keep], s[keep], h[keep])
+    return float(np.sqrt(np.mean((np.hypot(ds, dh) - radius) ** 2)))
 
 
 def _facing_share(fit, t, s, h, camera, c, n2) -> float:
     """Share of a fit's inlier points whose outward normal (from the axis) points towards the
     camera (slab frame; ``s`` are offsets across less ``c``, ``n2`` the plan normal)."""
-    (a0, a1, b0, b1), w, _, _ = fit
-    keep = w > 0
+    keep = fit[1] > 0
     if not keep.any():
         return 0.0
-    ds = s[keep] - a0 - a1 * t[keep]
-    dh = h[keep] - b0 - b1 * t[keep]
+    ds, dh = _from_axis(fit[0], t[keep], s[keep], h[keep])
     to_cam_s = float(np.asarray(camera[:2]) @ n2) - c - s[keep]
     to_cam_h = float(camera[2]) - h[keep]
     return float(np.mean(ds * to_cam_s + dh * to_cam_h > 0))
@@ -606,8 +609,9 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     skew_check_deg : the bars of a mesh run parallel to within about a degree. A bar fitted more
         skewed than this off its direction is refitted parallel to it, and the parallel axis is
         kept unless the skewed one fits its points more than 10 % better (root-mean-square
-        residual over the points the skewed fit keeps): over a short sliver a free fit tilts by 10° and more, while a bar truly laid
-        askew over a long stretch fits a parallel axis far worse and keeps its skew.
+        residual over the points the skewed fit keeps): over a short sliver a free fit tilts by
+        10° and more, while a bar truly laid askew over a long stretch fits a parallel axis far
+        worse and keeps its skew.
     pitch_mm : spacing of the samples on the lattice (depth pixel footprint × stride). A stretch
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell. The sampled extent of a bar falls short of its
@@ -698,14 +702,15 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                     break
                 idx, t = idx2, along[idx2]
                 fit = _fit_bar(t, off[idx] - c, h[idx], r)
+            s_b, h_b = off[idx] - c, h[idx]
             if abs(fit[0][1]) > math.tan(math.radians(skew_check_deg)):
                 # more skewed than a mesh's bars are: unless the skew fits the points clearly
                 # better, the bar runs parallel to its direction (a short sliver tilts a free fit)
-                par = _fit_bar(t, off[idx] - c, h[idx], r, parallel=True)
-                if _rms_on(par, fit, t, off[idx] - c, h[idx], r) <= 1.1 * fit[2]:
+                par = _fit_bar(t, s_b, h_b, r, parallel=True)
+                if _rms_on(par, fit, t, s_b, h_b, r) <= 1.1 * fit[2]:
                     fit = par
             if camera is not None:
-                fit, facing = _facing_fit(fit, t, off[idx] - c, h[idx], r, camera, c, n2)
+                fit, facing = _facing_fit(fit, t, s_b, h_b, r, camera, c, n2)
             (a0, a1, b0, b1), w, rms, se = fit
             keep = w > 0
             # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
