@@ -10,7 +10,9 @@ axes; with the true mask, the true mask dilated / eroded by 1 px (the typical bi
 learnt mask), the shipped model's mask (``SegmentationModel.default()``) and the
 fused colour + depth mask (``fuse_masks``) when those exist. ``--camera d435-848`` renders the
 same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of them,
-``--pixel-samples 3`` anti-aliased colour images.
+``--pixel-samples 3`` anti-aliased colour images, ``--depth-shift 2,-1`` the depth image moved
+against the colour image (a colour-depth misregistration; the model and fused masks are
+registered to the depth as ``inspect`` does, ``registered_mask``).
 
 Per capture: bars (visible bars in the truth), wrong (measured, nominal size not the true one),
 hidden (reported hidden under upper bars), nm (not measured). Summary: correct % =
@@ -102,9 +104,25 @@ def _capture(name, design, kw, app, cache, camera="gemini2"):
     return load_capture(folder)
 
 
+def _misregistered(cap, du, dv):
+    """``cap`` with its depth image shifted ``du`` pixels right and ``dv`` down against its colour
+    image (no depth where it comes from beyond the border): the colour and the truth stay where
+    they are, so the truth is still the colour image's."""
+    if not (du or dv):
+        return cap
+    import dataclasses
+
+    h, w = cap.depth_mm.shape
+    depth = np.zeros_like(cap.depth_mm)
+    depth[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
+        cap.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
+    return dataclasses.replace(cap, depth_mm=depth)
+
+
 def _mask_sources():
-    """Callables capture -> (H, W) mask (bool, or a float probability for the soft ones) for each
-    available mask, and notes on the others."""
+    """Callables (capture, design) -> (H, W) mask (bool, or a float probability for the soft
+    ones), or (mask, capture to measure on) for the registered ones, for each available mask,
+    and notes on the others."""
     sources = {"truth": lambda cap, design: cap.labels > 0,
                # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
                "dilated": lambda cap, design: _morph(cap.labels > 0, +1),
@@ -123,7 +141,14 @@ def _mask_sources():
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
-        from rebarlib._inspect import rebar_mask, widest_bar_px
+        from rebarlib._inspect import registered_mask, widest_bar_px
+
+        def registered(cap, design, **kw):
+            # as inspect does for the refined method: the colour side moved onto the depth image
+            # where the two are misregistered (--depth-shift); the capture the bars are then
+            # measured on comes with the mask
+            mask, moved, _ = registered_mask(cap, model=model, rng=0, soft=True, **kw)
+            return mask, moved
 
         # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
         # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
@@ -131,15 +156,15 @@ def _mask_sources():
         # tiles of the image, as rebarlib.inspect does for the refined method; "-whole": on the
         # whole image down-scaled to the network's input (as for the paper's method, and what
         # these masks were before)
-        sources["model"] = lambda cap, design: rebar_mask(cap, source="model", model=model, soft=True, tiled=True,
+        sources["model"] = lambda cap, design: registered(cap, design, source="model", tiled=True,
                                                           bar_width_px=widest_bar_px(cap, design))
-        sources["model-whole"] = lambda cap, design: rebar_mask(cap, source="model", model=model, soft=True)
+        sources["model-whole"] = lambda cap, design: registered(cap, design, source="model")
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
             # the hysteresis, the depth mask (its own plane fit)
-            sources["fused"] = lambda cap, design: rebar_mask(cap, source="fused", model=model, rng=0, soft=True,
-                                                              tiled=True, bar_width_px=widest_bar_px(cap, design))
-            sources["fused-whole"] = lambda cap, design: rebar_mask(cap, source="fused", model=model, rng=0, soft=True)
+            sources["fused"] = lambda cap, design: registered(cap, design, source="fused", tiled=True,
+                                                              bar_width_px=widest_bar_px(cap, design))
+            sources["fused-whole"] = lambda cap, design: registered(cap, design, source="fused")
             # without the probability (no hysteresis): what this benchmark called "fused" before
             sources["fused-nohyst"] = lambda cap, design: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
@@ -280,6 +305,11 @@ def main() -> None:
                     help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
     ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
                     help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another")
+    ap.add_argument("--depth-shift", default="0,0",
+                    help="DU,DV: shift the depth image this many pixels against the colour image (a "
+                         "colour-depth misregistration, as a camera's factory alignment leaves); the model "
+                         "and fused masks are registered as inspect does. Only the detected axes are "
+                         "meaningful then: the true axes belong to the colour image, not the moved depth")
     ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
@@ -306,7 +336,11 @@ def main() -> None:
         if args.only not in name:
             continue
         cap = _capture(name, design, kw, app, args.cache, args.camera)
-        masks = {k: f(cap, design) for k, f in mask_src.items()}
+        cap = _misregistered(cap, *map(int, args.depth_shift.split(",")))
+        masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
+        for k, f in mask_src.items():
+            m = f(cap, design)
+            masks[k], measured_on[k] = m if isinstance(m, tuple) else (m, cap)
         axes = {}
         for a, f in axis_src.items():
             try:
@@ -322,7 +356,7 @@ def main() -> None:
             if a not in axes:
                 continue
             t0, c0 = time.perf_counter(), time.process_time()
-            df = measure_diameters(cap, axes[a], masks[k], design=design, method=m,
+            df = measure_diameters(measured_on[k], axes[a], masks[k], design=design, method=m,
                                    colour_edges=False if args.edges == "mask" else args.edges,
                                    use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud])
             times[combo].append(time.perf_counter() - t0)

@@ -10,15 +10,15 @@ from ._checks import RebarInputError, check_points
 from ._cloud import remove_outliers, voxel_downsample
 from ._design import BarSet, Design, Lattice, design_from_dict, load_design
 from ._results import InspectionResult, Measurement
-from ._inspect import inspect, prepare_cloud, rebar_mask
+from ._inspect import inspect, prepare_cloud, rebar_mask, registered_mask
 from .geometry import (BarAxis, Plane, bar_directions, find_bars, find_layer_split, fit_formwork,
                        from_slab_frame, group_directions, measure_spacings, paper_find_bars,
                        paper_fit_formwork, plane_frame, to_slab_frame)
 from ._diameter import (bars_from_truth, boundary_pixels, cross_section_direction, diameter_region,
                         imaginary_plane, intersect_rays_plane, measure_diameters)
 from ._barsizes import bar_system, observed_width_mm, snap_diameter
-from .segmentation import (SegmentationModel, confusion_counts, dice, fuse_masks, iou, mask_from_depth,
-                           pixel_accuracy)
+from .segmentation import (SegmentationModel, confusion_counts, dice, estimate_registration, fuse_masks, iou,
+                           mask_from_depth, pixel_accuracy, shift_image)
 from .acceptance import Acceptance, Tolerances, evaluate, list_presets, load_tolerances
 from .report import build_report
 
@@ -29,13 +29,13 @@ __all__ = [
     "Capture", "load_capture", "save_capture", "load_cloud", "read_intrinsics",
     "RebarInputError", "check_points", "remove_outliers", "voxel_downsample",
     "BarSet", "Lattice", "Design", "load_design", "design_from_dict", "__version__",
-    "InspectionResult", "Measurement", "inspect", "prepare_cloud", "rebar_mask",
+    "InspectionResult", "Measurement", "inspect", "prepare_cloud", "rebar_mask", "registered_mask",
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "find_layer_split", "bar_directions", "find_bars", "paper_find_bars",
     "group_directions", "measure_spacings",
     "measure_diameters", "bars_from_truth", "imaginary_plane", "intersect_rays_plane",
     "cross_section_direction", "diameter_region", "boundary_pixels", "bar_system", "observed_width_mm",
     "snap_diameter",
-    "SegmentationModel", "mask_from_depth", "fuse_masks", "confusion_counts", "pixel_accuracy", "iou", "dice",
+    "SegmentationModel", "mask_from_depth", "fuse_masks", "estimate_registration", "shift_image", "confusion_counts", "pixel_accuracy", "iou", "dice",
     "Acceptance", "Tolerances", "evaluate", "load_tolerances", "list_presets", "build_report",
 ]

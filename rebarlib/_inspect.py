@@ -6,6 +6,7 @@ row. Each stage is timed (``result.timings_s``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
@@ -19,7 +20,7 @@ from ._checks import RebarInputError
 from ._design import Design
 from ._results import InspectionResult, Measurement
 
-__all__ = ["inspect", "prepare_cloud", "rebar_mask", "METHODS", "MASK_SOURCES"]
+__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "METHODS", "MASK_SOURCES"]
 
 METHODS = ("refined", "paper")
 #: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
@@ -46,6 +47,14 @@ MAX_BELOW_FRACTION = 0.02
 MIN_LATTICE_POINTS = 30
 #: Bars shorter than this (mm of visible axis) are not reported: too short to fit an axis.
 MIN_BAR_LENGTH_MM = 50.0
+#: Refined diameters: a colour-depth misregistration (``segmentation.estimate_registration``) of
+#: at least this many pixels is undone before the masks are fused and the bars measured; a
+#: smaller one is left: the estimate's own error is up to 0.4 px on captures without any (three
+#: times the flying pixels of the default sensor; 0.1-0.3 px otherwise), so correcting less
+#: would as often add an error as remove one. Beyond ``REGISTRATION_WARN_PX`` the result says
+#: to check the camera's depth-to-colour alignment.
+REGISTRATION_MIN_PX = 0.5
+REGISTRATION_WARN_PX = 3.0
 
 
 def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | None = EDGE_MM):
@@ -127,22 +136,58 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
     refined method uses it (README, "Bar diameters"). ``bar_width_px``: the widest bar's width in
     the image (:func:`widest_bar_px`), so that the tiles are down-scaled where the bars would be
     wider than the model knows (``SegmentationModel.tile_scale``).
+
+    The mask is the colour image's, as it comes; :func:`registered_mask` also moves it onto the
+    depth image where the two are misregistered.
     """
-    from .segmentation import fuse_masks, mask_from_depth, soft_mask
+    return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
+                 bar_width_px=bar_width_px, register=False)[0]
+
+
+def registered_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
+                    soft: bool = False, tiled: bool = False, bar_width_px=None):
+    """:func:`rebar_mask` on the depth image's pixels: ``(mask, capture, registration)``.
+
+    The colour image's bars are registered to the depth image's
+    (``segmentation.estimate_registration``); where they lie :data:`REGISTRATION_MIN_PX` or more
+    apart, the model's probability and the colour image are moved onto the depth image before
+    the masks are fused, so that the mask meets the axes fitted to the depth. ``capture`` is
+    then a copy with the moved colour image (the one given is not changed), else the one given.
+    ``registration``: ``{"shift_px": [du, dv], "correlation": cc, "applied": bool}`` (du, dv:
+    where the depth image's content lies from the colour image's; None where it could not be
+    estimated), or None for the "depth" source (nothing to register).
+    """
+    return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
+                 bar_width_px=bar_width_px, register=True)
+
+
+def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
+    from .segmentation import estimate_registration, fuse_masks, mask_from_depth, shift_image, soft_mask
 
     if source not in MASK_SOURCES:
         raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
     if source == "depth":
         depth = mask_from_depth(capture, plane=plane, rng=rng)
-        return depth.astype(np.float32) if soft else depth
+        return (depth.astype(np.float32) if soft else depth), capture, None
     model = model or _default_model()
     proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
+    depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
+    registration = None
+    if register:
+        du, dv, cc = estimate_registration(proba, depth, depth_valid=capture.depth_mm > 0)
+        applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
+        registration = {"shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
+                        "correlation": round(cc, 4) if math.isfinite(cc) else None, "applied": applied}
+        if applied:
+            proba = shift_image(proba, du, dv)
+            capture = dataclasses.replace(capture, color=shift_image(capture.color, du, dv))
     colour = proba > model.threshold
     if source == "model":
-        return soft_mask(colour, proba, threshold=model.threshold) if soft else colour
-    depth = mask_from_depth(capture, plane=plane, rng=rng)
-    fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
-    return soft_mask(fused, proba, threshold=model.threshold) if soft else fused
+        mask = soft_mask(colour, proba, threshold=model.threshold) if soft else colour
+    else:
+        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
+        mask = soft_mask(fused, proba, threshold=model.threshold) if soft else fused
+    return mask, capture, registration
 
 
 def widest_bar_px(capture: Capture, design: Design) -> float:
@@ -160,7 +205,7 @@ def widest_bar_px(capture: Capture, design: Design) -> float:
 
 
 def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
-            mask=None, mask_source: str | None = None, rng=None) -> InspectionResult:
+            mask=None, mask_source: str | None = None, register: bool = True, rng=None) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
 
     Parameters
@@ -174,6 +219,10 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     mask : (H, W) rebar mask to use for the diameters: bool, or a float rebar probability in 0..1
         (edges at 0.5, to a fraction of a pixel) (default: computed, see mask_source)
     mask_source : "fused" (refined default), "model" (paper default) or "depth"
+    register : refined, mask computed here: undo a colour-depth misregistration of
+        :data:`REGISTRATION_MIN_PX` or more before the diameters (:func:`registered_mask`; the
+        estimate is in ``result.extras["registration"]``, a note says when it was applied). The
+        paper's method takes the images as they come.
     rng : seed or Generator for the random parts (RANSAC, sampling)
 
     Returns
@@ -188,11 +237,13 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         res = _inspect_refined(capture, design, rng)
     if diameters:
         _add_diameters(res, capture, design, method=method, mask=mask,
-                       mask_source=mask_source or ("model" if method == "paper" else "fused"), rng=rng)
+                       mask_source=mask_source or ("model" if method == "paper" else "fused"),
+                       register=register and method == "refined", rng=rng)
     return res
 
 
-def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, rng):
+def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register,
+                   rng):
     from ._diameter import measure_diameters
 
     t = time.perf_counter()
@@ -203,9 +254,15 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
         # the refined stage finds edges to a fraction of a pixel on the soft mask; the paper's
         # takes boundary pixels of the binary one
         refined = method == "refined"
-        mask = rebar_mask(capture, source=mask_source, plane=plane, rng=rng, soft=refined, tiled=refined,
-                          bar_width_px=widest_bar_px(capture, design) if refined else None)
+        # the refined method also undoes a colour-depth misregistration (registered_mask); the
+        # paper's takes the images as they come
+        mask, capture, reg = _mask(capture, source=mask_source, plane=plane, model=None, rng=rng, soft=refined,
+                                   tiled=refined, bar_width_px=widest_bar_px(capture, design) if refined else None,
+                                   register=register)
         res.extras["mask_source"] = mask_source
+        if reg is not None:
+            res.extras["registration"] = reg
+            _note_registration(res, reg)
     else:
         mask = np.asarray(mask)
         if mask.shape != capture.depth_mm.shape:
@@ -218,6 +275,21 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
         new = [c for c in dia.columns if c not in res.bars.columns or c == "bar_id"]
         res.bars = res.bars.merge(dia[new], on="bar_id", how="left")
     res.timings_s["diameter"] = time.perf_counter() - t
+
+
+def _note_registration(res: InspectionResult, reg: dict) -> None:
+    if reg["shift_px"] is None:
+        res.notes.append("colour-depth registration could not be estimated (too few bars seen by both): "
+                         "the colour image was taken as aligned to the depth image")
+        return
+    du, dv = reg["shift_px"]
+    size = math.hypot(du, dv)
+    if reg["applied"]:
+        res.notes.append(f"the depth image lies ({du:+.1f}, {dv:+.1f}) px from the colour image: the colour "
+                         "image was moved onto it before the bars' diameters were measured")
+    if size > REGISTRATION_WARN_PX:
+        res.notes.append(f"colour and depth misregistered by {size:.1f} px: check the camera's "
+                         "depth-to-colour alignment")
 
 
 def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:

@@ -10,9 +10,9 @@ import pytest
 
 from rebarlib import GEMINI2, RebarInputError
 from rebarlib.segmentation import (
-    DATASET_SEED, SegmentationModel, confusion_counts, dice, fit_formwork_plane, fuse_masks, iou,
-    mask_from_depth, pixel_accuracy, soft_mask, split_indices, synth_eval_regions,
-    synth_segmentation_capture)
+    DATASET_SEED, SegmentationModel, confusion_counts, dice, estimate_registration, fit_formwork_plane,
+    fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, soft_mask, split_indices,
+    synth_eval_regions, synth_segmentation_capture)
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
@@ -352,6 +352,55 @@ def test_depth_mask_and_plane_against_labels(fresh_captures):
     assert iou(c) >= DEPTH_MIN_IOU
     assert c["TP"] / (c["TP"] + c["FP"]) >= DEPTH_MIN_PRECISION
     assert np.array_equal(dm, mask_from_depth(cap, rng=0))  # seeded
+
+
+def _depth_moved(cap, du, dv):
+    # the depth image's content du px right and dv px down (no depth where it comes from outside)
+    h, w = cap.depth_mm.shape
+    out = np.zeros_like(cap.depth_mm)
+    out[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
+        cap.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
+    return out
+
+
+# The registration of colour and depth on half-resolution captures, the true labels standing for
+# the colour model's probability: measured within 0.14 px with depth moved by whole pixels; colour
+# moved by fractions of a pixel: 0.45 px (the estimate is pulled toward whole pixels where both
+# masks are aliased, as on these synthetic images; an optical image's edges are not)
+REGISTRATION_MAX_ERR_PX = 0.3
+REGISTRATION_FRACTION_MAX_ERR_PX = 0.5
+
+
+@pytest.mark.parametrize("du, dv", [(0, 0), (2, -1), (-1, 3)])
+def test_registration_finds_how_far_depth_lies_from_colour(fresh_captures, du, dv):
+    cap = fresh_captures[0]
+    depth = _depth_moved(cap, du, dv)
+    dmask = mask_from_depth(depth, cap.intrinsics, rng=0)
+    eu, ev, cc = estimate_registration((cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0)
+    assert np.hypot(eu - du, ev - dv) <= REGISTRATION_MAX_ERR_PX
+    assert cc > 0.8
+
+
+def test_registration_to_a_fraction_of_a_pixel(fresh_captures):
+    cap = fresh_captures[1]
+    colour = shift_image((cap.labels > 0).astype(np.float32), -0.6, 1.4)  # colour moved, depth stays
+    eu, ev, _ = estimate_registration(colour, mask_from_depth(cap, rng=0), depth_valid=cap.depth_mm > 0)
+    assert np.hypot(eu - 0.6, ev + 1.4) <= REGISTRATION_FRACTION_MAX_ERR_PX
+
+
+def test_registration_without_bars_is_not_estimated_and_bad_shapes_are_errors():
+    empty = np.zeros((40, 60), bool)
+    assert all(np.isnan(estimate_registration(empty, empty)))
+    with pytest.raises(RebarInputError, match="depth_mask"):
+        estimate_registration(np.zeros((40, 60)), np.zeros((40, 61), bool))
+
+
+def test_shift_image_moves_content_and_leaves_the_input():
+    img = np.zeros((5, 6, 3), np.uint8)
+    img[2, 2] = 200
+    out = shift_image(img, 1.0, -1.0)
+    assert out[1, 3].tolist() == [200, 200, 200] and out.dtype == np.uint8
+    assert img[2, 2].tolist() == [200, 200, 200] and img[1, 3].tolist() == [0, 0, 0]
 
 
 def test_fuse_removes_flat_false_bars_and_fills_missed_bars(fresh_captures):
