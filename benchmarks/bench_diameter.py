@@ -37,7 +37,7 @@ from _cameras import CAMERAS
 from rebarlib import design_from_dict
 from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
 from rebarlib.data import paper_design, site_design
-from rebarlib.synth import Appearance, Deviations, SensorModel, rib_envelope_mm, synth_capture
+from rebarlib.synth import Appearance, Deviations, SensorModel, misregister, rib_envelope_mm, synth_capture
 
 HIGH_CONFIDENCE = 0.9
 MATCH_MM = 25.0  # a detected axis within this of a true axis (and parallel) is that bar
@@ -102,21 +102,6 @@ def _capture(name, design, kw, app, cache, camera="gemini2"):
     cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=intr, **kw)
     save_capture(cap, folder)
     return load_capture(folder)
-
-
-def _misregistered(cap, du, dv):
-    """``cap`` with its depth image shifted ``du`` pixels right and ``dv`` down against its colour
-    image (no depth where it comes from beyond the border): the colour and the truth stay where
-    they are, so the truth is still the colour image's."""
-    if not (du or dv):
-        return cap
-    import dataclasses
-
-    h, w = cap.depth_mm.shape
-    depth = np.zeros_like(cap.depth_mm)
-    depth[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
-        cap.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
-    return dataclasses.replace(cap, depth_mm=depth)
 
 
 def _mask_sources():
@@ -336,7 +321,7 @@ def main() -> None:
         if args.only not in name:
             continue
         cap = _capture(name, design, kw, app, args.cache, args.camera)
-        cap = _misregistered(cap, *map(int, args.depth_shift.split(",")))
+        cap = misregister(cap, *map(int, args.depth_shift.split(",")))
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
         for k, f in mask_src.items():
             m = f(cap, design)

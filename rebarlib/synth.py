@@ -25,7 +25,7 @@ from ._checks import RebarInputError, check_positive
 from ._design import Design
 
 __all__ = ["Deviations", "SensorModel", "Appearance", "CameraPose", "Bar", "SlabScene",
-           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm"]
+           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm", "misregister"]
 
 # GB 1499.2 nominal size -> (inner diameter d1, rib height h), docs/acceptance.md.
 _GB_RIBS = {6: (5.8, 0.6), 8: (7.7, 0.8), 10: (9.6, 1.0), 12: (11.5, 1.2), 14: (13.4, 1.4),
@@ -882,3 +882,25 @@ def synth_capture(design: Design, *, height_mm: float = 500.0, tilt_deg: float =
     pose = CameraPose.looking_down(height_mm, tilt_deg=tilt_deg, yaw_deg=yaw_deg, target_mm=target_mm)
     return render_capture(scene, pose, intrinsics=intrinsics, sensor=sensor, appearance=appearance,
                           rng=np.random.default_rng(render_rng), name=name)
+
+
+def misregister(capture: Capture, du: int, dv: int) -> Capture:
+    """A copy of ``capture`` whose depth image's content lies ``du`` pixels right and ``dv``
+    down of where it was against the colour image (whole pixels; no depth where it would come
+    from beyond the border): the misregistration a camera's depth-to-colour alignment can leave.
+    Colour, labels and truth stay the colour image's. The capture given is not changed.
+
+    Examples
+    --------
+    >>> from rebarlib import Intrinsics
+    >>> cap = Capture(np.zeros((2, 4, 3), np.uint8), np.array([[1.0, 2, 3, 4], [5, 6, 7, 8]]),
+    ...               Intrinsics(10.0, 10.0, 2.0, 1.0, 4, 2))
+    >>> misregister(cap, 1, -1).depth_mm.tolist()
+    [[0.0, 5.0, 6.0, 7.0], [0.0, 0.0, 0.0, 0.0]]
+    """
+    du, dv = int(du), int(dv)
+    h, w = capture.depth_mm.shape
+    depth = np.zeros_like(capture.depth_mm)
+    depth[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
+        capture.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
+    return replace(capture, depth_mm=depth)

@@ -22,7 +22,8 @@ from rebarlib._geom_eval import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
 from rebarlib.data import example_capture, example_slab, paper_design
-from rebarlib.synth import CameraPose, Deviations, SensorModel, make_scene, render_capture, synth_capture
+from rebarlib.synth import (CameraPose, Deviations, SensorModel, make_scene, misregister, render_capture,
+                            synth_capture)
 
 K_HALF = GEMINI2.scaled(0.5)
 COVER_TOL_MM = 0.8  # cover, half resolution
@@ -519,16 +520,6 @@ def test_widest_bar_px_is_the_widest_envelope_at_the_nearest_depth(paper_design)
 # Colour-depth misregistration
 # ------------------------------------------------------------------------------------------------
 
-def _depth_moved(cap, du, dv):
-    # the depth image's content du px right and dv px down: what a camera's alignment of depth to
-    # colour leaves after a knock (no depth where it would come from beyond the border)
-    h, w = cap.depth_mm.shape
-    depth = np.zeros_like(cap.depth_mm)
-    depth[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
-        cap.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
-    return replace(cap, depth_mm=depth)
-
-
 @pytest.fixture(scope="module")
 def example_b500():
     _, design = example_slab("paper_slab")
@@ -553,7 +544,7 @@ def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b50
     assert aligned.extras["registration"]["applied"] is False  # it estimates < 0.5 px here
     n_aligned, wrong = _diameters(aligned)
     assert wrong == 0
-    moved = _depth_moved(cap, 2, -1)
+    moved = misregister(cap, 2, -1)  # depth 2 px right, 1 px up: what an alignment can leave
     colour = moved.color.copy()
     res = inspect(moved, design, rng=0)
     reg = res.extras["registration"]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from rebarlib import GEMINI2, RebarInputError
+from rebarlib.synth import misregister
 from rebarlib.segmentation import (
     DATASET_SEED, SegmentationModel, confusion_counts, dice, estimate_registration, fit_formwork_plane,
     fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, soft_mask, split_indices,
@@ -354,15 +355,6 @@ def test_depth_mask_and_plane_against_labels(fresh_captures):
     assert np.array_equal(dm, mask_from_depth(cap, rng=0))  # seeded
 
 
-def _depth_moved(cap, du, dv):
-    # the depth image's content du px right and dv px down (no depth where it comes from outside)
-    h, w = cap.depth_mm.shape
-    out = np.zeros_like(cap.depth_mm)
-    out[max(dv, 0):h + min(dv, 0), max(du, 0):w + min(du, 0)] = \
-        cap.depth_mm[max(-dv, 0):h + min(-dv, 0), max(-du, 0):w + min(-du, 0)]
-    return out
-
-
 # The registration of colour and depth on half-resolution captures, the true labels standing for
 # the colour model's probability: measured within 0.14 px with depth moved by whole pixels; colour
 # moved by fractions of a pixel: 0.45 px (the estimate is pulled toward whole pixels where both
@@ -374,7 +366,7 @@ REGISTRATION_FRACTION_MAX_ERR_PX = 0.5
 @pytest.mark.parametrize("du, dv", [(0, 0), (2, -1), (-1, 3)])
 def test_registration_finds_how_far_depth_lies_from_colour(fresh_captures, du, dv):
     cap = fresh_captures[0]
-    depth = _depth_moved(cap, du, dv)
+    depth = misregister(cap, du, dv).depth_mm
     dmask = mask_from_depth(depth, cap.intrinsics, rng=0)
     eu, ev, cc = estimate_registration((cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0)
     assert np.hypot(eu - du, ev - dv) <= REGISTRATION_MAX_ERR_PX
