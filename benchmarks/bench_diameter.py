@@ -299,6 +299,7 @@ def main() -> None:
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
     args = ap.parse_args()
+    depth_shift = tuple(map(int, args.depth_shift.split(",")))
     mask_src, notes = _mask_sources()
     axis_src, notes2 = _axis_sources()
     notes += notes2
@@ -321,7 +322,8 @@ def main() -> None:
         if args.only not in name:
             continue
         cap = _capture(name, design, kw, app, args.cache, args.camera)
-        cap = misregister(cap, *map(int, args.depth_shift.split(",")))
+        if depth_shift != (0, 0):
+            cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
         for k, f in mask_src.items():
             m = f(cap, design)

@@ -947,7 +947,7 @@ def _circle_calibration(results, prm, *, system, deformed) -> None:
     circle width is not used (``circle_between_mm`` NaN)."""
     dev = []
     for r in results:
-        cw = r[3].get("circle_width_mm", math.nan)
+        cw = r[3]["circle_width_mm"]
         if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
         med = float(np.median(r[0]))
@@ -969,7 +969,7 @@ def _circle_calibration(results, prm, *, system, deformed) -> None:
         s_c = float(np.sqrt(np.sum(np.square(np.asarray(dev) - off)) / chi2_10))
     for r in results:
         r[3]["circle_offset_mm"] = off
-        r[3]["circle_width_mm"] = r[3].get("circle_width_mm", math.nan) - off
+        r[3]["circle_width_mm"] -= off
         r[3]["circle_between_mm"] = s_c
         r[3]["circle_sigma_mm"] = float(np.fmax(r[3]["circle_sigma_mm"], s_c))
 
@@ -1103,11 +1103,12 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         # That size is the assumed radius's where it is known, not the echo's: where the axis is
         # off across the bar, the echo drifts with it, and so does a width from one edge to the
         # axis; the two would then agree on a wrong size (seen on a bar seen from one side only)
-        nom_c = math.nan
+        nom_c = nom_m = math.nan
+        conf_m = 0.0
         if veto_only:
             nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
                      else snap_diameter(dw, system=system, deformed=deformed)[0])
-        nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+            nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
         strict = veto_only and nom_c != nom_m
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
@@ -1271,9 +1272,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         owner[vv, uu] = _attribute_pixels(np.column_stack((uu, vv)), prepared, intr)
     depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
     # an axis placed with an assumed radius: its cloud width echoes that radius, so it may only
-    # veto, and the circle fitted to its cloud is what can size the bar
+    # veto, and the circle fitted to its cloud is what can size the bar (the refined decision
+    # only: the paper's method never reads it)
     cloud_mode = ["veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud for bar in prepared]
-    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img, circle=cloud_mode[i] == "veto")
+    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img,
+                            circle=method == "refined" and cloud_mode[i] == "veto")
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
@@ -1293,8 +1296,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
-               "circle_width_mm": info.get("circle_width_mm", math.nan),
-               "circle_sigma_mm": info["circle_sigma_mm"]}
+               "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"]}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)

@@ -477,10 +477,10 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
     tc = t - t.mean()
     a = (np.array(start, float) if start is not None
          else np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0]))
-    # the iterations run on at most max_fit_points evenly spread points (1500 points place an
-    # axis to well under 0.1 mm); the final weights are then computed on all points
     if parallel:
         a[1] = 0.0
+    # the iterations run on at most max_fit_points evenly spread points (1500 points place an
+    # axis to well under 0.1 mm); the final weights are then computed on all points
     step_n = max(1, len(t) // max_fit_points)
     ts, ss, hs = tc[::step_n], s[::step_n], h[::step_n]
     w = np.ones(len(ts))
