@@ -747,6 +747,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             has_hi &= ~bad_hi
         is_two = has_lo & has_hi
         is_one = has_lo ^ has_hi
+        # a colour width is the width between two colour edges: it checks a section measured
+        # between two mask edges only (a one-sided width runs from one edge to the axis; the
+        # colour edges found at its other end belong to the border or to the bar over it)
+        colour_w[rows[~is_two]] = np.nan
         ok[rows] = is_two
         one_sided[rows] = is_one
         widths[rows] = np.where(is_two, t_hi - t_lo, np.where(has_lo, -2 * t_lo, 2 * t_hi))
