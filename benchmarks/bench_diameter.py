@@ -249,7 +249,10 @@ def _unsizeable(cap, design):
 def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()):
     """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such:
     (records, missed, missed and truly hidden). A bar that lies under nearer bars cannot be seen,
-    so an axis detector that does not find it has missed no visible bar: it counts as hidden."""
+    so an axis detector that does not find it has missed no visible bar: it counts as hidden.
+    ``truly_hidden``: the bars the true axes and the true mask report hidden (:func:`_unsizeable`);
+    each record says whether its bar is one, so that a bar reported hidden that is not can be
+    counted against the measurement."""
     tb = {int(b["id"]): b for b in truth["bars"]}
     visible = {int(i) for i in bars_from_truth(truth).bar_id}
     if axes_name in ("truth", "jitter1", "designr", "designr+"):  # bar ids are the truth's
@@ -266,7 +269,7 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
         recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
                          true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r, true_id=int(t),
-                         wrong_size=bool(tb[t]["wrong_size"]), cut=t in cut))
+                         wrong_size=bool(tb[t]["wrong_size"]), cut=t in cut, truly_hidden=t in truly_hidden))
     missed = visible - seen
     missed_cut = (missed & set(cut)) - set(truly_hidden)
     recs += [dict(kind="missed-cut")] * len(missed_cut)
@@ -336,8 +339,6 @@ def main() -> None:
                 print(f"note: {name}: axes '{a}' failed: {e!r}")
         row = {"capture": name, "bars": len(bars_from_truth(cap.truth))}
         hidden_truth, cut_truth = _unsizeable(cap, design)
-        if all(a in ("truth", "jitter1", "designr", "designr+") for a in axes):
-            hidden_truth = set()  # all bars have axes: the measurement reports hidden ones itself
         for combo in combos:
             m, k, a = combo
             if a not in axes:
@@ -389,10 +390,11 @@ def main() -> None:
           "hidden under nearer bars by the truth; of those, 'h.noax' had no axis; 'cut': of the other bars, "
           "those the true axes and true mask cannot size because the image border cuts them (one edge "
           "only, or under 8 cross-sections with both); 'meas.%¬cut': measured % of the bars neither "
-          "hidden nor cut)")
+          "hidden nor cut; 'h.¬tr': bars reported hidden that the true axes and true mask do not report "
+          "hidden; 'right%tr': bars measured to their true size, % of the bars not hidden by the truth)")
     print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
           f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'cut':>5}{'meas.%¬cut':>11}{'extra':>6}{'h.noax':>7}"
-          f"{'median s':>9}{'cpu s':>7}")
+          f"{'h.¬tr':>6}{'right%tr':>9}{'median s':>9}{'cpu s':>7}")
     for combo in combos:
         rr = [r for r in recs[combo] if r["kind"] == "bar"]
         if not rr and not missed[combo]:
@@ -406,11 +408,15 @@ def main() -> None:
         base = max(nb - hidden, 1)
         cut = sum(r["status"] != "hidden" and r["cut"] for r in rr) + sum(r["kind"] == "missed-cut" for r in recs[combo])
         meas_uncut = sum(not r["cut"] for r in meas)
+        false_hidden = sum(r["status"] == "hidden" and not r["truly_hidden"] for r in rr)
+        truly_hidden = sum(r["truly_hidden"] for r in rr) + missed_hidden[combo]
+        right = len(meas) - len(wrong)
         m, k, a = combo
         print(f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
               f"{cut:>5}{100 * meas_uncut / max(base - cut, 1):>11.1f}"
-              f"{extra:>6}{missed_hidden[combo]:>7}{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
+              f"{extra:>6}{missed_hidden[combo]:>7}{false_hidden:>6}{100 * right / max(nb - truly_hidden, 1):>9.1f}"
+              f"{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
           "not measured (of those, 'alerted': the reason says 'possible wrong size' and names the true size), "

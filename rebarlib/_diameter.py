@@ -1056,6 +1056,11 @@ def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, defo
     return out
 
 
+def _off_centre(info, med, prm) -> bool:
+    """Whether a bar's mask runs are centred this far off its axis: one side of the bar is lost."""
+    return abs(info["centre_mm"]) > prm.max_offcentre_rel * med
+
+
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
                       assumed_mm=math.nan) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
@@ -1085,7 +1090,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
                          max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided)
     mask_problem = ""
-    if off > prm.max_offcentre_rel * med:
+    if _off_centre(info, med, prm):
         mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
                         f"one side lost to shadow or segmentation")
     elif spread > prm.max_spread_rel * med:
@@ -1330,6 +1335,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
                                          system=system, deformed=deformed, use_cloud=cloud_mode[i],
                                          assumed_mm=bar.axis_radius_mm))
+            if row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction and _off_centre(info, med, prm):
+                # the side the mask lacks is most likely under the nearer bars: say so
+                row["diameter_reason"] += (f"; {occ_frac:.0%} of the bar lies beside or under nearer bars: "
+                                           "what is seen may be a sliver beside them")
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)
