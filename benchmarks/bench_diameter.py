@@ -18,7 +18,10 @@ Per capture: bars (visible bars in the truth), wrong (measured, nominal size not
 hidden (reported hidden under upper bars), nm (not measured). Summary: correct % =
 (bars − hidden − wrong) / (bars − hidden) as in the paper's Table 6, measured %, wrong sizes
 with confidence ≥ 0.9, median time of ``measure_diameters`` per capture, and the measured-width
-error against the true rib envelope (truth ``envelope_mm``).
+error against the true rib envelope (truth ``envelope_mm``). Which bars are hidden is not taken
+from the measurement alone: 'h.¬tr' counts the bars reported hidden that the true axes and the true
+mask do not report hidden, and 'right%tr' is the bars sized right over the bars the truth does not
+hide (the stricter figure).
 
 Targets (issue 5): refined with the model or fused mask ≥ 99.5 % correct over ≥ 300 bars, no
 wrong size with high confidence; ≤ 0.2 s per capture (median).
