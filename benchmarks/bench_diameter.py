@@ -418,7 +418,8 @@ def main() -> None:
         print(f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
               f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
               f"{cut:>5}{100 * meas_uncut / max(base - cut, 1):>11.1f}"
-              f"{extra:>6}{missed_hidden[combo]:>7}{false_hidden:>6}{100 * right / max(nb - truly_hidden, 1):>9.1f}"
+              f"{extra:>6}{missed_hidden[combo]:>7}{false_hidden:>6}"
+              f"{100 * right / max(nb - truly_hidden, 1):>9.1f}"
               f"{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
 
     print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
