@@ -131,7 +131,7 @@ def _mask_sources():
     if model is not None:
         from rebarlib._inspect import registered_mask, widest_bar_px
 
-        def registered(cap, design, **kw):
+        def registered(cap, **kw):
             # as inspect does for the refined method: the colour side moved onto the depth image
             # where the two are misregistered (--depth-shift); the capture the bars are then
             # measured on comes with the mask
@@ -144,15 +144,15 @@ def _mask_sources():
         # tiles of the image, as rebarlib.inspect does for the refined method; "-whole": on the
         # whole image down-scaled to the network's input (as for the paper's method, and what
         # these masks were before)
-        sources["model"] = lambda cap, design: registered(cap, design, source="model", tiled=True,
-                                                          bar_width_px=widest_bar_px(cap, design))
-        sources["model-whole"] = lambda cap, design: registered(cap, design, source="model")
+        sources["model"] = lambda cap, design: registered(cap, source="model", tiled=True,
+                                                    bar_width_px=widest_bar_px(cap, design))
+        sources["model-whole"] = lambda cap, design: registered(cap, source="model")
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
             # the hysteresis, the depth mask (its own plane fit)
-            sources["fused"] = lambda cap, design: registered(cap, design, source="fused", tiled=True,
-                                                              bar_width_px=widest_bar_px(cap, design))
-            sources["fused-whole"] = lambda cap, design: registered(cap, design, source="fused")
+            sources["fused"] = lambda cap, design: registered(cap, source="fused", tiled=True,
+                                                        bar_width_px=widest_bar_px(cap, design))
+            sources["fused-whole"] = lambda cap, design: registered(cap, source="fused")
             # without the probability (no hysteresis): what this benchmark called "fused" before
             sources["fused-nohyst"] = lambda cap, design: np.asarray(
                 seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),

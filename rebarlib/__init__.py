@@ -36,6 +36,7 @@ __all__ = [
     "measure_diameters", "bars_from_truth", "imaginary_plane", "intersect_rays_plane",
     "cross_section_direction", "diameter_region", "boundary_pixels", "bar_system", "observed_width_mm",
     "snap_diameter",
-    "SegmentationModel", "mask_from_depth", "fuse_masks", "estimate_registration", "shift_image", "confusion_counts", "pixel_accuracy", "iou", "dice",
+    "SegmentationModel", "mask_from_depth", "fuse_masks", "estimate_registration", "shift_image",
+    "confusion_counts", "pixel_accuracy", "iou", "dice",
     "Acceptance", "Tolerances", "evaluate", "load_tolerances", "list_presets", "build_report",
 ]

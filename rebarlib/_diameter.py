@@ -1335,8 +1335,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
                                          system=system, deformed=deformed, use_cloud=cloud_mode[i],
                                          assumed_mm=bar.axis_radius_mm))
-            sliver = occ_frac >= prm.hidden_fraction and _off_centre(info, med, prm)
-            if row["diameter_status"] == NOT_MEASURED and sliver:
+            if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
+                    and _off_centre(info, med, prm)):
                 # the side the mask lacks is most likely under the nearer bars: say so
                 row["diameter_reason"] += (f"; {occ_frac:.0%} of the bar lies beside or under nearer bars: "
                                            "what is seen may be a sliver beside them")

@@ -172,9 +172,10 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     model = model or _default_model()
     proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
     depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
+    valid = capture.depth_mm > 0
     registration = None
     if register:
-        du, dv, cc = estimate_registration(proba, depth, depth_valid=capture.depth_mm > 0)
+        du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
         applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
         registration = {"shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
                         "correlation": round(cc, 4) if math.isfinite(cc) else None, "applied": applied}
@@ -185,7 +186,7 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     if source == "model":
         mask = soft_mask(colour, proba, threshold=model.threshold) if soft else colour
     else:
-        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=capture.depth_mm > 0)
+        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=valid)
         mask = soft_mask(fused, proba, threshold=model.threshold) if soft else fused
     return mask, capture, registration
 
