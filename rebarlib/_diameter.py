@@ -512,23 +512,27 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm):
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm=math.inf):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.
 
     Independent of the mask's edges (a mask a pixel too wide or narrow does not move it), but it
     depends on the axis lying at the bar's centre: an axis placed with an assumed radius would
-    return that radius.
+    return that radius. A point farther from the axis than ``expected_mm`` (the expected
+    diameter) is not on this bar's surface: the bar over it, seen where a one-sided section's
+    band runs under it, or a flying pixel. Such points are left out; too few left gives NaN
+    (no cloud width), never the distance to another object.
     """
     if len(stations) < prm.min_sections:
         return math.nan, math.nan, 0
     f = np.linspace(-prm.depth_core, prm.depth_core, 7)  # across the middle of each run
     P = _section_points(depth, intr, plane, stations, centres, widths, f)
-    if len(P) < prm.min_sections * 3:
-        return math.nan, math.nan, len(P)
     radial = P - np.outer(P @ plane.direction, plane.direction)
     d = 2 * np.linalg.norm(radial, axis=1)
+    d = d[d <= 2 * expected_mm]
+    if len(d) < prm.min_sections * 3:
+        return math.nan, math.nan, len(d)
     q1, med, q3 = np.percentile(d, [25, 50, 75])
     return float(med), float((q3 - q1) / 1.349), len(P)
 
@@ -795,7 +799,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
-        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm) if depth_img is not None else (math.nan, math.nan, 0)
+        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm, bar.expected_mm) if depth_img is not None else (math.nan, math.nan, 0)
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = kept[~one_sided[kept]]

@@ -573,3 +573,26 @@ def test_one_edge_widths_beside_an_upper_bar_are_not_checked_against_colour_widt
     assert len(covered) >= 3
     assert (checked.loc[covered, "nominal_mm"] == 14).all()
     assert (checked.loc[covered, "confidence"] == plain.loc[covered, "confidence"]).all()
+
+
+def test_a_one_edge_bar_s_cloud_width_is_not_read_off_the_bar_over_it():
+    # Stacked mesh, 400 mm, tilt 10°: lower bar 2 lies under an upper bar all along and is sized
+    # from its one visible edge. The point-cloud band of a one-edge section runs from that edge to
+    # the axis, partly under the upper bar: those points are 80 mm nearer than the bar's own, and
+    # their distance from its axis gave a "cloud width" of 93.8 mm, which vetoed a right mask
+    # width (16.6 mm, Φ14). Points farther from the axis than the expected diameter are not on
+    # the bar; the cloud width is read from the others or not at all.
+    from rebarlib.data import paper_design
+
+    design = paper_design()
+    cap = synth_capture(design, height_mm=400, tilt_deg=10, seed=2, sensor=SensorModel(), intrinsics=GEMINI2,
+                        appearance=Appearance(rust_fraction=0.3),
+                        deviations=Deviations(stacked=True, position_sigma_mm=6.0, slab_size_mm=1000))
+    t = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
+    env = {b["id"]: b["envelope_mm"] for b in cap.truth["bars"]}
+    cloud = t.cloud_width_mm.dropna()
+    assert len(cloud) >= 8
+    assert all(abs(w - env[i]) < 0.25 * env[i] for i, w in cloud.items())
+    covered = t.index[(t.occluded_fraction == 1.0) & (t.diameter_status != "hidden")]
+    assert 2 in covered
+    assert t.loc[2, "diameter_status"] == "measured" and t.loc[2, "nominal_mm"] == 14
