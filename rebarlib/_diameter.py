@@ -521,20 +521,23 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, e
     depends on the axis lying at the bar's centre: an axis placed with an assumed radius would
     return that radius. A point farther from the axis than ``expected_mm`` (the expected
     diameter) is not on this bar's surface: the bar over it, seen where a one-sided section's
-    band runs under it, or a flying pixel. Such points are left out; too few left gives NaN
-    (no cloud width), never the distance to another object.
+    band runs under it, or a flying pixel. Such points are left out (too few left gives NaN,
+    never the distance to another object), and their share of the points is returned last:
+    where it is most of them, the mask runs the sections were read on are mostly another object.
     """
     if len(stations) < prm.min_sections:
-        return math.nan, math.nan, 0
+        return math.nan, math.nan, 0, math.nan
     f = np.linspace(-prm.depth_core, prm.depth_core, 7)  # across the middle of each run
     P = _section_points(depth, intr, plane, stations, centres, widths, f)
     radial = P - np.outer(P @ plane.direction, plane.direction)
     d = 2 * np.linalg.norm(radial, axis=1)
-    d = d[d <= 2 * expected_mm]
+    on = d <= 2 * expected_mm
+    off_share = float(1 - on.mean()) if len(d) else math.nan
+    d = d[on]
     if len(d) < prm.min_sections * 3:
-        return math.nan, math.nan, len(d)
+        return math.nan, math.nan, len(d), off_share
     q1, med, q3 = np.percentile(d, [25, 50, 75])
-    return float(med), float((q3 - q1) / 1.349), len(P)
+    return float(med), float((q3 - q1) / 1.349), len(d), off_share
 
 
 def _circle_fit(a, b, r0, *, iters: int = 30):
@@ -798,8 +801,9 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         info["outlier"] = int((~keep).sum())
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
-    info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"] = _depth_width(
-        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm, bar.expected_mm) if depth_img is not None else (math.nan, math.nan, 0)
+    info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
+        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm, bar.expected_mm) if depth_img is not None else (
+        math.nan, math.nan, 0, math.nan)
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = kept[~one_sided[kept]]
@@ -1075,6 +1079,14 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
     capped because it relies on the axis lying at the bar's centre.
     """
+    out = {"cloud_width_mm": info["depth_width_mm"], "confidence": 0.0, "diameter_status": NOT_MEASURED}
+    off_bar = info.get("depth_off_share", math.nan)
+    if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
+        # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
+        # mask shows there is mostly another object (the bar over this one), not this bar
+        out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the "
+                                  "axis than the bar's diameter: the mask there shows another object (a bar over it)")
+        return out
     px_mm, off = info["px_mm"], abs(info["centre_mm"])
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
