@@ -1079,14 +1079,6 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
     capped because it relies on the axis lying at the bar's centre.
     """
-    out = {"cloud_width_mm": info["depth_width_mm"], "confidence": 0.0, "diameter_status": NOT_MEASURED}
-    off_bar = info.get("depth_off_share", math.nan)
-    if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
-        # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
-        # mask shows there is mostly another object (the bar over this one), not this bar
-        out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the "
-                                  "axis than the bar's diameter: the mask there shows another object (a bar over it)")
-        return out
     px_mm, off = info["px_mm"], abs(info["centre_mm"])
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
@@ -1121,6 +1113,13 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         sigma_c = math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
                              2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info["z_mm"] / 1000) ** 2)
     out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
+    off_bar = info.get("depth_off_share", math.nan)
+    if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
+        # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
+        # mask shows there is mostly another object (the bar over this one), not this bar
+        out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the "
+                                  "axis than the bar's diameter: the mask there shows another object (a bar over it)")
+        return out
     cap = 1.0
     if not mask_problem and cloud:
         # With an assumed axis radius the cloud width echoes it: a mask giving another size can
