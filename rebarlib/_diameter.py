@@ -512,7 +512,7 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm=math.inf):
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.
