@@ -6,10 +6,21 @@ resolution its maker recommends: the 1280 × 720 focal length of docs/sensors.md
 scaled to 848 px wide. Bars are then about 2/3 as many pixels wide as on the reference Gemini 2,
 its depth noise 1.5 × larger and its disparity steps 2-3 mm at 600 mm: a check that nothing
 depends on the reference camera.
+
+``SENSORS``: depth-sensor variants to render with instead of the default ``SensorModel()``
+(``--sensor``): three times the default flying pixels at depth edges, 2.5 times the stereo
+noise, and no edge effects at all (no holes, fattening, flying pixels or jitter).
 """
 
 from rebarlib import GEMINI2, Intrinsics
+from rebarlib.synth import SensorModel
 
 CAMERAS = {"gemini2": GEMINI2,
            "d435-848": Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5,
                                   width=848, height=480)}
+
+SENSORS = {"default": SensorModel(),
+           "flying": SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5),
+           "noisy": SensorModel(disparity_sigma_px=0.2),
+           "clean": SensorModel(edge_hole_prob=0.0, edge_fatten_prob=0.0, flying_pixel_prob=0.0,
+                                lateral_jitter_px=0.0)}

@@ -10,7 +10,8 @@ axes; with the true mask, the true mask dilated / eroded by 1 px (the typical bi
 learnt mask), the shipped model's mask (``SegmentationModel.default()``) and the
 fused colour + depth mask (``fuse_masks``) when those exist. ``--camera d435-848`` renders the
 same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of them,
-``--pixel-samples 3`` anti-aliased colour images, ``--depth-shift 2,-1`` the depth image moved
+``--pixel-samples 3`` anti-aliased colour images, ``--sensor noisy`` (or ``flying``, ``clean``)
+another depth-sensor model (``SENSORS``), ``--depth-shift 2,-1`` the depth image moved
 against the colour image (a colour-depth misregistration; the model and fused masks are
 registered to the depth as ``inspect`` does, ``registered_mask``).
 
@@ -36,11 +37,11 @@ from collections import defaultdict
 
 import numpy as np
 
-from _cameras import CAMERAS
+from _cameras import CAMERAS, SENSORS
 from rebarlib import design_from_dict
 from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
 from rebarlib.data import paper_design, site_design
-from rebarlib.synth import Appearance, Deviations, SensorModel, misregister, rib_envelope_mm, synth_capture
+from rebarlib.synth import Appearance, Deviations, misregister, rib_envelope_mm, synth_capture
 
 HIGH_CONFIDENCE = 0.9
 MATCH_MM = 25.0  # a detected axis within this of a true axis (and parallel) is that bar
@@ -89,20 +90,21 @@ def _morph(mask, px):
     return op(mask.astype(np.uint8), k).astype(bool)
 
 
-def _capture(name, design, kw, app, cache, camera="gemini2"):
+def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default"):
     intr = CAMERAS[camera]
     if not cache:
-        return synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=intr, **kw)
+        return synth_capture(design, sensor=SENSORS[sensor], appearance=app, intrinsics=intr, **kw)
     from pathlib import Path
 
     from rebarlib import load_capture, save_capture
 
     px = f"__px{app.pixel_samples}" if app.pixel_samples > 1 else ""
     px += "" if camera == "gemini2" else f"__{camera}"
+    px += "" if sensor == "default" else f"__{sensor}"
     folder = Path(cache) / ("".join(c if c.isalnum() else "_" for c in name) + px)
     if (folder / "truth.json").is_file():
         return load_capture(folder)
-    cap = synth_capture(design, sensor=SensorModel(), appearance=app, intrinsics=intr, **kw)
+    cap = synth_capture(design, sensor=SENSORS[sensor], appearance=app, intrinsics=intr, **kw)
     save_capture(cap, folder)
     return load_capture(folder)
 
@@ -296,6 +298,9 @@ def main() -> None:
                     help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
     ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
                     help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another")
+    ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
+                    help="depth-sensor model the captures are rendered with (SENSORS): the default, or "
+                         "3x the flying pixels, 2.5x the stereo noise, no edge effects")
     ap.add_argument("--depth-shift", default="0,0",
                     help="DU,DV: shift the depth image this many pixels against the colour image (a "
                          "colour-depth misregistration, as a camera's factory alignment leaves); the model "
@@ -327,7 +332,7 @@ def main() -> None:
     for name, design, kw in scenarios(args.quick, args.seed_offset):
         if args.only not in name:
             continue
-        cap = _capture(name, design, kw, app, args.cache, args.camera)
+        cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor)
         if depth_shift != (0, 0):
             cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth

@@ -15,16 +15,13 @@ from __future__ import annotations
 
 import pandas as pd
 
+from _cameras import SENSORS
 from bench_geometry import bar_stretches, match_bars, own_depth_pixels, paper_design
 from rebarlib._inspect import inspect
 from rebarlib.synth import Deviations, SensorModel, synth_capture
 
-VARIANTS = {
-    "flying pixels x3.3": SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5),
-    "stereo noise x2.5": SensorModel(disparity_sigma_px=0.2),
-    "no edge effects": SensorModel(edge_hole_prob=0.0, edge_fatten_prob=0.0, flying_pixel_prob=0.0,
-                                   lateral_jitter_px=0.0),
-}
+VARIANTS = {"flying pixels x3.3": SENSORS["flying"], "stereo noise x2.5": SENSORS["noisy"],
+            "no edge effects": SENSORS["clean"]}
 POSES = ((400, 5), (500, 15), (600, 5), (600, 15))
 
 
