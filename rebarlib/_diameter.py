@@ -307,6 +307,7 @@ class _Bar:
     expected_mm: float  # observed width expected from the design size (window sizing)
     axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
     axis_ok: bool = True  # the axis was measured (not only located): one-sided widths may use it
+    stack_mm: float = math.nan  # its top above the tops of the bars it rests on (geometry.stack_heights)
 
 
 def _prepare(bars, design, system, deformed, default_expected_mm):
@@ -326,8 +327,10 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         # a bar the geometry stage only located (status "not measured", e.g. its second look)
         # has an axis good for finding its pixels, not for measuring from one edge to it
         axis_ok = str(getattr(r, "status", "measured")) == "measured"
+        stack = getattr(r, "stack_mm", math.nan)
+        stack = float(stack) if stack is not None else math.nan
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
-                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok))
+                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok, stack))
     return out
 
 
@@ -939,27 +942,30 @@ def _mask_between_spread(results, prepared, prm) -> None:
         r[3]["mask_between_mm"] = s_m
 
 
-def _circle_calibration(results, prm, *, system, deformed) -> None:
-    """Calibrate the point-cloud circle widths of a capture against the bars its masks size
-    clearly, and store in every bar's info ``circle_offset_mm`` (subtracted from
-    ``circle_width_mm``), ``circle_between_mm`` and the ``circle_sigma_mm`` the circle width is
-    used with.
+def _width_calibration(results, key, prm, *, system, deformed) -> None:
+    """Calibrate an independent width of every bar of a capture (``key`` "circle": the point
+    cloud's circle, :func:`_cloud_circle`; "stack": the bar's height above the bars it rests on,
+    ``geometry.stack_heights``) against the bars its masks size clearly, and store in every bar's
+    info ``{key}_offset_mm`` (subtracted from ``{key}_width_mm``), ``{key}_between_mm`` and the
+    ``{key}_sigma_mm`` the width is used with.
 
     A bar whose mask width lies within a quarter of a size step of a size's envelope (robustly
-    one size) has that envelope as its true width; its circle width minus that envelope is the
-    circle's error on that bar. The median of those errors is a bias the whole capture shares
-    (depth quantised in disparity flattens or bulges every bar's arc alike: +1.4 mm, median, on
-    848 × 480 captures at 400-600 mm) and is removed; their root-mean-square around it (not a
-    robust spread: the fit's errors have heavy tails, which a robust spread would hide) is the
-    circle's error per bar, what its own residuals do not show (quantisation repeating in every
-    section of a bar at one depth, noise correlated over more pixels than assumed). The
-    circle's σ is the larger of the fit's own and that spread. Learning from the mask's sizes,
-    not the design's, keeps a bar of another size than designed from counting its true
-    difference as the circle's error. Needs ``prm.colour_offset_bars`` such bars; else the
-    circle width is not used (``circle_between_mm`` NaN)."""
+    one size) has that envelope as its true width; its ``key`` width minus that envelope is the
+    width's error on that bar. The median of those errors is a bias the whole capture shares and
+    is removed (circle: depth quantised in disparity flattens or bulges every bar's arc alike,
+    +1.4 mm, median, on 848 × 480 captures at 400-600 mm; stack: the bars of one level sitting a
+    little apart or pressed into each other); their root-mean-square around it (not a robust
+    spread: the errors have heavy tails, which a robust spread would hide) is the width's error
+    per bar, what a circle's own residuals do not show (quantisation repeating in every section of
+    a bar at one depth, noise correlated over more pixels than assumed) and what a stack height
+    has no other measure of (how well each bar touches those under it). The σ used is the larger
+    of the bar's own (``{key}_sigma_mm``, 0 for a stack height) and that spread. Learning from
+    the mask's sizes, not the design's, keeps a bar of another size than designed from counting
+    its true difference as an error. Needs ``prm.colour_offset_bars`` such bars; else the width is
+    not used (``{key}_between_mm`` NaN)."""
     dev = []
     for r in results:
-        cw = r[3]["circle_width_mm"]
+        cw = r[3][f"{key}_width_mm"]
         if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
         med = float(np.median(r[0]))
@@ -980,10 +986,10 @@ def _circle_calibration(results, prm, *, system, deformed) -> None:
         chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
         s_c = float(np.sqrt(np.sum(np.square(np.asarray(dev) - off)) / chi2_10))
     for r in results:
-        r[3]["circle_offset_mm"] = off
-        r[3]["circle_width_mm"] -= off
-        r[3]["circle_between_mm"] = s_c
-        r[3]["circle_sigma_mm"] = float(np.fmax(r[3]["circle_sigma_mm"], s_c))
+        r[3][f"{key}_offset_mm"] = off
+        r[3][f"{key}_width_mm"] -= off
+        r[3][f"{key}_between_mm"] = s_c
+        r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_c))
 
 
 def _colour_calibration(results, prepared, prm) -> None:
@@ -1033,34 +1039,51 @@ def _alert_other_size(out: dict, med, nom_m, conf_m, dw, nom_c, prm) -> None:
             "cannot confirm another size: check this bar by hand")
 
 
-def _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
-    """``out`` as a bar sized from its mask width and its point cloud's circle width
-    (:func:`_cloud_circle`), for an axis placed with an assumed radius, whose own cloud width
-    only echoes that radius; None where the two do not settle the size.
+#: the widths that do not depend on where an axis placed with an assumed radius lies: how the
+#: reason names each
+_INDEPENDENT = {"stack": "its top {w:.1f} ± {s:.1f} mm above the bars it rests on",
+                "circle": "the point cloud's shape, circle fit {w:.1f} ± {s:.1f} mm"}
 
-    Needs a sound circle width (enough points, and ``prm.colour_offset_bars`` bars to learn its
-    between-bar spread from) within ``prm.veto_k`` combined σ of the mask width. Their weighted
-    mean, its σ enlarged where the two lie further apart than their σ say (Birge ratio), must
-    snap to ``size`` (the mask's own: the circle confirms, never overturns) with confidence
-    ≥ ``prm.min_confidence``. The circle width's σ is ``circle_sigma_mm`` (:func:`_circle_calibration`).
+
+def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
+    """``out`` as a bar sized from its mask width and the widths that do not depend on an axis
+    placed with an assumed radius, whose own cloud width only echoes that radius: the circle
+    fitted to its point cloud (:func:`_cloud_circle`) and, for a bar resting on others, its
+    top's height above theirs (``geometry.stack_heights``); None where they do not settle the size.
+
+    Each such width is used where it is sound (and ``prm.colour_offset_bars`` bars gave its
+    between-bar spread, :func:`_width_calibration`, the σ it is used with: ``{key}_sigma_mm``);
+    every sound one must lie within ``prm.veto_k`` combined σ of the mask width (one that does
+    not is a conflict: nothing is settled). Their weighted mean with the mask width, its σ
+    enlarged where they lie further apart than their σ say (Birge ratio), must snap to ``size``
+    (the mask's own: they confirm, never overturn) with confidence ≥ ``prm.min_confidence``.
     """
-    cw, sigma_c = info["circle_width_mm"], info["circle_sigma_mm"]
-    if not (math.isfinite(cw) and math.isfinite(sigma_c) and math.isfinite(info["circle_between_mm"])):
+    used = []
+    for key in _INDEPENDENT:
+        w, sg = info.get(f"{key}_width_mm", math.nan), info.get(f"{key}_sigma_mm", math.nan)
+        if not (math.isfinite(w) and math.isfinite(sg) and sg > 0
+                and math.isfinite(info.get(f"{key}_between_mm", math.nan))):
+            continue
+        if abs(med - w) / math.hypot(sigma_m, sg) > prm.veto_k:
+            return None
+        used.append((key, w, sg))
+    if not used:
         return None
-    gap = abs(med - cw) / math.hypot(sigma_m, sigma_c)
-    if gap > prm.veto_k:
-        return None
-    wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
-    width, sigma = (wm * med + wc * cw) / (wm + wc), max(1.0, gap) / math.sqrt(wm + wc)
+    ws = np.array([med] + [w for _, w, _ in used])
+    wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2
+    width = float((wt * ws).sum() / wt.sum())
+    # Birge ratio: the scatter of the estimates around their mean against their σ
+    birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1))
+    sigma = max(1.0, birge) / math.sqrt(float(wt.sum()))
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
     if nominal != size or conf < prm.min_confidence:
         return None
-    reason = f"size from the mask and the point cloud's shape (circle fit {cw:.1f} ± {sigma_c:.1f} mm)"
+    reason = "size from the mask and " + " and ".join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)
     if in_shadow:
         conf = min(conf, prm.shadow_confidence)
         reason += "; bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
-               width_source="mask+circle", width_used_mm=round(width, 3))
+               width_source="mask+" + "+".join(k for k, _, _ in used), width_used_mm=round(width, 3))
     return out
 
 
@@ -1141,8 +1164,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
                 # it confirms the size the mask alone gives clearly, that size is measured
                 if conf_m >= prm.min_confidence:
-                    return _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system,
-                                               deformed=deformed, size=nom_m) or out
+                    return _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
+                                   deformed=deformed, size=nom_m) or out
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
@@ -1166,8 +1189,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
         # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
         # confirm what the mask leans to but never overturn it
-        settled = _settle_with_circle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed,
-                                      size=nominal)
+        settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed,
+                          size=nominal)
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
@@ -1230,8 +1253,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         is always treated as ``"veto"``. In veto mode, where the mask alone is ambiguous or
         clearly gives another size than the cloud's echo, the circle fitted to the bar's cloud
         (``circle_width_mm``, independent of where the axis lies) is combined with the mask
-        instead (:func:`_settle_with_circle`): the bar is measured where the two agree and their
-        combined width is clear, ``width_source`` "mask+circle"
+        instead (:func:`_settle`, with the bar's height above the bars it rests on where the
+        bars table has ``stack_mm``): the bar is measured where they agree and their
+        combined width is clear, ``width_source`` "mask+circle", "mask+stack" or
+        "mask+stack+circle"
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -1251,7 +1276,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, less the
     offset the capture's circles share against the bars their masks size clearly, and the σ it
     is used with: the fit's standard error or the circle's error per bar learnt from those bars,
-    whichever is larger, :func:`_circle_calibration`; else NaN).
+    whichever is larger, :func:`_width_calibration`; else NaN).
 
     Examples
     --------
@@ -1304,7 +1329,12 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                for i, bar in enumerate(prepared)]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
-    _circle_calibration(results, prm, system=system, deformed=deformed)
+    for i, bar in enumerate(prepared):  # only for axes placed with an assumed radius (see _settle)
+        info = results[i][3]
+        info["stack_width_mm"] = bar.stack_mm if cloud_mode[i] == "veto" else math.nan
+        info["stack_sigma_mm"] = 0.0
+    _width_calibration(results, "circle", prm, system=system, deformed=deformed)
+    _width_calibration(results, "stack", prm, system=system, deformed=deformed)
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []

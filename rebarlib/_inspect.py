@@ -424,7 +424,7 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
                           min_length_mm=MIN_BAR_LENGTH_MM)
     T["measure"] = time.perf_counter() - t
 
-    table = G.bars_table(bars, plane)
+    table = G.bars_table(bars, plane, points=[c.points for c in bar_clouds])
     res = InspectionResult(capture=capture.name, method="refined", cover=cover, layer_distance=layer_distance,
                            upper_top=upper_top, top_cover=top_cover, bars=table, spacings=spacings, counts=counts,
                            formwork={**plane.to_dict(), "found": bool(has_formwork)},

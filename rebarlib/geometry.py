@@ -52,7 +52,7 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps", "flag_border_cut",
+    "level_heights", "stack_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps", "flag_border_cut",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -897,6 +897,73 @@ def level_heights(bars: list) -> dict:
     return out
 
 
+def _crest_line(b: BarAxis, q) -> tuple[float, float] | None:
+    """Height of a bar's top along it, ``h = c0 + c1 · t``, from its own points (slab frame): those
+    within 0.35 radius of the axis across, each raised by the circle's sag there (s² / 2r, under
+    0.07 r), fitted by a line with outliers beyond 2.5 robust σ left out. None with under 10
+    such points."""
+    q = np.asarray(q, float)
+    if len(q) < 10 or not b.radius_mm > 0:
+        return None
+    t = q[:, :2] @ b.direction
+    s = q[:, :2] @ b.normal2d - (b.offset_mm + b.slope * t)
+    near = np.abs(s) < 0.35 * b.radius_mm
+    if near.sum() < 10:
+        return None
+    t, hc = t[near], q[near, 2] + s[near] ** 2 / (2 * b.radius_mm)
+    keep = np.ones(len(t), bool)
+    for _ in range(2):
+        A = np.column_stack((np.ones(keep.sum()), t[keep]))
+        c = np.linalg.lstsq(A, hc[keep], rcond=None)[0]
+        res = hc - (c[0] + c[1] * t)
+        mad = 1.4826 * float(np.median(np.abs(res[keep] - np.median(res[keep]))))
+        keep = np.abs(res) <= max(2.5 * mad, 0.1)
+        if keep.sum() < 10:
+            return None
+    return float(c[0]), float(c[1])
+
+
+def stack_heights(bars: list, points: list | None = None, *, min_crossings: int = 2) -> np.ndarray:
+    """Per bar, how far its top stands above the tops of the bars it rests on: the top-level bars
+    of a lattice lie on its bottom-level bars, so at each crossing the top bar's top is one
+    diameter (its rib envelope) above the bottom bar's top. Measured at the crossings of the
+    fitted axes in plan, with each bar's own top height there (a tilted or sagging mesh is
+    followed); the median over the crossings within both bars' visible extents. NaN for a
+    bottom-level bar, a bar not measured, or under ``min_crossings`` crossings with measured
+    bottom bars.
+
+    ``points``: per bar, its points in the slab frame (or None): the tops are then read off the
+    points near the axis (:func:`_crest_line`), which does not depend on the radius the axis
+    was fitted with; without them, the fitted circles' tops are used, which a bar of another size
+    than the fit's radius pulls by up to a millimetre or two. It assumes the two bars touch: a gap
+    between them (a bar lifted by a tie or bent) adds to it.
+    """
+    crest = []
+    for i, b in enumerate(bars):
+        line = _crest_line(b, points[i]) if points is not None and points[i] is not None else None
+        if line is None and points is None and b.status == "measured":
+            line = (b.centre_h_mm + b.radius_mm, b.h_slope)
+        crest.append(line)
+    out = np.full(len(bars), np.nan)
+    for i, b in enumerate(bars):
+        if b.level != "top" or b.status != "measured" or crest[i] is None:
+            continue
+        diffs = []
+        for j, c in enumerate(bars):
+            if c.layer != b.layer or c.level != "bottom" or c.status != "measured" or crest[j] is None:
+                continue
+            # crossing in plan: b.plan_point(t) = c.plan_point(s), both linear in their argument
+            A = np.column_stack((b.direction + b.slope * b.normal2d, -(c.direction + c.slope * c.normal2d)))
+            if abs(np.linalg.det(A)) < 1e-6:
+                continue
+            t, s = np.linalg.solve(A, c.offset_mm * c.normal2d - b.offset_mm * b.normal2d)
+            if b.t0_mm <= t <= b.t1_mm and c.t0_mm <= s <= c.t1_mm:
+                diffs.append((crest[i][0] + crest[i][1] * t) - (crest[j][0] + crest[j][1] * s))
+        if len(diffs) >= min_crossings:
+            out[i] = float(np.median(diffs))
+    return out
+
+
 def assign_levels(bars: list) -> list:
     """Name each direction group "bottom" (lower axes) or "top" (resting on the bottom bars)."""
     hs = level_heights(bars)
@@ -1494,11 +1561,15 @@ def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, pl
 # Tables
 # ----------------------------------------------------------------------------------------------
 
-def bars_table(bars: list, plane: Plane) -> pd.DataFrame:
+def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataFrame:
     """The bar table: ``bar_id, layer, level, plan_angle_deg, start_/end_{x,y,z}_mm`` (axis ends
     over the visible extent, camera frame), ``visible_length_mm, n_points, axis_height_mm,
-    underside_mm, radius_mm, fit_rms_mm, status, reason``."""
+    underside_mm, radius_mm, fit_rms_mm, arc_deg, axis_se_mm, stack_mm, status, reason``
+    (``stack_mm``: :func:`stack_heights`, from ``points``, each bar's camera-frame points, or
+    from the fitted axes without them)."""
     rows = []
+    stack = stack_heights(bars, None if points is None else
+                          [None if p is None else to_slab_frame(p, plane) for p in points])
     for i, b in enumerate(bars):
         ends = from_slab_frame(b.axis_points(np.array([b.t0_mm, b.t1_mm])), plane)
         rows.append({
@@ -1509,9 +1580,10 @@ def bars_table(bars: list, plane: Plane) -> pd.DataFrame:
             "axis_height_mm": b.axis_height_mm,
             "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
             "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
-            "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "status": b.status, "reason": b.reason,
+            "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "stack_mm": stack[i],
+            "status": b.status, "reason": b.reason,
         })
     cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
             "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "axis_height_mm", "underside_mm", "radius_mm",
-            "fit_rms_mm", "arc_deg", "axis_se_mm", "status", "reason"]
+            "fit_rms_mm", "arc_deg", "axis_se_mm", "stack_mm", "status", "reason"]
     return pd.DataFrame(rows, columns=cols)

@@ -377,6 +377,43 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
+def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_it():
+    # A top-level bar's top stands one diameter above the bars it rests on (stack_mm): a width
+    # that does not depend on where an axis placed with an assumed radius lies. By hand, veto mode.
+    from rebarlib._diameter import _refined_decision, _RefinedParams
+
+    prm = _RefinedParams()
+    kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
+    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
+                circle_between_mm=math.nan, stack_width_mm=math.nan, stack_sigma_mm=math.nan,
+                stack_between_mm=math.nan)
+    # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone
+    r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
+    # the bar's top 16.1 ± 0.6 mm above its supports settles it: the weighted mean of
+    # 15.4 (σ 0.6) and 16.1 (σ 0.6) is 15.75 ± 0.42, Φ14
+    stack = dict(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
+    r = _refined_decision(15.4, 0.3, 150, stack, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+stack"
+    assert r["width_used_mm"] == pytest.approx(15.75, abs=0.01)
+    assert "16.1 ± 0.6 mm above the bars it rests on" in r["diameter_reason"]
+    # without its between-bar spread (too few bars to learn it from) it is not used
+    r = _refined_decision(15.4, 0.3, 150, dict(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured"
+    # it may settle the size the mask leans to, never overturn it: a mask width nearer Φ12
+    # (14.8) with a stack reading Φ14 (16.4) is not measured, though their mean is nearer Φ14
+    r = _refined_decision(14.8, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured"
+    # a circle that settles the mask's size is not enough where the stack contradicts it
+    both = dict(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
+    r = _refined_decision(15.4, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured"
+    r = _refined_decision(15.4, 0.3, 150, dict(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["width_source"] == "mask+stack+circle"
+
+
 def test_circle_calibration_by_hand():
     # Six bars whose masks read clearly Φ14 (envelope 16.2) and one clearly Φ16 (18.4, another
     # size than designed: it must not count as a circle error); their circles read 1.4 mm wide
@@ -384,7 +421,7 @@ def test_circle_calibration_by_hand():
     # of e around it, raised to its upper 90 % bound from k = 6 degrees of freedom:
     # χ²(0.10; 6) ≈ 2.204 (Wilson–Hilferty), σ = √(Σe² / 2.204). An ambiguous mask (15.2 mm)
     # is not learnt from.
-    from rebarlib._diameter import _circle_calibration, _RefinedParams
+    from rebarlib._diameter import _RefinedParams, _width_calibration
 
     prm = _RefinedParams()
     masks = [16.2, 16.3, 16.1, 16.2, 16.25, 16.15, 18.4, 15.2]
@@ -393,7 +430,7 @@ def test_circle_calibration_by_hand():
     results = [(np.full(prm.min_sections, m), None, None,
                 {"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05})
                for m, v, ei in zip(masks, env, e)]
-    _circle_calibration(results, prm, system="GB1499.2", deformed=True)
+    _width_calibration(results, "circle", prm, system="GB1499.2", deformed=True)
     dev = np.array(e[:7])
     k = len(dev) - 1
     chi2 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
@@ -404,7 +441,7 @@ def test_circle_calibration_by_hand():
         assert r[3]["circle_sigma_mm"] == pytest.approx(sigma, abs=1e-9)
     # too few bars to learn from: the circle is not used (its spread unknown)
     few = [(np.full(prm.min_sections, 16.2), None, None, {"circle_width_mm": 17.6, "circle_sigma_mm": 0.05})] * 3
-    _circle_calibration(few, prm, system="GB1499.2", deformed=True)
+    _width_calibration(few, "circle", prm, system="GB1499.2", deformed=True)
     assert math.isnan(few[0][3]["circle_between_mm"])
 
 

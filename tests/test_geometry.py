@@ -8,6 +8,7 @@ elsewhere, plus Gaussian noise. Then the points are put in a tilted camera frame
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -28,6 +29,7 @@ from rebarlib.geometry import (
     paper_fit_formwork,
     plane_frame,
     split_layers,
+    stack_heights,
     to_slab_frame,
 )
 
@@ -276,6 +278,48 @@ def test_measure_spacings_in_order_with_deviation(lattice):
         g = sp[sp["level"] == level]
         assert (g["bar_b"].iloc[:-1].to_numpy() == g["bar_a"].iloc[1:].to_numpy()).all()
     assert np.allclose(sp["deviation_mm"], sp["spacing_mm"] - 200.0)
+
+
+def _bar_points(b: BarAxis, radius, rng, n=4000, noise=0.0):
+    """Points on the upper half of a bar's circle (slab frame), along its extent."""
+    t = rng.uniform(b.t0_mm, b.t1_mm, n)
+    phi = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    plan = b.plan_point(t) + (radius * np.sin(phi))[:, None] * b.normal2d
+    h = b.centre_h_mm + b.h_slope * t + radius * np.cos(phi) + rng.normal(0, noise, n)
+    return np.column_stack((plan, h))
+
+
+def test_stack_heights_by_hand():
+    # A lattice on a slope: bottom bars along x (Φ14 envelope 16.2, r 8.1) whose axes rise by
+    # 0.01 per mm along y, i.e. with their offset; top bars along y (Φ12 envelope 13.9) resting
+    # on them, their axes rising with t the same way. At every crossing the top bar's top is
+    # 13.9 mm above the bottom bar's; a second top bar lies 1 mm clear of its supports (14.9).
+    ex, ey = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+    rb, rt = 8.1, 6.95
+
+    def bottom(y):  # along x at plan y = offset across (normal2d of ex is +y)
+        return BarAxis("lower", ex, y, 0.0, 20 + rb + 0.01 * y, 0.0, -300.0, 300.0, rb, 100, 0.3, level="bottom")
+
+    def top(x, gap=0.0):  # along y at plan x = -offset (normal2d of ey is -x)
+        return BarAxis("lower", ey, -x, 0.0, 20 + 2 * rb + rt + gap, 0.01, -300.0, 300.0, rt, 100, 0.3, level="top")
+
+    bars = [bottom(y) for y in (-200.0, 0.0, 200.0)] + [top(-100.0), top(100.0, gap=1.0)]
+    # from the fitted circles' tops
+    got = stack_heights(bars)
+    assert np.isnan(got[:3]).all()  # bottom bars rest on spacers, not on bars of the lattice
+    assert got[3] == pytest.approx(2 * rt, abs=1e-9) and got[4] == pytest.approx(2 * rt + 1.0, abs=1e-9)
+    # from each bar's points: the tops read off the points near the axis, whatever radius
+    # the axes were fitted with (here 1 mm too large for every bar)
+    rng = np.random.default_rng(3)
+    pts = [_bar_points(b, b.radius_mm, rng, noise=0.2) for b in bars]
+    wrong_r = [replace(b, radius_mm=b.radius_mm + 1.0) for b in bars]
+    got = stack_heights(wrong_r, pts)
+    assert got[3] == pytest.approx(2 * rt, abs=0.1) and got[4] == pytest.approx(2 * rt + 1.0, abs=0.1)
+    # fewer crossings than asked for, a bar not measured, a support outside the extent: NaN
+    assert np.isnan(stack_heights(bars, min_crossings=4)[3])
+    assert np.isnan(stack_heights(bars[:3] + [replace(bars[3], status="not measured")])[3])
+    short = [replace(b, t0_mm=150.0) for b in bars[:3]] + bars[3:]  # the bottom bars start at x = 150
+    assert np.isnan(stack_heights(short)[3])
 
 
 def test_hidden_bar_beside_a_spacer_is_reported_not_measured():
