@@ -310,6 +310,13 @@ class _Bar:
     stack_mm: float = math.nan  # its top above the tops of the bars it rests on (geometry.stack_heights)
 
 
+def _optional(row, column: str, default: float = math.nan) -> float:
+    """A bars-table row's value of an optional column as a float: ``default`` where the table has
+    no such column, NaN where the value is None."""
+    v = getattr(row, column, default)
+    return float(v) if v is not None else math.nan
+
+
 def _prepare(bars, design, system, deformed, default_expected_mm):
     out = []
     for r in bars.itertuples(index=False):
@@ -322,15 +329,13 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
                     if math.isfinite(design_mm) else default_expected_mm)
         plane = imaginary_plane(p0, p1)
         # the radius the axis was placed with: ours, or the geometry stage's fixed-radius fit
-        assumed = getattr(r, "axis_radius_mm", getattr(r, "radius_mm", math.nan))
-        assumed = float(assumed) if assumed is not None else math.nan
+        assumed = _optional(r, "axis_radius_mm", _optional(r, "radius_mm"))
         # a bar the geometry stage only located (status "not measured", e.g. its second look)
         # has an axis good for finding its pixels, not for measuring from one edge to it
         axis_ok = str(getattr(r, "status", "measured")) == "measured"
-        stack = getattr(r, "stack_mm", math.nan)
-        stack = float(stack) if stack is not None else math.nan
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
-                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok, stack))
+                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok,
+                        _optional(r, "stack_mm")))
     return out
 
 
