@@ -770,25 +770,88 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     if len(rms) >= 3:
         limit = max_rms_ratio * float(np.median(rms))
         bars = [b for b in bars if b.status != "measured" or b.rms_mm <= limit]
-    return _approximate_axes(bars, {c[0]: c[3] for c in cand})
+    return _approximate_axes(bars, {c[0]: c[3] for c in cand}, h, camera)
 
 
-def _approximate_axes(bars: list, offsets: dict) -> list:
+def _approximate_axes(bars: list, offsets: dict, h=None, camera=None) -> list:
     """A bar reported "not measured" only says that a bar is there: its fitted axis (if any) is
     the misplaced circle that made it "not measured" (slid along a sliver, tilted in height by
     a few one-sided points). Its axis in the table is replaced by an approximate one: the
-    direction's plan direction, across at the median of its points' offsets, at the median axis
-    height of the measured bars of its direction (its level), level along its length.
+    direction's plan direction, at the median axis height of the measured bars of its direction
+    (its level), level along its length, and across where a circle of its radius at that height
+    passes through its points (:func:`_offset_at_height`; given the points' heights ``h`` and the
+    camera), else at the median of its points' offsets.
     ``offsets``: ``{group: the layer's points' offsets across that group's direction}``."""
     levels = level_heights(bars)
+    noise = _layer_noise(bars)
     out = []
     for b in bars:
         if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
             out.append(b)
             continue
-        out.append(_level_axis(b, float(np.median(offsets[b.group][b.point_index])),
-                               levels.get(b.group, b.axis_height_mm)))
+        height = levels.get(b.group, b.axis_height_mm)
+        hb = None if h is None or b.group not in levels else h[b.point_index]
+        out.append(_level_axis(b, _placed_offset(b, offsets[b.group][b.point_index], hb, height, camera, noise),
+                               height))
     return out
+
+
+def _placed_offset(b: BarAxis, s, h, height_mm: float, camera, noise_mm: float) -> float:
+    """Offset across for the approximate axis of bar ``b`` at ``height_mm``, from its points'
+    offsets ``s`` and heights ``h``: where a circle of its radius at that height passes through
+    them, facing the camera (:func:`_offset_at_height`), else their median offset (also without
+    heights or camera)."""
+    off = None
+    if h is not None and camera is not None:
+        off = _offset_at_height(s, h, height_mm, b.radius_mm, float(np.asarray(camera[:2]) @ b.normal2d),
+                                float(camera[2]), noise_mm)
+    return float(np.median(s)) if off is None else off
+
+
+def _layer_noise(bars: list) -> float:
+    """Depth noise on the bars of one lattice: the median residual of its measured bars' cylinder
+    fits (at least 0.3 mm; 1 mm when none was measured)."""
+    rms = [b.rms_mm for b in bars if b.status == "measured" and np.isfinite(b.rms_mm)]
+    return max(float(np.median(rms)), 0.3) if rms else 1.0
+
+
+def _offset_at_height(s, h, height_mm: float, radius_mm: float, cam_s: float, cam_h: float, noise_mm: float,
+                      *, step_mm: float = 0.05, max_points: int = 2000) -> float | None:
+    """Offset across of the axis of a bar seen only in part (a sliver beside a bar over it, a
+    strip along the image border), when its axis height is known (its level's: the bars of one
+    level lie on the same supports).
+
+    A fixed-radius circle through a short arc slides along it when its centre height is free;
+    at a fixed height only the offset is left, and the arc fixes it. The points ``(s, h)``
+    (offsets across, heights) lie on the circle's side that faces the camera (``cam_s``,
+    ``cam_h``), which picks one of the two mirror positions. Scan of the offset (``step_mm``)
+    minimising a robust (Tukey, 4.685 ``noise_mm``) sum of distances from the circle; None when
+    under half the points lie on the best circle facing the camera, or the best lies at the end
+    of the scan.
+    """
+    s, h = np.asarray(s, float), np.asarray(h, float)
+    if len(s) < 5:
+        return None
+    k = max(1, len(s) // max_points)
+    s, h = s[::k], h[::k]
+    mid = float(np.median(s))
+    grid = np.arange(mid - radius_mm - 2.0, mid + radius_mm + 2.0 + step_mm / 2, step_mm)
+    ds = s[None, :] - grid[:, None]
+    dh = (h - height_mm)[None, :]
+    res = np.hypot(ds, dh) - radius_mm
+    c = 4.685 * noise_mm
+    u = np.clip(np.abs(res) / c, 0.0, 1.0)
+    cost = np.sum(1.0 - (1.0 - u**2) ** 3, axis=1)
+    inlier = np.abs(res) < 2.5 * noise_mm
+    facing = (ds * (cam_s - s)[None, :] + dh * (cam_h - h)[None, :]) > 0
+    n_in = inlier.sum(axis=1)
+    ok = (n_in >= 0.5 * len(s)) & ((inlier & facing).sum(axis=1) >= 0.5 * np.maximum(n_in, 1))
+    if not ok.any():
+        return None
+    i = int(np.argmin(np.where(ok, cost, np.inf)))
+    if i in (0, len(grid) - 1):
+        return None
+    return float(grid[i])
 
 
 def _level_axis(b: BarAxis, offset_mm: float, height_mm: float, **changes) -> BarAxis:
@@ -1288,6 +1351,8 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
     """
     q = np.asarray(points, float)
     W, H = intrinsics.width, intrinsics.height
+    camera = to_slab_frame(np.zeros((1, 3)), plane)[0]
+    noise = _layer_noise(bars)
     out = []
     for b in bars:
         if b.status != "measured" or b.point_index is None or len(b.point_index) == 0:
@@ -1311,7 +1376,7 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
             out.append(b)
             continue
         seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
-        off = float(np.median(q[b.point_index, :2] @ b.normal2d))
+        off = _placed_offset(b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise)
         out.append(_level_axis(b, off, level, status="not measured",
                                reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, over {seen:.0f} mm, "
                                       f"at whole cross-sections) and the circle fitted to the strip seen sits {dh:+.1f} mm "

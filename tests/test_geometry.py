@@ -267,6 +267,51 @@ def test_a_flank_seen_alone_is_not_fitted_from_its_far_side():
     assert facing and again is fit
 
 
+def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
+    # A bar (r = 8 mm, axis at offset 5, height 20) seen only on one flank, 40° to 100° from its
+    # crest (the rest under a bar over it; camera up and to that side). Its own circle slides
+    # along so short an arc, so its approximate axis is placed at its level's height (the axis
+    # height of the measured bars of its direction: they lie on the same supports), where the
+    # arc fixes the offset; the median of the points lies ~7 mm off. The mirror position (the
+    # points facing away from the camera) is not taken; points on no such circle give None.
+    from rebarlib.geometry import _approximate_axes, _offset_at_height
+
+    rng = np.random.default_rng(11)
+    n = 1500
+    phi = np.radians(rng.uniform(40, 100, n))  # from the crest, towards +offset
+    s = 5.0 + 8 * np.sin(phi) + rng.normal(0, 0.3, n)
+    h = 20.0 + 8 * np.cos(phi) + rng.normal(0, 0.3, n)
+    cam_s, cam_h = 300.0, 500.0
+    assert abs(_offset_at_height(s, h, 20.0, 8.0, cam_s, cam_h, 0.3) - 5.0) < 0.1
+    assert abs(np.median(s) - 5.0) > 6.0
+    # a level 0.5 mm off moves it by about cot(70°) × 0.5 mm
+    assert abs(_offset_at_height(s, h, 20.5, 8.0, cam_s, cam_h, 0.3) - 5.0) < 0.35
+    # seen from the other side, these points would face away from the camera on the circle
+    # through them at offset 5: the facing position is then the mirrored one, a diameter away
+    far = _offset_at_height(s, h, 20.0, 8.0, -300.0, cam_h, 0.3)
+    assert far is None or far > 12.0
+    flat = np.c_[rng.uniform(0, 20, n), np.full(n, 28.0)]
+    assert _offset_at_height(flat[:, 0], flat[:, 1], 20.0, 8.0, cam_s, cam_h, 0.3) is None
+
+    # through _approximate_axes: two measured bars at height 20 give the level
+    d = np.array([1.0, 0.0])
+    t = rng.uniform(0, 300, n)
+    off_all = np.r_[s, np.full(10, -100.0), np.full(10, 100.0)]
+    h_all = np.r_[h, np.full(20, 28.0)]
+    sliver = BarAxis("lower", d, float(np.median(s)), 0.0, 23.0, 0.0, 0.0, 300.0, 8.0, n, 0.3, np.arange(n), 0,
+                     status="not measured", reason="seen only in parts")
+    measured = [BarAxis("lower", d, o, 0.0, 20.0, 0.0, 0.0, 300.0, 8.0, 10, 0.3, np.arange(n + k, n + k + 10), 0)
+                for k, o in ((0, -100.0), (10, 100.0))]
+    # offsets along -b: the plan normal of direction (1, 0) is (0, 1)
+    camera = np.array([0.0, cam_s, cam_h])
+    out = _approximate_axes([sliver] + measured, {0: off_all}, h_all, camera)
+    assert out[0].status == "not measured" and abs(out[0].offset_mm - 5.0) < 0.1
+    assert out[0].centre_h_mm == 20.0 and out[0].h_slope == 0.0
+    assert out[1:] == measured
+    # without heights or camera: the median offset, as before
+    assert abs(_approximate_axes([sliver] + measured, {0: off_all})[0].offset_mm - np.median(s)) < 1e-9
+
+
 def test_measure_spacings_in_order_with_deviation(lattice):
     bars, _ = lattice
     sp = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0, ("lower", "top"): 200.0})
