@@ -825,9 +825,9 @@ def _offset_at_height(s, h, height_mm: float, radius_mm: float, cam_s: float, ca
     at a fixed height only the offset is left, and the arc fixes it. The points ``(s, h)``
     (offsets across, heights) lie on the circle's side that faces the camera (``cam_s``,
     ``cam_h``), which picks one of the two mirror positions. Scan of the offset (``step_mm``)
-    minimising a robust (Tukey, 4.685 ``noise_mm``) sum of distances from the circle; None when
-    under half the points lie on the best circle facing the camera, or the best lies at the end
-    of the scan.
+    minimising a robust (Tukey, 4.685 ``noise_mm``) sum of distances from the circle, over the
+    offsets whose circle holds at least half the points (within 2.5 ``noise_mm``), most of them
+    facing the camera; None where no offset does, or the best lies at the end of the scan.
     """
     s, h = np.asarray(s, float), np.asarray(h, float)
     if len(s) < 5:
