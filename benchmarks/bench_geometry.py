@@ -144,14 +144,12 @@ def match_bars(res, truth, measurable):
     for r in res.bars.itertuples():
         a = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
         e = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
-        mid, d = (a + e) / 2, (e - a) / np.linalg.norm(e - a)
+        d = (e - a) / np.linalg.norm(e - a)
         best = None
         for b in truth["bars"]:
             if b["layer"] != r.layer:
                 continue
-            p0, p1 = np.array(b["axis_start_mm"]), np.array(b["axis_end_mm"])
-            v = (p1 - p0) / np.linalg.norm(p1 - p0)
-            dist = np.linalg.norm(np.cross(mid - p0, v))
+            dist, v = _distance_to_axis(r, b)
             ang = math.degrees(math.acos(min(1.0, abs(float(d @ v)))))
             # a bar reported "not measured" only claims to be there, not where exactly
             tol = MATCH_DIST_MM if r.status == "measured" else 3 * MATCH_DIST_MM
@@ -163,19 +161,20 @@ def match_bars(res, truth, measurable):
     return mapping, missed, tb
 
 
+def _distance_to_axis(r, b):
+    """Distance (mm) from the middle of a bars-table row's axis to a truth bar's axis line, and
+    that line's unit direction."""
+    mid = (np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm]) + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])) / 2
+    p0, p1 = np.array(b["axis_start_mm"]), np.array(b["axis_end_mm"])
+    v = (p1 - p0) / np.linalg.norm(p1 - p0)
+    return float(np.linalg.norm(np.cross(mid - p0, v))), v
+
+
 def approximate_axis_errors(res, tb, mapping) -> list:
     """Distance (mm) from the middle of each "not measured" bar's approximate axis to its true
     bar's axis (bars matched to one)."""
-    out = []
-    for r in res.bars.itertuples():
-        t = mapping.get(r.bar_id)
-        if r.status == "measured" or t is None:
-            continue
-        mid = (np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm]) + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])) / 2
-        p0, p1 = np.array(tb[t]["axis_start_mm"]), np.array(tb[t]["axis_end_mm"])
-        v = (p1 - p0) / np.linalg.norm(p1 - p0)
-        out.append(float(np.linalg.norm(np.cross(mid - p0, v))))
-    return out
+    return [_distance_to_axis(r, tb[mapping[r.bar_id]])[0] for r in res.bars.itertuples()
+            if r.status != "measured" and mapping.get(r.bar_id) is not None]
 
 
 def spacing_errors(res, truth, mapping):

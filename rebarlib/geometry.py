@@ -1001,14 +1001,14 @@ def stack_heights(bars: list, points: list | None = None, *, min_crossings: int 
     than the fit's radius pulls by up to a millimetre or two. It assumes the two bars touch: a gap
     between them (a bar lifted by a tie or bent) adds to it.
     """
-    def crest(i, b):
+    def top_line(i, b):
         if b.status != "measured":
             return None
         if points is None:
             return b.centre_h_mm + b.radius_mm, b.h_slope
         return None if points[i] is None else _crest_line(b, points[i])
 
-    crest = [crest(i, b) for i, b in enumerate(bars)]
+    crest = [top_line(i, b) for i, b in enumerate(bars)]
     out = np.full(len(bars), np.nan)
     for i, b in enumerate(bars):
         if b.level != "top" or b.status != "measured" or crest[i] is None:
