@@ -637,7 +637,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
     info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
-            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0}
+            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0, "one_edge": 0}
     widths = np.full(M, np.nan)
     centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
     colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
@@ -756,6 +756,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
             # the side at another bar is lost; the other side may still give a one-sided width,
             # if the axis may be measured from
+            info["one_edge"] = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
             if not bar.axis_ok:
                 bad_lo = bad_hi = bad_lo | bad_hi
             has_lo &= ~bad_lo
@@ -1368,6 +1369,13 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,
                        diameter_reason=f"hidden: {occ_frac:.0%} of the bar lies under nearer bars")
+            if not bar.axis_ok and info["one_edge"] >= prm.min_sections:
+                # a sliver beside the bar over it: what is seen is not nothing, and the inspector
+                # should know why it still gives no size
+                row["diameter_reason"] += (
+                    f"; {info['one_edge']} cross-sections show one edge of it beside them (a sliver): a width "
+                    "from one edge needs the axis placed to a fraction of a millimetre, which a sliver "
+                    "does not give without taking the bar's radius as known")
         elif few:
             why = max(("crossing", "no_edge", "border", "shadow", "outlier"), key=lambda k: info[k])
             text = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",

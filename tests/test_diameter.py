@@ -612,6 +612,29 @@ def test_one_edge_widths_beside_an_upper_bar_are_not_checked_against_colour_widt
     assert (checked.loc[covered, "confidence"] == plain.loc[covered, "confidence"]).all()
 
 
+def test_a_sliver_whose_axis_was_not_measured_is_hidden_and_says_why():
+    # The stacked scene above: the covered lower bars show one edge beside the upper bar over
+    # them. With their true axes they are sized from that edge; with axes the geometry stage
+    # could not measure (a sliver does not place its axis), they give no size, and the reason
+    # says that a sliver was seen and why it cannot be sized, unlike a bar that is simply hidden.
+    design = _design(14, 12)
+    cap = synth_capture(design, height_mm=500, tilt_deg=5, seed=1, sensor=SensorModel(), intrinsics=GEMINI2,
+                        deviations=Deviations(stacked=True, position_sigma_mm=6.0, slab_size_mm=1000))
+    bars = bars_from_truth(cap.truth)
+    true_axes = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id")
+    covered = true_axes.index[(true_axes.occluded_fraction == 1.0) & (true_axes.diameter_status == "measured")]
+    assert len(covered) >= 3
+    placed = bars.assign(status=np.where(bars.bar_id.isin(covered), "not measured", "measured"))
+    t = measure_diameters(cap, placed, cap.labels > 0, design=design).set_index("bar_id")
+    for i in covered:
+        assert t.loc[i, "diameter_status"] == "hidden" and not math.isfinite(t.loc[i, "nominal_mm"])
+        assert "a sliver" in t.loc[i, "diameter_reason"] and "one edge" in t.loc[i, "diameter_reason"]
+    # only the reason of those bars changed
+    others = t.index.difference(covered)
+    assert (t.loc[others, "diameter_status"] == true_axes.loc[others, "diameter_status"]).all()
+    assert not t.loc[others, "diameter_reason"].fillna("").str.contains("a sliver").any()
+
+
 def test_a_one_edge_bar_s_cloud_width_is_not_read_off_the_bar_over_it():
     # Stacked mesh, 400 mm, tilt 10°: lower bar 2 lies under an upper bar all along and is sized
     # from its one visible edge. The point-cloud band of a one-edge section runs from that edge to
