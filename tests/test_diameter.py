@@ -594,35 +594,38 @@ def test_a_bar_whose_axis_is_beyond_the_border_is_not_sized(border_scene):
     assert "outside the image" in b.diameter_reason
 
 
-def test_one_edge_widths_beside_an_upper_bar_are_not_checked_against_colour_widths():
-    # Stacked mesh: each lower bar lies under an upper bar, moved a few mm aside, so one of its
-    # sides is covered all along (occluded_fraction 1) and it is sized from its one visible edge
-    # and the axis. The colour edges at the far end of that mask run belong to the upper bar: a
-    # width between them is no check of a one-edge width, and must not sink the confidence.
-    # (It did: 0.91 with the colour check against 0.98 without, for one bar of this scene.)
-    design = _design(14, 12)
-    cap = synth_capture(design, height_mm=500, tilt_deg=5, seed=1, sensor=SensorModel(), intrinsics=GEMINI2,
-                        deviations=Deviations(stacked=True, position_sigma_mm=6.0, slab_size_mm=1000))
-    bars = bars_from_truth(cap.truth)
-    checked = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id")
-    plain = measure_diameters(cap, bars, cap.labels > 0, design=design, colour_edges=False).set_index("bar_id")
-    covered = checked.index[(checked.occluded_fraction == 1.0) & (checked.diameter_status == "measured")]
-    assert len(covered) >= 3
-    assert (checked.loc[covered, "nominal_mm"] == 14).all()
-    assert (checked.loc[covered, "confidence"] == plain.loc[covered, "confidence"]).all()
-
-
-def test_a_sliver_whose_axis_was_not_measured_is_hidden_and_says_why():
-    # The stacked scene above: the covered lower bars show one edge beside the upper bar over
-    # them. With their true axes they are sized from that edge; with axes the geometry stage
-    # could not measure (a sliver does not place its axis), they give no size, and the reason
-    # says that a sliver was seen and why it cannot be sized, unlike a bar that is simply hidden.
+@pytest.fixture(scope="module")
+def stacked_scene():
+    """Stacked mesh: each lower bar lies under an upper bar, moved a few mm aside, so one of its
+    sides is covered all along (occluded_fraction 1) and, with its true axis, it is sized from
+    its one visible edge and the axis. (design, capture, true bars, their diameters with the true
+    axes, ids of those covered bars)."""
     design = _design(14, 12)
     cap = synth_capture(design, height_mm=500, tilt_deg=5, seed=1, sensor=SensorModel(), intrinsics=GEMINI2,
                         deviations=Deviations(stacked=True, position_sigma_mm=6.0, slab_size_mm=1000))
     bars = bars_from_truth(cap.truth)
     true_axes = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id")
     covered = true_axes.index[(true_axes.occluded_fraction == 1.0) & (true_axes.diameter_status == "measured")]
+    return design, cap, bars, true_axes, covered
+
+
+def test_one_edge_widths_beside_an_upper_bar_are_not_checked_against_colour_widths(stacked_scene):
+    # The colour edges at the far end of a covered lower bar's mask run belong to the upper bar: a
+    # width between them is no check of a one-edge width, and must not sink the confidence.
+    # (It did: 0.91 with the colour check against 0.98 without, for one bar of this scene.)
+    design, cap, bars, checked, covered = stacked_scene
+    plain = measure_diameters(cap, bars, cap.labels > 0, design=design, colour_edges=False).set_index("bar_id")
+    assert len(covered) >= 3
+    assert (checked.loc[covered, "nominal_mm"] == 14).all()
+    assert (checked.loc[covered, "confidence"] == plain.loc[covered, "confidence"]).all()
+
+
+def test_a_sliver_whose_axis_was_not_measured_is_hidden_and_says_why(stacked_scene):
+    # The covered lower bars show one edge beside the upper bar over them. With their true axes
+    # they are sized from that edge; with axes the geometry stage could not measure (a sliver
+    # does not place its axis), they give no size, and the reason says that a sliver was seen
+    # and why it cannot be sized, unlike a bar that is simply hidden.
+    design, cap, bars, true_axes, covered = stacked_scene
     assert len(covered) >= 3
     placed = bars.assign(status=np.where(bars.bar_id.isin(covered), "not measured", "measured"))
     t = measure_diameters(cap, placed, cap.labels > 0, design=design).set_index("bar_id")
