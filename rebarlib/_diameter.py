@@ -754,9 +754,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
             bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
             info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
+            # sections with one clean edge and the other at another bar (a sliver beside it)
+            info["one_edge"] = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
             # the side at another bar is lost; the other side may still give a one-sided width,
             # if the axis may be measured from
-            info["one_edge"] = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
             if not bar.axis_ok:
                 bad_lo = bad_hi = bad_lo | bad_hi
             has_lo &= ~bad_lo
