@@ -13,7 +13,9 @@ same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of 
 ``--pixel-samples 3`` anti-aliased colour images, ``--sensor noisy`` (or ``flying``, ``clean``)
 another depth-sensor model (``SENSORS``), ``--depth-shift 2,-1`` the depth image moved
 against the colour image (a colour-depth misregistration; the model and fused masks are
-registered to the depth as ``inspect`` does, ``registered_mask``).
+registered to the depth as ``inspect`` does, ``registered_mask``). ``--heights 300,350
+--seeds 1,2,3,4``: the paper set-up only, at other camera heights and with other seeds (how
+the sizing depends on the capture distance).
 
 Per capture: bars (visible bars in the truth), wrong (measured, nominal size not the true one),
 hidden (reported hidden under upper bars), nm (not measured). Summary: correct % =
@@ -55,15 +57,22 @@ def _design(lower_mm, upper_mm, spacing_mm=200):
         "upper": {"diameter_mm": upper_mm, "spacing_mm": spacing_mm}}})
 
 
-def scenarios(quick: bool, seed_offset: int = 0):
+def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
     """(name, design, synth_capture keywords) of every capture; ``seed_offset`` shifts every
-    seed (fresh captures of the same set-ups, e.g. to check thresholds on held-out data)."""
+    seed (fresh captures of the same set-ups, e.g. to check thresholds on held-out data).
+    ``heights`` / ``seeds``: the paper set-up only, at these camera heights (mm) and seeds
+    (how the sizing depends on the capture distance)."""
     out = []
-    heights, tilts, seeds = ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
+    heights0, tilts, seeds0 = ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
+    only_paper = heights is not None or seeds is not None
+    heights, seeds = heights or heights0, seeds or seeds0
     for h in heights:
         for tilt in tilts:
             for seed in seeds:
                 out.append((f"paper {h}/{tilt}°/s{seed}", paper_design(), dict(height_mm=h, tilt_deg=tilt, seed=seed)))
+    if only_paper:
+        return [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out] \
+            if seed_offset else out
     site = ((450, 10),) if quick else ((400, 0), (450, 10), (500, 5), (500, 15))
     for k, (h, tilt) in enumerate(site):
         out.append((f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k)))
@@ -292,6 +301,8 @@ def main() -> None:
     ap.add_argument("--only", default="", help="only captures whose name contains this")
     ap.add_argument("--cloud", default="fuse", choices=("fuse", "veto", "off"),
                     help="refined: use_cloud True (fuse), 'veto' or False (off)")
+    ap.add_argument("--heights", default="", help="H1,H2,...: the paper set-up only, at these camera heights (mm)")
+    ap.add_argument("--seeds", default="", help="S1,S2,...: the paper set-up only, with these seeds")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     ap.add_argument("--pixel-samples", type=int, default=1,
@@ -329,7 +340,8 @@ def main() -> None:
     missed = defaultdict(int)
     missed_hidden = defaultdict(int)
     reasons = defaultdict(lambda: defaultdict(int))
-    for name, design, kw in scenarios(args.quick, args.seed_offset):
+    ints = lambda text: tuple(int(x) for x in text.split(",")) if text else None  # noqa: E731
+    for name, design, kw in scenarios(args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)):
         if args.only not in name:
             continue
         cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor)
