@@ -131,6 +131,27 @@ def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     return _half_gaps(obs, i)
 
 
+def bracketing_sizes(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True):
+    """The two nominal sizes of ``system`` whose observed widths lie either side of
+    ``width_mm``, as ``((smaller, its width), (larger, its width))``; ``None`` for a width
+    outside the table (what an ambiguous width names as the sizes to tell apart by hand).
+
+    Examples
+    --------
+    >>> bracketing_sizes(15.4)  # between Φ12 (13.9 mm) and Φ14 (16.2 mm)
+    ((12.0, 13.9), (14.0, 16.2))
+    """
+    sysm = bar_system(system)
+    obs = sysm.envelope_mm if deformed else sysm.sizes_mm
+    w = float(width_mm)
+    if not math.isfinite(w):
+        return None
+    for k in range(len(obs) - 1):  # a width on a size: that size and the next larger one
+        if obs[k] <= w < obs[k + 1] or (k == len(obs) - 2 and w == obs[k + 1]):
+            return (sysm.sizes_mm[k], obs[k]), (sysm.sizes_mm[k + 1], obs[k + 1])
+    return None
+
+
 def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True,
                   sigma_mm: float = 0.0) -> tuple[float, float]:
     """Nominal size whose observed width is nearest to ``width_mm``, and a confidence in 0..1.

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import bar_system, observed_width_mm, size_half_gaps_mm, snap_diameter
+from ._barsizes import bar_system, bracketing_sizes, observed_width_mm, size_half_gaps_mm, snap_diameter
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 
@@ -40,7 +40,7 @@ BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_
 DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
                     "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
                     "matches_design", "hidden", "occluded_fraction", "cloud_width_mm", "width_source",
-                    "width_used_mm", "circle_width_mm", "circle_sigma_mm")
+                    "width_used_mm", "width_sigma_mm", "circle_width_mm", "circle_sigma_mm")
 
 MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 
@@ -1090,13 +1090,26 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
         conf = min(conf, prm.shadow_confidence)
         reason += "; bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
-               width_source="mask+" + "+".join(k for k, _, _ in used), width_used_mm=round(width, 3))
+               width_source="mask+" + "+".join(k for k, _, _ in used), width_used_mm=round(width, 3),
+               width_sigma_mm=round(sigma, 3))
     return out
 
 
 def _off_centre(info, med, prm) -> bool:
     """Whether a bar's mask runs are centred this far off its axis: one side of the bar is lost."""
     return abs(info["centre_mm"]) > prm.max_offcentre_rel * med
+
+
+def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
+    """Why a width gives no size: the two sizes it lies between (what a check by hand must tell
+    apart) and the one it is nearer to, with that size's confidence."""
+    pair = bracketing_sizes(width, system=system, deformed=deformed)
+    sysm = bar_system(system)
+    if pair is None:  # (beyond the table: snap_diameter gives no size there)
+        return f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} sizes (confidence {conf:.2f})"
+    (a, wa), (b, wb) = pair
+    return (f"ambiguous: width {width:.1f} mm ({source}) lies between {sysm.label(a)} ({wa:.1f} mm) and "
+            f"{sysm.label(b)} ({wb:.1f} mm), nearer {sysm.label(nominal)} (confidence {conf:.2f}): check it by hand")
 
 
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
@@ -1201,9 +1214,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
-        out["confidence"] = conf
-        out["diameter_reason"] = (f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} "
-                                  f"sizes (confidence {conf:.2f})")
+        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3),
+                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, system, deformed))
         return out
     reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
     conf = min(conf, cap)
@@ -1211,7 +1223,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         conf = min(conf, prm.shadow_confidence)
         reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED,
-               diameter_reason=reason, width_source=source, width_used_mm=round(width, 3))
+               diameter_reason=reason, width_source=source, width_used_mm=round(width, 3),
+               width_sigma_mm=round(sigma, 3))
     return out
 
 
@@ -1278,7 +1291,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud" or "mask+circle": what the size
-    came from), ``width_used_mm`` (the width that was snapped), ``circle_width_mm`` and
+    came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
+    the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
     diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, less the
     offset the capture's circles share against the bars their masks size clearly, and the σ it
@@ -1356,7 +1371,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
-               "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
+               "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan, "width_sigma_mm": math.nan,
                "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"]}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":

@@ -105,6 +105,15 @@ def test_boundary_pixels_of_a_disc():
     assert not (edge & ~disc).any()
 
 
+def test_bracketing_sizes_per_system():
+    from rebarlib._barsizes import bracketing_sizes
+
+    assert bracketing_sizes(15.4) == ((12.0, 13.9), (14.0, 16.2))
+    assert bracketing_sizes(13.9) == ((12.0, 13.9), (14.0, 16.2))  # on a size: it and the next
+    assert bracketing_sizes(15.0, system="ASTM", deformed=False) == ((12.7, 12.7), (15.9, 15.9))
+    assert bracketing_sizes(5.0) is None and bracketing_sizes(math.nan) is None  # outside the table
+
+
 def test_snap_diameter_per_system():
     g = bar_system("GB1499.2")
     for s, e in zip(g.sizes_mm, g.envelope_mm):
@@ -225,6 +234,24 @@ def test_each_standard_size_recovered_on_ideal_captures(ideal_sizes):
     assert (t[t.diameter_status != "measured"].diameter_reason.str.len() > 0).all()
     hidden = bars[bars.bar_id.isin(t[t.hidden].bar_id)]
     assert (hidden.layer == "lower").all()
+
+
+def test_width_sigma_is_what_the_confidence_comes_from(ideal_sizes):
+    # Each sized bar's width_sigma_mm, with the size table's own σ, gives back its size and
+    # confidence through snap_diameter (confidence caps, e.g. for a bar in shadow, only lower it)
+    design, cap, bars = ideal_sizes
+    df = measure_diameters(cap, bars, cap.labels > 0, design=design)
+    meas = df[df.diameter_status == "measured"]
+    assert len(meas) and (meas.width_sigma_mm > 0).all()
+    for r in meas.itertuples():
+        nominal, conf = snap_diameter(r.width_used_mm, sigma_mm=r.width_sigma_mm)
+        assert nominal == r.nominal_mm and r.confidence <= conf + 1e-3
+        if not (isinstance(r.diameter_reason, str) and r.diameter_reason):  # no cap said
+            assert r.confidence == pytest.approx(conf, abs=2e-3)
+    assert (meas.diameter_reason.fillna("") == "").any()
+    # the paper's method votes: no σ
+    paper = measure_diameters(cap, bars, cap.labels > 0, design=design, method="paper")
+    assert paper.width_sigma_mm.isna().all()
 
 
 def test_point_cloud_width_is_the_envelope_on_ideal_depth(ideal_sizes):
@@ -392,6 +419,9 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_i
     # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone
     r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
+    # the reason names the two sizes a check by hand must tell apart, and the nearer one
+    assert "between Φ12 (13.9 mm) and Φ14 (16.2 mm), nearer Φ14" in r["diameter_reason"]
+    assert r["confidence"] < prm.min_confidence and math.isnan(r.get("nominal_mm", math.nan))
     # the bar's top 16.1 ± 0.6 mm above its supports settles it: the weighted mean of
     # 15.4 (σ 0.6) and 16.1 (σ 0.6) is 15.75 ± 0.42, Φ14
     stack = dict(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
