@@ -659,8 +659,10 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
             ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
             reason = "" if ok else (rec.get("diameter_reason") or
                                     ("diameter stage not run" if not has_diam else "diameter not measured"))
+            # the width's standard uncertainty (refined); the paper's vote has none: its spread
+            u = _num(rec.get("width_sigma_mm"))
             add(item, cap, la, lv, what, ddv, nominal if ok else None,
-                _num(rec.get("width_spread_mm")), reason=reason)
+                u if u is not None else _num(rec.get("width_spread_mm")), reason=reason)
         counts = _table(r, "counts")
         for la in LAYERS:
             for lv in LEVELS:

@@ -29,7 +29,7 @@ __all__ = ["build_report", "report_context", "render_html", "templates_dir", "wr
 BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "not checked": "#f0a30a", "hidden": "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
-             "width_spread_mm", "nominal_mm", "design_diameter_mm", "diameter_status", "diameter_reason")
+             "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status", "diameter_reason")
 VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
                 "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
 IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
@@ -429,7 +429,8 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                 f"{u.median():.1f} mm (median over {len(u)} capture(s), max {u.max():.1f} mm)"})
     u_bar = cp[cp["item"].str.startswith("bar_size") & cp["uncertainty"].notna()]
     if len(u_bar):
-        uncertainty.append({"label": "Bar width (spread along each bar)",
+        uncertainty.append({"label": "Bar width (each bar's standard uncertainty; its spread along the bar "
+                                     "where the method gives none)",
                             "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
                                     f"(median over {len(u_bar)} bars)"})
     not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}

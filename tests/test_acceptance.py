@@ -217,6 +217,16 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert acc.verdict == "rejected"
 
 
+def test_bar_size_uncertainty_is_the_width_sigma_else_the_spread():
+    bars = [{"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured",
+             "width_spread_mm": 0.4, "width_sigma_mm": 0.25},
+            {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured",
+             "width_spread_mm": 0.4, "width_sigma_mm": None}]  # the paper's method: no σ, its spread
+    cp = evaluate([_result(bars=bars)], _design()).checkpoints
+    u = cp[cp["item"] == "bar_size_lower_bottom"].set_index("what")["uncertainty"]
+    assert (u["bar 1"], u["bar 2"]) == (0.25, 0.4)
+
+
 def test_no_diameter_stage_means_bar_size_not_measured():
     bars = [{"bar_id": i, "layer": la, "level": lv} for i, (la, lv) in enumerate(LAYERS)]
     acc = evaluate([_result(bars=bars)], _design())

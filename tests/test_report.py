@@ -39,6 +39,7 @@ def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict
                "visible_length_mm": b["visible_length_mm"], "n_points": b["visible_pixels"],
                "status": "measured", "reason": "", "width_median_mm": None if hidden else b["envelope_mm"],
                "width_spread_mm": None if hidden else 0.5, "nominal_mm": None if hidden else b["diameter_mm"],
+               "confidence": 0.0 if hidden else 0.97,
                "diameter_status": "hidden" if hidden else "measured",
                "diameter_reason": "under crossing bars" if hidden else "",
                "design_diameter_mm": b["design_diameter_mm"], "hidden": hidden}
@@ -111,6 +112,9 @@ def test_html_draws_every_bar_and_writes_the_spacings(paper):
     acc = evaluate([res["A_400"]], design)
     html = render_html(report_context(PAPER, design, acc))
     assert html.count("data:image/jpeg;base64,") == 1
+    # each sized bar's row gives its confidence; hidden ones none
+    n_sized = sum(b["diameter_status"] == "measured" for b in res["A_400"]["bars"])
+    assert n_sized and html.count("measured, confidence 0.97") == n_sized
     ctx = report_context(PAPER, design, acc)
     cap = ctx["captures"][0]
     drawn = {b["id"] for b in cap["image"]["bars"]}
