@@ -24,7 +24,8 @@ with confidence ≥ 0.9, median time of ``measure_diameters`` per capture, and t
 error against the true rib envelope (truth ``envelope_mm``). Which bars are hidden is not taken
 from the measurement alone: 'h.¬tr' counts the bars reported hidden that the true axes and the true
 mask do not report hidden, and 'right%tr' is the bars sized right over the bars the truth does not
-hide (the stricter figure).
+hide (the stricter figure). Then how honest each width's uncertainty (``width_sigma_mm``) is
+against its error from the true envelope.
 
 Targets (issue 5): refined with the model or fused mask ≥ 99.5 % correct over ≥ 300 bars, no
 wrong size with high confidence; ≤ 0.2 s per capture (median).

@@ -1290,8 +1290,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
     ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
-    its axis), ``width_source`` ("mask", "cloud", "mask+cloud" or "mask+circle": what the size
-    came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    its axis), ``width_source`` ("mask", "cloud", "mask+cloud", "mask+circle" or "mask+stack":
+    what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
     ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
     the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
