@@ -1086,12 +1086,18 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     if nominal != size or conf < prm.min_confidence:
         return None
     reason = "size from the mask and " + " and ".join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)
+    return _sized(out, nominal, conf, width, sigma, "mask+" + "+".join(k for k, _, _ in used), reason,
+                  in_shadow, prm)
+
+
+def _sized(out, nominal, conf, width, sigma, source, reason, in_shadow, prm) -> dict:
+    """``out`` as a measured bar: its size, confidence (capped for a bar in shadow, saying so),
+    and the width it came from with its σ and source."""
     if in_shadow:
         conf = min(conf, prm.shadow_confidence)
-        reason += "; bar in shadow: confidence capped"
+        reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
     out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
-               width_source="mask+" + "+".join(k for k, _, _ in used), width_used_mm=round(width, 3),
-               width_sigma_mm=round(sigma, 3))
+               width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3))
     return out
 
 
@@ -1218,14 +1224,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                    diameter_reason=_ambiguous_reason(width, source, conf, nominal, system, deformed))
         return out
     reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
-    conf = min(conf, cap)
-    if in_shadow:
-        conf = min(conf, prm.shadow_confidence)
-        reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
-    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED,
-               diameter_reason=reason, width_source=source, width_used_mm=round(width, 3),
-               width_sigma_mm=round(sigma, 3))
-    return out
+    return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
 
 
 # --------------------------------------------------------------------------------------------
