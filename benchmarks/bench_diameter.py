@@ -10,7 +10,8 @@ axes; with the true mask, the true mask dilated / eroded by 1 px (the typical bi
 learnt mask), the shipped model's mask (``SegmentationModel.default()``) and the
 fused colour + depth mask (``fuse_masks``) when those exist. ``--camera d435-848`` renders the
 same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of them,
-``--pixel-samples 3`` anti-aliased colour images, ``--sensor noisy`` (or ``flying``, ``clean``)
+``--pixel-samples 3`` anti-aliased colour images (with ``--blur 0.8 --jpeg 90``: softened by a
+lens and stored as JPEG, as a photograph is), ``--sensor noisy`` (or ``flying``, ``clean``)
 another depth-sensor model (``SENSORS``), ``--depth-shift 2,-1`` the depth image moved
 against the colour image (a colour-depth misregistration; the model and fused masks are
 registered to the depth as ``inspect`` does, ``registered_mask``). ``--heights 300,350
@@ -110,6 +111,8 @@ def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default"):
     from rebarlib import load_capture, save_capture
 
     px = f"__px{app.pixel_samples}" if app.pixel_samples > 1 else ""
+    px += f"__blur{app.blur_px:g}" if app.blur_px > 0 else ""
+    px += f"__jpeg{app.jpeg_quality}" if app.jpeg_quality else ""
     px += "" if camera == "gemini2" else f"__{camera}"
     px += "" if sensor == "default" else f"__{sensor}"
     folder = Path(cache) / ("".join(c if c.isalnum() else "_" for c in name) + px)
@@ -309,6 +312,11 @@ def main() -> None:
     ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     ap.add_argument("--pixel-samples", type=int, default=1,
                     help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
+    ap.add_argument("--blur", type=float, default=0.0,
+                    help="Gaussian blur σ (px) of the colour image, as a real lens and demosaicing "
+                         "soften edges (Appearance.blur_px; 0: none)")
+    ap.add_argument("--jpeg", type=int, default=0,
+                    help="JPEG round trip of the colour image at this quality (Appearance.jpeg_quality; 0: none)")
     ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
                     help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another")
     ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
@@ -333,7 +341,8 @@ def main() -> None:
     combos = [(m, k, a) for a in axis_src for k in mask_src for m in methods]
     for n in notes:
         print("note:", n)
-    app = Appearance(rust_fraction=0.3, pixel_samples=args.pixel_samples)  # random sun per seed: shadows of the upper bars on the lower
+    app = Appearance(rust_fraction=0.3, pixel_samples=args.pixel_samples, blur_px=args.blur,
+                     jpeg_quality=args.jpeg or None)  # random sun per seed: shadows of the upper bars on the lower
     per_capture = []
     dump = []  # every bar row joined to the truth (--dump)
     recs = defaultdict(list)
