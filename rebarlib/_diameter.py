@@ -1287,7 +1287,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     by the image border, also twice one edge's distance from the axis), ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
     "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
-    ``occluded_fraction`` (share of the cross-sections under nearer bars), ``cloud_width_mm``
+    ``occluded_fraction`` (share of the cross-sections lying wholly or partly under nearer bars: some
+    of the bar's width there is inside a nearer bar's footprint), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud", "mask+circle" or "mask+stack":
     what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
@@ -1383,7 +1384,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             row["diameter_reason"] = "bar axis is outside the image"
         elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,
-                       diameter_reason=f"hidden: {occ_frac:.0%} of the bar lies under nearer bars")
+                       diameter_reason=f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly under nearer bars")
             if not bar.axis_ok and info["one_edge"] >= prm.min_sections:
                 # a sliver beside the bar over it: what is seen is not nothing, and the inspector
                 # should know why it still gives no size
@@ -1411,7 +1412,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
                     and _off_centre(info, med, prm)):
                 # the side the mask lacks is most likely under the nearer bars: say so
-                row["diameter_reason"] += (f"; {occ_frac:.0%} of the bar lies beside or under nearer bars: "
+                row["diameter_reason"] += (f"; {occ_frac:.0%} of its cross-sections lie partly under nearer bars: "
                                            "what is seen may be a sliver beside them")
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
