@@ -386,7 +386,8 @@ def main() -> None:
             missed_hidden[combo] += n_missed_hidden
             for r in rr:
                 if r["kind"] == "bar" and r["status"] != "measured":
-                    reasons[combo][f"{r['status']}: " + re.sub(r"-?\d+(\.\d+)?", "#", r["row"].diameter_reason)] += 1
+                    why = re.sub(r"-?\d+(\.\d+)?", "#", r["row"].diameter_reason)
+                    reasons[combo][why if why.startswith(f"{r['status']}: ") else f"{r['status']}: {why}"] += 1
             if n_missed > n_missed_hidden:
                 reasons[combo]["no axis found for the bar"] += n_missed - n_missed_hidden
             if n_missed_hidden:

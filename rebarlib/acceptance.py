@@ -402,7 +402,8 @@ class Acceptance:
     ----------
     checkpoints : DataFrame, one row per checkpoint (columns ``CHECKPOINT_COLUMNS``)
     items : DataFrame, one row per item (columns ``ITEM_COLUMNS``)
-    bars : DataFrame ``capture, bar_id, layer, level, verdict`` (pass / fail / not checked / hidden)
+    bars : DataFrame ``capture, bar_id, layer, level, verdict`` (pass / fail / incomplete / not checked /
+        hidden; incomplete: some of its checkpoints passed, others could not be measured)
     verdict : "accepted" | "rejected" | "incomplete"
     reasons : tuple of str, why the verdict is what it is
     """
@@ -780,7 +781,11 @@ def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):
 
 
 def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
-    """pass / fail / not checked / hidden per bar, from the checkpoints that name it."""
+    """pass / fail / incomplete / not checked / hidden per bar, from the checkpoints that name it.
+
+    A bar passes only if every checkpoint that names it was measured and is within tolerance: one
+    whose spacing is within but whose size could not be measured is "incomplete", not "pass"
+    (an acceptance sheet must not show a bar as passed that was only partly checked)."""
     out = []
     per_bar: dict = {}
     for rec in cp.itertuples():
@@ -800,7 +805,7 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
         elif EXCLUDED in st:
             v = "hidden"
         elif WITHIN in st:
-            v = "pass"
+            v = INCOMPLETE if NOT_MEASURED in st else PASS
         else:
             v = "not checked"
         out.append({**b, "verdict": v})

@@ -26,7 +26,8 @@ __all__ = ["build_report", "report_context", "render_html", "templates_dir", "wr
            "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
 
 #: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
-BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "not checked": "#f0a30a", "hidden": "#7f3fbf"}
+BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "incomplete": "#e7c21f", "not checked": "#f0a30a",
+               "hidden": "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
              "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status", "diameter_reason")

@@ -213,8 +213,19 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert (items.loc["bar_size_upper_bottom", "excluded"], items.loc["bar_size_upper_bottom", "verdict"]) == (1, "pass")
     assert any("hidden" in n for n in acc.notes)
     bv = acc.bars.set_index("bar_id")["verdict"]
-    assert (bv[2], bv[4], bv[5]) == ("fail", "hidden", "pass")
+    assert (bv[2], bv[3], bv[4], bv[5]) == ("fail", "not checked", "hidden", "pass")
     assert acc.verdict == "rejected"
+
+
+def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
+    # bar "lb0" has a spacing within tolerance but its size could not be measured: not "pass"
+    bars = [{"bar_id": "lb0", "layer": "lower", "level": "bottom", "nominal_mm": None,
+             "diameter_status": "not measured", "diameter_reason": "ambiguous"},
+            {"bar_id": "lb1", "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
+             "diameter_status": "measured"}]
+    acc = evaluate([_result(bars=bars)], _design())
+    bv = acc.bars.set_index("bar_id")["verdict"]
+    assert (bv["lb0"], bv["lb1"]) == ("incomplete", "pass")
 
 
 def test_bar_size_uncertainty_is_the_width_sigma_else_the_spread():

@@ -248,3 +248,22 @@ def test_cli_inspects_captures_itself_without_results(paper, tmp_path, monkeypat
     monkeypatch.setitem(sys.modules, "rebarlib._inspect", None)  # the stage is not installed
     assert main(["report", str(PAPER), "--out", str(out)]) == 2
     assert "--results" in capsys.readouterr().err
+
+
+def test_bar_row_does_not_repeat_its_status_and_a_partly_checked_bar_is_not_passed(paper):
+    design, res = paper
+    r = json.loads(json.dumps(res["A_400"]))
+    hid = next(b for b in r["bars"] if b["hidden"])
+    hid["diameter_reason"] = "hidden: 90% of its cross-sections lie wholly or partly under nearer bars"
+    # a bar whose spacings are within tolerance but whose size could not be measured
+    spaced = {str(s["bar_a"]) for s in r["spacings"]} | {str(s["bar_b"]) for s in r["spacings"]}
+    nm = next(b for b in r["bars"] if not b["hidden"] and str(b["bar_id"]) in spaced)
+    nm.update(nominal_mm=None, confidence=0.6, diameter_status="not measured",
+              diameter_reason="ambiguous: width 15.2 mm (mask) lies between Φ12 and Φ14")
+    acc = evaluate([r], design)
+    ctx = report_context([r], design, acc)
+    rows = {str(b["bar_id"]): b for b in ctx["captures"][0]["bars"]}
+    assert rows[str(nm["bar_id"])]["verdict"] == "incomplete"
+    html = render_html(ctx)
+    assert "hidden: 90% of its cross-sections" in html and "hidden: hidden" not in html
+    assert "not measured: ambiguous: width 15.2 mm" in html
