@@ -783,15 +783,20 @@ def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):
 def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
     """pass / fail / incomplete / not checked / hidden per bar, from the checkpoints that name it.
 
-    A bar passes only if every checkpoint that names it was measured and is within tolerance: one
-    whose spacing is within but whose size could not be measured is "incomplete", not "pass"
-    (an acceptance sheet must not show a bar as passed that was only partly checked)."""
+    A bar whose own checkpoint (its size) could not be measured is "incomplete" even where its
+    spacings are within tolerance, not "pass": an acceptance sheet must not show a bar as passed
+    that was only partly checked. A spacing that could not be measured belongs to the pair (often
+    to the gap: a bar between them hidden) and is listed with its reason among the checkpoints; it
+    does not mark the two bars incomplete."""
     out = []
     per_bar: dict = {}
+    own_open: set = set()  # bars whose own checkpoint was not measured
     for rec in cp.itertuples():
         what = str(rec.what)
         if what.startswith("bar "):
             ids = [what[4:]]
+            if rec.status == NOT_MEASURED:
+                own_open.add((rec.capture, ids[0]))
         elif what.startswith("bars "):
             ids = what[5:].split("-")
         else:
@@ -805,7 +810,7 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
         elif EXCLUDED in st:
             v = "hidden"
         elif WITHIN in st:
-            v = INCOMPLETE if NOT_MEASURED in st else PASS
+            v = INCOMPLETE if (b["capture"], str(b["bar_id"])) in own_open else PASS
         else:
             v = "not checked"
         out.append({**b, "verdict": v})

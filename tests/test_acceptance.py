@@ -222,10 +222,13 @@ def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
     bars = [{"bar_id": "lb0", "layer": "lower", "level": "bottom", "nominal_mm": None,
              "diameter_status": "not measured", "diameter_reason": "ambiguous"},
             {"bar_id": "lb1", "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
+             "diameter_status": "measured"},
+            {"bar_id": "lb2", "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
              "diameter_status": "measured"}]
-    acc = evaluate([_result(bars=bars)], _design())
+    acc = evaluate([_result(bars=bars, spacing_devs=(0.0, None))], _design())
     bv = acc.bars.set_index("bar_id")["verdict"]
-    assert (bv["lb0"], bv["lb1"]) == ("incomplete", "pass")
+    # lb1's spacing to lb2 was not measured: that belongs to the pair, listed among the checkpoints
+    assert (bv["lb0"], bv["lb1"], bv["lb2"]) == ("incomplete", "pass", "pass")
 
 
 def test_bar_size_uncertainty_is_the_width_sigma_else_the_spread():
