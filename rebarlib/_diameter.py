@@ -1384,7 +1384,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             row["diameter_reason"] = "bar axis is outside the image"
         elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
             row.update(diameter_status=HIDDEN, hidden=True,
-                       diameter_reason=f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly under nearer bars")
+                       diameter_reason=(f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly "
+                                        "under nearer bars"))
             if not bar.axis_ok and info["one_edge"] >= prm.min_sections:
                 # a sliver beside the bar over it: what is seen is not nothing, and the inspector
                 # should know why it still gives no size

@@ -403,7 +403,7 @@ class Acceptance:
     checkpoints : DataFrame, one row per checkpoint (columns ``CHECKPOINT_COLUMNS``)
     items : DataFrame, one row per item (columns ``ITEM_COLUMNS``)
     bars : DataFrame ``capture, bar_id, layer, level, verdict`` (pass / fail / incomplete / not checked /
-        hidden; incomplete: some of its checkpoints passed, others could not be measured)
+        hidden; incomplete: its spacings passed but its own size could not be measured)
     verdict : "accepted" | "rejected" | "incomplete"
     reasons : tuple of str, why the verdict is what it is
     """
