@@ -73,9 +73,17 @@ def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
         for tilt in tilts:
             for seed in seeds:
                 out.append((f"paper {h}/{tilt}°/s{seed}", paper_design(), dict(height_mm=h, tilt_deg=tilt, seed=seed)))
-    if only_paper:
-        return [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out] \
-            if seed_offset else out
+    if not only_paper:
+        out += _other_scenarios(quick)
+    if seed_offset:
+        out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
+    return out
+
+
+def _other_scenarios(quick: bool):
+    """The captures besides the paper set-up: the site-like slab, the Φ10/Φ16/Φ20 slabs and the
+    slabs with bars of another size than designed."""
+    out = []
     site = ((450, 10),) if quick else ((400, 0), (450, 10), (500, 5), (500, 15))
     for k, (h, tilt) in enumerate(site):
         out.append((f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k)))
@@ -89,8 +97,6 @@ def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
     for h, tilt, seed in wrong:
         out.append((f"wrong-size {h}/{tilt}°", paper_design(), dict(
             height_mm=h, tilt_deg=tilt, seed=seed, deviations=Deviations(wrong_size=3, slab_size_mm=800))))
-    if seed_offset:
-        out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
     return out
 
 

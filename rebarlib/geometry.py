@@ -52,7 +52,8 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "stack_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps", "flag_border_cut",
+    "level_heights", "stack_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps",
+    "flag_border_cut",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
