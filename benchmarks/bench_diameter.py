@@ -12,7 +12,8 @@ fused colour + depth mask (``fuse_masks``) when those exist. ``--camera d435-848
 same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of them,
 ``--pixel-samples 3`` anti-aliased colour images (with ``--blur 0.8 --jpeg 90``: softened by a
 lens and stored as JPEG, as a photograph is), ``--sensor noisy`` (or ``flying``, ``clean``)
-another depth-sensor model (``SENSORS``), ``--depth-shift 2,-1`` the depth image moved
+another depth-sensor model (``SENSORS``), ``--ribs relief`` deformed bars with their ribs in
+relief (a real bar's silhouette) instead of a smooth envelope, ``--depth-shift 2,-1`` the depth image moved
 against the colour image (a colour-depth misregistration; the model and fused masks are
 registered to the depth as ``inspect`` does, ``registered_mask``). ``--heights 300,350
 --seeds 1,2,3,4``: the paper set-up only, at other camera heights and with other seeds (how
@@ -38,6 +39,7 @@ import argparse
 import re
 import time
 from collections import defaultdict
+from dataclasses import replace
 
 import numpy as np
 
@@ -108,8 +110,10 @@ def _morph(mask, px):
     return op(mask.astype(np.uint8), k).astype(bool)
 
 
-def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default"):
+def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default", relief=False):
     intr = CAMERAS[camera]
+    if relief:
+        kw = {**kw, "deviations": replace(kw.get("deviations") or Deviations(), rib_relief=True)}
     if not cache:
         return synth_capture(design, sensor=SENSORS[sensor], appearance=app, intrinsics=intr, **kw)
     from pathlib import Path
@@ -121,6 +125,7 @@ def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default"):
     px += f"__jpeg{app.jpeg_quality}" if app.jpeg_quality else ""
     px += "" if camera == "gemini2" else f"__{camera}"
     px += "" if sensor == "default" else f"__{sensor}"
+    px += "__relief" if relief else ""
     folder = Path(cache) / ("".join(c if c.isalnum() else "_" for c in name) + px)
     if (folder / "truth.json").is_file():
         return load_capture(folder)
@@ -328,6 +333,9 @@ def main() -> None:
     ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
                     help="depth-sensor model the captures are rendered with (SENSORS): the default, or "
                          "3x the flying pixels, 2.5x the stereo noise, no edge effects")
+    ap.add_argument("--ribs", default="envelope", choices=("envelope", "relief"),
+                    help="deformed bars drawn as their rib envelope (smooth), or with the ribs in relief "
+                         "(Deviations.rib_relief: a core of d1, crescent and longitudinal ribs, random roll)")
     ap.add_argument("--depth-shift", default="0,0",
                     help="DU,DV: shift the depth image this many pixels against the colour image (a "
                          "colour-depth misregistration, as a camera's factory alignment leaves); the model "
@@ -361,7 +369,7 @@ def main() -> None:
     for name, design, kw in scenarios(args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)):
         if args.only not in name:
             continue
-        cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor)
+        cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor, args.ribs == "relief")
         if depth_shift != (0, 0):
             cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth

@@ -31,6 +31,9 @@ __all__ = ["Deviations", "SensorModel", "Appearance", "CameraPose", "Bar", "Slab
 _GB_RIBS = {6: (5.8, 0.6), 8: (7.7, 0.8), 10: (9.6, 1.0), 12: (11.5, 1.2), 14: (13.4, 1.4),
             16: (15.4, 1.5), 18: (17.3, 1.6), 20: (19.3, 1.7), 22: (21.3, 1.9), 25: (24.2, 2.1),
             28: (27.2, 2.2), 32: (31.0, 2.4), 36: (35.0, 2.6), 40: (38.7, 2.9), 50: (48.5, 3.2)}
+# GB 1499.2 transverse-rib spacing l (mm) per nominal size, for bars drawn in relief
+_GB_RIB_PITCH = {6: 4.0, 8: 5.5, 10: 7.0, 12: 8.0, 14: 9.0, 16: 10.0, 18: 10.0, 20: 10.0, 22: 10.5,
+                 25: 12.5, 28: 12.5, 32: 14.0, 36: 15.0, 40: 15.0, 50: 16.0}
 
 LABEL_BACKGROUND, LABEL_LOWER, LABEL_UPPER = 0, 1, 2
 
@@ -70,6 +73,12 @@ class Deviations:
     missing : number of bars left out (never the outermost of a set)
     wrong_size : number of bars of another standard size than designed
     ribs : deformed bars, drawn with their rib envelope (GB 1499.2 d1 + 2h)
+    rib_relief : with ``ribs``, draw the ribs in relief instead of as a smooth envelope: a core of
+        diameter d1, two longitudinal ribs and crescent transverse ribs of height h at GB 1499.2's
+        spacing, each bar turned to a random roll and with a random shift between the ribs of its
+        two sides (:func:`_relief_radius`). A silhouette then reaches the envelope d1 + 2h only at
+        the rib crests and is d1 wide between them, as on a real deformed bar; the truth's
+        ``envelope_mm`` stays d1 + 2h. Off by default (renders are unchanged)
     spacers, chairs, ties : cover blocks under the lower lattice, chairs between the lattices,
         tie wire at crossings
     slab_size_mm : extent of the (square) mesh
@@ -83,6 +92,7 @@ class Deviations:
     missing: int = 0
     wrong_size: int = 0
     ribs: bool = True
+    rib_relief: bool = False
     spacers: bool = True
     chairs: bool = True
     ties: bool = True
@@ -415,6 +425,37 @@ class _Geometry:
     seg_p0: np.ndarray  # per object: cylinder segment (bars only)
     seg_p1: np.ndarray
     seg_r: np.ndarray
+    # per object, for bars drawn in relief: core radius, rib height, rib spacing, shift of the
+    # second side's ribs (share of a spacing), roll (rad) and the segment's start along its bar;
+    # NaN core radius: a smooth cylinder of radius seg_r
+    seg_rib: np.ndarray
+
+
+def _relief_params(nominal_mm: float) -> tuple[float, float, float]:
+    """Core radius, rib height and transverse-rib spacing (mm) of a GB 1499.2 crescent-rib bar;
+    sizes not in the table scale from the nearest one."""
+    key = min(_GB_RIBS, key=lambda s: abs(s - nominal_mm))
+    d1, h = _GB_RIBS[key]
+    k = nominal_mm / key
+    return d1 * k / 2, h * k, _GB_RIB_PITCH[key] * k
+
+
+def _relief_radius(s, psi, r1, h, pitch, shift):
+    """Surface radius of a crescent-rib bar at ``s`` mm along it and ``psi`` rad around it from
+    a longitudinal rib (arrays broadcast together).
+
+    A core of radius ``r1``; two longitudinal ribs (psi = 0 and π) of height ``h``; transverse
+    ribs every ``pitch`` on each side between them (those of the side psi in (π, 2π) shifted
+    by ``shift`` x ``pitch``), highest (``h``) half-way round and tapering to the longitudinal
+    ribs like a crescent. Rib tops 0.1 x the bar diameter wide, flanks at 45°."""
+    top = 0.05 * 2 * (r1 + h)  # half the width of a rib's top
+    ang = np.abs(np.mod(psi + np.pi / 2, np.pi) - np.pi / 2)  # angle to the nearer longitudinal rib
+    longitudinal = h * np.clip((top + h - r1 * ang) / h, 0, 1)
+    sin = np.sin(psi)
+    x = s / pitch - np.where(sin < 0, shift, 0.0)
+    x = np.abs(x - np.round(x)) * pitch  # distance along the bar to the nearest rib's middle
+    transverse = h * np.abs(sin) * np.clip((top + h - x) / h, 0, 1)
+    return r1 + np.maximum(longitudinal, transverse)
 
 
 def _build_geometry(scene: SlabScene) -> _Geometry:
@@ -422,25 +463,38 @@ def _build_geometry(scene: SlabScene) -> _Geometry:
     V = [np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)]
     T = [np.array([[0, 1, 2], [0, 2, 3]])]
     kinds, barid, p0s, p1s, rs = [K_FORMWORK], [-1], [np.zeros(3)], [np.zeros(3)], [0.0]
+    no_rib = [math.nan] * 6
+    ribs = [no_rib]
+    relief = scene.deviations.ribs and scene.deviations.rib_relief
+    # roll and rib shift of each bar belong to the slab (its key), not to the shot
+    rib_rng = np.random.default_rng([scene.key, 2])
     for b in scene.bars:
+        if relief:
+            r1, h, pitch = _relief_params(b.nominal_mm)
+            bar_rib = [r1, h, pitch, rib_rng.uniform(0, 1), rib_rng.uniform(0, 2 * math.pi)]
+        s0 = 0.0
         for p0, p1 in zip(b.axis[:-1], b.axis[1:]):
             v, t = _prism(p0, p1, b.radius_mm)
             V.append(v), T.append(t)
             kinds.append(K_BAR), barid.append(b.id), p0s.append(p0), p1s.append(p1), rs.append(b.radius_mm)
+            ribs.append(bar_rib + [s0] if relief else no_rib)
+            s0 += float(np.linalg.norm(p1 - p0))
     for c, hs, yaw, kind in scene.boxes:
         v, t = _box(c, hs, yaw)
         V.append(v), T.append(t)
         kinds.append(K_SPACER), barid.append(-1), p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+        ribs.append(no_rib)
     for p0, p1, r, kind in scene.rods:
         v, t = _prism(p0, p1, r, 8)
         V.append(v), T.append(t)
         kinds.append(K_CHAIR if kind == "chair" else K_TIE), barid.append(-1)
         p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+        ribs.append(no_rib)
     offsets = np.cumsum([0] + [len(v) for v in V[:-1]])
     tris = np.vstack([t + o for t, o in zip(T, offsets)])
     tri_obj = np.concatenate([np.full(len(t), i) for i, t in enumerate(T)])
     return _Geometry(np.vstack(V), tris, tri_obj, np.array(kinds), np.array(barid),
-                     np.array(p0s), np.array(p1s), np.array(rs))
+                     np.array(p0s), np.array(p1s), np.array(rs), np.array(ribs, float))
 
 
 class _Caster:
@@ -477,9 +531,16 @@ class _Caster:
             ob = np.where(hit, self.geo.tri_obj[np.where(hit, prim, 0)], -1)
             nrm = ans["primitive_normals"].numpy().astype(np.float64)
             is_bar = hit & (self.geo.obj_kind[np.maximum(ob, 0)] == K_BAR)
-            # exact cylinder intersection for bar hits
+            # exact cylinder intersection for bar hits (or the relief of a bar's ribs)
             tb, nb, ok = _ray_cylinder(origins[todo][is_bar], dirs[todo][is_bar], self.geo.seg_p0[ob[is_bar]],
                                        self.geo.seg_p1[ob[is_bar]], self.geo.seg_r[ob[is_bar]])
+            rib = self.geo.seg_rib[ob[is_bar]]
+            relief = np.isfinite(rib[:, 0])
+            if relief.any():
+                sel_b = np.flatnonzero(is_bar)[relief]
+                tb[relief], nb[relief], ok[relief] = _ray_relief(
+                    origins[todo][sel_b], dirs[todo][sel_b], self.geo.seg_p0[ob[sel_b]],
+                    self.geo.seg_p1[ob[sel_b]], rib[relief])
             th_b = th[is_bar]
             th_b[ok] = tb[ok]
             nrm[is_bar] = np.where(ok[:, None], nb, nrm[is_bar])
@@ -497,11 +558,28 @@ class _Caster:
         normal[flip] *= -1
         return t, obj, normal
 
-    def occluded(self, origins, dirs, t_max):
-        """Whether anything lies on each segment origin -> origin + t_max * dir."""
-        rays = np.hstack((origins, dirs)).astype(np.float32)
-        ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
-        th = ans["t_hit"].numpy()
+    def occluded(self, origins, dirs, t_max, own=None):
+        """Whether anything lies on each segment origin -> origin + t_max * dir. ``own``: per ray,
+        the object it starts on where that is a bar in relief (else -1): its surface lies inside
+        its own prism, which the ray leaves first (a rib does not shade the core beside it here)."""
+        origins = np.asarray(origins, np.float64)
+        start = np.zeros(len(origins))
+        th = np.full(len(origins), np.inf)
+        todo = np.arange(len(origins))
+        own = np.full(len(origins), -1) if own is None else np.asarray(own)
+        for _ in range(2):  # at most once through its own prism
+            rays = np.hstack((origins[todo] + dirs[todo] * start[todo, None], dirs[todo])).astype(np.float32)
+            ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
+            t_k = ans["t_hit"].numpy().astype(np.float64)
+            prim = ans["primitive_ids"].numpy().astype(np.int64)
+            hit = np.isfinite(t_k)
+            self_hit = hit & (own[todo] >= 0) & (self.geo.tri_obj[np.where(hit, prim, 0)] == own[todo])
+            th[todo] = start[todo] + t_k
+            own = own.copy()
+            own[todo] = -1
+            start[todo[self_hit]] += t_k[self_hit] + 1e-3
+            th[todo[self_hit]] = np.inf
+            todo = todo[self_hit]
         return th < t_max
 
 
@@ -537,6 +615,84 @@ def _ray_cylinder(o, d, p0, p1, r):
         t = np.where(better, tc, t)
         n[better] = sign * a[better]
     return t, n, np.isfinite(t)
+
+
+def _relief_frame(a):
+    """Unit vectors u (level) and w across bar directions ``a`` (n, 3): psi is measured from u."""
+    u = np.cross(a, [0.0, 0.0, 1.0])
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    return u, np.cross(a, u)
+
+
+def _relief_gap(x, p0, a, u, w, rib):
+    """Distance of points ``x`` from the axis minus the relief's radius there (< 0: inside the
+    bar), and their position along the segment (mm)."""
+    rel = x - p0
+    s = (rel * a).sum(-1)
+    radial = rel - s[..., None] * a
+    rho = np.linalg.norm(radial, axis=-1)
+    psi = np.arctan2((radial * w).sum(-1), (radial * u).sum(-1)) - rib[..., 4]
+    return rho - _relief_radius(s + rib[..., 5], psi, rib[..., 0], rib[..., 1], rib[..., 2], rib[..., 3]), s
+
+
+def _ray_relief(o, d, p0, p1, rib, step_mm=0.03, block=48, bisections=12):
+    """Nearest intersection of rays o + t d with bar segments drawn in relief (``rib`` rows as
+    ``_Geometry.seg_rib``); (t, normal, hit). Marched in ``step_mm`` steps through the rib
+    envelope's cylinder, then bisected: a ray that grazes between two ribs is a miss here."""
+    n = len(o)
+    t_hit, normal, hit = np.full(n, np.inf), np.zeros((n, 3)), np.zeros(n, bool)
+    axis = p1 - p0
+    L = np.linalg.norm(axis, axis=1)
+    a = axis / L[:, None]
+    u, w = _relief_frame(a)
+    R = rib[:, 0] + rib[:, 1]
+    dp = d - (d * a).sum(1)[:, None] * a
+    wp = (o - p0) - ((o - p0) * a).sum(1)[:, None] * a
+    A, B, C = (dp * dp).sum(1), (wp * dp).sum(1), (wp * wp).sum(1) - R * R
+    disc = B * B - A * C
+    good = (disc > 0) & (A > 1e-12)
+    root = np.sqrt(np.where(good, disc, 0))
+    t_in = np.where(good, np.maximum((-B - root) / np.where(good, A, 1), 0), np.inf)
+    t_out = np.where(good, (-B + root) / np.where(good, A, 1), -np.inf)
+    active = np.flatnonzero(good & (t_out > t_in))
+    t_cur = t_in.copy()
+    k = np.arange(block + 1)
+    while len(active):
+        i = active
+        T = np.minimum(t_cur[i, None] + step_mm * k[None, :], t_out[i, None])  # (m, block+1)
+        X = o[i, None, :] + T[..., None] * d[i, None, :]
+        f, s = _relief_gap(X, p0[i, None, :], a[i, None, :], u[i, None, :], w[i, None, :], rib[i, None, :])
+        inside = (f <= 0) & (s >= 0) & (s <= L[i, None])
+        first = np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
+        found = first >= 0
+        # bracket: the sample before the first one inside (at the entry itself: a hit there)
+        j = np.flatnonzero(found)
+        lo = T[j, np.maximum(first[j] - 1, 0)]
+        hi = T[j, first[j]]
+        ii = i[j]
+        for _ in range(bisections):
+            mid = (lo + hi) / 2
+            fm, sm = _relief_gap(o[ii] + mid[:, None] * d[ii], p0[ii], a[ii], u[ii], w[ii], rib[ii])
+            ins = (fm <= 0) & (sm >= 0) & (sm <= L[ii])
+            hi = np.where(ins, mid, hi)
+            lo = np.where(ins, lo, mid)
+        t_hit[ii], hit[ii] = hi, True
+        t_cur[i] = T[:, -1]
+        active = i[~found & (T[:, -1] < t_out[i])]
+    # normals: the gradient of the gap function at the hits (central differences)
+    j = np.flatnonzero(hit)
+    if len(j):
+        x = o[j] + t_hit[j, None] * d[j]
+        eps = 0.004
+        g = np.zeros((len(j), 3))
+        for c in range(3):
+            e = np.zeros(3)
+            e[c] = eps
+            fp, _ = _relief_gap(x + e, p0[j], a[j], u[j], w[j], rib[j])
+            fm, _ = _relief_gap(x - e, p0[j], a[j], u[j], w[j], rib[j])
+            g[:, c] = fp - fm
+        normal[j] = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    return t_hit, normal, hit
 
 
 # --------------------------------------------------------------------------------------------
@@ -603,7 +759,9 @@ def _bar_albedo(scene, bar_of_px, p, rust_of_bar, rng):
     steel = np.array([0.36, 0.35, 0.34])
     rust = np.array([0.55, 0.27, 0.12])
     pitch = 0.7 * 2 * radius[bar_of_px]
-    ribs = 0.85 + 0.15 * np.abs(np.sin(np.pi * s / pitch)) if scene.deviations.ribs else 1.0
+    # ribs drawn as an envelope are hinted at by their shading; in relief they shade themselves
+    drawn = scene.deviations.ribs and not scene.deviations.rib_relief
+    ribs = 0.85 + 0.15 * np.abs(np.sin(np.pi * s / pitch)) if drawn else 1.0
     field_img = _value_noise(rng, (64, 2048), 3)
     patch = _sample(field_img, s, bar_of_px * 40.0, 2048 / 2, 1.0)
     amount = np.clip((patch - (1 - rust_of_bar[bar_of_px])) * 4, 0, 1)[:, None]
@@ -640,19 +798,22 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         o = np.maximum(obj, 0)
         kind = np.where(hit, geo.obj_kind[o], -1)
         bar_of = np.where(kind == K_BAR, geo.obj_bar[o], -1)
-        # Shadow rays start just off the surface; on bars, outside the circumscribing prism
-        # (up to 2 % of the radius beyond the true cylinder), or a bar would shadow itself.
+        # How shadow rays leave the surface: they start just off it; on bars, outside the
+        # circumscribing prism (up to 2 % of the radius beyond the true cylinder), or a bar would
+        # shadow itself; a point on a bar in relief lies inside its own prism: its rays pass
+        # through that first (Caster.occluded's ``own``).
         lift = 0.05 + np.where(kind == K_BAR, 0.03 * geo.seg_r[o], 0.0)
-        return d_world, t, normal, hit, p, kind, bar_of, lift
+        own = np.where(hit & (kind == K_BAR) & np.isfinite(geo.seg_rib[o, 0]), o, -1)
+        return d_world, t, normal, hit, p, kind, bar_of, (lift, own)
 
-    d_world, t, normal, hit, p, kind, bar_of, lift = cast()
+    d_world, t, normal, hit, p, kind, bar_of, leave = cast()
     z_true = np.where(hit, t, 0.0).reshape(H, W)
     layer_of_bar = np.array([LABEL_LOWER if b.layer == "lower" else LABEL_UPPER for b in scene.bars] + [0])
     labels = layer_of_bar[bar_of].astype(np.uint8).reshape(H, W)
     bar_ids = (bar_of + 1).astype(np.int32).reshape(H, W)
 
     # ---- depth sensor
-    depth = _sensor_depth(z_true, p, normal, hit, pose, intrinsics, sensor, caster, rng, lift)
+    depth = _sensor_depth(z_true, p, normal, hit, pose, intrinsics, sensor, caster, rng, leave)
 
     # ---- colour
     # what belongs to the slab is drawn from its key, so every capture of one slab agrees
@@ -672,7 +833,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         oy, ox = np.meshgrid(off, off, indexing="ij")
         v, u = np.mgrid[0:H, 0:W]
         px = np.stack([np.column_stack(((u + dx).ravel(), (v + dy).ravel())) for dx, dy in zip(ox.ravel(), oy.ravel())])
-        d_world, t, normal, hit, p, kind, bar_of, lift = cast(px.reshape(-1, 2))
+        d_world, t, normal, hit, p, kind, bar_of, leave = cast(px.reshape(-1, 2))
     albedo = np.zeros((len(t), 3))
     extent = scene.deviations.slab_size_mm * 2
     fw = kind == K_FORMWORK
@@ -687,8 +848,8 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     idx = np.flatnonzero(lit)
     shadow = np.zeros(len(t), bool)
     if app.cast_shadows:
-        shadow[idx] = caster.occluded(p[idx] + normal[idx] * lift[idx, None],
-                                      np.broadcast_to(light, (len(idx), 3)).copy(), 1e5)
+        shadow[idx] = caster.occluded(p[idx] + normal[idx] * leave[0][idx, None],
+                                      np.broadcast_to(light, (len(idx), 3)).copy(), 1e5, own=leave[1][idx])
     direct = np.where(shadow, 0.0, lambert)
     # specular sheen on steel and film-faced board
     view = -d_world / np.linalg.norm(d_world, axis=1, keepdims=True)
@@ -712,7 +873,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     return Capture(img, depth, intrinsics, meta, labels, bar_ids)
 
 
-def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rng, lift):
+def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rng, leave):
     import cv2
 
     H, W = z_true.shape
@@ -748,10 +909,10 @@ def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rn
         idx = np.flatnonzero(hit)
         vec = proj - p[idx]
         dist = np.linalg.norm(vec, axis=1)
-        start = p[idx] + normal[idx] * lift[idx, None]
+        start = p[idx] + normal[idx] * leave[0][idx, None]
         vec = proj - start
         dist = np.linalg.norm(vec, axis=1)
-        occ = caster.occluded(start, vec / dist[:, None], dist - 0.1)
+        occ = caster.occluded(start, vec / dist[:, None], dist - 0.1, own=leave[1][idx])
         shadow = np.zeros(H * W, bool)
         shadow[idx[occ]] = True
         z[shadow.reshape(H, W)] = 0

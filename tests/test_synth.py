@@ -185,3 +185,50 @@ def test_pixel_samples_must_be_a_small_whole_number(bad):
 
     with pytest.raises(RebarInputError, match="pixel_samples"):
         Appearance(pixel_samples=bad)
+
+
+def test_ribs_in_relief_reach_the_envelope_only_at_their_crests():
+    """Rays straight down on a bar along x drawn in relief (GB Φ12: core 11.5, ribs 1.2 high,
+    8 mm apart), turned so that its longitudinal ribs lie on top and underneath: the transverse
+    ribs form its silhouette. Hand-computed: the top is the longitudinal rib, r1 + h above the
+    axis, facing up; beside the axis a ray at r1 + h/2 meets the bar at a rib's middle and
+    misses it half-way between two ribs; a ray just inside the core meets it anywhere."""
+    from rebarlib.synth import _ray_relief, _relief_params
+
+    r1, h, pitch = _relief_params(12)
+    assert (2 * r1, h, pitch) == pytest.approx((11.5, 1.2, 8.0))
+    z0 = 100.0
+    # u = a x z = -y, so psi = phi - pi/2 is pi/2 on the +y side (its ribs at s = k * pitch) and
+    # -pi/2 on the -y side (shifted by shift * pitch); the longitudinal ribs (psi 0, pi) lie at ±z
+    shift = 0.5
+    rib = np.array([r1, h, pitch, shift, np.pi / 2, 0.0])
+
+    def cast(x, y):
+        o = np.array([[x, y, z0 + 50.0]])
+        t, n, hit = _ray_relief(o, np.array([[0.0, 0.0, -1.0]]), np.array([[-96.0, 0, z0]]),
+                                np.array([[100.0, 0, z0]]), rib[None])
+        return t[0], n[0], bool(hit[0])
+
+    t, n, hit = cast(3.0, 0.0)
+    assert hit and 50.0 - t == pytest.approx(r1 + h, abs=1e-3)
+    assert n == pytest.approx([0, 0, 1], abs=1e-2)
+    # x = -100 + s: the +y side's ribs at x = 0, 8, ..., the -y side's at x = 4, 12, ...
+    assert cast(0.0, r1 + h / 2)[2] and not cast(pitch / 2, r1 + h / 2)[2]
+    assert cast(pitch / 2, -(r1 + h / 2))[2] and not cast(0.0, -(r1 + h / 2))[2]
+    assert all(cast(x, y)[2] for x in np.linspace(0, pitch, 9) for y in (r1 - 0.05, -(r1 - 0.05)))
+    assert not cast(0.0, r1 + h + 0.05)[2]
+
+
+def test_ribs_in_relief_leave_smooth_renders_alone_and_narrow_the_silhouette(paper_design):
+    """rib_relief draws the same scene (same bars, same truth) with a silhouette between the core
+    and the envelope; without it the render is the envelope's, as before."""
+    kw = dict(height_mm=450, tilt_deg=0, sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.5), seed=3)
+    smooth = synth_capture(paper_design, deviations=Deviations(spacers=False, chairs=False, ties=False), **kw)
+    relief = synth_capture(paper_design, deviations=Deviations(spacers=False, chairs=False, ties=False,
+                                                                rib_relief=True), **kw)
+    same = ("id", "axis_start_mm", "axis_end_mm", "envelope_mm", "underside_mm")
+    assert [[b[k] for k in same] for b in relief.truth["bars"]] == [[b[k] for k in same] for b in smooth.truth["bars"]]
+    a_s, a_r = (smooth.labels > 0).sum(), (relief.labels > 0).sum()
+    # the bars' image area shrinks by about the share of the silhouette between ribs, which is
+    # below the envelope: between the core's (d1 / (d1 + 2h), 0.83 for Φ12) and 1
+    assert 0.83 * a_s < a_r < 0.99 * a_s
