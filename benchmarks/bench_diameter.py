@@ -13,8 +13,8 @@ same scenes with another camera (``CAMERAS``), ``--seed-offset`` fresh seeds of 
 ``--pixel-samples 3`` anti-aliased colour images (with ``--blur 0.8 --jpeg 90``: softened by a
 lens and stored as JPEG, as a photograph is), ``--sensor noisy`` (or ``flying``, ``clean``)
 another depth-sensor model (``SENSORS``), ``--ribs relief`` deformed bars with their ribs in
-relief (a real bar's silhouette) instead of a smooth envelope, ``--depth-shift 2,-1`` the depth image moved
-against the colour image (a colour-depth misregistration; the model and fused masks are
+relief (a real bar's silhouette) instead of a smooth envelope, ``--depth-shift 2,-1`` the depth
+image moved against the colour image (a colour-depth misregistration; the model and fused masks are
 registered to the depth as ``inspect`` does, ``registered_mask``). ``--heights 300,350
 --seeds 1,2,3,4``: the paper set-up only, at other camera heights and with other seeds (how
 the sizing depends on the capture distance).

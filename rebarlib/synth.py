@@ -76,8 +76,8 @@ class Deviations:
     rib_relief : with ``ribs``, draw the ribs in relief instead of as a smooth envelope: a core of
         diameter d1, two longitudinal ribs and crescent transverse ribs of height h at GB 1499.2's
         spacing, each bar turned to a random roll and with a random shift between the ribs of its
-        two sides (:func:`_relief_radius`). A silhouette then reaches the envelope d1 + 2h only at
-        the rib crests and is d1 wide between them, as on a real deformed bar; the truth's
+        two sides (:func:`_relief_radius`). A silhouette then reaches the envelope d1 + 2h at most
+        at the rib crests and is d1 wide between them, as on a real deformed bar; the truth's
         ``envelope_mm`` stays d1 + 2h. Off by default (renders are unchanged)
     spacers, chairs, ties : cover blocks under the lower lattice, chairs between the lattices,
         tie wire at crossings
@@ -566,7 +566,7 @@ class _Caster:
         start = np.zeros(len(origins))
         th = np.full(len(origins), np.inf)
         todo = np.arange(len(origins))
-        own = np.full(len(origins), -1) if own is None else np.asarray(own)
+        own = np.full(len(origins), -1) if own is None else np.array(own)  # (a copy: cleared below)
         for _ in range(2):  # at most once through its own prism
             rays = np.hstack((origins[todo] + dirs[todo] * start[todo, None], dirs[todo])).astype(np.float32)
             ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
@@ -575,7 +575,6 @@ class _Caster:
             hit = np.isfinite(t_k)
             self_hit = hit & (own[todo] >= 0) & (self.geo.tri_obj[np.where(hit, prim, 0)] == own[todo])
             th[todo] = start[todo] + t_k
-            own = own.copy()
             own[todo] = -1
             start[todo[self_hit]] += t_k[self_hit] + 1e-3
             th[todo[self_hit]] = np.inf
