@@ -1009,14 +1009,14 @@ def stack_heights(bars: list, points: list | None = None, *, min_crossings: int 
             return b.centre_h_mm + b.radius_mm, b.h_slope
         return None if points[i] is None else _crest_line(b, points[i])
 
-    crest = [top_line(i, b) for i, b in enumerate(bars)]
+    crest = [top_line(i, b) for i, b in enumerate(bars)]  # None for a bar not measured
     out = np.full(len(bars), np.nan)
     for i, b in enumerate(bars):
-        if b.level != "top" or b.status != "measured" or crest[i] is None:
+        if b.level != "top" or crest[i] is None:
             continue
         diffs = []
         for j, c in enumerate(bars):
-            if c.layer != b.layer or c.level != "bottom" or c.status != "measured" or crest[j] is None:
+            if c.layer != b.layer or c.level != "bottom" or crest[j] is None:
                 continue
             # crossing in plan: b.plan_point(t) = c.plan_point(s), both linear in their argument
             A = np.column_stack((b.direction + b.slope * b.normal2d, -(c.direction + c.slope * c.normal2d)))
