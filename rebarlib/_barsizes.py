@@ -20,12 +20,15 @@ class BarSystem:
     sizes_mm : tuple of float, nominal diameters, increasing
     labels : tuple of str, designations as written on drawings (``"Φ12"``, ``"#4"``, ``"15M"``)
     envelope_mm : tuple of float, outer diameter over the ribs of a deformed bar of each size
+    core_mm : tuple of float, diameter of the core between the ribs (GB 1499.2 d1), what a
+        silhouette shows between the rib crests where a camera resolves them
     """
 
     name: str
     sizes_mm: tuple
     labels: tuple
     envelope_mm: tuple
+    core_mm: tuple = ()
 
     def label(self, nominal_mm: float) -> str:
         """Designation of a nominal size of this system (``""`` if it is not one)."""
@@ -41,25 +44,30 @@ _GB = ((6, 5.8, 0.6), (8, 7.7, 0.8), (10, 9.6, 1.0), (12, 11.5, 1.2), (14, 13.4,
        (16, 15.4, 1.5), (18, 17.3, 1.6), (20, 19.3, 1.7), (22, 21.3, 1.9), (25, 24.2, 2.1),
        (28, 27.2, 2.2), (32, 31.0, 2.4), (36, 35.0, 2.6), (40, 38.7, 2.9), (50, 48.5, 3.2))
 _GB_RATIO = {s: (d1 + 2 * h) / s for s, d1, h in _GB}
+_GB_CORE_RATIO = {s: d1 / s for s, d1, h in _GB}
 
 
-def _gb_like_envelope(nominal_mm: float) -> float:
+def _gb_like_envelope(nominal_mm: float, ratios=None) -> float:
     # Other standards do not tabulate the rib envelope in our sources (docs/acceptance.md), so it
     # is estimated with the GB 1499.2 envelope-to-nominal ratio of the nearest GB size: deformed
     # bars of all standards have ribs of a similar relative height (a few % of the diameter).
-    key = min(_GB_RATIO, key=lambda s: abs(s - nominal_mm))
-    return round(nominal_mm * _GB_RATIO[key], 3)
+    # The core (d1) likewise, with ``ratios=_GB_CORE_RATIO``.
+    ratios = _GB_RATIO if ratios is None else ratios
+    key = min(ratios, key=lambda s: abs(s - nominal_mm))
+    return round(nominal_mm * ratios[key], 3)
 
 
 def _system(name, sizes, labels, smooth=()):
     env = tuple(float(s) if s in smooth else _gb_like_envelope(s) for s in sizes)
-    return BarSystem(name, tuple(float(s) for s in sizes), tuple(labels), env)
+    core = tuple(float(s) if s in smooth else _gb_like_envelope(s, _GB_CORE_RATIO) for s in sizes)
+    return BarSystem(name, tuple(float(s) for s in sizes), tuple(labels), env, core)
 
 
 BAR_SYSTEMS = {
     "GB1499.2": BarSystem("GB1499.2", tuple(float(s) for s, _, _ in _GB),
                           tuple(f"Φ{s}" for s, _, _ in _GB),
-                          tuple(round(d1 + 2 * h, 3) for _, d1, h in _GB)),
+                          tuple(round(d1 + 2 * h, 3) for _, d1, h in _GB),
+                          tuple(float(d1) for _, d1, _ in _GB)),
     # ASTM A615 #3 .. #11, #14, #18 (nominal diameters in mm)
     "ASTM-A615": _system("ASTM-A615", (9.5, 12.7, 15.9, 19.1, 22.2, 25.4, 28.7, 32.3, 35.8, 43.0, 57.3),
                          ("#3", "#4", "#5", "#6", "#7", "#8", "#9", "#10", "#11", "#14", "#18")),
@@ -107,6 +115,38 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
         if abs(s - nominal_mm) < 1e-6:
             return e
     return _gb_like_envelope(float(nominal_mm))
+
+
+def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
+    """Nominal size of ``system`` whose core diameter (between the ribs) is nearest to ``width_mm``.
+
+    Examples
+    --------
+    >>> core_size(11.7), core_size(13.5)  # GB 1499.2 cores: Φ12 11.5, Φ14 13.4
+    (12.0, 14.0)
+    """
+    sysm = bar_system(system)
+    w = float(width_mm)
+    if not math.isfinite(w):
+        return math.nan
+    return float(min(zip(sysm.core_mm, sysm.sizes_mm), key=lambda cs: abs(cs[0] - w))[1])
+
+
+def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:
+    """Rib height h, (envelope − core) / 2, of the size of ``system`` whose envelope is nearest
+    to ``width_mm``.
+
+    Examples
+    --------
+    >>> rib_height_mm(13.6)  # Φ12: 13.9 over the ribs, core 11.5
+    1.2
+    """
+    sysm = bar_system(system)
+    w = float(width_mm)
+    if not math.isfinite(w):
+        return math.nan
+    env, core = min(zip(sysm.envelope_mm, sysm.core_mm), key=lambda ec: abs(ec[0] - w))
+    return round((env - core) / 2, 4)
 
 
 def _half_gaps(obs, i) -> tuple[float, float]:

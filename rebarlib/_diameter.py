@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import bar_system, bracketing_sizes, observed_width_mm, size_half_gaps_mm, snap_diameter
+from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, size_half_gaps_mm,
+                        snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 
@@ -40,7 +41,8 @@ BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_
 DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
                     "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
                     "matches_design", "hidden", "occluded_fraction", "cloud_width_mm", "width_source",
-                    "width_used_mm", "width_sigma_mm", "circle_width_mm", "circle_sigma_mm")
+                    "width_used_mm", "width_sigma_mm", "circle_width_mm", "circle_sigma_mm",
+                    "crest_width_mm", "core_width_mm", "rib_pitch_mm", "ribs_resolved")
 
 MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 
@@ -450,6 +452,21 @@ class _RefinedParams:
     edge_peak_share: float = 0.3  # the gradient peak must carry this share of the step per pixel
     axis_sigma_mm: float = 0.3  # lateral axis error tolerated before the centring counts against a width
     max_offcentre_rel: float = 0.2  # mask run centre this far (x width) off the axis: not measured
+    # Ribs in the silhouette (see _rib_periodicity, _ribs_in_view): a deformed bar seen closely
+    # enough shows its core between the transverse ribs and the rib envelope only at their
+    # crests, so its median width reads about the next smaller size's envelope.
+    rib_band: tuple = (0.4, 1.2)  # rib pitches searched, x the bar's median width (standards: 0.5-0.7 d)
+    rib_min_sections: int = 24  # sections needed to look for a rib pitch along a bar
+    rib_capture_p: float = 1e-6  # the capture shows ribs where its bars' periodicity together is this unlikely from noise
+    rib_p_floor: float = 1e-8  # one bar's p-value counts at most this much (one striped bar is not a capture)
+    rib_min_bars: int = 3
+    rib_min_px: float = 1.5  # crest minus core widths at least this (px): more than the pixel grid's 1-px steps
+    rib_bar_p: float = 0.01  # a bar's own rib pitch is reported where its periodicity is this unlikely from noise
+    crest_quantile: float = 0.95  # the crests: the widest 5 % of the sections (crests with their flanks
+    # cover a fifth to a third of the pitch)
+    core_quantile: float = 0.1  # the core between the ribs
+    rib_reach: float = 0.3  # x rib height h: crescent ribs reach d1 + 2h in silhouette at some rolls,
+    # about d1 + 1.4h at others: crest widths are read as d1 + 1.7h ± 0.3h
 
 
 def _remap(img, u, v):
@@ -618,6 +635,63 @@ def _cloud_circle(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     if not (math.isfinite(r) and 0.25 * r0 < r < 4 * r0):
         return math.nan, math.nan
     return 2 * r, 2 * s_r * math.sqrt(prm.depth_correlated_px)
+
+
+def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tuple[float, float]:
+    """Strongest periodic component of a bar's section widths along it: ``(pitch_mm, p)``.
+
+    The transverse ribs of a deformed bar make its silhouette's width periodic along the bar, at
+    the rib pitch (about 0.5-0.7 x its diameter). The periodogram of the widths ``w_mm`` at their
+    positions ``s_mm`` (irregular spacing is fine) is searched over pitches between ``band`` x the
+    median width; ``p`` is the chance that noise alone gives a peak as strong (the peak of a
+    periodogram of white noise normalised by its variance is exponential with mean 1, times the
+    number of independent frequencies searched). ``(nan, 1.0)`` where there is too little to
+    look at (fewer than 8 sections, constant widths, a bar shorter than three pitches).
+
+    Examples
+    --------
+    >>> s = np.arange(200) * 1.3  # sections 1.3 mm apart
+    >>> w = 12.4 + 0.8 * (np.cos(2 * np.pi * s / 8.0) > 0.5)  # crests every 8 mm
+    >>> pitch, p = _rib_periodicity(s, w)
+    >>> round(pitch, 1), p < 1e-6
+    (8.0, True)
+    >>> _rib_periodicity(s, 12.4 + np.random.default_rng(0).normal(0, 0.3, 200))[1] > 0.01
+    True
+    """
+    s = np.asarray(s_mm, float)
+    w = np.asarray(w_mm, float)
+    if len(w) < 8:
+        return math.nan, 1.0
+    width = float(np.median(w))
+    w = w - w.mean()
+    var = float(w @ w) / len(w)
+    length = float(s.max() - s.min())
+    if var <= 1e-12 or width <= 0 or length < 3 * band[1] * width:
+        return math.nan, 1.0
+    fmin, fmax = 1 / (band[1] * width), 1 / (band[0] * width)
+    f = np.linspace(fmin, fmax, int(math.ceil((fmax - fmin) * length * oversample)) + 1)
+    ph = (2 * np.pi) * np.outer(f, s)
+    power = ((np.cos(ph) @ w) ** 2 + (np.sin(ph) @ w) ** 2) / (len(w) * var)
+    k = int(power.argmax())
+    return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
+
+
+def _ribs_in_view(results, prm) -> float:
+    """Chance that noise alone gives the periodicity the capture's bars show together (Fisher's
+    method over the bars' :func:`_rib_periodicity` p-values, each floored at ``prm.rib_p_floor``
+    so that one striped bar does not make a capture); 1.0 with fewer than ``prm.rib_min_bars``
+    bars to look at. The bars of one capture are seen by one camera at similar distances: where
+    it resolves the ribs of some, it resolves those of all."""
+    ps = [max(r[3]["rib_p"], prm.rib_p_floor) for r in results if math.isfinite(r[3].get("rib_pitch_mm", math.nan))]
+    if len(ps) < prm.rib_min_bars:
+        return 1.0
+    half = -float(np.sum(np.log(ps)))  # χ² / 2, with 2 x len(ps) degrees of freedom
+    if half <= 0:
+        return 1.0
+    j = np.arange(len(ps))
+    log_terms = j * math.log(half) - np.array([math.lgamma(k + 1) for k in j]) - half
+    top = float(log_terms.max())
+    return float(min(1.0, math.exp(top) * np.exp(log_terms - top).sum()))
 
 
 def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None,
@@ -811,6 +885,16 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         info["outlier"] = int((~keep).sum())
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
+    info["rib_pitch_mm"], info["rib_p"], info["crest_mm"], info["core_mm"] = math.nan, 1.0, math.nan, math.nan
+    if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
+        info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
+                                                                               prm.core_quantile]))
+    # A binary mask's width along a slanted bar steps by a pixel periodically as its edges cross
+    # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
+    if math.isfinite(info["crest_mm"]) and info["crest_mm"] - info["core_mm"] >= prm.rib_min_px * float(
+            np.median(st[kept, 2])) / intr.fx:
+        info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity((st[kept] - bar.p0) @ pl.direction, w,
+                                                               band=prm.rib_band)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
         depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm, bar.expected_mm) if depth_img is not None else (
         math.nan, math.nan, 0, math.nan)
@@ -933,6 +1017,13 @@ def _two_sided(result) -> bool:
     return result[3].get("one_sided_share", 0.0) == 0.0
 
 
+def _mask_width(result) -> float:
+    """A bar's width from its mask: ``mask_width_mm`` where :func:`measure_diameters` set it (the
+    envelope from the rib crests where the capture resolves ribs), else its sections' median."""
+    w = result[3].get("mask_width_mm")
+    return float(w) if w is not None else float(np.median(result[0]))
+
+
 def _mask_between_spread(results, prepared, prm) -> None:
     """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
     widths between the capture's bars of the same design size, around each size's median.
@@ -942,7 +1033,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
     own spread along the bar does not show (a mask that eats both sides of a bar evenly). Needs
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
-    dev = _between_bar_deviations({i: float(np.median(r[0])) for i, r in enumerate(results)
+    dev = _between_bar_deviations({i: _mask_width(r) for i, r in enumerate(results)
                                    if len(r[0]) >= prm.min_sections and _two_sided(r)}, prepared)
     s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
     for r in results:
@@ -975,7 +1066,7 @@ def _width_calibration(results, key, prm, *, system, deformed) -> None:
         cw = r[3][f"{key}_width_mm"]
         if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
-        med = float(np.median(r[0]))
+        med = _mask_width(r)
         nominal, _ = snap_diameter(med, system=system, deformed=deformed)
         if not math.isfinite(nominal):
             continue
@@ -1106,6 +1197,18 @@ def _off_centre(info, med, prm) -> bool:
     return abs(info["centre_mm"]) > prm.max_offcentre_rel * med
 
 
+def _check_core(row: dict, info, prm, *, system) -> None:
+    """A bar sized from its rib crests must have the core of that size between them: where the
+    core (the narrow sections) says another size, the bar is "not measured" (its crests may be
+    hidden, or its longitudinal ribs face the sides and it shows no core)."""
+    core = core_size(info["core_mm"], system=system)
+    if core != row["nominal_mm"]:
+        sysm = bar_system(system)
+        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=(
+            f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(row['nominal_mm'])}, the "
+            f"core between them ({info['core_mm']:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand"))
+
+
 def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
     """Why a width gives no size: the two sizes it lies between (what a check by hand must tell
     apart) and the one it is nearer to, with that size's confidence."""
@@ -1119,21 +1222,25 @@ def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
 
 
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
-                      assumed_mm=math.nan) -> dict:
+                      assumed_mm=math.nan, rib_sigma=0.0, mask_median=None) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
     The mask width and the point-cloud width are two independent measurements, each with a
     standard uncertainty. Where both are sound they must agree (else "not measured": one of them
     is biased) and their weighted mean is snapped; where the mask's edges are unreliable
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
-    capped because it relies on the axis lying at the bar's centre.
+    capped because it relies on the axis lying at the bar's centre. ``med`` is the mask's
+    width (the ribs' envelope read from their crests where the capture resolves them, with
+    ``rib_sigma`` for how far a crest's reach varies with the bar's roll; the colour edges are then
+    checked against the mask's median, ``mask_median``, the like statistic).
     """
     px_mm, off = info["px_mm"], abs(info["centre_mm"])
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
     cdiff = 0.0
     if math.isfinite(info["colour_width_mm"]):
-        r = abs(info["colour_width_mm"] - med - info.get("colour_offset_px", 0.0) * px_mm)
+        r = abs(info["colour_width_mm"] - (med if mask_median is None else mask_median)
+                - info.get("colour_offset_px", 0.0) * px_mm)
         typical = prm.veto_k * info.get("colour_spread_mm", 0.0)
         cdiff = info.get("colour_weight", 1.0) * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
@@ -1145,7 +1252,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
     one_sided = 2 * prm.axis_sigma_mm * info.get("one_sided_share", 0.0)
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided)
+                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, rib_sigma)
     mask_problem = ""
     if _off_centre(info, med, prm):
         mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
@@ -1298,7 +1405,17 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     diameter of the circle fitted to the bar's point cloud, :func:`_cloud_circle`, less the
     offset the capture's circles share against the bars their masks size clearly, and the σ it
     is used with: the fit's standard error or the circle's error per bar learnt from those bars,
-    whichever is larger, :func:`_width_calibration`; else NaN).
+    whichever is larger, :func:`_width_calibration`; else NaN). ``crest_width_mm`` and
+    ``core_width_mm`` (refined, bars with at least 24 clean sections): the 95th and 10th
+    percentiles of the section widths; ``rib_pitch_mm``: the period of the widths along the bar
+    where it is clear (p < 1 %, :func:`_rib_periodicity`), else NaN; ``ribs_resolved`` (the same
+    for every bar): the capture's bars together show ribs (:func:`_ribs_in_view`). A deformed
+    bar's silhouette is then its core between the ribs and the rib envelope only at the crests,
+    so its median width reads about the next smaller size: each bar is sized from its crests
+    (``crest_width_mm`` + 0.3 h, σ 0.3 h: how far crescent ribs reach in silhouette depends on
+    the bar's roll), its point-cloud width is not used (a surface over crests and core alike),
+    and a size its core (``core_width_mm`` against the standard's core diameters) does not
+    confirm is "not measured".
 
     Examples
     --------
@@ -1349,6 +1466,19 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img,
                             circle=method == "refined" and cloud_mode[i] == "veto")
                for i, bar in enumerate(prepared)]
+    # Ribs resolved (refined, deformed bars): each bar's mask width is the envelope read from its
+    # crests, and its point-cloud width (a surface over crests and core alike) is no envelope
+    ribs_p = _ribs_in_view(results, prm) if method == "refined" and deformed else 1.0
+    ribs = ribs_p < prm.rib_capture_p
+    for r in results:
+        info = r[3]
+        info["mask_width_mm"] = float(np.median(r[0])) if len(r[0]) else math.nan
+        info["rib_sigma_mm"] = 0.0
+        if ribs and math.isfinite(info["crest_mm"]):
+            h = rib_height_mm(info["crest_mm"], system=system)
+            info["mask_width_mm"], info["rib_sigma_mm"] = info["crest_mm"] + prm.rib_reach * h, prm.rib_reach * h
+    if ribs:
+        cloud_mode = [False if m is True else m for m in cloud_mode]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
     for i, bar in enumerate(prepared):  # only for axes placed with an assumed radius (see _settle)
@@ -1372,7 +1502,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan, "width_sigma_mm": math.nan,
-               "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"]}
+               "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"],
+               "crest_width_mm": info["crest_mm"], "core_width_mm": info["core_mm"],
+               "rib_pitch_mm": info["rib_pitch_mm"] if info["rib_p"] < prm.rib_bar_p else math.nan,
+               "ribs_resolved": ribs}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
             w = _paper_bar(i, bar, m, edge, intr, paper_points, owner)
@@ -1406,10 +1539,16 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                            width_source="mask", width_used_mm=float(med))
             else:
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
+        elif ribs and not math.isfinite(info["crest_mm"]):
+            row["diameter_reason"] = (f"ribs resolved in this capture: {len(w)} clean cross-sections are too few to "
+                                      f"read the bar's rib crests (at least {prm.rib_min_sections})")
         else:
-            row.update(_refined_decision(med, row["width_spread_mm"], len(w), info, in_shadow, prm,
-                                         system=system, deformed=deformed, use_cloud=cloud_mode[i],
-                                         assumed_mm=bar.axis_radius_mm))
+            row.update(_refined_decision(info["mask_width_mm"], row["width_spread_mm"], len(w), info, in_shadow,
+                                         prm, system=system, deformed=deformed, use_cloud=cloud_mode[i],
+                                         assumed_mm=bar.axis_radius_mm, rib_sigma=info["rib_sigma_mm"],
+                                         mask_median=med))
+            if ribs and row["diameter_status"] == MEASURED:
+                _check_core(row, info, prm, system=system)
             if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
                     and _off_centre(info, med, prm)):
                 # the side the mask lacks is most likely under the nearer bars: say so

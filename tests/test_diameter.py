@@ -693,3 +693,96 @@ def test_a_one_edge_bar_s_cloud_width_is_not_read_off_the_bar_over_it():
     assert len(measured) >= 8 and all(measured.nominal_mm == [b["diameter_mm"] for b in
                                                               (next(x for x in cap.truth["bars"] if x["id"] == i)
                                                                for i in measured.index)])
+
+# --------------------------------------------------------------------------------------------
+# Ribs resolved in the silhouette
+
+
+def test_rib_periodicity_finds_the_pitch_and_keeps_noise_quiet():
+    """Crests every 8 mm (a fifth of the pitch 1.6 mm wider) over sections at irregular spacing,
+    with noise: the pitch to 0.1 mm and a vanishing p; pure noise: p below 1 % in at most a few
+    of 40 bars (the p-value is calibrated for white noise)."""
+    from rebarlib._diameter import _rib_periodicity
+
+    rng = np.random.default_rng(5)
+    s = np.sort(rng.uniform(0, 600, 180))
+    crest = ((s / 8.0) % 1.0) < 0.2
+    pitch, p = _rib_periodicity(s, 12.3 + 1.6 * crest + rng.normal(0, 0.3, len(s)))
+    assert abs(pitch - 8.0) < 0.1 and p < 1e-9
+    quiet = [_rib_periodicity(s, 13.9 + rng.normal(0, 0.3, len(s)))[1] for _ in range(40)]
+    assert sum(q < 0.01 for q in quiet) <= 2
+    # too little to look at: constant widths, a bar shorter than three of the longest pitches
+    assert _rib_periodicity(s, np.full(len(s), 13.9)) == (pytest.approx(math.nan, nan_ok=True), 1.0)
+    assert _rib_periodicity(s[:40] / 10, 12.3 + 1.6 * crest[:40])[1] == 1.0
+
+
+def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
+    """Fisher's combination of the bars' p-values: a dozen bars each at p = 0.001 make a capture
+    that shows ribs; one bar however periodic (its p floored) among quiet ones does not; fewer
+    than three bars say nothing."""
+    from rebarlib._diameter import _RefinedParams, _ribs_in_view
+
+    prm = _RefinedParams()
+
+    def res(ps):
+        return [(None, None, None, {"rib_p": p, "rib_pitch_mm": 8.0}) for p in ps]
+
+    assert _ribs_in_view(res([1e-3] * 12), prm) < prm.rib_capture_p
+    assert _ribs_in_view(res([1e-40] + [0.5] * 11), prm) > prm.rib_capture_p
+    assert _ribs_in_view(res([1e-9, 1e-9]), prm) == 1.0
+    assert _ribs_in_view(res([1.0] * 12), prm) == 1.0
+    # by hand: two bars with p = e^-3 each: χ²/2 = 6 over 4 dof, P = e^-6 (1 + 6) = 0.01735
+    prm2 = _RefinedParams(rib_min_bars=2)
+    assert _ribs_in_view(res([math.exp(-3)] * 2), prm2) == pytest.approx(7 * math.exp(-6), rel=1e-9)
+
+
+def test_core_and_rib_height_tables():
+    from rebarlib._barsizes import core_size, rib_height_mm
+
+    gb = bar_system("GB1499.2")
+    # docs/acceptance.md: d1 and h of GB 1499.2
+    assert gb.core_mm[:5] == (5.8, 7.7, 9.6, 11.5, 13.4)
+    assert [rib_height_mm(e) for e in gb.envelope_mm[:5]] == [0.6, 0.8, 1.0, 1.2, 1.4]
+    assert core_size(11.6) == 12.0 and core_size(13.5) == 14.0
+    eu = bar_system("EU")  # Ø6 is smooth: its core is its diameter
+    assert eu.core_mm[0] == 6.0 and all(c < e for c, e in zip(eu.core_mm[1:], eu.envelope_mm[1:]))
+
+
+@pytest.fixture(scope="module")
+def relief_scene():
+    """One scene drawn twice, ribs in relief and smooth (ideal sensor, full-resolution camera,
+    where a Φ12 bar's rib pitch spans ~17 px)."""
+    design = _design(14, 12)
+    kw = dict(height_mm=450, tilt_deg=5, seed=4, intrinsics=GEMINI2, sensor=SensorModel.ideal())
+    dev = dict(spacers=False, chairs=False, ties=False)
+    relief = synth_capture(design, deviations=Deviations(rib_relief=True, **dev), **kw)
+    smooth = synth_capture(design, deviations=Deviations(**dev), **kw)
+    return design, relief, smooth
+
+
+def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_scene):
+    """On ribs in relief the median width reads about the next smaller size (the core between the
+    ribs): the capture must be found to resolve ribs, and then each bar is sized from its crests
+    and checked against its core, so no size is wrong with high confidence and the bars sized
+    are right; on the same scene drawn smooth nothing changes (no ribs found)."""
+    design, relief, smooth = relief_scene
+    bars = bars_from_truth(relief.truth)
+    t = _truth_table(relief, measure_diameters(relief, bars, relief.labels > 0, design=design))
+    assert t.ribs_resolved.all()
+    # the rib pitch where a bar's own periodicity is clear: GB 1499.2 Φ12 8 mm, Φ14 9 mm (a bar or
+    # so may lock onto another peak where part of it is hidden)
+    found = t.dropna(subset=["rib_pitch_mm"])
+    assert len(found) >= 0.4 * len(t)
+    assert (abs(found.rib_pitch_mm - found.true_mm.map({12.0: 8.0, 14.0: 9.0})) < 0.3).mean() >= 0.75
+    meas = t[t.diameter_status == "measured"]
+    assert (meas.nominal_mm == meas.true_mm).all(), meas
+    assert len(meas) >= 0.3 * len(t)
+    # what the median alone would give: mostly one size smaller
+    med_sizes = [snap_diameter(w)[0] for w in t.width_median_mm.dropna()]
+    true = t.dropna(subset=["width_median_mm"]).true_mm
+    assert np.mean(np.array(med_sizes) < true.to_numpy()) > 0.3
+    s = _truth_table(smooth, measure_diameters(smooth, bars_from_truth(smooth.truth), smooth.labels > 0,
+                                               design=design))
+    assert not s.ribs_resolved.any() and s.rib_pitch_mm.isna().all()
+    sm = s[s.diameter_status == "measured"]
+    assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
