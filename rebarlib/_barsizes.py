@@ -47,19 +47,18 @@ _GB_RATIO = {s: (d1 + 2 * h) / s for s, d1, h in _GB}
 _GB_CORE_RATIO = {s: d1 / s for s, d1, h in _GB}
 
 
-def _gb_like_envelope(nominal_mm: float, ratios=None) -> float:
+def _gb_like(nominal_mm: float, ratios=_GB_RATIO) -> float:
     # Other standards do not tabulate the rib envelope in our sources (docs/acceptance.md), so it
     # is estimated with the GB 1499.2 envelope-to-nominal ratio of the nearest GB size: deformed
     # bars of all standards have ribs of a similar relative height (a few % of the diameter).
     # The core (d1) likewise, with ``ratios=_GB_CORE_RATIO``.
-    ratios = _GB_RATIO if ratios is None else ratios
     key = min(ratios, key=lambda s: abs(s - nominal_mm))
     return round(nominal_mm * ratios[key], 3)
 
 
 def _system(name, sizes, labels, smooth=()):
-    env = tuple(float(s) if s in smooth else _gb_like_envelope(s) for s in sizes)
-    core = tuple(float(s) if s in smooth else _gb_like_envelope(s, _GB_CORE_RATIO) for s in sizes)
+    env = tuple(float(s) if s in smooth else _gb_like(s) for s in sizes)
+    core = tuple(float(s) if s in smooth else _gb_like(s, _GB_CORE_RATIO) for s in sizes)
     return BarSystem(name, tuple(float(s) for s in sizes), tuple(labels), env, core)
 
 
@@ -114,7 +113,12 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     for s, e in zip(sysm.sizes_mm, sysm.envelope_mm):
         if abs(s - nominal_mm) < 1e-6:
             return e
-    return _gb_like_envelope(float(nominal_mm))
+    return _gb_like(float(nominal_mm))
+
+
+def _nearest(values, x: float) -> int:
+    """Index of the entry of ``values`` nearest to ``x`` (the first of a tie)."""
+    return min(range(len(values)), key=lambda k: abs(values[k] - x))
 
 
 def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
@@ -127,9 +131,7 @@ def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
     """
     sysm = bar_system(system)
     w = float(width_mm)
-    if not math.isfinite(w):
-        return math.nan
-    return float(min(zip(sysm.core_mm, sysm.sizes_mm), key=lambda cs: abs(cs[0] - w))[1])
+    return float(sysm.sizes_mm[_nearest(sysm.core_mm, w)]) if math.isfinite(w) else math.nan
 
 
 def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:
@@ -145,8 +147,8 @@ def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:
     w = float(width_mm)
     if not math.isfinite(w):
         return math.nan
-    env, core = min(zip(sysm.envelope_mm, sysm.core_mm), key=lambda ec: abs(ec[0] - w))
-    return round((env - core) / 2, 4)
+    i = _nearest(sysm.envelope_mm, w)
+    return round((sysm.envelope_mm[i] - sysm.core_mm[i]) / 2, 4)
 
 
 def _half_gaps(obs, i) -> tuple[float, float]:
@@ -167,7 +169,7 @@ def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     """
     sysm = bar_system(system)
     obs = sysm.envelope_mm if deformed else sysm.sizes_mm
-    i = min(range(len(obs)), key=lambda k: abs(sysm.sizes_mm[k] - nominal_mm))
+    i = _nearest(sysm.sizes_mm, nominal_mm)
     return _half_gaps(obs, i)
 
 
@@ -222,7 +224,7 @@ def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool =
         return math.nan, 0.0
     sizes = sysm.sizes_mm
     obs = sysm.envelope_mm if deformed else sizes
-    i = min(range(len(obs)), key=lambda k: abs(obs[k] - w))
+    i = _nearest(obs, w)
     lo_gap, hi_gap = _half_gaps(obs, i)
     d = w - obs[i]
     gap = hi_gap if d >= 0 else lo_gap

@@ -456,7 +456,7 @@ class _RefinedParams:
     # enough shows its core between the transverse ribs and the rib envelope only at their
     # crests, so its median width reads about the next smaller size's envelope.
     rib_band: tuple = (0.4, 1.2)  # rib pitches searched, x the bar's median width (standards: 0.5-0.7 d)
-    rib_min_sections: int = 24  # sections needed to look for a rib pitch along a bar
+    rib_min_sections: int = 24  # sections needed to read a bar's crests and core and look for its rib pitch
     rib_capture_p: float = 1e-6  # the capture shows ribs where its bars' periodicity together is this unlikely from noise
     rib_p_floor: float = 1e-8  # one bar's p-value counts at most this much (one striped bar is not a capture)
     rib_min_bars: int = 3
@@ -1222,7 +1222,7 @@ def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
 
 
 def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
-                      assumed_mm=math.nan, rib_sigma=0.0, mask_median=None) -> dict:
+                      assumed_mm=math.nan, mask_median=None) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
     The mask width and the point-cloud width are two independent measurements, each with a
@@ -1231,8 +1231,8 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
     capped because it relies on the axis lying at the bar's centre. ``med`` is the mask's
     width (the ribs' envelope read from their crests where the capture resolves them, with
-    ``rib_sigma`` for how far a crest's reach varies with the bar's roll; the colour edges are then
-    checked against the mask's median, ``mask_median``, the like statistic).
+    ``info["rib_sigma_mm"]`` for how far a crest's reach varies with the bar's roll; the colour
+    edges are then checked against the mask's median, ``mask_median``, the like statistic).
     """
     px_mm, off = info["px_mm"], abs(info["centre_mm"])
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
@@ -1252,7 +1252,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
     one_sided = 2 * prm.axis_sigma_mm * info.get("one_sided_share", 0.0)
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, rib_sigma)
+                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.get("rib_sigma_mm", 0.0))
     mask_problem = ""
     if _off_centre(info, med, prm):
         mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
@@ -1545,8 +1545,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         else:
             row.update(_refined_decision(info["mask_width_mm"], row["width_spread_mm"], len(w), info, in_shadow,
                                          prm, system=system, deformed=deformed, use_cloud=cloud_mode[i],
-                                         assumed_mm=bar.axis_radius_mm, rib_sigma=info["rib_sigma_mm"],
-                                         mask_median=med))
+                                         assumed_mm=bar.axis_radius_mm, mask_median=med))
             if ribs and row["diameter_status"] == MEASURED:
                 _check_core(row, info, prm, system=system)
             if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
