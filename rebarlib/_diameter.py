@@ -21,6 +21,7 @@ Two methods:
 from __future__ import annotations
 
 import math
+from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
@@ -310,6 +311,7 @@ class _Bar:
     axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
     axis_ok: bool = True  # the axis was measured (not only located): one-sided widths may use it
     stack_mm: float = math.nan  # its top above the tops of the bars it rests on (geometry.stack_heights)
+    top_mm: float = math.nan  # its top above the formwork (geometry.top_heights)
 
 
 def _optional(row, column: str, default: float = math.nan) -> float:
@@ -337,7 +339,7 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         axis_ok = str(getattr(r, "status", "measured")) == "measured"
         out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
                         float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok,
-                        _optional(r, "stack_mm")))
+                        _optional(r, "stack_mm"), _optional(r, "top_mm")))
     return out
 
 
@@ -1040,7 +1042,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
         r[3]["mask_between_mm"] = s_m
 
 
-def _width_calibration(results, key, prm, *, system, deformed) -> None:
+def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> None:
     """Calibrate an independent width of every bar of a capture (``key`` "circle": the point
     cloud's circle, :func:`_cloud_circle`; "stack": the bar's height above the bars it rests on,
     ``geometry.stack_heights``) against the bars its masks size clearly, and store in every bar's
@@ -1060,9 +1062,16 @@ def _width_calibration(results, key, prm, *, system, deformed) -> None:
     of the bar's own (``{key}_sigma_mm``, 0 for a stack height) and that spread. Learning from
     the mask's sizes, not the design's, keeps a bar of another size than designed from counting
     its true difference as an error. Needs ``prm.colour_offset_bars`` such bars; else the width is
-    not used (``{key}_between_mm`` NaN)."""
-    dev = []
-    for r in results:
+    not used (``{key}_between_mm`` NaN).
+
+    ``groups`` (one key per bar, e.g. its layer and level): the offset is learnt per group, from
+    at least 2 of its bars (a group with fewer is not used), and the spread is pooled over the
+    groups around their own offsets (k = n − groups degrees of freedom, at least
+    ``prm.colour_offset_bars`` − 1); each bar's σ then also holds its group's offset's error,
+    spread / √(bars it was learnt from). Without ``groups``, all bars are one group."""
+    groups = [0] * len(results) if groups is None else list(groups)
+    dev = defaultdict(list)
+    for r, g in zip(results, groups):
         cw = r[3][f"{key}_width_mm"]
         if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
@@ -1073,21 +1082,27 @@ def _width_calibration(results, key, prm, *, system, deformed) -> None:
         env = observed_width_mm(nominal, system=system, deformed=deformed)
         lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
         if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
-            dev.append(cw - env)
-    off, s_c = 0.0, math.nan
-    if len(dev) >= prm.colour_offset_bars:
-        off = float(np.median(dev))
+            dev[g].append(cw - env)
+    if len(set(groups)) > 1:
+        dev = {g: d for g, d in dev.items() if len(d) >= 2}
+    off = {g: float(np.median(d)) for g, d in dev.items()}
+    res = np.concatenate([np.asarray(d) - off[g] for g, d in dev.items()]) if dev else np.zeros(0)
+    k = len(res) - len(dev)  # degrees of freedom: one offset learnt per group
+    s_c = math.nan
+    if k >= prm.colour_offset_bars - 1:
         # learnt from a dozen bars or so, the spread may fall short of the errors' tails: the
-        # upper 90 % confidence bound of σ from k = n - 1 degrees of freedom (χ² quantile by the
+        # upper 90 % confidence bound of σ from k degrees of freedom (χ² quantile by the
         # Wilson-Hilferty approximation)
-        k = len(dev) - 1
         chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
-        s_c = float(np.sqrt(np.sum(np.square(np.asarray(dev) - off)) / chi2_10))
-    for r in results:
-        r[3][f"{key}_offset_mm"] = off
-        r[3][f"{key}_width_mm"] -= off
-        r[3][f"{key}_between_mm"] = s_c
-        r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_c))
+        s_c = float(np.sqrt(np.sum(np.square(res)) / chi2_10))
+    one = len(set(groups)) == 1  # one group: its offset's own error is left in the spread, as always
+    for r, g in zip(results, groups):
+        learnt = g in off and math.isfinite(s_c)
+        r[3][f"{key}_offset_mm"] = off.get(g, 0.0) if learnt else 0.0
+        r[3][f"{key}_width_mm"] -= r[3][f"{key}_offset_mm"]
+        r[3][f"{key}_between_mm"] = s_c if learnt else math.nan
+        s_g = s_c if one or not learnt else s_c * math.sqrt(1 + 1 / len(dev[g]))
+        r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_g))
 
 
 def _colour_calibration(results, prepared, prm) -> None:
@@ -1140,6 +1155,7 @@ def _alert_other_size(out: dict, med, nom_m, conf_m, dw, nom_c, prm) -> None:
 #: the widths that do not depend on where an axis placed with an assumed radius lies: how the
 #: reason names each
 _INDEPENDENT = {"stack": "its top {w:.1f} ± {s:.1f} mm above the bars it rests on",
+                "level": "its top {w:.1f} ± {s:.1f} mm above its level's supports",
                 "circle": "the point cloud's shape, circle fit {w:.1f} ± {s:.1f} mm"}
 
 
@@ -1295,8 +1311,10 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
             if veto_only:
                 _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm)
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
-                # it confirms the size the mask alone gives clearly, that size is measured
-                if conf_m >= prm.min_confidence:
+                # it confirms the size the mask alone gives clearly, that size is measured. Not a
+                # width from one edge to the axis: the axis was placed with the assumed radius (a
+                # fit over part of the bar's arc slides with it), so that width cannot overturn it
+                if conf_m >= prm.min_confidence and info.get("one_sided_share", 0.0) == 0.0:
                     return _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
                                    deformed=deformed, size=nom_m) or out
             return out
@@ -1484,9 +1502,17 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     for i, bar in enumerate(prepared):  # only for axes placed with an assumed radius (see _settle)
         info = results[i][3]
         info["stack_width_mm"] = bar.stack_mm if cloud_mode[i] == "veto" else math.nan
-        info["stack_sigma_mm"] = 0.0
+        info["level_width_mm"] = bar.top_mm if cloud_mode[i] == "veto" else math.nan
+        info["stack_sigma_mm"] = info["level_sigma_mm"] = 0.0
     _width_calibration(results, "circle", prm, system=system, deformed=deformed)
     _width_calibration(results, "stack", prm, system=system, deformed=deformed)
+    # the bars of one level rest on the same supports: a bar's top above the formwork less the
+    # supports' height, learnt from its level's bars that the mask sizes clearly
+    _width_calibration(results, "level", prm, system=system, deformed=deformed,
+                       groups=[(b.layer, b.level) for b in prepared])
+    for r in results:  # a bar's own top counts once: where it has a stack height, that is its top
+        if math.isfinite(r[3]["stack_width_mm"]) and math.isfinite(r[3]["stack_between_mm"]):
+            r[3]["level_width_mm"] = math.nan
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows = []

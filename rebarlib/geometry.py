@@ -52,8 +52,8 @@ __all__ = [
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "stack_heights", "count_bars", "envelope_mm", "direction_sharpness", "flag_hidden_gaps",
-    "flag_border_cut",
+    "level_heights", "stack_heights", "top_heights", "count_bars", "envelope_mm", "direction_sharpness",
+    "flag_hidden_gaps", "flag_border_cut",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -987,6 +987,29 @@ def _crest_line(b: BarAxis, q) -> tuple[float, float] | None:
     return float(c[0]), float(c[1])
 
 
+def _crest_lines(bars: list, points: list | None) -> list:
+    """Per bar, its top's height along it ``(c0, c1)`` (:func:`_crest_line` from its slab-frame
+    ``points``; from the fitted circle without them); None for a bar not measured."""
+    def top_line(i, b):
+        if b.status != "measured":
+            return None
+        if points is None:
+            return b.centre_h_mm + b.radius_mm, b.h_slope
+        return None if points[i] is None else _crest_line(b, points[i])
+
+    return [top_line(i, b) for i, b in enumerate(bars)]
+
+
+def top_heights(bars: list, points: list | None = None) -> np.ndarray:
+    """Per bar, the height of its top above the formwork at the middle of its visible extent, read
+    off its own points near its axis (:func:`_crest_line`: not off the fixed-radius circle, whose
+    top a bar of another size pulls); without ``points`` (slab frame), the fitted circle's. NaN
+    for a bar not measured. The bars of one level rest on the same supports, so their tops differ
+    by their diameters (``_diameter`` compares a bar's top with its level's)."""
+    crest = _crest_lines(bars, points)
+    return np.array([np.nan if c is None else c[0] + c[1] * b.t_mid for b, c in zip(bars, crest)])
+
+
 def stack_heights(bars: list, points: list | None = None, *, min_crossings: int = 2) -> np.ndarray:
     """Per bar, how far its top stands above the tops of the bars it rests on: the top-level bars
     of a lattice lie on its bottom-level bars, so at each crossing the top bar's top is one
@@ -1002,14 +1025,7 @@ def stack_heights(bars: list, points: list | None = None, *, min_crossings: int 
     than the fit's radius pulls by up to a millimetre or two. It assumes the two bars touch: a gap
     between them (a bar lifted by a tie or bent) adds to it.
     """
-    def top_line(i, b):
-        if b.status != "measured":
-            return None
-        if points is None:
-            return b.centre_h_mm + b.radius_mm, b.h_slope
-        return None if points[i] is None else _crest_line(b, points[i])
-
-    crest = [top_line(i, b) for i, b in enumerate(bars)]  # None for a bar not measured
+    crest = _crest_lines(bars, points)
     out = np.full(len(bars), np.nan)
     for i, b in enumerate(bars):
         if b.level != "top" or crest[i] is None:
@@ -1632,12 +1648,12 @@ def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, pl
 def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataFrame:
     """The bar table: ``bar_id, layer, level, plan_angle_deg, start_/end_{x,y,z}_mm`` (axis ends
     over the visible extent, camera frame), ``visible_length_mm, n_points, axis_height_mm,
-    underside_mm, radius_mm, fit_rms_mm, arc_deg, axis_se_mm, stack_mm, status, reason``
-    (``stack_mm``: :func:`stack_heights`, from ``points``, each bar's camera-frame points, or
-    from the fitted axes without them)."""
+    underside_mm, radius_mm, fit_rms_mm, arc_deg, axis_se_mm, stack_mm, top_mm, status, reason``
+    (``stack_mm``: :func:`stack_heights`; ``top_mm``: :func:`top_heights`; both from ``points``,
+    each bar's camera-frame points, or from the fitted axes without them)."""
     rows = []
-    stack = stack_heights(bars, None if points is None else
-                          [None if p is None else to_slab_frame(p, plane) for p in points])
+    slab_points = None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
+    stack, top = stack_heights(bars, slab_points), top_heights(bars, slab_points)
     for i, b in enumerate(bars):
         ends = from_slab_frame(b.axis_points(np.array([b.t0_mm, b.t1_mm])), plane)
         rows.append({
@@ -1649,9 +1665,9 @@ def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataF
             "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
             "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
             "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "stack_mm": stack[i],
-            "status": b.status, "reason": b.reason,
+            "top_mm": top[i], "status": b.status, "reason": b.reason,
         })
     cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
             "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "axis_height_mm", "underside_mm", "radius_mm",
-            "fit_rms_mm", "arc_deg", "axis_se_mm", "stack_mm", "status", "reason"]
+            "fit_rms_mm", "arc_deg", "axis_se_mm", "stack_mm", "top_mm", "status", "reason"]
     return pd.DataFrame(rows, columns=cols)

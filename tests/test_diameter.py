@@ -475,6 +475,77 @@ def test_circle_calibration_by_hand():
     assert math.isnan(few[0][3]["circle_between_mm"])
 
 
+def test_level_calibration_by_hand():
+    # The tops of two levels above the formwork: the lower level's bars rest on 25 mm spacers,
+    # the upper level's on 100 mm chairs. Lower: five bars clearly Φ14 (envelope 16.2), tops
+    # 25 + 16.2 + e; upper: three clearly Φ12 (13.9), tops 100 + 13.9 + e; a third level with a
+    # single clear bar learns no offset. Per level the offset is its median (25 + median(e)...);
+    # the spread is pooled around each level's own offset over k = 8 − 2 degrees of freedom,
+    # raised to its upper 90 % bound (χ²(0.10; 6) by Wilson–Hilferty), and a bar's σ also holds
+    # its level's offset's error: σ √(1 + 1/n).
+    from rebarlib._diameter import _RefinedParams, _width_calibration
+
+    prm = _RefinedParams()
+    e_lo, e_up = [0.0, 0.4, -0.3, 0.2, -0.1], [0.3, -0.2, 0.0]
+    tops = [25 + 16.2 + e for e in e_lo] + [100 + 13.9 + e for e in e_up] + [60 + 11.6]
+    masks = [16.2] * 5 + [13.9] * 3 + [11.6]
+    groups = [("lower", "bottom")] * 5 + [("upper", "bottom")] * 3 + [("upper", "top")]
+    results = [(np.full(prm.min_sections, m), None, None, {"level_width_mm": t, "level_sigma_mm": 0.0})
+               for m, t in zip(masks, tops)]
+    _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=groups)
+    res = np.concatenate([np.array(e_lo) - np.median(e_lo), np.array(e_up) - np.median(e_up)])
+    k = 8 - 2
+    chi2 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
+    sigma = math.sqrt(np.sum(res ** 2) / chi2)
+    for r, e in zip(results[:5], e_lo):
+        assert r[3]["level_offset_mm"] == pytest.approx(25 + np.median(e_lo), abs=1e-9)
+        assert r[3]["level_width_mm"] == pytest.approx(16.2 + e - np.median(e_lo), abs=1e-9)
+        assert r[3]["level_between_mm"] == pytest.approx(sigma, abs=1e-9)
+        assert r[3]["level_sigma_mm"] == pytest.approx(sigma * math.sqrt(1 + 1 / 5), abs=1e-9)
+    for r in results[5:8]:
+        assert r[3]["level_offset_mm"] == pytest.approx(100 + np.median(e_up), abs=1e-9)
+        assert r[3]["level_sigma_mm"] == pytest.approx(sigma * math.sqrt(1 + 1 / 3), abs=1e-9)
+    # one clear bar is no level to learn from: its width is not used
+    assert math.isnan(results[8][3]["level_between_mm"])
+    # too few bars over all the levels for a spread (5 bars in 2 levels: k = 3, under the 4 that
+    # 5 bars give one level): none is used
+    results = [(np.full(prm.min_sections, 16.2), None, None, {"level_width_mm": 41.2 + e, "level_sigma_mm": 0.0})
+               for e in e_lo[:3]] + [(np.full(prm.min_sections, 13.9), None, None,
+                                      {"level_width_mm": 113.9 + e, "level_sigma_mm": 0.0}) for e in e_up[:2]]
+    _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=[0] * 3 + [1] * 2)
+    assert all(math.isnan(r[3]["level_between_mm"]) for r in results)
+
+
+def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
+    # A bar of a level resting on spacers has no bar under it (no stack height), but the bars of
+    # one level rest on the same supports: its top less theirs is its width (level_width_mm).
+    from rebarlib._diameter import _refined_decision, _RefinedParams
+
+    prm = _RefinedParams()
+    kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
+    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
+                circle_between_mm=math.nan, level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
+    # 15.4 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.7 ± 0.42, Φ14
+    r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+level"
+    assert r["width_used_mm"] == pytest.approx(15.7, abs=0.01)
+    assert "16.0 ± 0.6 mm above its level's supports" in r["diameter_reason"]
+    # A bar seen from one edge only (along the image border), its mask clearly Φ10 (11.8 mm)
+    # though the axis was placed with the Φ12 radius; its top reads 12.6 ± 0.5. The width from
+    # the edge to that axis slides with the axis, which was placed with the assumed radius: it
+    # cannot overturn the assumed size, whatever agrees with it. Not measured; the reason names Φ10.
+    one = dict(base, one_sided_share=1.0, depth_width_mm=13.5, level_width_mm=12.6, level_sigma_mm=0.5,
+               mask_between_mm=0.3)
+    r = _refined_decision(11.8, 0.25, 130, one, False, prm, assumed_mm=6.95, **kw)
+    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("possible wrong size")
+    assert "Φ10" in r["diameter_reason"]
+    # between its two edges the same widths overturn it: a bar of another size than designed
+    r = _refined_decision(11.8, 0.25, 130, dict(one, one_sided_share=0.0), False, prm, assumed_mm=6.95, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0 and r["width_source"] == "mask+level"
+
+
 def test_circle_fit_by_hand():
     from rebarlib._diameter import _circle_fit
 

@@ -30,6 +30,7 @@ from rebarlib.geometry import (
     plane_frame,
     split_layers,
     stack_heights,
+    top_heights,
     to_slab_frame,
 )
 
@@ -360,6 +361,13 @@ def test_stack_heights_by_hand():
     wrong_r = [replace(b, radius_mm=b.radius_mm + 1.0) for b in bars]
     got = stack_heights(wrong_r, pts)
     assert got[3] == pytest.approx(2 * rt, abs=0.1) and got[4] == pytest.approx(2 * rt + 1.0, abs=0.1)
+    # each bar's top above the formwork at the middle of its extent (t = 0, so the slope
+    # drops out): the bottom bars 20 + 16.2 + 0.01 y, the top ones 20 + 16.2 + 13.9 (+ 1 mm),
+    # from the circles and, whatever the fitted radius, from the points
+    want = [20 + 2 * rb + 0.01 * y for y in (-200.0, 0.0, 200.0)] + [20 + 2 * rb + 2 * rt, 21 + 2 * rb + 2 * rt]
+    assert top_heights(bars) == pytest.approx(want, abs=1e-9)
+    assert top_heights(wrong_r, pts) == pytest.approx(want, abs=0.1)
+    assert np.isnan(top_heights([replace(bars[0], status="not measured")])[0])
     # fewer crossings than asked for, a bar not measured, a support outside the extent: NaN
     assert np.isnan(stack_heights(bars, min_crossings=4)[3])
     assert np.isnan(stack_heights(bars[:3] + [replace(bars[3], status="not measured")])[3])
