@@ -1045,7 +1045,8 @@ def _mask_between_spread(results, prepared, prm) -> None:
 def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> None:
     """Calibrate an independent width of every bar of a capture (``key`` "circle": the point
     cloud's circle, :func:`_cloud_circle`; "stack": the bar's height above the bars it rests on,
-    ``geometry.stack_heights``) against the bars its masks size clearly, and store in every bar's
+    ``geometry.stack_heights``; "level": its top above the formwork, ``geometry.top_heights``, per
+    level) against the bars its masks size clearly, and store in every bar's
     info ``{key}_offset_mm`` (subtracted from ``{key}_width_mm``), ``{key}_between_mm`` and the
     ``{key}_sigma_mm`` the width is used with.
 
@@ -1068,8 +1069,10 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
     at least 2 of its bars (a group with fewer is not used), and the spread is pooled over the
     groups around their own offsets (k = n − groups degrees of freedom, at least
     ``prm.colour_offset_bars`` − 1); each bar's σ then also holds its group's offset's error,
-    spread / √(bars it was learnt from). Without ``groups``, all bars are one group."""
-    groups = [0] * len(results) if groups is None else list(groups)
+    spread / √(bars it was learnt from). Without ``groups``, all bars are one group, learnt from
+    at least ``prm.colour_offset_bars`` bars, whose offset's error the spread's bound covers."""
+    per_group = groups is not None
+    groups = list(groups) if per_group else [0] * len(results)
     dev = defaultdict(list)
     for r, g in zip(results, groups):
         cw = r[3][f"{key}_width_mm"]
@@ -1083,7 +1086,7 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
         lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
         if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
             dev[g].append(cw - env)
-    if len(set(groups)) > 1:
+    if per_group:
         dev = {g: d for g, d in dev.items() if len(d) >= 2}
     off = {g: float(np.median(d)) for g, d in dev.items()}
     res = np.concatenate([np.asarray(d) - off[g] for g, d in dev.items()]) if dev else np.zeros(0)
@@ -1095,13 +1098,12 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
         # Wilson-Hilferty approximation)
         chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
         s_c = float(np.sqrt(np.sum(np.square(res)) / chi2_10))
-    one = len(set(groups)) == 1  # one group: its offset's own error is left in the spread, as always
     for r, g in zip(results, groups):
         learnt = g in off and math.isfinite(s_c)
-        r[3][f"{key}_offset_mm"] = off.get(g, 0.0) if learnt else 0.0
+        r[3][f"{key}_offset_mm"] = off[g] if learnt else 0.0
         r[3][f"{key}_width_mm"] -= r[3][f"{key}_offset_mm"]
         r[3][f"{key}_between_mm"] = s_c if learnt else math.nan
-        s_g = s_c if one or not learnt else s_c * math.sqrt(1 + 1 / len(dev[g]))
+        s_g = s_c * math.sqrt(1 + 1 / len(dev[g])) if per_group and learnt else s_c
         r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_g))
 
 
@@ -1163,7 +1165,8 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     """``out`` as a bar sized from its mask width and the widths that do not depend on an axis
     placed with an assumed radius, whose own cloud width only echoes that radius: the circle
     fitted to its point cloud (:func:`_cloud_circle`) and, for a bar resting on others, its
-    top's height above theirs (``geometry.stack_heights``); None where they do not settle the size.
+    top's height above theirs (``geometry.stack_heights``), else its top above its level's
+    supports (``geometry.top_heights``); None where they do not settle the size.
 
     Each such width is used where it is sound (and ``prm.colour_offset_bars`` bars gave its
     between-bar spread, :func:`_width_calibration`, the σ it is used with: ``{key}_sigma_mm``);
@@ -1398,9 +1401,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         clearly gives another size than the cloud's echo, the circle fitted to the bar's cloud
         (``circle_width_mm``, independent of where the axis lies) is combined with the mask
         instead (:func:`_settle`, with the bar's height above the bars it rests on where the
-        bars table has ``stack_mm``): the bar is measured where they agree and their
-        combined width is clear, ``width_source`` "mask+circle", "mask+stack" or
-        "mask+stack+circle"
+        bars table has ``stack_mm``, else its top above its level's supports from ``top_mm``):
+        the bar is measured where they agree and their combined width is clear,
+        ``width_source`` "mask+" and the widths used, joined by "+" ("mask+circle",
+        "mask+stack", "mask+level+circle", ...)
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -1415,8 +1419,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ``occluded_fraction`` (share of the cross-sections lying wholly or partly under nearer bars: some
     of the bar's width there is inside a nearer bar's footprint), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
-    its axis), ``width_source`` ("mask", "cloud", "mask+cloud", "mask+circle" or "mask+stack":
-    what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    its axis), ``width_source`` ("mask", "cloud", "mask+cloud", or "mask+" the independent widths
+    of veto mode, above: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
     ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
     the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
