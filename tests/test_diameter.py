@@ -404,6 +404,16 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
+def _veto_bar(**changes) -> dict:
+    """A bar's info for ``_refined_decision`` in veto mode (its axis placed with an assumed
+    radius), 550 mm away, its cloud width echoing Φ14 (16.2), no independent width; ``changes``
+    override or add entries."""
+    return dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
+                circle_between_mm=math.nan, **changes)
+
+
 def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_it():
     # A top-level bar's top stands one diameter above the bars it rests on (stack_mm): a width
     # that does not depend on where an axis placed with an assumed radius lies. By hand, veto mode.
@@ -411,11 +421,7 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_i
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
-    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
-                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
-                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
-                circle_between_mm=math.nan, stack_width_mm=math.nan, stack_sigma_mm=math.nan,
-                stack_between_mm=math.nan)
+    base = _veto_bar(stack_width_mm=math.nan, stack_sigma_mm=math.nan, stack_between_mm=math.nan)
     # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone
     r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
@@ -523,10 +529,7 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
-    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
-                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
-                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
-                circle_between_mm=math.nan, level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
+    base = _veto_bar(level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
     # 15.4 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.7 ± 0.42, Φ14
     r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+level"
