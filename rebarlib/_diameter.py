@@ -1013,10 +1013,11 @@ def _robust_sigma(dev) -> float:
     return 1.4826 * float(np.median(np.abs(dev)))
 
 
-def _two_sided(result) -> bool:
-    # the capture's calibrations learn from bars measured between their two edges only: a
-    # width from one edge and the axis carries the axis's error too
-    return result[3].get("one_sided_share", 0.0) == 0.0
+def _two_sided(info) -> bool:
+    # whether a bar's width was measured between its two edges only (its info): a width from one
+    # edge and the axis carries the axis's error too, so the capture's calibrations do not learn
+    # from it, and it cannot overturn the radius the axis was placed with
+    return info.get("one_sided_share", 0.0) == 0.0
 
 
 def _mask_width(result) -> float:
@@ -1036,7 +1037,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
     dev = _between_bar_deviations({i: _mask_width(r) for i, r in enumerate(results)
-                                   if len(r[0]) >= prm.min_sections and _two_sided(r)}, prepared)
+                                   if len(r[0]) >= prm.min_sections and _two_sided(r[3])}, prepared)
     s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
     for r in results:
         r[3]["mask_between_mm"] = s_m
@@ -1076,7 +1077,7 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
     dev = defaultdict(list)
     for r, g in zip(results, groups):
         cw = r[3][f"{key}_width_mm"]
-        if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
+        if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r[3]):
             continue
         med = _mask_width(r)
         nominal, _ = snap_diameter(med, system=system, deformed=deformed)
@@ -1124,7 +1125,7 @@ def _colour_calibration(results, prepared, prm) -> None:
     whole disagreement counts).
     """
     have = [i for i, r in enumerate(results)
-            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"]) and _two_sided(r)]
+            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"]) and _two_sided(r[3])]
     off, weight, spread = 0.0, 1.0, 0.0
     if len(have) >= prm.colour_offset_bars:
         med = {i: float(np.median(results[i][0])) for i in have}
@@ -1317,7 +1318,7 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                 # it confirms the size the mask alone gives clearly, that size is measured. Not a
                 # width from one edge to the axis: the axis was placed with the assumed radius (a
                 # fit over part of the bar's arc slides with it), so that width cannot overturn it
-                if conf_m >= prm.min_confidence and info.get("one_sided_share", 0.0) == 0.0:
+                if conf_m >= prm.min_confidence and _two_sided(info):
                     return _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
                                    deformed=deformed, size=nom_m) or out
             return out

@@ -1006,11 +1006,17 @@ def top_heights(bars: list, points: list | None = None) -> np.ndarray:
     top a bar of another size pulls); without ``points`` (slab frame), the fitted circle's. NaN
     for a bar not measured. The bars of one level rest on the same supports, so their tops differ
     by their diameters (``_diameter`` compares a bar's top with its level's)."""
-    crest = _crest_lines(bars, points)
+    return _tops(bars, _crest_lines(bars, points))
+
+
+def _tops(bars: list, crest: list) -> np.ndarray:
     return np.array([np.nan if c is None else c[0] + c[1] * b.t_mid for b, c in zip(bars, crest)])
 
 
-def stack_heights(bars: list, points: list | None = None, *, min_crossings: int = 2) -> np.ndarray:
+_MIN_CROSSINGS = 2  # stack_heights: crossings with measured bottom bars a top bar's stack height needs
+
+
+def stack_heights(bars: list, points: list | None = None, *, min_crossings: int = _MIN_CROSSINGS) -> np.ndarray:
     """Per bar, how far its top stands above the tops of the bars it rests on: the top-level bars
     of a lattice lie on its bottom-level bars, so at each crossing the top bar's top is one
     diameter (its rib envelope) above the bottom bar's top. Measured at the crossings of the
@@ -1025,7 +1031,10 @@ def stack_heights(bars: list, points: list | None = None, *, min_crossings: int 
     than the fit's radius pulls by up to a millimetre or two. It assumes the two bars touch: a gap
     between them (a bar lifted by a tie or bent) adds to it.
     """
-    crest = _crest_lines(bars, points)
+    return _stacks(bars, _crest_lines(bars, points), min_crossings)
+
+
+def _stacks(bars: list, crest: list, min_crossings: int) -> np.ndarray:
     out = np.full(len(bars), np.nan)
     for i, b in enumerate(bars):
         if b.level != "top" or crest[i] is None:
@@ -1653,7 +1662,8 @@ def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataF
     each bar's camera-frame points, or from the fitted axes without them)."""
     rows = []
     slab_points = None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
-    stack, top = stack_heights(bars, slab_points), top_heights(bars, slab_points)
+    crest = _crest_lines(bars, slab_points)  # read once: the stack and top heights both use them
+    stack, top = _stacks(bars, crest, _MIN_CROSSINGS), _tops(bars, crest)
     for i, b in enumerate(bars):
         ends = from_slab_frame(b.axis_points(np.array([b.t0_mm, b.t1_mm])), plane)
         rows.append({

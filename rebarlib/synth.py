@@ -906,8 +906,6 @@ def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rn
     if s.projector_shadow:
         proj = pose.centre + pose.rotation.T @ np.array([s.projector_offset_mm, 0.0, 0.0])
         idx = np.flatnonzero(hit)
-        vec = proj - p[idx]
-        dist = np.linalg.norm(vec, axis=1)
         start = p[idx] + normal[idx] * leave[0][idx, None]
         vec = proj - start
         dist = np.linalg.norm(vec, axis=1)
