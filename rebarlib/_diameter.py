@@ -426,7 +426,9 @@ def _tangent_correct(width_mm, distance_mm):
 @dataclass(frozen=True)
 class _RefinedParams:
     step_px: float = 3.0  # cross-sections about this far apart along the bar (image)
-    max_sections: int = 200
+    max_sections: int = 512  # (a bar across a 1280 x 800 image's diagonal still gets them 3 px apart:
+    # sparser sections would not sample a small bar's ribs, see _rib_periodicity)
+    cloud_sections: int = 200  # the point-cloud widths read at most this many of them, evenly spread
     window: float = 1.0  # half-window across the bar, in expected widths (2x the width in all)
     sample_px: float = 0.5  # profile sampling step
     min_sections: int = 8
@@ -461,7 +463,8 @@ class _RefinedParams:
     rib_min_sections: int = 24  # sections needed to read a bar's crests and core and look for its rib pitch
     rib_capture_p: float = 1e-6  # the capture shows ribs where its bars' periodicity together is this unlikely from noise
     rib_p_floor: float = 1e-8  # one bar's p-value counts at most this much (one striped bar is not a capture)
-    rib_min_bars: int = 3
+    rib_min_bars: int = 3  # bars needed to judge a capture; as many must show one pitch clearly
+    rib_pitch_tol: float = 0.1  # a bar's clear pitch agrees with its size's where within this share of it
     rib_min_px: float = 1.5  # crest minus core widths at least this (px): more than the pixel grid's 1-px steps
     rib_bar_p: float = 0.01  # a bar's own rib pitch is reported where its periodicity is this unlikely from noise
     crest_quantile: float = 0.95  # the crests: the widest 5 % of the sections (crests with their flanks
@@ -648,7 +651,14 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     median width; ``p`` is the chance that noise alone gives a peak as strong (the peak of a
     periodogram of white noise normalised by its variance is exponential with mean 1, times the
     number of independent frequencies searched). ``(nan, 1.0)`` where there is too little to
-    look at (fewer than 8 sections, constant widths, a bar shorter than three pitches).
+    look at (fewer than 8 sections, constant widths, a bar shorter than three pitches, sections
+    too far apart for the band).
+
+    Only pitches of at least two section spacings (the median one) are searched: sampled that
+    sparsely, a shorter period is indistinguishable from a slow one mirrored about the sampling
+    rate. Searching beyond it found "ribs" at a pitch just under the sections' spacing on smooth
+    bars: the slow wander of a mask's width along the bar, mirrored (a mask computed at half the
+    image's resolution, 3 of 38 captures looking ribbed).
 
     Examples
     --------
@@ -670,7 +680,10 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     length = float(s.max() - s.min())
     if var <= 1e-12 or width <= 0 or length < 3 * band[1] * width:
         return math.nan, 1.0
-    fmin, fmax = 1 / (band[1] * width), 1 / (band[0] * width)
+    fmin = 1 / (band[1] * width)
+    fmax = min(1 / (band[0] * width), 0.5 / float(np.median(np.diff(np.sort(s)))))  # (Nyquist)
+    if fmax <= fmin:
+        return math.nan, 1.0
     f = np.linspace(fmin, fmax, int(math.ceil((fmax - fmin) * length * oversample)) + 1)
     ph = (2 * np.pi) * np.outer(f, s)
     power = ((np.cos(ph) @ w) ** 2 + (np.sin(ph) @ w) ** 2) / (len(w) * var)
@@ -678,15 +691,29 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
 
 
-def _ribs_in_view(results, prm) -> float:
+def _ribs_in_view(results, prm, sizes=None) -> float:
     """Chance that noise alone gives the periodicity the capture's bars show together (Fisher's
     method over the bars' :func:`_rib_periodicity` p-values, each floored at ``prm.rib_p_floor``
     so that one striped bar does not make a capture); 1.0 with fewer than ``prm.rib_min_bars``
     bars to look at. The bars of one capture are seen by one camera at similar distances: where
-    it resolves the ribs of some, it resolves those of all."""
-    ps = [max(r[3]["rib_p"], prm.rib_p_floor) for r in results if math.isfinite(r[3].get("rib_pitch_mm", math.nan))]
-    if len(ps) < prm.rib_min_bars:
+    it resolves the ribs of some, it resolves those of all.
+
+    Ribs also repeat at one pitch on every bar of a size (the standard's spacing), while a mask's
+    own texture or noise gives each bar a pitch of its own: 1.0 too unless at least
+    ``prm.rib_min_bars`` bars show a pitch clearly (p < ``prm.rib_bar_p``) within
+    ``prm.rib_pitch_tol`` of the median clear pitch of their size (``sizes``, one key per bar,
+    e.g. its design size; None: one size). Seen on a learnt mask of smooth bars: 2-3 bars of a
+    capture clearly periodic, at pitches 6.5-16 mm for one size; ribs in relief: every clear pitch
+    within 1 % of the true one."""
+    sizes = [0] * len(results) if sizes is None else list(sizes)
+    clear = defaultdict(list)
+    for r, key in zip(results, sizes):
+        if r[3]["rib_p"] < prm.rib_bar_p and math.isfinite(r[3].get("rib_pitch_mm", math.nan)):
+            clear[key].append(r[3]["rib_pitch_mm"])
+    agree = sum(int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol)) for v in clear.values())
+    if agree < prm.rib_min_bars:
         return 1.0
+    ps = [max(r[3]["rib_p"], prm.rib_p_floor) for r in results if math.isfinite(r[3].get("rib_pitch_mm", math.nan))]
     half = -float(np.sum(np.log(ps)))  # χ² / 2, with 2 x len(ps) degrees of freedom
     if half <= 0:
         return 1.0
@@ -870,8 +897,11 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
                     info["shadow"] = int(dark.sum())
                     ok[rows[dark]] = False
                     one_sided[rows[dark]] = False
-    # edges from the mask are sharper than edges at depth steps: use the latter only if needed
-    if (ok & ~cut).sum() >= prm.min_sections:
+    # edges from the mask are sharper than edges at depth steps (a depth camera fattens a nearer
+    # object's edge): use the latter only if needed, that is unless the sections with mask edges
+    # alone are enough with room for the outliers dropped below (twice the minimum: with just
+    # the minimum, one outlier left a bar with hundreds of sections "too few")
+    if (ok & ~cut).sum() >= 2 * prm.min_sections:
         info["depth_cut"] = int((ok & cut).sum())
         ok &= ~cut
     sel = ok | one_sided
@@ -897,12 +927,15 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             np.median(st[kept, 2])) / intr.fx:
         info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity((st[kept] - bar.p0) @ pl.direction, w,
                                                                band=prm.rib_band)
+    # the point cloud gives several points per section: every few sections of a long bar suffice
+    ck = kept[::max(1, -(-len(kept) // prm.cloud_sections))]
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
-        depth_img, intr, pl, st[kept], d_centre[kept], d_width[kept], prm, bar.expected_mm) if depth_img is not None else (
+        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm) if depth_img is not None else (
         math.nan, math.nan, 0, math.nan)
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = kept[~one_sided[kept]]
+        two_k = two_k[::max(1, -(-len(two_k) // prm.cloud_sections))]
         info["circle_width_mm"], info["circle_sigma_mm"] = _cloud_circle(
             depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm)
     # The colour edges next to the mask edges are an independent check of the mask: where the
@@ -1491,7 +1524,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                for i, bar in enumerate(prepared)]
     # Ribs resolved (refined, deformed bars): each bar's mask width is the envelope read from its
     # crests, and its point-cloud width (a surface over crests and core alike) is no envelope
-    ribs_p = _ribs_in_view(results, prm) if method == "refined" and deformed else 1.0
+    # (the bars' sizes for their rib pitches: the design's, else the size their median width is nearest)
+    sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r[0])
+             else snap_diameter(float(np.median(r[0])), system=system, deformed=deformed)[0]
+             for b, r in zip(prepared, results)]
+    ribs_p = _ribs_in_view(results, prm, sizes) if method == "refined" and deformed else 1.0
     ribs = ribs_p < prm.rib_capture_p
     for r in results:
         info = r[3]

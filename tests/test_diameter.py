@@ -790,6 +790,24 @@ def test_rib_periodicity_finds_the_pitch_and_keeps_noise_quiet():
     assert _rib_periodicity(s[:40] / 10, 12.3 + 1.6 * crest[:40])[1] == 1.0
 
 
+def test_rib_periodicity_does_not_mirror_a_slow_wander_into_ribs():
+    """Sections 4.5 mm apart along a smooth 9.3 mm bar whose width wanders slowly (a 300 mm
+    period): mirrored about the sampling rate, the wander would read as a strong 4.4 mm pitch,
+    inside the band searched for such a bar. Only pitches of two spacings and more are searched:
+    no ribs. Crests every 11 mm at the same spacing are found at 11 mm (not at their 7.6 mm
+    mirror); with the spacing beyond half the band's longest pitch nothing is searched."""
+    from rebarlib._diameter import _rib_periodicity
+
+    rng = np.random.default_rng(3)
+    s = np.arange(220) * 4.5
+    wander = 9.3 + 0.4 * np.sin(2 * np.pi * s / 300.0) + rng.normal(0, 0.05, len(s))
+    assert _rib_periodicity(s, wander)[1] > 0.01
+    crest = ((s / 11.0) % 1.0) < 0.3
+    pitch, p = _rib_periodicity(s, 9.0 + 1.0 * crest + rng.normal(0, 0.2, len(s)))
+    assert abs(pitch - 11.0) < 0.2 and p < 1e-9
+    assert _rib_periodicity(s * 1.5, 9.0 + 1.0 * crest)[1] == 1.0  # 6.75 mm apart: 13.5 mm and up
+
+
 def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     """Fisher's combination of the bars' p-values: a dozen bars each at p = 0.001 make a capture
     that shows ribs; one bar however periodic (its p floored) among quiet ones does not; fewer
@@ -805,9 +823,30 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     assert _ribs_in_view(res([1e-40] + [0.5] * 11), prm) > prm.rib_capture_p
     assert _ribs_in_view(res([1e-9, 1e-9]), prm) == 1.0
     assert _ribs_in_view(res([1.0] * 12), prm) == 1.0
-    # by hand: two bars with p = e^-3 each: χ²/2 = 6 over 4 dof, P = e^-6 (1 + 6) = 0.01735
+    # by hand: two bars with p = e^-5 each: χ²/2 = 10 over 4 dof, P = e^-10 (1 + 10)
     prm2 = _RefinedParams(rib_min_bars=2)
-    assert _ribs_in_view(res([math.exp(-3)] * 2), prm2) == pytest.approx(7 * math.exp(-6), rel=1e-9)
+    assert _ribs_in_view(res([math.exp(-5)] * 2), prm2) == pytest.approx(11 * math.exp(-10), rel=1e-9)
+
+
+def test_ribs_in_view_needs_one_pitch_per_size():
+    """Ribs repeat at the standard's spacing on every bar of a size; a mask's texture gives each
+    bar a pitch of its own. A dozen bars clearly periodic (p = 0.001 each) at pitches scattered
+    over 6-16 mm: no ribs; the same at 8.0 ± 0.3 mm: ribs. Two sizes, each at its own pitch (8 and
+    9 mm), agree within their size. Peaks that are not clear do not count."""
+    from rebarlib._diameter import _RefinedParams, _ribs_in_view
+
+    prm = _RefinedParams()
+
+    def res(pitches, p=1e-3):
+        return [(None, None, None, {"rib_p": p, "rib_pitch_mm": x}) for x in pitches]
+
+    scattered = [6.0, 16.0, 7.0, 13.0, 9.5, 11.0, 6.5, 15.0, 8.2, 12.0, 10.3, 14.0]
+    assert _ribs_in_view(res(scattered), prm) == 1.0
+    assert _ribs_in_view(res(8.0 + 0.3 * np.sin(np.arange(12))), prm) < prm.rib_capture_p
+    two = [8.0] * 6 + [9.0] * 6
+    assert _ribs_in_view(res(two), prm, sizes=[12] * 6 + [14] * 6) < prm.rib_capture_p
+    # insignificant peaks (p = 0.5) do not count towards the agreeing bars
+    assert _ribs_in_view(res([8.0] * 2) + res([8.0] * 10, p=0.5), prm) == 1.0
 
 
 def test_core_and_rib_height_tables():
