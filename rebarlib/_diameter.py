@@ -723,6 +723,11 @@ def _ribs_in_view(results, prm, sizes=None) -> float:
     return float(min(1.0, math.exp(top) * np.exp(log_terms - top).sum()))
 
 
+def _thinned(idx, n: int):
+    """Every k-th of ``idx``, k the smallest that leaves at most ``n`` of them."""
+    return idx[::max(1, -(-len(idx) // n))]
+
+
 def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None,
                  circle=False):
     H, W = maskf.shape
@@ -928,14 +933,13 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity((st[kept] - bar.p0) @ pl.direction, w,
                                                                band=prm.rib_band)
     # the point cloud gives several points per section: every few sections of a long bar suffice
-    ck = kept[::max(1, -(-len(kept) // prm.cloud_sections))]
+    ck = _thinned(kept, prm.cloud_sections)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
         depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm) if depth_img is not None else (
         math.nan, math.nan, 0, math.nan)
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
-        two_k = kept[~one_sided[kept]]
-        two_k = two_k[::max(1, -(-len(two_k) // prm.cloud_sections))]
+        two_k = _thinned(kept[~one_sided[kept]], prm.cloud_sections)
         info["circle_width_mm"], info["circle_sigma_mm"] = _cloud_circle(
             depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm)
     # The colour edges next to the mask edges are an independent check of the mask: where the

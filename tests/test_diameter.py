@@ -832,7 +832,8 @@ def test_ribs_in_view_needs_one_pitch_per_size():
     """Ribs repeat at the standard's spacing on every bar of a size; a mask's texture gives each
     bar a pitch of its own. A dozen bars clearly periodic (p = 0.001 each) at pitches scattered
     over 6-16 mm: no ribs; the same at 8.0 ± 0.3 mm: ribs. Two sizes, each at its own pitch (8 and
-    9 mm), agree within their size. Peaks that are not clear do not count."""
+    11 mm), agree within their size, not taken as one (each 16 % from the median 9.5 mm). Peaks
+    that are not clear do not count."""
     from rebarlib._diameter import _RefinedParams, _ribs_in_view
 
     prm = _RefinedParams()
@@ -843,8 +844,9 @@ def test_ribs_in_view_needs_one_pitch_per_size():
     scattered = [6.0, 16.0, 7.0, 13.0, 9.5, 11.0, 6.5, 15.0, 8.2, 12.0, 10.3, 14.0]
     assert _ribs_in_view(res(scattered), prm) == 1.0
     assert _ribs_in_view(res(8.0 + 0.3 * np.sin(np.arange(12))), prm) < prm.rib_capture_p
-    two = [8.0] * 6 + [9.0] * 6
-    assert _ribs_in_view(res(two), prm, sizes=[12] * 6 + [14] * 6) < prm.rib_capture_p
+    two = [8.0] * 6 + [11.0] * 6
+    assert _ribs_in_view(res(two), prm, sizes=[12] * 6 + [16] * 6) < prm.rib_capture_p
+    assert _ribs_in_view(res(two), prm) == 1.0
     # insignificant peaks (p = 0.5) do not count towards the agreeing bars
     assert _ribs_in_view(res([8.0] * 2) + res([8.0] * 10, p=0.5), prm) == 1.0
 
