@@ -1526,18 +1526,19 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img,
                             circle=method == "refined" and cloud_mode[i] == "veto")
                for i, bar in enumerate(prepared)]
+    for r in results:
+        r[3]["mask_width_mm"] = float(np.median(r[0])) if len(r[0]) else math.nan
+        r[3]["rib_sigma_mm"] = 0.0
     # Ribs resolved (refined, deformed bars): each bar's mask width is the envelope read from its
     # crests, and its point-cloud width (a surface over crests and core alike) is no envelope
     # (the bars' sizes for their rib pitches: the design's, else the size their median width is nearest)
     sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r[0])
-             else snap_diameter(float(np.median(r[0])), system=system, deformed=deformed)[0]
+             else snap_diameter(r[3]["mask_width_mm"], system=system, deformed=deformed)[0]
              for b, r in zip(prepared, results)]
     ribs_p = _ribs_in_view(results, prm, sizes) if method == "refined" and deformed else 1.0
     ribs = ribs_p < prm.rib_capture_p
     for r in results:
         info = r[3]
-        info["mask_width_mm"] = float(np.median(r[0])) if len(r[0]) else math.nan
-        info["rib_sigma_mm"] = 0.0
         if ribs and math.isfinite(info["crest_mm"]):
             h = rib_height_mm(info["crest_mm"], system=system)
             info["mask_width_mm"], info["rib_sigma_mm"] = info["crest_mm"] + prm.rib_reach * h, prm.rib_reach * h

@@ -808,6 +808,11 @@ def test_rib_periodicity_does_not_mirror_a_slow_wander_into_ribs():
     assert _rib_periodicity(s * 1.5, 9.0 + 1.0 * crest)[1] == 1.0  # 6.75 mm apart: 13.5 mm and up
 
 
+def _rib_results(pitches, ps):
+    """Per-bar results as ``_ribs_in_view`` reads them: only each bar's rib pitch and its p."""
+    return [(None, None, None, {"rib_p": p, "rib_pitch_mm": x}) for x, p in zip(pitches, ps)]
+
+
 def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     """Fisher's combination of the bars' p-values: a dozen bars each at p = 0.001 make a capture
     that shows ribs; one bar however periodic (its p floored) among quiet ones does not; fewer
@@ -817,7 +822,7 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     prm = _RefinedParams()
 
     def res(ps):
-        return [(None, None, None, {"rib_p": p, "rib_pitch_mm": 8.0}) for p in ps]
+        return _rib_results([8.0] * len(ps), ps)
 
     assert _ribs_in_view(res([1e-3] * 12), prm) < prm.rib_capture_p
     assert _ribs_in_view(res([1e-40] + [0.5] * 11), prm) > prm.rib_capture_p
@@ -839,7 +844,7 @@ def test_ribs_in_view_needs_one_pitch_per_size():
     prm = _RefinedParams()
 
     def res(pitches, p=1e-3):
-        return [(None, None, None, {"rib_p": p, "rib_pitch_mm": x}) for x in pitches]
+        return _rib_results(pitches, [p] * len(pitches))
 
     scattered = [6.0, 16.0, 7.0, 13.0, 9.5, 11.0, 6.5, 15.0, 8.2, 12.0, 10.3, 14.0]
     assert _ribs_in_view(res(scattered), prm) == 1.0
