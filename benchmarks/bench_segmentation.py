@@ -15,6 +15,10 @@ the ONNX models), at the sensor's full 1280 x 800 resolution, and prints
 
     python benchmarks/bench_segmentation.py            # the 60 test captures
     python benchmarks/bench_segmentation.py --quick    # 8 of them
+    python benchmarks/bench_segmentation.py --ribs relief --count 20   # 20, ribs in relief
+
+``--ribs relief`` renders the same scenes with the bars' ribs in relief (real bars are ribbed;
+the default draws them as their smooth envelope), about 10 x slower to render.
 
 Models: the shipped ``rebarlib/models/rebar_seg.onnx`` and every ``training/candidates/*.onnx``
 (the architectures it was compared with), or those given with ``--models``.
@@ -54,6 +58,9 @@ def _pct(x):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="8 test captures instead of 60")
+    ap.add_argument("--count", type=int, default=None, help="the first N test captures")
+    ap.add_argument("--ribs", choices=["envelope", "relief"], default="envelope",
+                    help="bars drawn with their smooth rib envelope (default) or their ribs in relief")
     ap.add_argument("--models", nargs="*", help="ONNX files (sidecar next to each)")
     ap.add_argument("--threads", type=int, default=2, help="onnxruntime threads (default 2)")
     ap.add_argument("--scale", type=float, default=1.0, help="render scale of the test captures")
@@ -69,11 +76,12 @@ def main(argv=None):
         models[f"{p.stem} ({arch})"] = m
     shipped = next(iter(models))
     test = split_indices(DATASET_SIZE, seed=DATASET_SEED)["test"]
-    if args.quick:
-        test = test[:8]
+    if args.quick or args.count:
+        test = test[:args.count or 8]
+    relief = args.ribs == "relief"
     intr = GEMINI2.scaled(args.scale) if args.scale != 1.0 else GEMINI2
     print(f"# Segmentation benchmark: {len(test)} held-out test captures (data set seed {DATASET_SEED}, "
-          f"{DATASET_SIZE} captures split 6:2:2), {intr.width} x {intr.height}, "
+          f"{DATASET_SIZE} captures split 6:2:2), {intr.width} x {intr.height}, ribs {args.ribs}, "
           f"onnxruntime threads {args.threads}, cpu count {os.cpu_count()}")
     subsets = ("all", "shadow", "rust", "unlit")
     hard = ("shadow", "rust")  # the issue's subsets (gap target)
@@ -85,9 +93,9 @@ def main(argv=None):
     share = {s: [0, 0] for s in subsets[1:]}
     t0 = time.time()
     for n, i in enumerate(test):
-        cap = synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr)
+        cap = synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr, rib_relief=relief)
         truth = cap.labels > 0
-        regions = synth_eval_regions(int(i), cap, seed=DATASET_SEED)
+        regions = synth_eval_regions(int(i), cap, seed=DATASET_SEED, rib_relief=relief)
         regions["all"] = None
         for s in subsets[1:]:
             share[s][0] += int((regions[s] & truth).sum())

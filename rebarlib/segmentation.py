@@ -884,7 +884,7 @@ def segmentation_scene_params(index: int, *, seed: int = DATASET_SEED) -> dict:
 
 
 def synth_segmentation_capture(index: int, *, seed: int = DATASET_SEED, intrinsics=None,
-                               sensor=None):
+                               sensor=None, rib_relief: bool = False):
     """Render capture ``index`` of the segmentation data set (see :func:`segmentation_scene_params`).
 
     Parameters
@@ -894,6 +894,9 @@ def synth_segmentation_capture(index: int, *, seed: int = DATASET_SEED, intrinsi
     intrinsics : camera (default GEMINI2, 1280 x 800); ``GEMINI2.scaled(0.5)`` renders the same
         scene at 640 x 400
     sensor : depth sensor model (default: the realistic ``SensorModel()``)
+    rib_relief : draw the bars' ribs in relief (core, longitudinal and crescent transverse ribs,
+        ``synth.Deviations.rib_relief``) instead of as their smooth envelope: the same scene
+        otherwise, so a capture can be had both ways
 
     Returns
     -------
@@ -906,10 +909,11 @@ def synth_segmentation_capture(index: int, *, seed: int = DATASET_SEED, intrinsi
     p = segmentation_scene_params(index, seed=seed)
     return synth_capture(design_from_dict(p["design"], source="segmentation data set"),
                          height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
-                         target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
+                         target_mm=p["target_mm"],
+                         deviations=Deviations(**p["deviations"], rib_relief=bool(rib_relief)),
                          sensor=sensor, appearance=Appearance(**p["appearance"]),
                          intrinsics=intrinsics or GEMINI2, seed=p["render_seed"],
-                         name=f"seg-{seed}-{index}")
+                         name=f"seg-{seed}-{index}" + ("-relief" if rib_relief else ""))
 
 
 def split_indices(n: int = DATASET_SIZE, *, seed: int = DATASET_SEED) -> dict:
@@ -927,7 +931,8 @@ def split_indices(n: int = DATASET_SIZE, *, seed: int = DATASET_SEED) -> dict:
             "test": np.sort(perm[n_train + n_val:])}
 
 
-def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, margin_px: int | None = None) -> dict:
+def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, margin_px: int | None = None,
+                       rib_relief: bool = False) -> dict:
     """The hard-case subsets of a data-set capture, for the shadow / rust breakdown.
 
     * ``shadow`` (bars in shadow, the paper's hard case): bar pixels that lie in a *cast* shadow
@@ -949,6 +954,7 @@ def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, margin_
     ----------
     index, seed : the capture of the data set (see :func:`synth_segmentation_capture`)
     capture : that capture, as rendered (gives the resolution and the bar ids)
+    rib_relief : as the capture was rendered (:func:`synth_segmentation_capture`)
     """
     import cv2
     from dataclasses import replace
@@ -964,7 +970,8 @@ def synth_eval_regions(index: int, capture, *, seed: int = DATASET_SEED, margin_
                        cast_shadows=cast_shadows)
         ref = synth_capture(design_from_dict(p["design"], source="segmentation data set"),
                             height_mm=p["height_mm"], tilt_deg=p["tilt_deg"], yaw_deg=p["yaw_deg"],
-                            target_mm=p["target_mm"], deviations=Deviations(**p["deviations"]),
+                            target_mm=p["target_mm"],
+                            deviations=Deviations(**p["deviations"], rib_relief=bool(rib_relief)),
                             sensor=SensorModel.ideal(), appearance=dark, intrinsics=capture.intrinsics,
                             seed=p["render_seed"])
         return ref.color.max(axis=2) == 0

@@ -37,26 +37,35 @@ ARCHS = ["unet", "deeplab", "deeplab_fine", "deeplab_fine_w"]
 # data
 
 
+def _stem(key) -> str:
+    """File stem of a data-set entry: capture index ``i`` (smooth bars) -> "0042", ``"42r"``
+    (the same index drawn with its ribs in relief) -> "0042r"."""
+    if isinstance(key, str) and key.endswith("r"):
+        return f"{int(key[:-1]):04d}r"
+    return f"{int(key):04d}"
+
+
 def _render_one(job):
     import cv2
 
     from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
 
-    i, folder, quality = job
-    f_img, f_mask = folder / f"{i:04d}.jpg", folder / f"{i:04d}.png"
+    key, folder, quality = job
+    f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
     if f_img.exists() and f_mask.exists():
-        return i
+        return key
     # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly as
     # SegmentationModel does at run time; the label stays at full resolution, so the loss sees
     # the bar edges to the full-resolution pixel (logits upsampled x2, as at run time)
-    cap = synth_segmentation_capture(i, seed=DATASET_SEED)
+    relief = isinstance(key, str) and key.endswith("r")
+    cap = synth_segmentation_capture(int(key[:-1]) if relief else int(key), seed=DATASET_SEED, rib_relief=relief)
     small = cv2.resize(cap.color, (IN_W, IN_H), interpolation=cv2.INTER_AREA)
     tmp_img, tmp_mask = f_img.with_suffix(".tmp.jpg"), f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
     cv2.imwrite(str(tmp_mask), (cap.labels > 0).astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     tmp_img.replace(f_img)
     tmp_mask.replace(f_mask)
-    return i
+    return key
 
 
 def cmd_data(args):
@@ -65,6 +74,11 @@ def cmd_data(args):
     Indices ``0..DATASET_SIZE-1`` are split 6:2:2 by ``split_indices``; ``--extra N`` adds indices
     ``DATASET_SIZE..DATASET_SIZE+N-1``, all of them training captures, so the validation and test
     splits stay the same whatever the training set's size.
+
+    Real bars are ribbed: ``--relief N`` adds N more training captures, the next indices after
+    the extra ones, rendered with their ribs in relief (``rib_relief=True``; about 10 x the
+    render time of a smooth one), and ``--relief-val M`` validates on the first M validation
+    captures rendered that way too (entries ``"<index>r"`` in ``split.json``).
     """
     from concurrent.futures import ProcessPoolExecutor
 
@@ -73,9 +87,13 @@ def cmd_data(args):
     work = Path(args.work)
     (work / "data").mkdir(parents=True, exist_ok=True)
     split = split_indices(args.n, seed=DATASET_SEED)
-    split = {"train": [int(i) for i in split["train"]] + list(range(args.n, args.n + args.extra)),
-             "val": [int(i) for i in split["val"]], "test": [int(i) for i in split["test"]]}
-    wanted = sorted(split["train"] + split["val"])
+    first_relief = args.n + args.extra
+    split = {"train": [int(i) for i in split["train"]] + list(range(args.n, first_relief))
+             + [f"{i}r" for i in range(first_relief, first_relief + args.relief)],
+             "val": [int(i) for i in split["val"]] + [f"{int(i)}r" for i in split["val"][:args.relief_val]],
+             "test": [int(i) for i in split["test"]]}
+    # smooth captures first (quick), then the relief ones
+    wanted = sorted(split["train"] + split["val"], key=lambda k: (isinstance(k, str), _stem(k)))
     t0 = time.time()
     jobs = [(i, work / "data", args.jpeg_quality) for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
@@ -93,8 +111,8 @@ def _load(work: Path, part: str):
     split = json.loads((work / "split.json").read_text())
     imgs, masks = [], []
     for i in split[part]:
-        imgs.append(cv2.imread(str(work / "data" / f"{i:04d}.jpg"))[:, :, ::-1])
-        masks.append(cv2.imread(str(work / "data" / f"{i:04d}.png"), cv2.IMREAD_GRAYSCALE) > 0)
+        imgs.append(cv2.imread(str(work / "data" / f"{_stem(i)}.jpg"))[:, :, ::-1])
+        masks.append(cv2.imread(str(work / "data" / f"{_stem(i)}.png"), cv2.IMREAD_GRAYSCALE) > 0)
     return np.ascontiguousarray(np.stack(imgs)), np.stack(masks)
 
 
@@ -246,33 +264,45 @@ def _shadow(x, g):
     return x * (1 - use + use * factor)
 
 
-def _batch(imgs, masks, g, size, bs):
+def _batch(imgs, masks, g, size, bs, zoom=0.0):
     """A training batch on the data's device: random crops (input size x size, label 2size x
-    2size), flips, transposition, gain / gamma / blur / noise jitter and cast shadows."""
+    2size), flips, transposition, gain / gamma / blur / noise jitter and cast shadows.
+
+    ``zoom``: the share of crops taken smaller (size / z, z uniform in 1..2) and enlarged to
+    size x size (the label likewise, bilinearly, as a soft label): bars up to twice as wide as
+    the data set draws them at the input, as the full-resolution tiles of
+    ``SegmentationModel.predict_proba(tiled=True)`` show them."""
     import torch
     import torch.nn.functional as F
 
     dev = imgs.device
     n, H, W = imgs.shape[:3]
     r = lambda *shape: torch.rand(*shape, generator=g, device=dev)  # noqa: E731
+    z = torch.where(r(bs) < zoom, 1 + r(bs), torch.ones(bs, device=dev)).tolist()
+    cs = [min(size, max(8, round(size / zk))) for zk in z]
     idx = (r(bs) * n).long().tolist()
-    y0 = (r(bs) * (H - size + 1)).long().tolist()
-    x0 = (r(bs) * (W - size + 1)).long().tolist()
+    fy, fx = r(bs).tolist(), r(bs).tolist()
     flips = (r(bs, 3) < 0.5).tolist()
     xs, ys = [], []
     for k in range(bs):
-        im = imgs[idx[k], y0[k]:y0[k] + size, x0[k]:x0[k] + size]
-        m = masks[idx[k], 2 * y0[k]:2 * (y0[k] + size), 2 * x0[k]:2 * (x0[k] + size)]
+        c = cs[k]
+        y0, x0 = int(fy[k] * (H - c + 1)), int(fx[k] * (W - c + 1))
+        im = imgs[idx[k], y0:y0 + c, x0:x0 + c]
+        m = masks[idx[k], 2 * y0:2 * (y0 + c), 2 * x0:2 * (x0 + c)]
         if flips[k][0]:
             im, m = im.flip(1), m.flip(1)
         if flips[k][1]:
             im, m = im.flip(0), m.flip(0)
         if flips[k][2]:
             im, m = im.transpose(0, 1), m.transpose(0, 1)
+        im, m = im.permute(2, 0, 1).float(), m[None].float()
+        if c != size:
+            im = F.interpolate(im[None], size=(size, size), mode="bilinear", align_corners=False)[0]
+            m = F.interpolate(m[None], size=(2 * size, 2 * size), mode="bilinear", align_corners=False)[0]
         xs.append(im)
         ys.append(m)
-    x = torch.stack(xs).permute(0, 3, 1, 2).float()
-    y = torch.stack(ys)[:, None].float()
+    x = torch.stack(xs)
+    y = torch.stack(ys)
     x = _shadow(x, g)
     # photometric jitter beyond the renderer's own: gain per channel and overall, gamma
     x = x * (0.85 + 0.3 * r(bs, 3, 1, 1)) * (0.8 + 0.4 * r(bs, 1, 1, 1))
@@ -383,7 +413,7 @@ def cmd_train(args):
         lr = args.lr * min(1.0, (it + 1) / 100) * 0.5 * (1 + math.cos(math.pi * frac))
         for grp in opt.param_groups:
             grp["lr"] = lr
-        x, y = _batch(imgs, masks, g, args.crop, args.batch)
+        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom)
         with torch.autocast(**amp):
             out = _upsample2(model(x)).float()
         p = torch.sigmoid(out)
@@ -410,7 +440,7 @@ def cmd_train(args):
         best = v_iou
         torch.save(model.state_dict(), out_dir / f"{tag}.pt")
     info = {"arch": args.arch, "init": args.init, "parameters": n_params, "iterations": it, "batch": args.batch,
-            "crop_px": args.crop, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
+            "crop_px": args.crop, "zoom": args.zoom, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
             "device_name": torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu",
             "threads": args.threads if dev.type == "cpu" else None, "torch": torch.__version__,
             "train_seed": TRAIN_SEED, "best_val_iou": best, "log": log,
@@ -456,7 +486,8 @@ def cmd_export(args):
     sidecar = {
         "format": "rebarlib-segmentation/1",
         "input": {"name": "image", "size": [IN_W, IN_H], "channel_order": "RGB",
-                  "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32", "flips": list(args.flips)},
+                  "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32", "flips": list(args.flips),
+                  **({"max_bar_px": args.max_bar_px} if args.max_bar_px else {})},
         "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
         "model": {"architecture": args.arch, "trained_by": "training/train_segmentation.py",
                   "parameters": info["parameters"], "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
@@ -473,6 +504,8 @@ def main(argv=None):
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--n", type=int, default=None)
     a.add_argument("--extra", type=int, default=0, help="extra training captures beyond the 6:2:2 set")
+    a.add_argument("--relief", type=int, default=0, help="extra training captures with ribs in relief")
+    a.add_argument("--relief-val", type=int, default=0, help="validation captures also rendered with ribs in relief")
     a.add_argument("--jobs", type=int, default=2)
     a.add_argument("--jpeg-quality", type=int, default=90)
     a = sub.add_parser("train")
@@ -485,6 +518,7 @@ def main(argv=None):
     a.add_argument("--lr", type=float, default=3e-3)
     a.add_argument("--val-every-s", type=float, default=240)
     a.add_argument("--init", default=None, help="state dict to start from (continue training)")
+    a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
     a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
@@ -497,6 +531,8 @@ def main(argv=None):
     a.add_argument("--run-dir", default=None, help="where the run's state dict and log are (default: --work)")
     a.add_argument("--flips", nargs="*", default=[], choices=["h", "v", "hv"],
                    help="test-time flips written into the sidecar (the threshold is chosen with them)")
+    a.add_argument("--max-bar-px", type=float, default=None,
+                   help="the widest bar (input px) the model was trained on, written into the sidecar")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.segmentation import DATASET_SIZE
