@@ -9,8 +9,9 @@ the ONNX models), at the sensor's full 1280 x 800 resolution, and prints
    and the rust subset (pixels of rusty bars, grown by 3 px), and the gap to the overall figure
    (the issue's target: at most 3 points); also on every unlit pixel (cast shadows plus the
    self-shaded side of every bar: an edge-dominated subset, see ``synth_eval_regions``);
-3. colour-only vs depth-only vs fused masks (shipped model; ``fuse_masks`` with the colour
-   probability and the depth validity), overall and on both subsets;
+3. colour-only vs depth-only vs fused masks (every model, on the whole image and on
+   full-resolution tiles; ``fuse_masks`` with the colour probability and the depth validity),
+   overall and on the subsets;
 4. inference speed: median ms for one 1280 x 800 image (resize, network, full-resolution mask).
 
     python benchmarks/bench_segmentation.py            # the 60 test captures
@@ -18,7 +19,9 @@ the ONNX models), at the sensor's full 1280 x 800 resolution, and prints
     python benchmarks/bench_segmentation.py --ribs relief --count 20   # 20, ribs in relief
 
 ``--ribs relief`` renders the same scenes with the bars' ribs in relief (real bars are ribbed;
-the default draws them as their smooth envelope), about 10 x slower to render.
+the default draws them as their smooth envelope), about 10 x slower to render, and scores the
+masks against each bar's outline over its ribs (the same scene's labels with smooth envelopes),
+the region the models are trained to mark and the diameter stage measures (training/README.md).
 
 Models: the shipped ``rebarlib/models/rebar_seg.onnx`` and every ``training/candidates/*.onnx``
 (the architectures it was compared with), or those given with ``--models``.
@@ -86,15 +89,16 @@ def main(argv=None):
     subsets = ("all", "shadow", "rust", "unlit")
     hard = ("shadow", "rust")  # the issue's subsets (gap target)
     counts = {name: {s: _zero() for s in subsets} for name in models}
-    # "tiles": the shipped model on full-resolution tiles of the image (predict_proba(tiled=True)),
-    # as the refined diameter stage runs it
-    sources = ("colour", "depth", "fused", "colour, tiles", "fused, tiles")
+    # "tiles": a model on full-resolution tiles of the image (predict_proba(tiled=True)), as the
+    # refined diameter stage runs it; every model's masks, the depth mask's once
+    kinds = ("colour", "fused", "colour, tiles", "fused, tiles")
+    sources = ["depth"] + [f"{k} ({name})" if len(models) > 1 else k for name in models for k in kinds]
     fused_counts = {src: {s: _zero() for s in subsets} for src in sources}
     share = {s: [0, 0] for s in subsets[1:]}
     t0 = time.time()
     for n, i in enumerate(test):
         cap = synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr, rib_relief=relief)
-        truth = cap.labels > 0
+        truth = (synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr) if relief else cap).labels > 0
         regions = synth_eval_regions(int(i), cap, seed=DATASET_SEED, rib_relief=relief)
         regions["all"] = None
         for s in subsets[1:]:
@@ -106,12 +110,14 @@ def main(argv=None):
             for s in subsets:
                 counts[name][s] = _add(counts[name][s], confusion_counts(masks[name], truth, region=regions[s]))
         dmask = mask_from_depth(cap, rng=0)
-        fmask = fuse_masks(masks[shipped], dmask, color_proba=models[shipped].predict_proba(cap.color),
-                           depth_valid=cap.depth_mm > 0)
-        p_tiles = models[shipped].predict_proba(cap.color, tiled=True)
-        c_tiles = p_tiles > models[shipped].threshold
-        f_tiles = fuse_masks(c_tiles, dmask, color_proba=p_tiles, depth_valid=cap.depth_mm > 0)
-        for src, mk in zip(sources, (masks[shipped], dmask, fmask, c_tiles, f_tiles)):
+        got = [dmask]
+        for name, m in models.items():
+            fmask = fuse_masks(masks[name], dmask, color_proba=m.predict_proba(cap.color), depth_valid=cap.depth_mm > 0)
+            p_tiles = m.predict_proba(cap.color, tiled=True)
+            c_tiles = p_tiles > m.threshold
+            f_tiles = fuse_masks(c_tiles, dmask, color_proba=p_tiles, depth_valid=cap.depth_mm > 0)
+            got += [masks[name], fmask, c_tiles, f_tiles]
+        for src, mk in zip(sources, got):
             for s in subsets:
                 fused_counts[src][s] = _add(fused_counts[src][s], confusion_counts(mk, truth, region=regions[s]))
         print(f"  capture {n + 1}/{len(test)} (index {i}) done, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
@@ -139,7 +145,7 @@ def main(argv=None):
         print(f"| {name} | " + " | ".join(_pct(v) for v in ious + dices)
               + f" | {gap:5.2f} | {100 * (ious[0] - iou(c['unlit'])):5.2f} |")
 
-    print(f"\n## Colour vs depth vs fused masks (IoU %, shipped model {shipped})\n")
+    print("\n## Colour vs depth vs fused masks (IoU %" + (f", model {shipped}" if len(models) == 1 else "") + ")\n")
     print("| mask | " + " | ".join(f"IoU {s}" for s in subsets) + " | Dice all |")
     print("|---|" + "---:|" * (len(subsets) + 1))
     for src in sources:

@@ -52,19 +52,27 @@ def _render_one(job):
 
     key, folder, quality = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
-    if f_img.exists() and f_mask.exists():
-        return key
-    # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly as
-    # SegmentationModel does at run time; the label stays at full resolution, so the loss sees
-    # the bar edges to the full-resolution pixel (logits upsampled x2, as at run time)
     relief = isinstance(key, str) and key.endswith("r")
-    cap = synth_segmentation_capture(int(key[:-1]) if relief else int(key), seed=DATASET_SEED, rib_relief=relief)
-    small = cv2.resize(cap.color, (IN_W, IN_H), interpolation=cv2.INTER_AREA)
-    tmp_img, tmp_mask = f_img.with_suffix(".tmp.jpg"), f_mask.with_suffix(".tmp.png")
-    cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
-    cv2.imwrite(str(tmp_mask), (cap.labels > 0).astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    tmp_img.replace(f_img)
-    tmp_mask.replace(f_mask)
+    index = int(key[:-1]) if relief else int(key)
+    if not f_img.exists():
+        # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly
+        # as SegmentationModel does at run time
+        cap = synth_segmentation_capture(index, seed=DATASET_SEED, rib_relief=relief)
+        small = cv2.resize(cap.color, (IN_W, IN_H), interpolation=cv2.INTER_AREA)
+        tmp_img = f_img.with_suffix(".tmp.jpg")
+        cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
+        tmp_img.replace(f_img)
+    if not f_mask.exists():
+        # The label stays at full resolution, so the loss sees the bar edges to the
+        # full-resolution pixel (logits upsampled x2, as at run time). A bar with ribs in
+        # relief is labelled with its outline over the ribs (the same scene drawn with each
+        # bar as its smooth rib envelope), as an annotator outlines a ribbed bar and as the
+        # diameter stage reads a mask (bar sizes by their rib envelope): the gaps between the
+        # ribs, a few pixels long at most, are not "formwork"
+        lab = synth_segmentation_capture(index, seed=DATASET_SEED).labels > 0
+        tmp_mask = f_mask.with_suffix(".tmp.png")
+        cv2.imwrite(str(tmp_mask), lab.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        tmp_mask.replace(f_mask)
     return key
 
 
@@ -77,8 +85,9 @@ def cmd_data(args):
 
     Real bars are ribbed: ``--relief N`` adds N more training captures, the next indices after
     the extra ones, rendered with their ribs in relief (``rib_relief=True``; about 10 x the
-    render time of a smooth one), and ``--relief-val M`` validates on the first M validation
-    captures rendered that way too (entries ``"<index>r"`` in ``split.json``).
+    render time of a smooth one) and labelled with each bar's outline over its ribs (see
+    ``_render_one``), and ``--relief-val M`` validates on the first M validation captures
+    rendered that way too (entries ``"<index>r"`` in ``split.json``).
     """
     from concurrent.futures import ProcessPoolExecutor
 
@@ -365,6 +374,65 @@ def evaluate(model, imgs, masks, bs=4):
     return tp / max(tp + fp + fn, 1), 2 * tp / max(2 * tp + fp + fn, 1)
 
 
+def state_from_onnx(model, onnx_path):
+    """A state dict for ``model`` (one of :func:`build_model`'s networks, in eval mode) from an
+    ONNX file this script exported from the same architecture, so that training can go on from
+    a shipped model whose checkpoint is not kept.
+
+    The exporter folds every batch norm into the convolution before it: each Conv node (named
+    after its module, ``/l1/l1.0/l1.0.0/Conv``) carries W·γ/σ and β − μγ/σ. Those go into the
+    convolution and the batch norm after it becomes the identity with that bias (γ = 1,
+    running mean 0, running variance 1 − eps). The network then computes exactly what the ONNX
+    model does in eval mode; train it with its batch norms frozen (``--freeze-bn``), since batch
+    statistics would undo the folded scales."""
+    import onnx
+    import torch
+    from onnx import numpy_helper
+
+    graph = onnx.load(str(onnx_path)).graph
+    inits = {i.name: numpy_helper.to_array(i) for i in graph.initializer}
+    own = model.state_dict()
+    state = {k: v.clone() for k, v in own.items()}
+    done = set()
+    for node in graph.node:
+        if node.op_type != "Conv":
+            continue
+        path = node.name.split("/")[-2]  # the conv's module: "l1.0.0", "head", ...
+        w, b = inits[node.input[1]], inits[node.input[2]]
+        if f"{path}.weight" not in own or tuple(own[f"{path}.weight"].shape) != w.shape:
+            raise ValueError(f"{onnx_path}: Conv {node.name} matches no convolution of this architecture")
+        state[f"{path}.weight"] = torch.from_numpy(w.copy())
+        head, _, last = path.rpartition(".")
+        bn = f"{head}.{int(last) + 1}" if last.isdigit() else None
+        if f"{path}.bias" in own:
+            state[f"{path}.bias"] = torch.from_numpy(b.copy())
+        elif bn is not None and f"{bn}.running_var" in own:
+            eps = 1e-5
+            state[f"{bn}.weight"] = torch.ones_like(own[f"{bn}.weight"])
+            state[f"{bn}.bias"] = torch.from_numpy(b.copy())
+            state[f"{bn}.running_mean"] = torch.zeros_like(own[f"{bn}.running_mean"])
+            state[f"{bn}.running_var"] = torch.full_like(own[f"{bn}.running_var"], 1 - eps)
+            done.add(bn)
+        else:
+            raise ValueError(f"{onnx_path}: Conv {node.name} has a bias but its module has neither bias nor batch norm")
+        done.add(path)
+    missing = sorted({k.rsplit(".", 1)[0] for k in own} - done)
+    if missing:
+        raise ValueError(f"{onnx_path}: no weights for {', '.join(missing)}")
+    return state
+
+
+def _train_mode(model, freeze_bn: bool):
+    """Training mode, with the batch norms in eval mode (running statistics, kept) if ``freeze_bn``."""
+    from torch import nn
+
+    model.train()
+    if freeze_bn:
+        for mod in model.modules():
+            if isinstance(mod, nn.BatchNorm2d):
+                mod.eval()
+
+
 def cmd_train(args):
     import torch
     import torch.nn.functional as F
@@ -394,6 +462,10 @@ def cmd_train(args):
         if fresh:
             print(f"init from {args.init}: {len(same)} of {len(own)} tensors copied; "
                   f"freshly initialised: {', '.join(fresh)}", flush=True)
+    if args.init_onnx:
+        model.load_state_dict(state_from_onnx(model, args.init_onnx))
+        print(f"init from {args.init_onnx} (batch norms folded into the convolutions)", flush=True)
+    _train_mode(model, args.freeze_bn)
     n_params = sum(p.numel() for p in model.parameters())
     print(f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
           f"device {dev}", flush=True)
@@ -427,6 +499,7 @@ def cmd_train(args):
             print(f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True)
         if time.time() - last_val > args.val_every_s:
             v_iou, v_dice = evaluate(model, vimgs, vmasks)
+            _train_mode(model, args.freeze_bn)
             last_val = time.time()
             log.append({"it": it, "t_s": round(last_val - t0), "val_iou": v_iou, "val_dice": v_dice})
             print(f"VAL it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
@@ -440,7 +513,8 @@ def cmd_train(args):
         best = v_iou
         torch.save(model.state_dict(), out_dir / f"{tag}.pt")
     info = {"arch": args.arch, "init": args.init, "parameters": n_params, "iterations": it, "batch": args.batch,
-            "crop_px": args.crop, "zoom": args.zoom, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
+            "crop_px": args.crop, "zoom": args.zoom, "init_onnx": args.init_onnx,
+            "freeze_bn": args.freeze_bn, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
             "device_name": torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu",
             "threads": args.threads if dev.type == "cpu" else None, "torch": torch.__version__,
             "train_seed": TRAIN_SEED, "best_val_iou": best, "log": log,
@@ -518,6 +592,8 @@ def main(argv=None):
     a.add_argument("--lr", type=float, default=3e-3)
     a.add_argument("--val-every-s", type=float, default=240)
     a.add_argument("--init", default=None, help="state dict to start from (continue training)")
+    a.add_argument("--init-onnx", default=None, help="ONNX model exported by this script to start from (see state_from_onnx)")
+    a.add_argument("--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)")
     a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
     a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
