@@ -1209,7 +1209,9 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     Each such width is used where it is sound (and ``prm.colour_offset_bars`` bars gave its
     between-bar spread, :func:`_width_calibration`, the σ it is used with: ``{key}_sigma_mm``);
     every sound one must lie within ``prm.veto_k`` combined σ of the mask width (one that does
-    not is a conflict: nothing is settled). Their weighted mean with the mask width, its σ
+    not is a conflict: nothing is settled), and together (their weighted mean's σ) they must be
+    within the smaller half step from ``size`` to the next sizes (else they could not have told
+    it from a neighbour and confirm nothing). Their weighted mean with the mask width, its σ
     enlarged where they lie further apart than their σ say (Birge ratio), must snap to ``size``
     (the mask's own: they confirm, never overturn) with confidence ≥ ``prm.min_confidence``.
     """
@@ -1223,6 +1225,12 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
             return None
         used.append((key, w, sg))
     if not used:
+        return None
+    # confirming needs evidence that could have told the size from its neighbours: the widths
+    # together within a half size step at one σ (a circle fitted to a few millimetres of arc
+    # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
+    if 1 / math.sqrt(sum(1 / sg ** 2 for _, _, sg in used)) > min(
+            size_half_gaps_mm(size, system=system, deformed=deformed)):
         return None
     ws = np.array([med] + [w for _, w, _ in used])
     wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2

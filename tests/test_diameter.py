@@ -448,6 +448,19 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_i
     assert r["diameter_status"] == "not measured"
     r = _refined_decision(15.4, 0.3, 150, dict(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["width_source"] == "mask+stack+circle"
+    # a stack height that agrees but could not have told Φ14 from Φ12 or Φ16 confirms nothing:
+    # σ 1.2 mm is more than the smaller half step from Φ14 (1.10 mm to Φ16's 18.4) ...
+    r = _refined_decision(15.4, 0.3, 150, dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm,
+                          assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
+    # ... and so is a circle of σ 5 mm beside it (together σ 1.17 mm); a circle of σ 2 mm beside
+    # it brings them to 1.03 mm, within the half step: settled
+    weak = dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0)
+    r = _refined_decision(15.4, 0.3, 150, dict(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured"
+    r = _refined_decision(15.4, 0.3, 150, dict(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm,
+                          assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
 
 
 def test_circle_calibration_by_hand():
