@@ -37,12 +37,17 @@ ARCHS = ["unet", "deeplab", "deeplab_fine", "deeplab_fine_w"]
 # data
 
 
+def _entry(key) -> tuple[int, bool]:
+    """(capture index, ribs in relief) of a data-set entry: ``42`` (smooth bars) or ``"42r"``
+    (the same index drawn with its ribs in relief)."""
+    relief = isinstance(key, str) and key.endswith("r")
+    return int(key[:-1]) if relief else int(key), relief
+
+
 def _stem(key) -> str:
-    """File stem of a data-set entry: capture index ``i`` (smooth bars) -> "0042", ``"42r"``
-    (the same index drawn with its ribs in relief) -> "0042r"."""
-    if isinstance(key, str) and key.endswith("r"):
-        return f"{int(key[:-1]):04d}r"
-    return f"{int(key):04d}"
+    """File stem of a data-set entry: 42 -> "0042", "42r" -> "0042r"."""
+    index, relief = _entry(key)
+    return f"{index:04d}" + ("r" if relief else "")
 
 
 def _render_one(job):
@@ -52,8 +57,7 @@ def _render_one(job):
 
     key, folder, quality = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
-    relief = isinstance(key, str) and key.endswith("r")
-    index = int(key[:-1]) if relief else int(key)
+    index, relief = _entry(key)
     if not f_img.exists():
         # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly
         # as SegmentationModel does at run time
@@ -102,7 +106,7 @@ def cmd_data(args):
              "val": [int(i) for i in split["val"]] + [f"{int(i)}r" for i in split["val"][:args.relief_val]],
              "test": [int(i) for i in split["test"]]}
     # smooth captures first (quick), then the relief ones
-    wanted = sorted(split["train"] + split["val"], key=lambda k: (isinstance(k, str), _stem(k)))
+    wanted = sorted(split["train"] + split["val"], key=lambda k: _entry(k)[::-1])
     t0 = time.time()
     jobs = [(i, work / "data", args.jpeg_quality) for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
