@@ -1226,14 +1226,13 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
         used.append((key, w, sg))
     if not used:
         return None
+    ws = np.array([med] + [w for _, w, _ in used])
+    wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2
     # confirming needs evidence that could have told the size from its neighbours: the widths
     # together within a half size step at one σ (a circle fitted to a few millimetres of arc
     # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
-    if 1 / math.sqrt(sum(1 / sg ** 2 for _, _, sg in used)) > min(
-            size_half_gaps_mm(size, system=system, deformed=deformed)):
+    if 1 / math.sqrt(float(wt[1:].sum())) > min(size_half_gaps_mm(size, system=system, deformed=deformed)):
         return None
-    ws = np.array([med] + [w for _, w, _ in used])
-    wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2
     width = float((wt * ws).sum() / wt.sum())
     # Birge ratio: the scatter of the estimates around their mean against their σ
     birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1))

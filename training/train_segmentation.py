@@ -58,6 +58,7 @@ def _render_one(job):
     key, folder, quality = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
     index, relief = _entry(key)
+    cap = None
     if not f_img.exists():
         # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly
         # as SegmentationModel does at run time
@@ -73,7 +74,9 @@ def _render_one(job):
         # bar as its smooth rib envelope), as an annotator outlines a ribbed bar and as the
         # diameter stage reads a mask (bar sizes by their rib envelope): the gaps between the
         # ribs, a few pixels long at most, are not "formwork"
-        lab = synth_segmentation_capture(index, seed=DATASET_SEED).labels > 0
+        if cap is None or relief:  # (a smooth capture's render above has its labels)
+            cap = synth_segmentation_capture(index, seed=DATASET_SEED)
+        lab = cap.labels > 0
         tmp_mask = f_mask.with_suffix(".tmp.png")
         cv2.imwrite(str(tmp_mask), lab.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
         tmp_mask.replace(f_mask)
@@ -368,13 +371,16 @@ def _logits_full(model, imgs, bs=4, flips=()):
 
 
 def evaluate(model, imgs, masks, bs=4):
-    """Validation IoU and Dice at full resolution (logits upsampled x2, threshold p = 0.5)."""
+    """Validation IoU and Dice at full resolution (logits upsampled x2, threshold p = 0.5). Every
+    module's training mode is left as it was (frozen batch norms stay frozen)."""
+    modes = [(mod, mod.training) for mod in model.modules()]
     model.eval()
     tp = fp = fn = 0
     for s in range(0, len(imgs), bs):
         a, b, c = _iou_counts(_logits_full(model, imgs[s:s + bs]), masks[s:s + bs])
         tp, fp, fn = tp + a, fp + b, fn + c
-    model.train()
+    for mod, was in modes:
+        mod.train(was)
     return tp / max(tp + fp + fn, 1), 2 * tp / max(2 * tp + fp + fn, 1)
 
 
@@ -503,7 +509,6 @@ def cmd_train(args):
             print(f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True)
         if time.time() - last_val > args.val_every_s:
             v_iou, v_dice = evaluate(model, vimgs, vmasks)
-            _train_mode(model, args.freeze_bn)
             last_val = time.time()
             log.append({"it": it, "t_s": round(last_val - t0), "val_iou": v_iou, "val_dice": v_dice})
             print(f"VAL it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
