@@ -412,6 +412,21 @@ def _candidates(i, fp: _Footprints, window_bbox):
     return np.flatnonzero(hit)
 
 
+def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
+    """Per section (rows of the (M, K) profiles), whether the mask run's end ``end`` (an index
+    into the profile) went on past the depth step at ``end2`` (the same end with the deep samples
+    left out) over at least ``min_px`` pixels (``sample_px``: the profile's step in pixels, per
+    section) whose depth mostly lies well behind the bar (``deep``: valid depth, not a hole): a
+    surface there, not a lone flying pixel."""
+    K = deep.shape[1]
+    # the samples between the two ends, the run's own end (not a bar sample) left out
+    lo, hi = np.minimum(end, end2), np.maximum(end, end2)
+    idx = np.arange(K)[None, :]
+    part = (idx >= lo[:, None]) & (idx <= hi[:, None]) & (idx != end[:, None])
+    n = part.sum(axis=1)
+    return (n * sample_px >= min_px) & (2 * (part & deep).sum(axis=1) >= np.maximum(n, 1))
+
+
 def _tangent_correct(width_mm, distance_mm):
     # Silhouette rays are tangent to the cylinder: they meet γ at ±r·D/√(D² − r²), slightly
     # wider than the bar. Invert for the radius (exact for a circular cross-section).
@@ -441,6 +456,7 @@ class _RefinedParams:
     # uniform over a pixel: 1/√6 = 0.41 px); divided by √(pixel phases the edges sweep, ≥ 1)
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
+    sliver_min_px: float = 2.0  # a run going on this far (px) over a surface well behind: cut at the step
     colour_edges: object = "check"  # colour edges near the mask edges: "check" the mask, "replace" it, False
     depth_correlated_px: float = 4.0  # neighbouring depth points share noise: effective count / this
     cloud_bias_mm_per_m2: float = 1.5  # systematic uncertainty of a point-cloud diameter, x z² (m)
@@ -769,6 +785,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
     b = m >= 0.5
     behind = np.zeros_like(b)
+    deep = np.zeros_like(b)  # behind, with a valid depth
     if depth is not None:
         # Mask pixels whose depth lies well behind this bar belong to a bar under it that peeks
         # out beside it: the mask alone cannot separate the two, the point cloud can.
@@ -777,7 +794,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         dz = cv2.remap(depth, u.astype(np.float32), v.astype(np.float32), cv2.INTER_NEAREST,
                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         # no depth counts too: beside a bar the projector's shadow often hides the bar behind
-        behind = b & ((dz <= 0) | (dz > z + bar.expected_mm / 2 + prm.behind_mm))
+        deep = b & (dz > z + bar.expected_mm / 2 + prm.behind_mm)
+        behind = deep | (b & (dz <= 0))
     kc = K // 2
     idx = np.arange(K)
     rr = np.arange(M)
@@ -798,6 +816,12 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     left2, right2 = run_ends(b & ~behind)
     too_far_lo = (left < 0) | (t[np.clip(left, 0, K - 1)] < -fp.half_mm[i])
     too_far_hi = (right >= K) | (t[np.clip(right, 0, K - 1)] > fp.half_mm[i])
+    # Nor where the run goes on over a few pixels of a surface well behind: a bar under this one
+    # peeking out beside it by a few pixels stays within this bar's footprint (which has room
+    # for a size larger), and the run would take the sliver for part of this bar.
+    sample_px = (t[1] - t[0]) * intr.fx / st[:, 2]
+    too_far_lo |= _deep_end(left, left2, deep, sample_px, prm.sliver_min_px)
+    too_far_hi |= _deep_end(right, right2, deep, sample_px, prm.sliver_min_px)
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     # An edge is where the run meets a non-bar sample inside the image; a run that meets the
@@ -1425,8 +1449,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     system : bar-size standard for snapping; default the design's ``bar_system`` or "GB1499.2"
     deformed : snap against the rib envelope (deformed bars) or the nominal size (smooth bars)
     use_depth : refined: separate a bar from a bar peeking out behind it by the depth image
-        where the mask runs on (edges at such depth steps are used only when too few sections
-        have two clean mask edges)
+        where the mask runs on past the bar's footprint, or within it over at least 2 px whose
+        depth lies well behind the bar (a sliver of a bar under it, found or not by the geometry
+        stage); edges at such depth steps are used only when too few sections have two clean
+        mask edges
     colour_edges : refined: ``"check"`` (default) finds the colour edge within 2.5 px of each
         mask edge and widens the width's uncertainty by the disagreement between the colour and
         mask widths (a biased mask then gives "not measured", not a wrong size), less the

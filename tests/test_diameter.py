@@ -919,3 +919,61 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     assert not s.ribs_resolved.any() and s.rib_pitch_mm.isna().all()
     sm = s[s.diameter_status == "measured"]
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
+
+
+def _two_bars_capture(peek_px: float, *, hole: bool = False):
+    """A hand-built capture (camera K, formwork at 500 mm): an upper Φ12 bar along the image's v
+    axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
+    ``peek_px`` pixels beside the upper bar's right edge; ideal depth (none on the peeking strip
+    with ``hole``), the mask the bars' silhouettes, each pixel's ray traced through its centre."""
+    from rebarlib import Capture
+
+    up = (0.0, 400.0, observed_width_mm(12) / 2)  # x, z of the axis, radius (the rib envelope)
+    r_lo = observed_width_mm(14) / 2
+    edge_up = math.atan2(up[0], up[1]) + math.asin(up[2] / math.hypot(up[0], up[1]))  # right edge, rad
+    edge = math.tan(edge_up) + peek_px / K.fx  # where the lower bar's right edge is to be, x / z
+    lo = (edge * 470.0 - r_lo * math.hypot(1.0, edge), 470.0, r_lo)  # its axis r_lo left of that ray
+    a = (np.arange(K.width) - K.cx) / K.fx  # ray x / z per column (the bars run along v)
+    depth = np.full(K.width, 500.0)
+    label = np.zeros(K.width, np.uint8)
+    for k, (xc, zc, r) in ((1, lo), (2, up)):  # lower first, the upper bar drawn over it
+        # ray (s a, s) meets the circle (x - xc)^2 + (z - zc)^2 = r^2 at the smaller root s (= z)
+        A, B, C = a * a + 1, -2 * (a * xc + zc), xc * xc + zc * zc - r * r
+        disc = B * B - 4 * A * C
+        s = (-B - np.sqrt(np.maximum(disc, 0))) / (2 * A)
+        hit = (disc > 0) & (s < depth)
+        depth[hit], label[hit] = s[hit], k
+    if hole:
+        depth[label == 1] = 0.0
+    labels = np.repeat(label[None, :], K.height, axis=0)
+    grey = np.where(labels > 0, 90, 200).astype(np.uint8)
+    cap = Capture(np.repeat(grey[..., None], 3, axis=2), np.repeat(depth[None, :], K.height, axis=0), K,
+                  labels=labels)
+    bar = {"bar_id": 0, "layer": "upper", "level": "top",
+           "start_x_mm": up[0], "start_y_mm": -150.0, "start_z_mm": up[1],
+           "end_x_mm": up[0], "end_y_mm": 150.0, "end_z_mm": up[1]}
+    import pandas as pd
+
+    return cap, pd.DataFrame([bar])
+
+
+def test_a_bar_peeking_out_beside_a_bar_over_it_is_not_taken_for_part_of_it():
+    # The lower bar under an upper one was not found by the geometry stage (a sliver does not
+    # place an axis), so only the upper bar is in the table. Its mask run goes on over the few
+    # pixels of the lower bar beside it, within the upper bar's own footprint (which leaves room
+    # for a size larger): where those pixels' depth lies well behind the upper bar, the run ends
+    # at the depth step. (Without that, 3 px here read the Φ12 bar ~2 mm too wide.)
+    design = _design(14, 12)
+    env = observed_width_mm(12)
+    for peek_px in (2.5, 3.0, 3.5):
+        cap, bars = _two_bars_capture(peek_px)
+        assert (cap.labels == 1).sum(axis=1)[0] >= peek_px - 1  # the sliver is there
+        t = measure_diameters(cap, bars, cap.labels > 0, design=design).iloc[0]
+        assert abs(t.width_median_mm - env) <= 1.0 / K.fx * 400, (peek_px, t.width_median_mm)
+        assert t.diameter_status == "measured" and t.nominal_mm == 12
+    # with no depth on the strip (a projector's shadow) nothing tells the strip from the bar: the
+    # mask width is then too wide and must not give a confident size
+    cap, bars = _two_bars_capture(3.0, hole=True)
+    t = measure_diameters(cap, bars, cap.labels > 0, design=design).iloc[0]
+    assert t.width_median_mm > env + 1.0
+    assert not (t.diameter_status == "measured" and t.nominal_mm != 12 and t.confidence >= HIGH_CONFIDENCE)
