@@ -552,7 +552,9 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     uv = np.rint(project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)).astype(int)
     uv = uv[(uv[:, 0] >= 0) & (uv[:, 0] < W) & (uv[:, 1] >= 0) & (uv[:, 1] < H)]
     if unique:
-        uv = np.unique(uv, axis=0)
+        # rows sorted by u, then v, as np.unique(uv, axis=0) gives them, on a 1-D key (faster)
+        key = np.unique(uv[:, 0] * H + uv[:, 1])
+        uv = np.column_stack((key // H, key % H))
     z = depth[uv[:, 1], uv[:, 0]]
     good = z > 0
     return backproject(uv[good], z[good], intr) - plane.foot_mm
