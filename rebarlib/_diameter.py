@@ -427,6 +427,31 @@ def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
     return (n * sample_px >= min_px) & (2 * (part & deep).sum(axis=1) >= np.maximum(n, 1))
 
 
+def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
+    """"lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
+    ``t``; ``left2``, ``right2``: the same ends with the samples behind the bar or without depth
+    left out) end, at that side only, in a strip behind the bar or without depth at least
+    ``prm.sliver_min_px`` wide and half that wider than at the other end (medians over the
+    sections ``rows``), and are off the axis towards it by at least a quarter of the difference
+    and twice the axis's lateral tolerance: what a sliver of a bar under this one does in the
+    projector's shadow. "" otherwise (a bar's own edges lose a pixel or so of depth at grazing
+    angles, on both sides alike, and its runs stay centred)."""
+    rows = np.flatnonzero(rows & (left >= 0) & (right < len(t)))
+    if len(rows) < prm.min_sections:
+        return ""
+    px = sample_px[rows]
+    s_lo = float(np.median((left2 - left)[rows] * px))
+    s_hi = float(np.median((right - right2)[rows] * px))
+    px_mm = float(np.median((t[1] - t[0]) / px))
+    centre = float(np.median((t[left[rows] + 1] + t[right[rows] - 1]) / 2)) / px_mm  # px, + towards hi
+    for side, strip, other, sign in (("hi", s_hi, s_lo, 1.0), ("lo", s_lo, s_hi, -1.0)):
+        # off-centre by more than the axis's own lateral error could make it
+        if (strip >= prm.sliver_min_px and strip - other >= prm.sliver_min_px / 2
+                and sign * centre >= max((strip - other) / 4, 2 * prm.axis_sigma_mm / px_mm)):
+            return side
+    return ""
+
+
 def _tangent_correct(width_mm, distance_mm):
     # Silhouette rays are tangent to the cylinder: they meet γ at ±r·D/√(D² − r²), slightly
     # wider than the bar. Invert for the radius (exact for a circular cross-section).
@@ -763,7 +788,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
     info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
-            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0, "one_edge": 0}
+            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0, "one_edge": 0, "holed": 0}
     widths = np.full(M, np.nan)
     centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
     colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
@@ -824,6 +849,13 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     sample_px = (t[1] - t[0]) * intr.fx / st[:, 2]
     too_far_lo |= _deep_end(left, left2, deep, sample_px, prm.sliver_min_px)
     too_far_hi |= _deep_end(right, right2, deep, sample_px, prm.sliver_min_px)
+    # A strip behind the bar or without depth at one end of the runs only, with the runs off the
+    # axis towards it: most likely a bar under this one peeking out, in the projector's shadow
+    # where the depth cannot cut it off (and where it can, the sections cut there and those
+    # whose runs merged with it within the footprint disagree). That end is then no edge of this
+    # bar (below).
+    strip_side = _holed_side(t, left, right, left2, right2, ok & has_seed, sample_px, prm) if depth is not None else ""
+    info["holed_side"] = strip_side
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     # An edge is where the run meets a non-bar sample inside the image; a run that meets the
@@ -896,6 +928,12 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
                 bad_lo = bad_hi = bad_lo | bad_hi
             has_lo &= ~bad_lo
             has_hi &= ~bad_hi
+        if strip_side:  # the same for the end at the strip without depth
+            info["holed"] = int(two.sum())
+            if strip_side == "lo" or not bar.axis_ok:
+                has_lo = np.zeros_like(has_lo)
+            if strip_side == "hi" or not bar.axis_ok:
+                has_hi = np.zeros_like(has_hi)
         is_two = has_lo & has_hi
         is_one = has_lo ^ has_hi
         # a colour width is the width between two colour edges: it checks a section measured
@@ -1635,9 +1673,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                     "from one edge needs the axis placed to a fraction of a millimetre, which a sliver "
                     "does not give without taking the bar's radius as known")
         elif few:
-            why = max(("crossing", "no_edge", "border", "shadow", "outlier"), key=lambda k: info[k])
+            why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: info.get(k, 0))
             text = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",
-                    "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths"}
+                    "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths",
+                    "holed": "beside a strip without depth, most likely a bar under it peeking out"}
             row["diameter_reason"] = (f"too few clean cross-sections ({len(w)} of {info['stations']}; "
                                       f"most lost {text[why]})")
         elif method == "paper":
