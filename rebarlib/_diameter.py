@@ -443,7 +443,7 @@ def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
     s_lo = float(np.median((left2 - left)[rows] * px))
     s_hi = float(np.median((right - right2)[rows] * px))
     px_mm = float(np.median((t[1] - t[0]) / px))
-    centre = float(np.median((t[left[rows] + 1] + t[right[rows] - 1]) / 2)) / px_mm  # px, + towards hi
+    centre = float(np.median(t[left[rows] + 1] + t[right[rows] - 1])) / 2 / px_mm  # px, + to hi
     for side, strip, other, sign in (("hi", s_hi, s_lo, 1.0), ("lo", s_lo, s_hi, -1.0)):
         # off-centre by more than the axis's own lateral error could make it
         if (strip >= prm.sliver_min_px and strip - other >= prm.sliver_min_px / 2
@@ -481,7 +481,7 @@ class _RefinedParams:
     # uniform over a pixel: 1/√6 = 0.41 px); divided by √(pixel phases the edges sweep, ≥ 1)
     shadow_confidence: float = 0.7  # cap for a bar in shadow over its whole length
     behind_mm: float = 15.0  # depth this far behind the bar's surface: another object
-    sliver_min_px: float = 2.0  # a run going on this far (px) over a surface well behind: cut at the step
+    sliver_min_px: float = 2.0  # a run going on this far (px) over a surface well behind: cut there
     colour_edges: object = "check"  # colour edges near the mask edges: "check" the mask, "replace" it, False
     depth_correlated_px: float = 4.0  # neighbouring depth points share noise: effective count / this
     cloud_bias_mm_per_m2: float = 1.5  # systematic uncertainty of a point-cloud diameter, x z² (m)
@@ -854,8 +854,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # where the depth cannot cut it off (and where it can, the sections cut there and those
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
-    strip_side = _holed_side(t, left, right, left2, right2, ok & has_seed, sample_px, prm) if depth is not None else ""
-    info["holed_side"] = strip_side
+    strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2, ok & has_seed,
+                                                      sample_px, prm)
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     # An edge is where the run meets a non-bar sample inside the image; a run that meets the
@@ -1492,7 +1492,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         where the mask runs on past the bar's footprint, or within it over at least 2 px whose
         depth lies well behind the bar (a sliver of a bar under it, found or not by the geometry
         stage); edges at such depth steps are used only when too few sections have two clean
-        mask edges
+        mask edges. Where the runs end, at one side only, in a strip behind the bar or without
+        depth (a sliver in the projector's shadow) and lie off the axis towards it, that side is
+        no edge of the bar: it is sized from its other edge where its axis was measured
     colour_edges : refined: ``"check"`` (default) finds the colour edge within 2.5 px of each
         mask edge and widens the width's uncertainty by the disagreement between the colour and
         mask widths (a biased mask then gives "not measured", not a wrong size), less the
@@ -1673,7 +1675,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                     "from one edge needs the axis placed to a fraction of a millimetre, which a sliver "
                     "does not give without taking the bar's radius as known")
         elif few:
-            why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: info.get(k, 0))
+            why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: info[k])
             text = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",
                     "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths",
                     "holed": "beside a strip without depth, most likely a bar under it peeking out"}

@@ -986,9 +986,11 @@ def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_th
     for peek_px in (2.5, 3.0):
         cap, bars = _two_bars_capture(peek_px, hole=True)
         t = measure_diameters(cap, bars, cap.labels > 0, design=design).iloc[0]
-        assert abs(t.width_median_mm - env) <= 2 * 0.5 / K.fx * 400, (peek_px, t.width_median_mm)  # twice half a pixel
+        # twice half a pixel (a width from one edge to the axis)
+        assert abs(t.width_median_mm - env) <= 2 * 0.5 / K.fx * 400, (peek_px, t.width_median_mm)
         assert t.diameter_status == "measured" and t.nominal_mm == 12
-        t = measure_diameters(cap, bars.assign(status="not measured"), cap.labels > 0, design=design).iloc[0]
+        t = measure_diameters(cap, bars.assign(status="not measured"), cap.labels > 0,
+                              design=design).iloc[0]
         assert t.diameter_status == "not measured" and "strip without depth" in t.diameter_reason
     # a bar whose own flank has no depth (nothing peeking out: its runs centred on the axis)
     # keeps both its edges
