@@ -418,12 +418,11 @@ def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
     left out) over at least ``min_px`` pixels (``sample_px``: the profile's step in pixels, per
     section) whose depth mostly lies well behind the bar (``deep``: valid depth, not a hole): a
     surface there, not a lone flying pixel."""
-    K = deep.shape[1]
     # the samples between the two ends, the run's own end (not a bar sample) left out
     lo, hi = np.minimum(end, end2), np.maximum(end, end2)
-    idx = np.arange(K)[None, :]
+    idx = np.arange(deep.shape[1])[None, :]
     part = (idx >= lo[:, None]) & (idx <= hi[:, None]) & (idx != end[:, None])
-    n = part.sum(axis=1)
+    n = hi - lo
     return (n * sample_px >= min_px) & (2 * (part & deep).sum(axis=1) >= np.maximum(n, 1))
 
 
@@ -854,7 +853,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # where the depth cannot cut it off (and where it can, the sections cut there and those
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
-    strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2, ok & has_seed,
+    strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed,
                                                       sample_px, prm)
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
@@ -911,6 +910,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         # An edge is trusted unless it may belong to another bar: inside the footprint of a
         # nearer bar (ours is occluded there), or beyond our own expected width and inside a
         # farther bar's footprint (our run merged with the bar behind).
+        bad_lo = np.zeros(len(rows), bool)
+        bad_hi = np.zeros(len(rows), bool)
         if len(cand):
             px_mm = st[rows, 2] / intr.fx
             tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm))
@@ -922,18 +923,16 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
             # sections with one clean edge and the other at another bar (a sliver beside it)
             info["one_edge"] = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
-            # the side at another bar is lost; the other side may still give a one-sided width,
-            # if the axis may be measured from
-            if not bar.axis_ok:
-                bad_lo = bad_hi = bad_lo | bad_hi
-            has_lo &= ~bad_lo
-            has_hi &= ~bad_hi
-        if strip_side:  # the same for the end at the strip without depth
+        if strip_side:  # nor is the end at a strip without depth beside the bar (above)
             info["holed"] = int(two.sum())
-            if strip_side == "lo" or not bar.axis_ok:
-                has_lo = np.zeros_like(has_lo)
-            if strip_side == "hi" or not bar.axis_ok:
-                has_hi = np.zeros_like(has_hi)
+            bad_lo |= strip_side == "lo"
+            bad_hi |= strip_side == "hi"
+        # the side at another bar is lost; the other side may still give a one-sided width, if
+        # the axis may be measured from
+        if not bar.axis_ok:
+            bad_lo = bad_hi = bad_lo | bad_hi
+        has_lo &= ~bad_lo
+        has_hi &= ~bad_hi
         is_two = has_lo & has_hi
         is_one = has_lo ^ has_hi
         # a colour width is the width between two colour edges: it checks a section measured
