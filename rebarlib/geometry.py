@@ -104,12 +104,6 @@ def _lsq_plane(points) -> tuple[np.ndarray, float]:
     return _oriented(n, -float(n @ c))
 
 
-def _seed_open3d(rng) -> None:
-    import open3d as o3d
-
-    o3d.utility.random.seed(int(rng.integers(0, 2**31 - 1)))
-
-
 def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rng=None) -> tuple[Plane, np.ndarray]:
     """The paper's plane: Open3D RANSAC, inliers within ``threshold_mm`` (t₁ = 0.8 × design
     cover), ``max_trials`` hypotheses (k = 170). Returns ``(plane, inlier mask)``.
@@ -122,18 +116,17 @@ def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rn
     >>> np.round(plane.normal, 6).tolist(), round(float(plane.offset_mm), 3), int(inl.sum())
     ([0.0, 0.0, -1.0], 500.0, 500)
     """
-    from ._cloud import to_open3d
+    from ._cloud import ransac_plane
 
     pts = np.asarray(points, float)
     if len(pts) < 3:
         raise RebarInputError(f"points: need at least 3 points to fit the formwork plane, got {len(pts)}")
     rng = np.random.default_rng(rng)
-    _seed_open3d(rng)
-    model, idx = to_open3d(pts).segment_plane(distance_threshold=float(threshold_mm), ransac_n=3,
-                                              num_iterations=int(max_trials))
+    model, idx = ransac_plane(pts, threshold_mm=threshold_mm, iterations=max_trials,
+                              seed=int(rng.integers(0, 2**31 - 1)))
     n, d = _oriented(model[:3], model[3])
     mask = np.zeros(len(pts), bool)
-    mask[np.asarray(idx, int)] = True
+    mask[idx] = True
     return Plane(n, float(d), int(mask.sum())), mask
 
 

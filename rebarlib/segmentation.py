@@ -536,9 +536,8 @@ def fit_formwork_plane(points_mm, *, distance_mm: float = 4.0, max_points: int =
     >>> np.round(n, 6).tolist(), round(d, 3)
     ([0.0, 0.0, -1.0], 500.0)
     """
-    import open3d as o3d
-
     from ._checks import check_points
+    from ._cloud import ransac_plane
 
     pts = check_points(points_mm, "points_mm", min_count=3)
     rng = np.random.default_rng(rng)
@@ -549,10 +548,8 @@ def fit_formwork_plane(points_mm, *, distance_mm: float = 4.0, max_points: int =
     for _ in range(4):
         if len(cand) < 3:
             break
-        o3d.utility.random.seed(int(rng.integers(2**31)))
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cand))
-        (a, b, c, d), _ = pc.segment_plane(distance_threshold=float(distance_mm), ransac_n=3,
-                                           num_iterations=300)
+        (a, b, c, d), _ = ransac_plane(cand, threshold_mm=distance_mm, iterations=300,
+                                       seed=int(rng.integers(2**31)))
         n = np.array([a, b, c], float)
         s = np.linalg.norm(n)
         n, d = n / s, d / s

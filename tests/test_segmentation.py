@@ -355,6 +355,21 @@ def test_depth_mask_and_plane_against_labels(fresh_captures):
     assert np.array_equal(dm, mask_from_depth(cap, rng=0))  # seeded
 
 
+def test_the_same_seed_gives_the_same_plane_every_run(fresh_captures):
+    # Open3D's RANSAC stops early by default, and which of its threads' planes wins then depends
+    # on their timing: with these two seeds, these points gave one of two planes from run to run
+    # (4 and 6 of 10 runs each, 2 cores), and a few pixels of the depth mask changed with it
+    from rebarlib import depth_to_points
+
+    cap = fresh_captures[1]
+    pts = depth_to_points(cap.depth_mm, cap.intrinsics).points
+    for seed in (5, 37):
+        first = fit_formwork_plane(pts, rng=seed)
+        for _ in range(9):
+            n, d = fit_formwork_plane(pts, rng=seed)
+            assert np.array_equal(n, first[0]) and d == first[1], seed
+
+
 # The registration of colour and depth on half-resolution captures, the true labels standing for
 # the colour model's probability: measured within 0.14 px with depth moved by whole pixels; colour
 # moved by fractions of a pixel: 0.45 px (the estimate is pulled toward whole pixels where both
