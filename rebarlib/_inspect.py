@@ -133,9 +133,9 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
     the refined diameter stage places the edges to a fraction of a pixel. ``tiled``: run the
     model on full-resolution tiles of the image (``SegmentationModel.predict_proba``): a bar's
     edges placed about twice as finely as from the image down-scaled to the model's input; the
-    refined method uses it (README, "Bar diameters"). ``bar_width_px``: the widest bar's width in
-    the image (:func:`widest_bar_px`), so that the tiles are down-scaled where the bars would be
-    wider than the model knows (``SegmentationModel.tile_scale``).
+    refined method uses it (docs/diameters.md, "A full-resolution mask"). ``bar_width_px``: the
+    widest bar's width in the image (:func:`widest_bar_px`), so that the tiles are down-scaled
+    where the bars would be wider than the model knows (``SegmentationModel.tile_scale``).
 
     The mask is the colour image's, as it comes; :func:`registered_mask` also moves it onto the
     depth image where the two are misregistered.
