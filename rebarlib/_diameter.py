@@ -694,7 +694,7 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     periodogram of white noise normalised by its variance is exponential with mean 1, times the
     number of independent frequencies searched). ``(nan, 1.0)`` where there is too little to
     look at (fewer than 8 sections, constant widths, a bar shorter than three pitches, sections
-    too far apart for the band).
+    too far apart for the band, no peak inside the band: a spectrum rising to its edge).
 
     Only pitches of at least two section spacings (the median one) are searched: sampled that
     sparsely, a shorter period is indistinguishable from a slow one mirrored about the sampling
@@ -729,7 +729,16 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     f = np.linspace(fmin, fmax, int(math.ceil((fmax - fmin) * length * oversample)) + 1)
     ph = (2 * np.pi) * np.outer(f, s)
     power = ((np.cos(ph) @ w) ** 2 + (np.sin(ph) @ w) ** 2) / (len(w) * var)
-    k = int(power.argmax())
+    # A period is a peak: a local maximum at least one resolution (1 / length) inside the band.
+    # A width that wanders slowly along a smooth bar has a spectrum rising towards the longest
+    # pitch searched, and its largest value at the band's edge is that rise, not a period (seen:
+    # three smooth Φ10 bars of a learnt mask "agreeing" on 1.18-1.20 x their width, the edge)
+    peak = np.zeros(len(f), bool)
+    peak[1:-1] = (power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])
+    peak &= (f >= fmin + 1 / length) & (f <= fmax - 1 / length)
+    if not peak.any():
+        return math.nan, 1.0
+    k = int(np.flatnonzero(peak)[power[peak].argmax()])
     return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
 
 

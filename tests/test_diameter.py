@@ -807,18 +807,36 @@ def test_rib_periodicity_does_not_mirror_a_slow_wander_into_ribs():
     """Sections 4.5 mm apart along a smooth 9.3 mm bar whose width wanders slowly (a 300 mm
     period): mirrored about the sampling rate, the wander would read as a strong 4.4 mm pitch,
     inside the band searched for such a bar. Only pitches of two spacings and more are searched:
-    no ribs. Crests every 11 mm at the same spacing are found at 11 mm (not at their 7.6 mm
-    mirror); with the spacing beyond half the band's longest pitch nothing is searched."""
+    no ribs. Crests every 10 mm at the same spacing are found at 10 mm (not at their 8.2 mm
+    mirror; the band ends at 1.2 x the 9.1 mm width, so a pitch beyond it, such as 11 mm, is no
+    peak inside it); with the spacing beyond half the band's longest pitch nothing is searched."""
     from rebarlib._diameter import _rib_periodicity
 
     rng = np.random.default_rng(3)
     s = np.arange(220) * 4.5
     wander = 9.3 + 0.4 * np.sin(2 * np.pi * s / 300.0) + rng.normal(0, 0.05, len(s))
     assert _rib_periodicity(s, wander)[1] > 0.01
-    crest = ((s / 11.0) % 1.0) < 0.3
+    crest = ((s / 10.0) % 1.0) < 0.3
     pitch, p = _rib_periodicity(s, 9.0 + 1.0 * crest + rng.normal(0, 0.2, len(s)))
-    assert abs(pitch - 11.0) < 0.2 and p < 1e-9
+    assert abs(pitch - 10.0) < 0.2 and p < 1e-9
     assert _rib_periodicity(s * 1.5, 9.0 + 1.0 * crest)[1] == 1.0  # 6.75 mm apart: 13.5 mm and up
+
+
+def test_rib_periodicity_takes_no_edge_of_the_band_for_a_pitch():
+    """Sections 1 mm apart along a smooth 11.6 mm bar whose width changes with a 14.3 mm period,
+    just longer than the longest pitch searched (1.2 x the width, 13.9 mm): the spectrum inside
+    the band rises to its edge, and a plain maximum took that edge for a clear period (p ~ 0; on a
+    learnt mask's smooth bars the same edge, so three bars "agreed" on ribs). A period is a local
+    peak inside the band: none here. Crests every 7 mm on the same width change are found."""
+    from rebarlib._diameter import _rib_periodicity
+
+    rng = np.random.default_rng(0)
+    s = np.arange(300) * 1.0
+    change = 11.6 + 0.6 * np.sin(2 * np.pi * s / 14.3) + rng.normal(0, 0.05, len(s))
+    assert _rib_periodicity(s, change)[1] == 1.0
+    crest = ((s / 7.0) % 1.0) < 0.25
+    pitch, p = _rib_periodicity(s, change - 0.8 + 1.2 * crest)
+    assert abs(pitch - 7.0) < 0.1 and p < 1e-9
 
 
 def _rib_results(pitches, ps):
