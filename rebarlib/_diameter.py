@@ -732,7 +732,7 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     # A period is a peak: a local maximum at least one resolution (1 / length) inside the band.
     # A width that wanders slowly along a smooth bar has a spectrum rising towards the longest
     # pitch searched, and its largest value at the band's edge is that rise, not a period (seen:
-    # three smooth Φ10 bars of a learnt mask "agreeing" on 1.18-1.20 x their width, the edge)
+    # smooth Φ10 bars of a learnt mask with "clear" pitches at or next to 1.2 x their width)
     peak = np.zeros(len(f), bool)
     peak[1:-1] = (power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])
     peak &= (f >= fmin + 1 / length) & (f <= fmax - 1 / length)
