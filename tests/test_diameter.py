@@ -4,9 +4,10 @@ against hand-computed cases."""
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from rebarlib import GEMINI2, Intrinsics, RebarInputError, design_from_dict
+from rebarlib import GEMINI2, Capture, Intrinsics, RebarInputError, design_from_dict
 from rebarlib._barsizes import bar_system, observed_width_mm, snap_diameter
 from rebarlib._diameter import (BAR_COLUMNS, DIAMETER_COLUMNS, bars_from_truth, boundary_pixels,
                                 cross_section_direction, diameter_region, imaginary_plane,
@@ -653,8 +654,6 @@ def _cropped(cap, width_px):
     """The capture's left ``width_px`` columns: an image border through the scene."""
     from dataclasses import replace
 
-    from rebarlib import Capture
-
     k = replace(cap.intrinsics, width=int(width_px))
     return Capture(np.ascontiguousarray(cap.color[:, :width_px]), np.ascontiguousarray(cap.depth_mm[:, :width_px]),
                    k, dict(cap.metadata), np.ascontiguousarray(cap.labels[:, :width_px]),
@@ -944,8 +943,6 @@ def _two_bars_capture(peek_px: float, *, hole: bool = False):
     axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
     ``peek_px`` pixels beside the upper bar's right edge; ideal depth (none on the peeking strip
     with ``hole``), the mask the bars' silhouettes, each pixel's ray traced through its centre."""
-    from rebarlib import Capture
-
     up = (0.0, 400.0, observed_width_mm(12) / 2)  # x, z of the axis, radius (the rib envelope)
     r_lo = observed_width_mm(14) / 2
     edge_up = math.atan2(up[0], up[1]) + math.asin(up[2] / math.hypot(up[0], up[1]))  # right edge, rad
@@ -970,8 +967,6 @@ def _two_bars_capture(peek_px: float, *, hole: bool = False):
     bar = {"bar_id": 0, "layer": "upper", "level": "top",
            "start_x_mm": up[0], "start_y_mm": -150.0, "start_z_mm": up[1],
            "end_x_mm": up[0], "end_y_mm": 150.0, "end_z_mm": up[1]}
-    import pandas as pd
-
     return cap, pd.DataFrame([bar])
 
 
@@ -989,7 +984,6 @@ def test_a_bar_peeking_out_beside_a_bar_over_it_is_not_taken_for_part_of_it():
         t = measure_diameters(cap, bars, cap.labels > 0, design=design).iloc[0]
         assert abs(t.width_median_mm - env) <= 1.0 / K.fx * 400, (peek_px, t.width_median_mm)
         assert t.diameter_status == "measured" and t.nominal_mm == 12
-
 
 
 def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_the_bar_over_it():
@@ -1012,8 +1006,6 @@ def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_th
         assert t.diameter_status == "not measured" and "strip without depth" in t.diameter_reason
     # a bar whose own flank has no depth (nothing peeking out: its runs centred on the axis)
     # keeps both its edges
-    from rebarlib import Capture
-
     cap, bars = _two_bars_capture(0.0)
     depth = cap.depth_mm.copy()
     edge_px = int(K.cx + K.fx * env / 2 / 400)
