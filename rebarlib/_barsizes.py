@@ -22,6 +22,9 @@ class BarSystem:
     envelope_mm : tuple of float, outer diameter over the ribs of a deformed bar of each size
     core_mm : tuple of float, diameter of the core between the ribs (GB 1499.2 d1), what a
         silhouette shows between the rib crests where a camera resolves them
+    rib_pitch_mm : tuple of float, spacing of the transverse ribs of each size where the standard
+        sets one per size (GB 1499.2 l); empty where it does not (ASTM A615 only caps the
+        average spacing at 0.7 d, so a pitch there says nothing of the size)
     """
 
     name: str
@@ -29,6 +32,7 @@ class BarSystem:
     labels: tuple
     envelope_mm: tuple
     core_mm: tuple = ()
+    rib_pitch_mm: tuple = ()
 
     def label(self, nominal_mm: float) -> str:
         """Designation of a nominal size of this system (``""`` if it is not one)."""
@@ -43,6 +47,8 @@ class BarSystem:
 _GB = ((6, 5.8, 0.6), (8, 7.7, 0.8), (10, 9.6, 1.0), (12, 11.5, 1.2), (14, 13.4, 1.4),
        (16, 15.4, 1.5), (18, 17.3, 1.6), (20, 19.3, 1.7), (22, 21.3, 1.9), (25, 24.2, 2.1),
        (28, 27.2, 2.2), (32, 31.0, 2.4), (36, 35.0, 2.6), (40, 38.7, 2.9), (50, 48.5, 3.2))
+# GB 1499.2 crescent-rib bars: nominal spacing l of the transverse ribs per size (same order)
+_GB_PITCH = (4.0, 5.5, 7.0, 8.0, 9.0, 10.0, 10.0, 10.0, 10.5, 12.5, 12.5, 14.0, 15.0, 15.0, 16.0)
 _GB_RATIO = {s: (d1 + 2 * h) / s for s, d1, h in _GB}
 _GB_CORE_RATIO = {s: d1 / s for s, d1, h in _GB}
 
@@ -66,7 +72,7 @@ BAR_SYSTEMS = {
     "GB1499.2": BarSystem("GB1499.2", tuple(float(s) for s, _, _ in _GB),
                           tuple(f"Φ{s}" for s, _, _ in _GB),
                           tuple(round(d1 + 2 * h, 3) for _, d1, h in _GB),
-                          tuple(float(d1) for _, d1, _ in _GB)),
+                          tuple(float(d1) for _, d1, _ in _GB), _GB_PITCH),
     # ASTM A615 #3 .. #11, #14, #18 (nominal diameters in mm)
     "ASTM-A615": _system("ASTM-A615", (9.5, 12.7, 15.9, 19.1, 22.2, 25.4, 28.7, 32.3, 35.8, 43.0, 57.3),
                          ("#3", "#4", "#5", "#6", "#7", "#8", "#9", "#10", "#11", "#14", "#18")),
@@ -132,6 +138,22 @@ def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
     sysm = bar_system(system)
     w = float(width_mm)
     return float(sysm.sizes_mm[_nearest(sysm.core_mm, w)]) if math.isfinite(w) else math.nan
+
+
+def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
+    """Transverse-rib spacing the standard sets for size ``nominal_mm`` (NaN where it sets none,
+    or for a size not in its table).
+
+    Examples
+    --------
+    >>> rib_pitch_mm(12), rib_pitch_mm(14), rib_pitch_mm(12, system="ASTM-A615")
+    (8.0, 9.0, nan)
+    """
+    sysm = bar_system(system)
+    for s, p in zip(sysm.sizes_mm, sysm.rib_pitch_mm):
+        if abs(s - nominal_mm) < 1e-6:
+            return float(p)
+    return math.nan
 
 
 def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, size_half_gaps_mm,
-                        snap_diameter)
+from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
+                        size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 
@@ -510,6 +510,7 @@ class _RefinedParams:
     crest_quantile: float = 0.95  # the crests: the widest 5 % of the sections (crests with their flanks
     # cover a fifth to a third of the pitch)
     core_quantile: float = 0.1  # the core between the ribs
+    pitch_k: float = 3.0  # a pitch matches a size's l within this many times the capture's spread of pitches
     rib_reach: float = 0.3  # x rib height h: crescent ribs reach d1 + 2h in silhouette at some rolls,
     # about d1 + 1.4h at others: crest widths are read as d1 + 1.7h ± 0.3h
 
@@ -995,6 +996,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["rib_pitch_mm"], info["rib_p"], info["crest_mm"], info["core_mm"] = math.nan, 1.0, math.nan, math.nan
+    info["rib_length_mm"] = math.nan
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
         info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
                                                                                prm.core_quantile]))
@@ -1002,8 +1004,9 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
     if math.isfinite(info["crest_mm"]) and info["crest_mm"] - info["core_mm"] >= prm.rib_min_px * float(
             np.median(st[kept, 2])) / intr.fx:
-        info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity((st[kept] - bar.p0) @ pl.direction, w,
-                                                               band=prm.rib_band)
+        s_k = (st[kept] - bar.p0) @ pl.direction
+        info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity(s_k, w, band=prm.rib_band)
+        info["rib_length_mm"] = float(s_k.max() - s_k.min())
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
@@ -1340,9 +1343,84 @@ def _check_core(row: dict, info, prm, *, system) -> None:
     core = core_size(info["core_mm"], system=system)
     if core != row["nominal_mm"]:
         sysm = bar_system(system)
-        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=(
+        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, _pair=(row["nominal_mm"], core),
+                   diameter_reason=(
             f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(row['nominal_mm'])}, the "
             f"core between them ({info['core_mm']:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand"))
+
+
+def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
+    """Bars left between two sizes, sized by their rib pitch where the standard sets one per size.
+
+    Where a capture resolves ribs, each bar whose section widths are clearly periodic has a rib
+    pitch (:func:`_rib_periodicity`), and GB 1499.2 sets the spacing l of each size (Φ12 8.0 mm,
+    Φ14 9.0 mm: :func:`rib_pitch_mm`). A bar "not measured" because its widths lie between two
+    sizes (ambiguous, crests against core, mask against point cloud: ``row["_pair"]``) is sized
+    where its pitch lies within the band of exactly one of the two and they differ in l.
+
+    First the capture must show that its bars follow the table: the bars with a clear pitch are
+    grouped by ``keys`` (each bar's design size, else the size its width is nearest to); at
+    least ``prm.rib_min_bars`` of them in groups of two or more, and every such group's median
+    pitch nearest to its own size's l among the table's pitches (bars rolled by another
+    standard, or a renderer's own rib spacing, fail here and the pitch is not used). The band
+    is ``prm.pitch_k`` times the robust spread of those pitches about their table values (what
+    this capture's bars and mill show), and never narrower than the bar's own pitch resolution
+    (half a periodogram bin, pitch / (2 x the length read)). The size's confidence is the share
+    of the capture's clear pitches inside the band of their own size, (k + 1) / (n + 2): a
+    capture with few pitches to check the table against gives a confidence to match.
+    Rows are changed in place."""
+    sysm = bar_system(system)
+    if not sysm.rib_pitch_mm:
+        return
+    table = np.array(sysm.rib_pitch_mm, float)
+    clear = {}  # bar index -> (pitch, relative resolution)
+    for i, r in enumerate(results):
+        info = r[3]
+        if info["rib_p"] < prm.rib_bar_p and math.isfinite(info["rib_pitch_mm"]) and info["rib_length_mm"] > 0:
+            clear[i] = (info["rib_pitch_mm"], info["rib_pitch_mm"] / (2 * info["rib_length_mm"]))
+    groups = defaultdict(list)
+    for i in clear:
+        if math.isfinite(rib_pitch_mm(keys[i], system=system)):
+            groups[keys[i]].append(i)
+    groups = {k: v for k, v in groups.items() if len(v) >= 2}
+    if sum(len(v) for v in groups.values()) < prm.rib_min_bars:
+        return
+    for k, v in groups.items():
+        med = float(np.median([clear[i][0] for i in v]))
+        if table[np.abs(table - med).argmin()] != rib_pitch_mm(k, system=system):
+            return
+    members = [(i, rib_pitch_mm(k, system=system)) for k, v in groups.items() for i in v]
+    dev = np.array([clear[i][0] / lk - 1 for i, lk in members])
+    spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
+
+    def band(i):  # relative half-width of a size's band for bar i's pitch
+        return max(prm.pitch_k * spread, clear[i][1])
+
+    agree = sum(abs(d) <= band(i) for d, (i, _) in zip(dev, members))
+    conf = (agree + 1) / (len(members) + 2)
+    if conf < prm.min_confidence:
+        return
+    for i, row in enumerate(rows):
+        pair = row.get("_pair")
+        if row["diameter_status"] != NOT_MEASURED or pair is None or i not in clear:
+            continue
+        p = clear[i][0]
+        ls = [rib_pitch_mm(sz, system=system) for sz in pair]
+        if not all(math.isfinite(x) for x in ls) or ls[0] == ls[1]:
+            continue
+        inside = [abs(p / lk - 1) <= band(i) for lk in ls]
+        if sum(inside) != 1:
+            continue
+        j = inside.index(True)
+        size, other = pair[j], pair[1 - j]
+        why = row["diameter_reason"].removesuffix(": check it by hand")
+        reason = (f"size from the rib pitch {p:.2f} mm: {sysm.label(size)}'s is {ls[j]:g} mm, "
+                  f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
+        width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i][3]["mask_width_mm"]
+        _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
+               reason, shadows[i], prm)
+        row["matches_design"] = (bool(abs(size - row["design_diameter_mm"]) < 1e-6)
+                                 if math.isfinite(row["design_diameter_mm"]) else None)
 
 
 def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
@@ -1428,6 +1506,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         strict = veto_only and nom_c != nom_m
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
+            # the two sizes they point to (the rib pitch may tell them apart: _pitch_settle)
+            out["_pair"] = (snap_diameter(med, system=system, deformed=deformed)[0],
+                            nom_c if veto_only else snap_diameter(dw, system=system, deformed=deformed)[0])
             if veto_only:
                 _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm)
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
@@ -1467,6 +1548,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     if conf < prm.min_confidence:
         out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3),
                    diameter_reason=_ambiguous_reason(width, source, conf, nominal, system, deformed))
+        pair = bracketing_sizes(width, system=system, deformed=deformed)
+        if pair is not None:
+            out["_pair"] = (pair[0][0], pair[1][0])
         return out
     reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
     return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
@@ -1645,7 +1729,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             r[3]["level_width_mm"] = math.nan
     lums = np.array([r[3]["lum"] for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
-    rows = []
+    rows, shadows = [], []
     for i, bar in enumerate(prepared):
         w, occluded, in_img, info = results[i]
         # a bar in shadow over its whole length: its mask edges are the least reliable there is,
@@ -1713,6 +1797,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
             row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
         rows.append(row)
+        shadows.append(in_shadow)
+    if method == "refined" and ribs:
+        _pitch_settle(rows, results, sizes, shadows, prm, system=system)
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
     df["matches_design"] = df["matches_design"].astype(object)
     return df

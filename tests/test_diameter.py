@@ -938,6 +938,97 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
 
 
+def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0)):
+    """Hand-built inputs of ``_pitch_settle``: bars designed Φ12 with the rib pitches
+    ``pitches_12`` and Φ14 with ``pitches_14``, all sized by their widths, and a last bar designed
+    Φ12 whose widths left it between the sizes ``pair``, with the pitch ``pitch_amb``; each bar
+    read over 300 mm (a pitch resolution of about 1.5 %)."""
+    from rebarlib._diameter import _RefinedParams
+
+    rows, results, keys = [], [], []
+    for design, p in [(12.0, q) for q in pitches_12] + [(14.0, q) for q in pitches_14] + [(12.0, pitch_amb)]:
+        rows.append({"diameter_status": "measured", "nominal_mm": design, "design_diameter_mm": design,
+                     "diameter_reason": "", "width_used_mm": 13.9, "width_sigma_mm": 0.4, "width_source": "mask",
+                     "confidence": 0.95, "matches_design": True})
+        results.append((None, None, None, {"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": 300.0,
+                                           "mask_width_mm": 13.9}))
+        keys.append(design)
+    rows[-1].update(diameter_status="not measured", nominal_mm=math.nan, confidence=0.6, matches_design=None,
+                    width_used_mm=15.1, width_sigma_mm=0.7, _pair=pair,
+                    diameter_reason="ambiguous: width 15.1 mm (mask) lies between Φ12 (13.9 mm) and Φ14 (16.2 mm), "
+                                    "nearer Φ14 (confidence 0.60): check it by hand")
+    return rows, results, keys, [False] * len(rows), _RefinedParams()
+
+
+def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
+    # GB 1499.2 sets the transverse-rib spacing per size: Φ12 8.0 mm, Φ14 9.0 mm. The capture's
+    # bars follow it (7 + 3 clear pitches within a fraction of a per cent), so the bar left
+    # between Φ12 and Φ14 with a pitch of 9.02 mm is a Φ14, not its designed Φ12. Its confidence
+    # is the share of the capture's 11 clear pitches on their design size's spacing, (10 + 1) /
+    # (11 + 2) (its own, 9.02 mm on a bar designed Φ12, is the one that is not).
+    from rebarlib._diameter import _pitch_settle
+
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
+                                                    9.02)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    r = rows[-1]
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["matches_design"] is False
+    assert r["width_source"] == "mask+pitch" and r["confidence"] == pytest.approx(11 / 13, abs=1e-4)
+    assert r["diameter_reason"].startswith("size from the rib pitch 9.02 mm: Φ14's is 9 mm, Φ12's 8 mm")
+    assert all(x["diameter_status"] == "measured" and x["nominal_mm"] == x["design_diameter_mm"] for x in rows[:-1])
+
+
+@pytest.mark.parametrize("case, why", [
+    (([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 8.5), "a pitch half-way between the two"),
+    (([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 7.0), "Φ10's pitch, neither of the two"),
+    # a renderer's or another mill's own spacing, 0.6 d: the bars do not follow the table
+    (([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38], 8.4), "the capture's bars off the table"),
+    (([8.0, 8.03], [], 9.02), "too few clear pitches to check the table"),
+    (([8.0, 7.1, 8.9, 8.3, 7.6], [9.0, 9.6, 8.4], 9.0), "pitches too scattered to trust"),
+])
+def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(case, why):
+    from rebarlib._diameter import _pitch_settle
+
+    rows, results, keys, shadows, prm = _pitch_case(*case)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    assert rows[-1]["diameter_status"] == "not measured" and math.isnan(rows[-1]["nominal_mm"]), why
+    # a standard that sets no spacing per size (ASTM A615 only caps it at 0.7 d) never uses it
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
+                                                    9.02)
+    _pitch_settle(rows, results, keys, shadows, prm, system="ASTM-A615")
+    assert rows[-1]["diameter_status"] == "not measured"
+
+
+@pytest.fixture(scope="module")
+def relief_pitch_scene():
+    """A scene drawn with ribs in relief where some bars' widths leave them between two sizes
+    and their own rib pitch is clear (ideal sensor, full-resolution camera)."""
+    design = _design(14, 12)
+    dev = Deviations(rib_relief=True, spacers=False, chairs=False, ties=False)
+    cap = synth_capture(design, deviations=dev, height_mm=450, tilt_deg=5, seed=3, intrinsics=GEMINI2,
+                        sensor=SensorModel.ideal())
+    return design, cap
+
+
+def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitch(relief_pitch_scene, monkeypatch):
+    import rebarlib._diameter as dm
+
+    design, cap = relief_pitch_scene
+    bars = bars_from_truth(cap.truth)
+    t = _truth_table(cap, measure_diameters(cap, bars, cap.labels > 0, design=design))
+    by_pitch = t[t.width_source.str.endswith("+pitch")]
+    assert len(by_pitch) >= 1 and (by_pitch.nominal_mm == by_pitch.true_mm).all(), by_pitch
+    assert by_pitch.diameter_reason.str.startswith("size from the rib pitch").all()
+    meas = t[t.diameter_status == "measured"]
+    assert (meas.nominal_mm == meas.true_mm).all()
+    # without the pitch those bars are left between two sizes, and nothing else changes
+    monkeypatch.setattr(dm, "_pitch_settle", lambda *a, **k: None)
+    u = _truth_table(cap, measure_diameters(cap, bars, cap.labels > 0, design=design))
+    assert (u.loc[by_pitch.index, "diameter_status"] == "not measured").all()
+    rest = t.index.difference(by_pitch.index)
+    pd.testing.assert_frame_equal(t.loc[rest], u.loc[rest])
+
+
 def _two_bars_capture(peek_px: float, *, hole: bool = False):
     """A hand-built capture (camera K, formwork at 500 mm): an upper Φ12 bar along the image's v
     axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
