@@ -1366,8 +1366,10 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     is ``prm.pitch_k`` times the robust spread of those pitches about their table values (what
     this capture's bars and mill show), and never narrower than the bar's own pitch resolution
     (half a periodogram bin, pitch / (2 x the length read)). The size's confidence is the share
-    of the capture's clear pitches inside the band of their own size, (k + 1) / (n + 2): a
-    capture with few pitches to check the table against gives a confidence to match.
+    of the capture's clear pitches inside the band of a size the bar may be (its design size,
+    the size its widths gave, or one of the two they left it between), (k + 1) / (n + 2): a
+    capture with few pitches to check the table against gives a confidence to match, and one
+    whose pitches often match nothing the bar may be, a low one.
     Rows are changed in place."""
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
@@ -1396,7 +1398,12 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     def band(i):  # relative half-width of a size's band for bar i's pitch
         return max(prm.pitch_k * spread, clear[i][1])
 
-    agree = sum(abs(d) <= band(i) for d, (i, _) in zip(dev, members))
+    def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
+        row = rows[i]
+        return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
+
+    agree = sum(any(abs(clear[i][0] / rib_pitch_mm(sz, system=system) - 1) <= band(i) for sz in sizes_of(i))
+                for i, _ in members)
     conf = (agree + 1) / (len(members) + 2)
     if conf < prm.min_confidence:
         return

@@ -964,8 +964,9 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     # GB 1499.2 sets the transverse-rib spacing per size: Φ12 8.0 mm, Φ14 9.0 mm. The capture's
     # bars follow it (7 + 3 clear pitches within a fraction of a per cent), so the bar left
     # between Φ12 and Φ14 with a pitch of 9.02 mm is a Φ14, not its designed Φ12. Its confidence
-    # is the share of the capture's 11 clear pitches on their design size's spacing, (10 + 1) /
-    # (11 + 2) (its own, 9.02 mm on a bar designed Φ12, is the one that is not).
+    # is the share of the capture's 11 clear pitches on the spacing of a size their bar may be
+    # (its own, 9.02 mm on a bar designed Φ12, is Φ14's, one of the two its widths allow):
+    # (11 + 1) / (11 + 2).
     from rebarlib._diameter import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
@@ -973,7 +974,7 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
     r = rows[-1]
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["matches_design"] is False
-    assert r["width_source"] == "mask+pitch" and r["confidence"] == pytest.approx(11 / 13, abs=1e-4)
+    assert r["width_source"] == "mask+pitch" and r["confidence"] == pytest.approx(12 / 13, abs=1e-4)
     assert r["diameter_reason"].startswith("size from the rib pitch 9.02 mm: Φ14's is 9 mm, Φ12's 8 mm")
     assert all(x["diameter_status"] == "measured" and x["nominal_mm"] == x["design_diameter_mm"] for x in rows[:-1])
 
@@ -983,8 +984,11 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     (([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 7.0), "Φ10's pitch, neither of the two"),
     # a renderer's or another mill's own spacing, 0.6 d: the bars do not follow the table
     (([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38], 8.4), "the capture's bars off the table"),
-    (([8.0, 8.03], [], 9.02), "too few clear pitches to check the table"),
-    (([8.0, 7.1, 8.9, 8.3, 7.6], [9.0, 9.6, 8.4], 9.0), "pitches too scattered to trust"),
+    (([8.0], [], 9.02), "too few clear pitches to check the table (2, at least 3)"),
+    # pitches ±5 % about the table (each inside its band, 3 x their spread): 9.02 mm fits both
+    (([7.6, 8.4, 7.7, 8.3, 8.0, 7.8, 8.2], [8.6, 9.4, 9.0], 9.02), "pitches too scattered to tell 8 from 9 mm"),
+    # most pitches tight on the table, but 4 of 12 on no size their bars may be: (8 + 1) / (12 + 2)
+    (([8.0, 8.01, 7.99, 8.02, 6.2, 6.5, 11.0], [9.0, 9.01, 8.99, 10.9], 9.02), "pitches often on no size"),
 ])
 def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(case, why):
     from rebarlib._diameter import _pitch_settle
