@@ -1343,10 +1343,11 @@ def _check_core(row: dict, info, prm, *, system) -> None:
     core = core_size(info["core_mm"], system=system)
     if core != row["nominal_mm"]:
         sysm = bar_system(system)
-        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, _pair=(row["nominal_mm"], core),
-                   diameter_reason=(
-            f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(row['nominal_mm'])}, the "
-            f"core between them ({info['core_mm']:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand"))
+        reason = (f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(row['nominal_mm'])}, "
+                  f"the core between them ({info['core_mm']:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand")
+        # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
+        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason,
+                   _pair=(row["nominal_mm"], core))
 
 
 def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
@@ -1632,7 +1633,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     of the bar's width there is inside a nearer bar's footprint), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud", or "mask+" the independent widths
-    of veto mode, above: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    of veto mode, above, and "+pitch" at the end where the rib pitch told two sizes apart,
+    below: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
     ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
     the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
@@ -1649,7 +1651,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     (``crest_width_mm`` + 0.3 h, σ 0.3 h: how far crescent ribs reach in silhouette depends on
     the bar's roll), its point-cloud width is not used (a surface over crests and core alike),
     and a size its core (``core_width_mm`` against the standard's core diameters) does not
-    confirm is "not measured".
+    confirm is "not measured". A bar left between two sizes there (ambiguous, crests against
+    core, mask against cloud) is sized by its rib pitch where the system sets one per size
+    (GB 1499.2) and the capture's bars show that they follow it (:func:`_pitch_settle`:
+    ``width_source`` ending "+pitch", the reason naming the pitch and the two sizes' spacings).
 
     Examples
     --------
