@@ -36,10 +36,15 @@ class BarSystem:
 
     def label(self, nominal_mm: float) -> str:
         """Designation of a nominal size of this system (``""`` if it is not one)."""
-        for s, lab in zip(self.sizes_mm, self.labels):
+        return self.of_size(self.labels, nominal_mm, "")
+
+    def of_size(self, values, nominal_mm: float, default=None):
+        """The entry of ``values`` (one of this system's per-size tuples) for the nominal size
+        ``nominal_mm``; ``default`` where it is not one of the sizes (or ``values`` has none)."""
+        for s, v in zip(self.sizes_mm, values):
             if abs(s - nominal_mm) < 1e-6:
-                return lab
-        return ""
+                return v
+        return default
 
 
 # GB 1499.2 (docs/acceptance.md): nominal size, inner diameter d1, rib height h. The rib envelope
@@ -116,10 +121,8 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     if not deformed:
         return float(nominal_mm)
     sysm = bar_system(system)
-    for s, e in zip(sysm.sizes_mm, sysm.envelope_mm):
-        if abs(s - nominal_mm) < 1e-6:
-            return e
-    return _gb_like(float(nominal_mm))
+    e = sysm.of_size(sysm.envelope_mm, nominal_mm)
+    return e if e is not None else _gb_like(float(nominal_mm))
 
 
 def _nearest(values, x: float) -> int:
@@ -150,10 +153,7 @@ def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
     (8.0, 9.0, nan)
     """
     sysm = bar_system(system)
-    for s, p in zip(sysm.sizes_mm, sysm.rib_pitch_mm):
-        if abs(s - nominal_mm) < 1e-6:
-            return float(p)
-    return math.nan
+    return float(sysm.of_size(sysm.rib_pitch_mm, nominal_mm, math.nan))
 
 
 def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:

@@ -1514,9 +1514,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         strict = veto_only and nom_c != nom_m
         if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
             out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
-            # the two sizes they point to (the rib pitch may tell them apart: _pitch_settle)
-            out["_pair"] = (snap_diameter(med, system=system, deformed=deformed)[0],
-                            nom_c if veto_only else snap_diameter(dw, system=system, deformed=deformed)[0])
+            if not veto_only:  # (veto mode has snapped both above)
+                nom_m, nom_c = (snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw))
+            out["_pair"] = (nom_m, nom_c)  # the rib pitch may tell them apart (_pitch_settle)
             if veto_only:
                 _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm)
                 # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
