@@ -685,7 +685,8 @@ def _cloud_circle(depth, intr, plane: BarPlane, stations, centres, widths, prm):
     return 2 * r, 2 * s_r * math.sqrt(prm.depth_correlated_px)
 
 
-def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tuple[float, float]:
+def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4,
+                     width_mm: float | None = None) -> tuple[float, float]:
     """Strongest periodic component of a bar's section widths along it: ``(pitch_mm, p)``.
 
     The transverse ribs of a deformed bar make its silhouette's width periodic along the bar, at
@@ -696,6 +697,8 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     number of independent frequencies searched). ``(nan, 1.0)`` where there is too little to
     look at (fewer than 8 sections, constant widths, a bar shorter than three pitches, sections
     too far apart for the band, no peak inside the band: a spectrum rising to its edge).
+    ``width_mm``: the bar's width the band is relative to, where ``w_mm`` is another signal along
+    the bar (one edge's position, :func:`_edge_pitch`); default the median of ``w_mm``.
 
     Only pitches of at least two section spacings (the median one) are searched: sampled that
     sparsely, a shorter period is indistinguishable from a slow one mirrored about the sampling
@@ -717,7 +720,7 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
     w = np.asarray(w_mm, float)
     if len(w) < 8:
         return math.nan, 1.0
-    width = float(np.median(w))
+    width = float(np.median(w)) if width_mm is None else float(width_mm)
     w = w - w.mean()
     var = float(w @ w) / len(w)
     length = float(s.max() - s.min())
@@ -741,6 +744,36 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4) -> tup
         return math.nan, 1.0
     k = int(np.flatnonzero(peak)[power[peak].argmax()])
     return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
+
+
+def _edge_pitch(info, prm) -> tuple[float, float] | None:
+    """A bar's rib pitch read from each of its edges on its own: ``(pitch_mm, relative
+    resolution)`` where both edges are clearly periodic (p < ``prm.rib_bar_p`` each, from
+    :func:`_rib_periodicity`) at one pitch (within a periodogram bin, pitch / length read), else
+    None.
+
+    The transverse ribs on the two sides of the longitudinal ribs need not be in step along the
+    bar, so its width, the difference of its two edges, can hide the pitch each edge shows. Each edge is read against a
+    straight line along the bar (an axis a little askew across the bar tilts it). The two edges'
+    noise is independent, so both clear at one pitch is rarer from noise than one clear width."""
+    s, lo, hi = info.get("edges", (np.zeros(0),) * 3)
+    good = np.isfinite(lo) & np.isfinite(hi)
+    if good.sum() < prm.rib_min_sections:
+        return None
+    s, lo, hi = s[good], lo[good], hi[good]
+    length = float(s.max() - s.min())
+    width = float(np.median(hi - lo))
+    pitches = []
+    for e in (lo, hi):
+        e = e - np.polyval(np.polyfit(s, e, 1), s)
+        pitch, p = _rib_periodicity(s, e, band=prm.rib_band, width_mm=width)
+        if not p < prm.rib_bar_p:
+            return None
+        pitches.append(pitch)
+    pitch = float(np.mean(pitches))
+    if abs(pitches[0] - pitches[1]) > pitch * pitch / length:
+        return None
+    return pitch, pitch / (2 * length)
 
 
 def _ribs_in_view(results, prm, sizes=None) -> float:
@@ -803,6 +836,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
     d_centre = np.full(M, np.nan)  # middle and width of the band the point cloud is read in
     d_width = np.full(M, np.nan)
+    edge_lo = np.full(M, np.nan)  # the two edges of a section with both, mm from the axis in γ
+    edge_hi = np.full(M, np.nan)
     cut = np.zeros(M, bool)
     ok = in_img.copy()
 
@@ -953,6 +988,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         one_sided[rows] = is_one
         widths[rows] = np.where(is_two, t_hi - t_lo, np.where(has_lo, -2 * t_lo, 2 * t_hi))
         centres[rows] = np.where(is_two, (t_hi + t_lo) / 2, 0.0)
+        edge_lo[rows] = np.where(is_two, t_lo, np.nan)
+        edge_hi[rows] = np.where(is_two, t_hi, np.nan)
         # the point cloud of a one-sided section: from the visible half, between edge and axis
         d_centre[rows] = np.where(is_two, centres[rows], np.where(has_lo, t_lo, t_hi) / 2)
         d_width[rows] = np.where(is_two, widths[rows], widths[rows] / 2)
@@ -997,6 +1034,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["rib_pitch_mm"], info["rib_p"], info["crest_mm"], info["core_mm"] = math.nan, 1.0, math.nan, math.nan
     info["rib_length_mm"] = math.nan
+    # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
+    info["edges"] = ((st[kept] - bar.p0) @ pl.direction, edge_lo[kept], edge_hi[kept])
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
         info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
                                                                                prm.core_quantile]))
@@ -1394,6 +1433,9 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
             return
     members = [(i, rib_pitch_mm(k, system=system)) for k, v in groups.items() for i in v]
     dev = np.array([clear[i][0] / lk - 1 for i, lk in members])
+    # a scale all of the capture's pitches share (the camera's depth scale, its focal length) is
+    # the capture's, not the bars': pitches are matched to the table times it
+    scale = 1 + float(np.median(dev))
     spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
 
     def band(i):  # relative half-width of a size's band for bar i's pitch
@@ -1403,26 +1445,30 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
         row = rows[i]
         return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
 
-    agree = sum(any(abs(clear[i][0] / rib_pitch_mm(sz, system=system) - 1) <= band(i) for sz in sizes_of(i))
+    agree = sum(any(abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1) <= band(i) for sz in sizes_of(i))
                 for i, _ in members)
     conf = (agree + 1) / (len(members) + 2)
     if conf < prm.min_confidence:
         return
     for i, row in enumerate(rows):
         pair = row.get("_pair")
-        if row["diameter_status"] != NOT_MEASURED or pair is None or i not in clear:
+        if row["diameter_status"] != NOT_MEASURED or pair is None:
             continue
-        p = clear[i][0]
+        # a bar whose width shows no clear pitch may show it along each of its edges
+        read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i][3], prm), " (along both edges)")
+        if read is None:
+            continue
+        p, resolution = read
         ls = [rib_pitch_mm(sz, system=system) for sz in pair]
         if not all(math.isfinite(x) for x in ls) or ls[0] == ls[1]:
             continue
-        inside = [abs(p / lk - 1) <= band(i) for lk in ls]
+        inside = [abs(p / (scale * lk) - 1) <= max(prm.pitch_k * spread, resolution) for lk in ls]
         if sum(inside) != 1:
             continue
         j = inside.index(True)
         size, other = pair[j], pair[1 - j]
         why = row["diameter_reason"].removesuffix(": check it by hand")
-        reason = (f"size from the rib pitch {p:.2f} mm: {sysm.label(size)}'s is {ls[j]:g} mm, "
+        reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
                   f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
         width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i][3]["mask_width_mm"]
         _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",

@@ -938,11 +938,11 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
 
 
-def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0)):
+def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_mm=300.0):
     """Hand-built inputs of ``_pitch_settle``: bars designed Φ12 with the rib pitches
     ``pitches_12`` and Φ14 with ``pitches_14``, all sized by their widths, and a last bar designed
     Φ12 whose widths left it between the sizes ``pair``, with the pitch ``pitch_amb``; each bar
-    read over 300 mm (a pitch resolution of about 1.5 %)."""
+    read over ``length_mm`` (300 mm: a pitch resolution of about 1.5 %)."""
     from rebarlib._diameter import _RefinedParams
 
     rows, results, keys = [], [], []
@@ -950,7 +950,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0)):
         rows.append({"diameter_status": "measured", "nominal_mm": design, "design_diameter_mm": design,
                      "diameter_reason": "", "width_used_mm": 13.9, "width_sigma_mm": 0.4, "width_source": "mask",
                      "confidence": 0.95, "matches_design": True})
-        results.append((None, None, None, {"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": 300.0,
+        results.append((None, None, None, {"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": length_mm,
                                            "mask_width_mm": 13.9}))
         keys.append(design)
     rows[-1].update(diameter_status="not measured", nominal_mm=math.nan, confidence=0.6, matches_design=None,
@@ -1001,6 +1001,74 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
                                                     9.02)
     _pitch_settle(rows, results, keys, shadows, prm, system="ASTM-A615")
     assert rows[-1]["diameter_status"] == "not measured"
+
+
+def test_rib_pitch_is_matched_after_the_scale_the_capture_s_pitches_share():
+    # Every pitch of the capture reads 0.8 % long (a depth scale or focal length a little off),
+    # each within 0.02 % of the others, over 1 m of bar (a resolution of 0.45 %): against the
+    # table itself no pitch is on its size, against the table times the capture's common scale
+    # all are, and 9.07 mm is Φ14's 9 mm.
+    from rebarlib._diameter import _pitch_settle
+
+    rows, results, keys, shadows, prm = _pitch_case(
+        [8.064, 8.066, 8.062, 8.065, 8.063], [9.072, 9.073, 9.071], 9.07, length_mm=1000.0)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    r = rows[-1]
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
+    assert r["confidence"] == pytest.approx(10 / 11, abs=1e-4)
+    # a single bar's pitch 0.8 % off while the others are on the table is no scale of the
+    # capture: it is off its size, and so is 9.07 mm against 9 mm
+    rows, results, keys, shadows, prm = _pitch_case(
+        [8.0, 8.002, 7.998, 8.001, 7.999], [9.0, 9.001, 8.999], 9.07, length_mm=1000.0)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    assert rows[-1]["diameter_status"] == "not measured"
+
+
+def _edges_info(s, pitch_lo, pitch_hi, *, shift=0.5, noise=0.15, seed=0):
+    """A bar's ``info["edges"]``: its two edges at ±7 mm along ``s``, each with rib crests 1 mm
+    high over 30 % of its own pitch, the high side's set off by ``shift`` of a pitch, and
+    N(0, ``noise``) mm on each edge (None for a pitch: no ribs on that side)."""
+    rng = np.random.default_rng(seed)
+
+    def crests(pitch, phase):
+        return np.zeros(len(s)) if pitch is None else 1.0 * (np.mod(s / pitch - phase, 1.0) < 0.3)
+
+    lo = -7.0 - crests(pitch_lo, 0.0) + rng.normal(0, noise, len(s))
+    hi = 7.0 + crests(pitch_hi, shift) + rng.normal(0, noise, len(s))
+    return {"edges": (s, lo, hi)}
+
+
+def test_edge_pitch_reads_the_ribs_a_width_hides():
+    # The two sides' crests set off by half a pitch: the width, their difference, repeats every
+    # 4.5 mm, shorter than any pitch a 14 mm bar's ribs may have (0.4-1.2 x its width), so the
+    # width shows no pitch; each edge shows 9 mm.
+    from rebarlib._diameter import _RefinedParams, _edge_pitch, _rib_periodicity
+
+    prm = _RefinedParams()
+    s = np.arange(0, 600, 2.2)
+    info = _edges_info(s, 9.0, 9.0)
+    lo, hi = info["edges"][1:]
+    pitch_w, p_w = _rib_periodicity(s, hi - lo)
+    assert not (p_w < prm.rib_bar_p and abs(pitch_w - 9.0) < 0.5)
+    pitch, resolution = _edge_pitch(info, prm)
+    assert pitch == pytest.approx(9.0, abs=0.05) and resolution == pytest.approx(9.0 / 1200, rel=0.02)
+    # an axis askew across the bar (0.6°) tilts each edge along it by 6 mm over the bar: each
+    # edge is read against a line, not a level (against a level, its variance would swamp the ribs)
+    tilt = 0.01 * s
+    assert _edge_pitch({"edges": (s, lo + tilt, hi + tilt)}, prm)[0] == pytest.approx(9.0, abs=0.05)
+
+
+@pytest.mark.parametrize("pitch_lo, pitch_hi, why", [
+    (9.0, 8.0, "the two edges at two pitches"),
+    (9.0, None, "one edge without ribs (a longitudinal rib facing that side)"),
+    (None, None, "no ribs at all"),
+])
+def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why):
+    from rebarlib._diameter import _RefinedParams, _edge_pitch
+
+    assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), _RefinedParams()) is None, why
+    # too few sections to read a periodicity from
+    assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), _RefinedParams()) is None
 
 
 @pytest.fixture(scope="module")
