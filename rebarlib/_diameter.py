@@ -1396,15 +1396,19 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     pitch (:func:`_rib_periodicity`), and GB 1499.2 sets the spacing l of each size (Φ12 8.0 mm,
     Φ14 9.0 mm: :func:`rib_pitch_mm`). A bar "not measured" because its widths lie between two
     sizes (ambiguous, crests against core, mask against point cloud: ``row["_pair"]``) is sized
-    where its pitch lies within the band of exactly one of the two and they differ in l.
+    where its pitch lies within the band of exactly one of the two and they differ in l. Its
+    pitch is its width's where that is clear, else the one both its edges show
+    (:func:`_edge_pitch`).
 
     First the capture must show that its bars follow the table: the bars with a clear pitch are
     grouped by ``keys`` (each bar's design size, else the size its width is nearest to); at
     least ``prm.rib_min_bars`` of them in groups of two or more, and every such group's median
     pitch nearest to its own size's l among the table's pitches (bars rolled by another
-    standard, or a renderer's own rib spacing, fail here and the pitch is not used). The band
-    is ``prm.pitch_k`` times the robust spread of those pitches about their table values (what
-    this capture's bars and mill show), and never narrower than the bar's own pitch resolution
+    standard, or a renderer's own rib spacing, fail here and the pitch is not used). Pitches are
+    matched to the table times the scale they share (1 + their median deviation from it: the
+    camera's depth scale or focal length a little off moves them all). The band is
+    ``prm.pitch_k`` times the robust spread of those pitches about that scale (what this
+    capture's bars and mill show), and never narrower than the bar's own pitch resolution
     (half a periodogram bin, pitch / (2 x the length read)). The size's confidence is the share
     of the capture's clear pitches inside the band of a size the bar may be (its design size,
     the size its widths gave, or one of the two they left it between), (k + 1) / (n + 2): a
@@ -1698,8 +1702,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     the bar's roll), its point-cloud width is not used (a surface over crests and core alike),
     and a size its core (``core_width_mm`` against the standard's core diameters) does not
     confirm is "not measured". A bar left between two sizes there (ambiguous, crests against
-    core, mask against cloud) is sized by its rib pitch where the system sets one per size
-    (GB 1499.2) and the capture's bars show that they follow it (:func:`_pitch_settle`:
+    core, mask against cloud) is sized by its rib pitch (its width's, else both its edges' where
+    they agree, :func:`_edge_pitch`) where the system sets one per size (GB 1499.2) and the
+    capture's bars show that they follow it (:func:`_pitch_settle`:
     ``width_source`` ending "+pitch", the reason naming the pitch and the two sizes' spacings).
 
     Examples
