@@ -1059,6 +1059,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
+    # (along the bar, for a capture whose mask smooths its ribs away: _colour_ribs)
+    info["colour_widths"] = ((st[kept] - bar.p0) @ pl.direction, cw)
     cw = cw[np.isfinite(cw)]
     info["colour_width_mm"] = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
@@ -1389,6 +1391,76 @@ def _check_core(row: dict, info, prm, *, system) -> None:
                    _pair=(row["nominal_mm"], core))
 
 
+def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
+    """Whether a capture's clear rib pitches follow its size system's spacings (see
+    :func:`_pitch_settle`): ``(scale, spread, confidence)``, or None where they cannot show it.
+
+    ``clear``: bar index -> (pitch mm, relative resolution); ``keys``: each bar's size (its
+    design's); ``sizes_of(i)``: the sizes bar i may be (default its key). The pitches are grouped
+    by size; at least ``prm.rib_min_bars`` of them in groups of two or more, and each group's
+    median pitch nearest to its own size's spacing among the table's. ``scale``: 1 + the median
+    deviation of those pitches from their spacings (shared by all: the depth scale, the focal
+    length); ``spread``: their robust spread about it; ``confidence``: (k + 1) / (n + 2), k of
+    the n pitches within ``prm.pitch_k`` x spread (or their own resolution) of the scaled
+    spacing of a size their bar may be."""
+    sysm = bar_system(system)
+    if not sysm.rib_pitch_mm:
+        return None
+    table = np.array(sysm.rib_pitch_mm, float)
+    groups = defaultdict(list)
+    for i in clear:
+        if math.isfinite(rib_pitch_mm(keys[i], system=system)):
+            groups[keys[i]].append(i)
+    groups = {k: v for k, v in groups.items() if len(v) >= 2}
+    if sum(len(v) for v in groups.values()) < prm.rib_min_bars:
+        return None
+    for k, v in groups.items():
+        med = float(np.median([clear[i][0] for i in v]))
+        if table[np.abs(table - med).argmin()] != rib_pitch_mm(k, system=system):
+            return None
+    members = [(i, rib_pitch_mm(k, system=system)) for k, v in groups.items() for i in v]
+    dev = np.array([clear[i][0] / lk - 1 for i, lk in members])
+    # a scale all of the capture's pitches share (the camera's depth scale, its focal length) is
+    # the capture's, not the bars': pitches are matched to the table times it
+    scale = 1 + float(np.median(dev))
+    spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
+    sizes_of = sizes_of or (lambda i: {keys[i]})
+    agree = sum(any(abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1)
+                    <= max(prm.pitch_k * spread, clear[i][1]) for sz in sizes_of(i))
+                for i, _ in members)
+    return scale, spread, (agree + 1) / (len(members) + 2)
+
+
+def _colour_ribs(results, keys, prm, *, system) -> bool:
+    """Whether the colour image shows the ribs of a capture whose mask widths do not: a learnt
+    mask may smooth the ribs away, so that the capture looks like one without resolved ribs,
+    and its bars' median widths (mostly core) read a size down.
+
+    The colour widths (between the colour edges next to the mask's, :func:`_colour_edges_rgb`)
+    must pass both tests the mask widths' periodicity passes (:func:`_ribs_in_view`) and also
+    follow the size table's spacings (:func:`_pitch_table`, confidence at least
+    ``prm.min_confidence``): on smooth bars the colour edges of a slanted bar step with the pixel
+    grid, periodically and alike on parallel bars, but not at their sizes' rib spacing. Only for
+    systems that set a spacing per size (GB 1499.2)."""
+    if not bar_system(system).rib_pitch_mm:
+        return False
+    reads = []
+    for r in results:
+        s, cw = r[3].get("colour_widths", (np.zeros(0), np.zeros(0)))
+        good = np.isfinite(cw)
+        pitch, p = (math.nan, 1.0)
+        if good.sum() >= prm.rib_min_sections:
+            pitch, p = _rib_periodicity(s[good], cw[good], band=prm.rib_band)
+        reads.append((pitch, p, float(np.ptp(s[good])) if good.any() else 0.0))
+    if _ribs_in_view([(None, None, None, {"rib_pitch_mm": q, "rib_p": p}) for q, p, _ in reads], prm,
+                     keys) >= prm.rib_capture_p:
+        return False
+    clear = {i: (q, q / (2 * length)) for i, (q, p, length) in enumerate(reads)
+             if p < prm.rib_bar_p and math.isfinite(q) and length > 0}
+    fit = _pitch_table(clear, keys, prm, system=system)
+    return fit is not None and fit[2] >= prm.min_confidence
+
+
 def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     """Bars left between two sizes, sized by their rib pitch where the standard sets one per size.
 
@@ -1418,42 +1490,20 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return
-    table = np.array(sysm.rib_pitch_mm, float)
     clear = {}  # bar index -> (pitch, relative resolution)
     for i, r in enumerate(results):
         info = r[3]
         if info["rib_p"] < prm.rib_bar_p and math.isfinite(info["rib_pitch_mm"]) and info["rib_length_mm"] > 0:
             clear[i] = (info["rib_pitch_mm"], info["rib_pitch_mm"] / (2 * info["rib_length_mm"]))
-    groups = defaultdict(list)
-    for i in clear:
-        if math.isfinite(rib_pitch_mm(keys[i], system=system)):
-            groups[keys[i]].append(i)
-    groups = {k: v for k, v in groups.items() if len(v) >= 2}
-    if sum(len(v) for v in groups.values()) < prm.rib_min_bars:
-        return
-    for k, v in groups.items():
-        med = float(np.median([clear[i][0] for i in v]))
-        if table[np.abs(table - med).argmin()] != rib_pitch_mm(k, system=system):
-            return
-    members = [(i, rib_pitch_mm(k, system=system)) for k, v in groups.items() for i in v]
-    dev = np.array([clear[i][0] / lk - 1 for i, lk in members])
-    # a scale all of the capture's pitches share (the camera's depth scale, its focal length) is
-    # the capture's, not the bars': pitches are matched to the table times it
-    scale = 1 + float(np.median(dev))
-    spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
-
-    def band(i):  # relative half-width of a size's band for bar i's pitch
-        return max(prm.pitch_k * spread, clear[i][1])
 
     def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
         row = rows[i]
         return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
 
-    agree = sum(any(abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1) <= band(i) for sz in sizes_of(i))
-                for i, _ in members)
-    conf = (agree + 1) / (len(members) + 2)
-    if conf < prm.min_confidence:
+    fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
+    if fit is None or fit[2] < prm.min_confidence:
         return
+    scale, spread, conf = fit
     for i, row in enumerate(rows):
         pair = row.get("_pair")
         if row["diameter_status"] != NOT_MEASURED or pair is None:
@@ -1695,7 +1745,9 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ``core_width_mm`` (refined, bars with at least 24 clean sections): the 95th and 10th
     percentiles of the section widths; ``rib_pitch_mm``: the period of the widths along the bar
     where it is clear (p < 1 %, :func:`_rib_periodicity`), else NaN; ``ribs_resolved`` (the same
-    for every bar): the capture's bars together show ribs (:func:`_ribs_in_view`). A deformed
+    for every bar): the capture's bars together show ribs (:func:`_ribs_in_view`), in their mask
+    widths or, where a bar's cloud would be fused with its mask, in their colour widths at the
+    size table's rib spacings (:func:`_colour_ribs`: a learnt mask may smooth the ribs away). A deformed
     bar's silhouette is then its core between the ribs and the rib envelope only at the crests,
     so its median width reads about the next smaller size: each bar is sized from its crests
     (``crest_width_mm`` + 0.3 h, σ 0.3 h: how far crescent ribs reach in silhouette depends on
@@ -1767,6 +1819,13 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
              for b, r in zip(prepared, results)]
     ribs_p = _ribs_in_view(results, prm, sizes) if method == "refined" and deformed else 1.0
     ribs = ribs_p < prm.rib_capture_p
+    if (method == "refined" and deformed and not ribs and colour_edges
+            and any(mode is True for mode in cloud_mode)):
+        # a mask that smooths the ribs away: the colour image may still show them. Only where a
+        # bar's point cloud would be fused with its mask width (axes found without an assumed
+        # radius): both then read a ribbed bar a size down and agree. An axis placed with an
+        # assumed radius vetoes that instead.
+        ribs = _colour_ribs(results, sizes, prm, system=system)
     for r in results:
         info = r[3]
         if ribs and math.isfinite(info["crest_mm"]):

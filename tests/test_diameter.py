@@ -1071,6 +1071,41 @@ def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why)
     assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), _RefinedParams()) is None
 
 
+def _colour_case(bars, *, seed=0):
+    """Hand-built inputs of ``_colour_ribs``: one bar per (design size, pitch or None) in
+    ``bars``, its colour widths over 500 mm (sections 2.2 mm apart) its envelope, 1.2 mm wider
+    over 30 % of each pitch, with N(0, 0.3) mm of noise."""
+    from rebarlib._barsizes import observed_width_mm
+
+    rng = np.random.default_rng(seed)
+    s = np.arange(0, 500, 2.2)
+    results, keys = [], []
+    for size, pitch in bars:
+        crest = np.zeros(len(s)) if pitch is None else 1.2 * (np.mod(s / pitch, 1.0) < 0.3)
+        cw = observed_width_mm(size) - 1.2 + crest + rng.normal(0, 0.3, len(s))
+        results.append((None, None, None, {"colour_widths": (s, cw)}))
+        keys.append(size)
+    return results, keys
+
+
+@pytest.mark.parametrize("bars, system, expected, why", [
+    ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "GB1499.2", True, "each size's colour widths at its spacing"),
+    ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "ASTM-A615", False, "a system without a spacing per size"),
+    # the pixel grid along parallel slanted bars: one period on all, not their size's spacing
+    ([(10.0, 8.23)] * 5, "GB1499.2", False, "a common period off the table (Φ10's is 7 mm)"),
+    ([(12.0, None)] * 5 + [(14.0, None)] * 3, "GB1499.2", False, "no period at all"),
+    ([(12.0, 8.0)] * 2 + [(12.0, None)] * 6, "GB1499.2", False, "too few bars periodic"),
+])
+def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expected, why):
+    # A learnt mask may smooth the ribs away; the colour edges beside it still show them. The
+    # capture is taken to resolve ribs only where the colour widths are periodic as the mask
+    # widths must be (_ribs_in_view) and at their sizes' spacings (_pitch_table).
+    from rebarlib._diameter import _RefinedParams, _colour_ribs
+
+    results, keys = _colour_case(bars)
+    assert _colour_ribs(results, keys, _RefinedParams(), system=system) is expected, why
+
+
 @pytest.fixture(scope="module")
 def relief_pitch_scene():
     """A scene drawn with ribs in relief where some bars' widths leave them between two sizes
