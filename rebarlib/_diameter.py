@@ -753,9 +753,10 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
     None.
 
     The transverse ribs on the two sides of the longitudinal ribs need not be in step along the
-    bar, so its width, the difference of its two edges, can hide the pitch each edge shows. Each edge is read against a
-    straight line along the bar (an axis a little askew across the bar tilts it). The two edges'
-    noise is independent, so both clear at one pitch is rarer from noise than one clear width."""
+    bar, so its width, the difference of its two edges, can hide the pitch each edge shows. Each
+    edge is read against a straight line along the bar (an axis a little askew across the bar
+    tilts it). The two edges' noise is independent, so both clear at one pitch is rarer from
+    noise than one clear width."""
     s, lo, hi = info.get("edges", (np.zeros(0),) * 3)
     good = np.isfinite(lo) & np.isfinite(hi)
     if good.sum() < prm.rib_min_sections:
@@ -1034,8 +1035,9 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
     info["rib_pitch_mm"], info["rib_p"], info["crest_mm"], info["core_mm"] = math.nan, 1.0, math.nan, math.nan
     info["rib_length_mm"] = math.nan
+    s_k = (st[kept] - bar.p0) @ pl.direction  # the sections' places along the bar (mm)
     # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
-    info["edges"] = ((st[kept] - bar.p0) @ pl.direction, edge_lo[kept], edge_hi[kept])
+    info["edges"] = (s_k, edge_lo[kept], edge_hi[kept])
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
         info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
                                                                                prm.core_quantile]))
@@ -1043,7 +1045,6 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
     if math.isfinite(info["crest_mm"]) and info["crest_mm"] - info["core_mm"] >= prm.rib_min_px * float(
             np.median(st[kept, 2])) / intr.fx:
-        s_k = (st[kept] - bar.p0) @ pl.direction
         info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity(s_k, w, band=prm.rib_band)
         info["rib_length_mm"] = float(s_k.max() - s_k.min())
     # the point cloud gives several points per section: every few sections of a long bar suffice
@@ -1060,7 +1061,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
     # (along the bar, for a capture whose mask smooths its ribs away: _colour_ribs)
-    info["colour_widths"] = ((st[kept] - bar.p0) @ pl.direction, cw)
+    info["colour_widths"] = (s_k, cw)
     cw = cw[np.isfinite(cw)]
     info["colour_width_mm"] = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
@@ -1747,8 +1748,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     where it is clear (p < 1 %, :func:`_rib_periodicity`), else NaN; ``ribs_resolved`` (the same
     for every bar): the capture's bars together show ribs (:func:`_ribs_in_view`), in their mask
     widths or, where a bar's cloud would be fused with its mask, in their colour widths at the
-    size table's rib spacings (:func:`_colour_ribs`: a learnt mask may smooth the ribs away). A deformed
-    bar's silhouette is then its core between the ribs and the rib envelope only at the crests,
+    size table's rib spacings (:func:`_colour_ribs`: a learnt mask may smooth the ribs away). A
+    deformed bar's silhouette is then its core between the ribs and the rib envelope only at the crests,
     so its median width reads about the next smaller size: each bar is sized from its crests
     (``crest_width_mm`` + 0.3 h, σ 0.3 h: how far crescent ribs reach in silhouette depends on
     the bar's roll), its point-cloud width is not used (a surface over crests and core alike),
