@@ -746,6 +746,15 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4,
     return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
 
 
+def _clear_pitch(pitch, p, length_mm, prm) -> tuple[float, float] | None:
+    """``(pitch_mm, relative resolution)`` where a rib pitch read over ``length_mm`` of bar is
+    clear (p < ``prm.rib_bar_p``); the resolution is half a periodogram bin, pitch / (2 x
+    length). None otherwise."""
+    if p < prm.rib_bar_p and math.isfinite(pitch) and length_mm > 0:
+        return float(pitch), float(pitch) / (2 * length_mm)
+    return None
+
+
 def _edge_pitch(info, prm) -> tuple[float, float] | None:
     """A bar's rib pitch read from each of its edges on its own: ``(pitch_mm, relative
     resolution)`` where both edges are clearly periodic (p < ``prm.rib_bar_p`` each, from
@@ -764,22 +773,23 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
     s, lo, hi = s[good], lo[good], hi[good]
     length = float(s.max() - s.min())
     width = float(np.median(hi - lo))
-    pitches = []
+    pitches, ps = [], []
     for e in (lo, hi):
         e = e - np.polyval(np.polyfit(s, e, 1), s)
         pitch, p = _rib_periodicity(s, e, band=prm.rib_band, width_mm=width)
         if not p < prm.rib_bar_p:
             return None
         pitches.append(pitch)
+        ps.append(p)
     pitch = float(np.mean(pitches))
     if abs(pitches[0] - pitches[1]) > pitch * pitch / length:
         return None
-    return pitch, pitch / (2 * length)
+    return _clear_pitch(pitch, max(ps), length, prm)
 
 
-def _ribs_in_view(results, prm, sizes=None) -> float:
+def _ribs_in_view(reads, prm, sizes=None) -> float:
     """Chance that noise alone gives the periodicity the capture's bars show together (Fisher's
-    method over the bars' :func:`_rib_periodicity` p-values, each floored at ``prm.rib_p_floor``
+    method over the bars' :func:`_rib_periodicity` reads ``(pitch_mm, p)``, the p-values each floored at ``prm.rib_p_floor``
     so that one striped bar does not make a capture); 1.0 with fewer than ``prm.rib_min_bars``
     bars to look at. The bars of one capture are seen by one camera at similar distances: where
     it resolves the ribs of some, it resolves those of all.
@@ -791,15 +801,15 @@ def _ribs_in_view(results, prm, sizes=None) -> float:
     e.g. its design size; None: one size). Seen on a learnt mask of smooth bars: 2-3 bars of a
     capture clearly periodic, at pitches 6.5-16 mm for one size; ribs in relief: every clear pitch
     within 1 % of the true one."""
-    sizes = [0] * len(results) if sizes is None else list(sizes)
+    sizes = [0] * len(reads) if sizes is None else list(sizes)
     clear = defaultdict(list)
-    for r, key in zip(results, sizes):
-        if r[3]["rib_p"] < prm.rib_bar_p and math.isfinite(r[3].get("rib_pitch_mm", math.nan)):
-            clear[key].append(r[3]["rib_pitch_mm"])
+    for (pitch, p), key in zip(reads, sizes):
+        if p < prm.rib_bar_p and math.isfinite(pitch):
+            clear[key].append(pitch)
     agree = sum(int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol)) for v in clear.values())
     if agree < prm.rib_min_bars:
         return 1.0
-    ps = [max(r[3]["rib_p"], prm.rib_p_floor) for r in results if math.isfinite(r[3].get("rib_pitch_mm", math.nan))]
+    ps = [max(p, prm.rib_p_floor) for pitch, p in reads if math.isfinite(pitch)]
     half = -float(np.sum(np.log(ps)))  # χ² / 2, with 2 x len(ps) degrees of freedom
     if half <= 0:
         return 1.0
@@ -1445,19 +1455,17 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
     systems that set a spacing per size (GB 1499.2)."""
     if not bar_system(system).rib_pitch_mm:
         return False
-    reads = []
+    reads, lengths = [], []
     for r in results:
         s, cw = r[3].get("colour_widths", (np.zeros(0), np.zeros(0)))
         good = np.isfinite(cw)
-        pitch, p = (math.nan, 1.0)
-        if good.sum() >= prm.rib_min_sections:
-            pitch, p = _rib_periodicity(s[good], cw[good], band=prm.rib_band)
-        reads.append((pitch, p, float(np.ptp(s[good])) if good.any() else 0.0))
-    if _ribs_in_view([(None, None, None, {"rib_pitch_mm": q, "rib_p": p}) for q, p, _ in reads], prm,
-                     keys) >= prm.rib_capture_p:
+        enough = good.sum() >= prm.rib_min_sections
+        reads.append(_rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0))
+        lengths.append(float(np.ptp(s[good])) if enough else 0.0)
+    if _ribs_in_view(reads, prm, keys) >= prm.rib_capture_p:
         return False
-    clear = {i: (q, q / (2 * length)) for i, (q, p, length) in enumerate(reads)
-             if p < prm.rib_bar_p and math.isfinite(q) and length > 0}
+    clear = {i: c for i, ((q, p), length) in enumerate(zip(reads, lengths))
+             if (c := _clear_pitch(q, p, length, prm)) is not None}
     fit = _pitch_table(clear, keys, prm, system=system)
     return fit is not None and fit[2] >= prm.min_confidence
 
@@ -1491,11 +1499,8 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return
-    clear = {}  # bar index -> (pitch, relative resolution)
-    for i, r in enumerate(results):
-        info = r[3]
-        if info["rib_p"] < prm.rib_bar_p and math.isfinite(info["rib_pitch_mm"]) and info["rib_length_mm"] > 0:
-            clear[i] = (info["rib_pitch_mm"], info["rib_pitch_mm"] / (2 * info["rib_length_mm"]))
+    clear = {i: c for i, r in enumerate(results)  # bar index -> (pitch, relative resolution)
+             if (c := _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)) is not None}
 
     def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
         row = rows[i]
@@ -1818,7 +1823,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r[0])
              else snap_diameter(r[3]["mask_width_mm"], system=system, deformed=deformed)[0]
              for b, r in zip(prepared, results)]
-    ribs_p = _ribs_in_view(results, prm, sizes) if method == "refined" and deformed else 1.0
+    ribs_p = (_ribs_in_view([(r[3]["rib_pitch_mm"], r[3]["rib_p"]) for r in results], prm, sizes)
+              if method == "refined" and deformed else 1.0)
     ribs = ribs_p < prm.rib_capture_p
     if (method == "refined" and deformed and not ribs and colour_edges
             and any(mode is True for mode in cloud_mode)):

@@ -839,8 +839,8 @@ def test_rib_periodicity_takes_no_edge_of_the_band_for_a_pitch():
 
 
 def _rib_results(pitches, ps):
-    """Per-bar results as ``_ribs_in_view`` reads them: only each bar's rib pitch and its p."""
-    return [(None, None, None, {"rib_p": p, "rib_pitch_mm": x}) for x, p in zip(pitches, ps)]
+    """Per-bar reads as ``_ribs_in_view`` takes them: each bar's rib pitch and its p."""
+    return list(zip(pitches, ps))
 
 
 def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
