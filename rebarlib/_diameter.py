@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
+from ._barsizes import (_nearest, bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
                         size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
@@ -1408,12 +1408,14 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
 
     ``clear``: bar index -> (pitch mm, relative resolution); ``keys``: each bar's size (its
     design's); ``sizes_of(i)``: the sizes bar i may be (default its key). The pitches are grouped
-    by size; at least ``prm.rib_min_bars`` of them in groups of two or more, and each group's
-    median pitch nearest to its own size's spacing among the table's. ``scale``: 1 + the median
-    deviation of those pitches from their spacings (shared by all: the depth scale, the focal
-    length); ``spread``: their robust spread about it; ``confidence``: (k + 1) / (n + 2), k of
-    the n pitches within ``prm.pitch_k`` x spread (or their own resolution) of the scaled
-    spacing of a size their bar may be."""
+    by size; at least ``prm.rib_min_bars`` of them in groups of two or more. In each group, the
+    table's spacing nearest to the most of its pitches must be its own size's (ties count: a bar
+    of another size than designed, whose pitch is its own size's, does not outvote the design),
+    and at least ``prm.rib_min_bars`` pitches in all must be nearest to their own size's.
+    ``scale``: 1 + the median deviation of those pitches from their spacings (shared by all: the
+    depth scale, the focal length); ``spread``: their robust spread about it; ``confidence``:
+    (k + 1) / (n + 2), k of the n pitches within :func:`_pitch_band` of the scaled spacing of a
+    size their bar may be."""
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return None
@@ -1425,21 +1427,36 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
     groups = {k: v for k, v in groups.items() if len(v) >= 2}
     if sum(len(v) for v in groups.values()) < prm.rib_min_bars:
         return None
+    own = []  # (bar, its size's spacing) for the pitches nearest to their own size's spacing
     for k, v in groups.items():
-        med = float(np.median([clear[i][0] for i in v]))
-        if table[np.abs(table - med).argmin()] != rib_pitch_mm(k, system=system):
+        lk = rib_pitch_mm(k, system=system)
+        nearest = [float(table[np.abs(table - clear[i][0]).argmin()]) for i in v]
+        if nearest.count(lk) < max(nearest.count(x) for x in nearest):
             return None
-    members = [(i, rib_pitch_mm(k, system=system)) for k, v in groups.items() for i in v]
-    dev = np.array([clear[i][0] / lk - 1 for i, lk in members])
+        own += [(i, lk) for i, x in zip(v, nearest) if x == lk]
+    if len(own) < prm.rib_min_bars:
+        return None
+    dev = np.array([clear[i][0] / lk - 1 for i, lk in own])
     # a scale all of the capture's pitches share (the camera's depth scale, its focal length) is
     # the capture's, not the bars': pitches are matched to the table times it
     scale = 1 + float(np.median(dev))
     spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
     sizes_of = sizes_of or (lambda i: {keys[i]})
+    members = [i for v in groups.values() for i in v]
     agree = sum(any(abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1)
-                    <= max(prm.pitch_k * spread, clear[i][1]) for sz in sizes_of(i))
-                for i, _ in members)
+                    <= _pitch_band(spread, clear[i][1], prm) for sz in sizes_of(i))
+                for i in members)
     return scale, spread, (agree + 1) / (len(members) + 2)
+
+
+def _pitch_band(spread, resolution, prm) -> float:
+    """How far (relative) a pitch may lie from a scaled spacing and still match it:
+    ``prm.pitch_k`` standard errors, each the capture's robust spread of pitches and the read's
+    own resolution (half a periodogram bin) together. A robust spread of a dozen pitches that
+    cluster on a few values of the periodogram's grid falls short of how far single reads stray
+    (seen: 12 reads of one size within ±0.7 %, spread 0.14 %), and the resolution bounds how
+    finely one read places its pitch."""
+    return prm.pitch_k * math.hypot(spread, resolution)
 
 
 def _colour_ribs(results, keys, prm, *, system) -> bool:
@@ -1451,10 +1468,18 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
     must pass both tests the mask widths' periodicity passes (:func:`_ribs_in_view`) and also
     follow the size table's spacings (:func:`_pitch_table`, confidence at least
     ``prm.min_confidence``): on smooth bars the colour edges of a slanted bar step with the pixel
-    grid, periodically and alike on parallel bars, but not at their sizes' rib spacing. Only for
-    systems that set a spacing per size (GB 1499.2)."""
-    if not bar_system(system).rib_pitch_mm:
+    grid, periodically and alike on parallel bars, but not at their sizes' rib spacing. A bar's
+    pitch agrees with the table at its design size's spacing or at the next size's up or down:
+    a bar of another size than designed is most often its neighbour, and its pitch is its own
+    size's (the design's groups must still mostly show their own spacing). Only for systems that
+    set a spacing per size (GB 1499.2)."""
+    sysm = bar_system(system)
+    if not sysm.rib_pitch_mm:
         return False
+
+    def sizes_of(i):  # the design size and its neighbours in the table
+        j = _nearest(sysm.sizes_mm, keys[i])
+        return set(sysm.sizes_mm[max(j - 1, 0):j + 2])
     reads, lengths = [], []
     for r in results:
         s, cw = r[3].get("colour_widths", (np.zeros(0), np.zeros(0)))
@@ -1466,7 +1491,7 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
         return False
     clear = {i: c for i, ((q, p), length) in enumerate(zip(reads, lengths))
              if (c := _clear_pitch(q, p, length, prm)) is not None}
-    fit = _pitch_table(clear, keys, prm, system=system)
+    fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
     return fit is not None and fit[2] >= prm.min_confidence
 
 
@@ -1483,14 +1508,15 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
 
     First the capture must show that its bars follow the table: the bars with a clear pitch are
     grouped by ``keys`` (each bar's design size, else the size its width is nearest to); at
-    least ``prm.rib_min_bars`` of them in groups of two or more, and every such group's median
-    pitch nearest to its own size's l among the table's pitches (bars rolled by another
-    standard, or a renderer's own rib spacing, fail here and the pitch is not used). Pitches are
-    matched to the table times the scale they share (1 + their median deviation from it: the
-    camera's depth scale or focal length a little off moves them all). The band is
-    ``prm.pitch_k`` times the robust spread of those pitches about that scale (what this
-    capture's bars and mill show), and never narrower than the bar's own pitch resolution
-    (half a periodogram bin, pitch / (2 x the length read)). The size's confidence is the share
+    least ``prm.rib_min_bars`` of them in groups of two or more, and in every such group most
+    pitches nearest to its own size's l among the table's pitches (:func:`_pitch_table`: bars
+    rolled by another standard, or a renderer's own rib spacing, fail here and the pitch is not
+    used). Pitches are matched to the table times the scale they share (1 + their median
+    deviation from it: the camera's depth scale or focal length a little off moves them all).
+    The band (:func:`_pitch_band`) is ``prm.pitch_k`` standard errors, each the robust spread of
+    those pitches about that scale (what this capture's bars and mill show) and the bar's own
+    pitch resolution (half a periodogram bin, pitch / (2 x the length read)) together. The
+    size's confidence is the share
     of the capture's clear pitches inside the band of a size the bar may be (its design size,
     the size its widths gave, or one of the two they left it between), (k + 1) / (n + 2): a
     capture with few pitches to check the table against gives a confidence to match, and one
@@ -1522,7 +1548,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
         ls = [rib_pitch_mm(sz, system=system) for sz in pair]
         if not all(math.isfinite(x) for x in ls) or ls[0] == ls[1]:
             continue
-        inside = [abs(p / (scale * lk) - 1) <= max(prm.pitch_k * spread, resolution) for lk in ls]
+        inside = [abs(p / (scale * lk) - 1) <= _pitch_band(spread, resolution, prm) for lk in ls]
         if sum(inside) != 1:
             continue
         j = inside.index(True)

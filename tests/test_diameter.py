@@ -1004,24 +1004,65 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
 
 
 def test_rib_pitch_is_matched_after_the_scale_the_capture_s_pitches_share():
-    # Every pitch of the capture reads 0.8 % long (a depth scale or focal length a little off),
-    # each within 0.02 % of the others, over 1 m of bar (a resolution of 0.45 %): against the
-    # table itself no pitch is on its size, against the table times the capture's common scale
-    # all are, and 9.07 mm is Φ14's 9 mm.
+    # Every pitch of the capture reads 2.5 % long (a depth scale or focal length off), each within
+    # 0.02 % of the others, over 1 m of bar (a resolution of 0.45 %, so a pitch matches a spacing
+    # within 3 x 0.45 % = 1.4 %): against the table itself no pitch is on its size, against the
+    # table times the capture's common scale all are, and 9.22 mm is Φ14's 9 mm.
     from rebarlib._diameter import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case(
-        [8.064, 8.066, 8.062, 8.065, 8.063], [9.072, 9.073, 9.071], 9.07, length_mm=1000.0)
+        [8.200, 8.202, 8.198, 8.201, 8.199], [9.225, 9.226, 9.224], 9.22, length_mm=1000.0)
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
     r = rows[-1]
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
     assert r["confidence"] == pytest.approx(10 / 11, abs=1e-4)
-    # a single bar's pitch 0.8 % off while the others are on the table is no scale of the
-    # capture: it is off its size, and so is 9.07 mm against 9 mm
+    # a single bar's pitch 2.5 % off while the others are on the table is no scale of the
+    # capture: it is off its size, and so is 9.22 mm against 9 mm
     rows, results, keys, shadows, prm = _pitch_case(
-        [8.0, 8.002, 7.998, 8.001, 7.999], [9.0, 9.001, 8.999], 9.07, length_mm=1000.0)
+        [8.0, 8.002, 7.998, 8.001, 7.999], [9.0, 9.001, 8.999], 9.22, length_mm=1000.0)
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
     assert rows[-1]["diameter_status"] == "not measured"
+
+
+def test_rib_pitch_band_counts_each_read_s_resolution_like_the_spread():
+    # A dozen reads that cluster on a few values of the periodogram's grid have a robust spread
+    # (0.14 % here) well under how far single reads stray (±0.7 %); each read's resolution (half a
+    # bin, 0.7 % over 400 mm) counts as a standard error too, so all of them match Φ8's 5.5 mm
+    # after the capture's scale: (12 + 1) / (12 + 2). With the spread alone as the band, 3 of
+    # them would not, and a capture whose bars all follow the table would fail its check.
+    from rebarlib._diameter import _RefinedParams, _pitch_band, _pitch_table
+
+    pitches = [5.48, 5.48, 5.51, 5.51, 5.52, 5.52, 5.52, 5.52, 5.52, 5.52, 5.55, 5.56]
+    clear = {i: (p, p / (2 * 400.0)) for i, p in enumerate(pitches)}
+    prm = _RefinedParams()
+    scale, spread, conf = _pitch_table(clear, [8.0] * len(pitches), prm, system="GB1499.2")
+    assert spread < 0.002 and conf == pytest.approx(13 / 14)
+    assert _pitch_band(spread, 0.007, prm) == pytest.approx(3 * math.hypot(spread, 0.007))
+    off = [abs(p / (scale * 5.5) - 1) for p in pitches]
+    assert sum(o > prm.pitch_k * spread for o in off) >= 3
+
+
+@pytest.mark.parametrize("pitches, sizes, expected, why", [
+    # two of four bars designed Φ12 are Φ14s (their pitch is Φ14's): the design still holds its own
+    ([8.0, 8.05, 9.03, 9.12, 8.96, 9.1], [12.0] * 4 + [14.0] * 2, True, "half the Φ12 group at Φ14's spacing"),
+    ([9.03, 9.12, 9.05, 8.0, 8.96, 9.1], [12.0] * 4 + [14.0] * 2, False, "most of the Φ12 group at Φ14's"),
+    # the pixel grid on smooth bars: one common period, here nearest Φ12's 8 mm on bars designed Φ10
+    ([8.23] * 5, [10.0] * 5, False, "a common period on another size's spacing"),
+    ([8.0, 9.76, 9.1, 9.2], [12.0, 12.0, 14.0, 14.0], True, "3 pitches on their own spacings"),
+    ([8.0, 9.76, 9.1, 11.4], [12.0, 12.0, 14.0, 14.0], False, "two pitches on their own spacings (3 needed)"),
+])
+def test_pitch_table_lets_a_design_group_hold_bars_of_another_size(pitches, sizes, expected, why):
+    # Each design group's own spacing must be the one most of its pitches are nearest to (ties
+    # count), and the capture's scale is learnt from those pitches only, so bars of another size
+    # than designed neither break the check nor pull the scale.
+    from rebarlib._diameter import _RefinedParams, _pitch_table
+
+    clear = {i: (p, p / (2 * 300.0)) for i, p in enumerate(pitches)}
+    fit = _pitch_table(clear, sizes, _RefinedParams(), system="GB1499.2")
+    if expected:
+        assert fit is not None and 0.99 < fit[0] < 1.03, why
+    else:
+        assert fit is None, why
 
 
 def _edges_info(s, pitch_lo, pitch_hi, *, shift=0.5, noise=0.15, seed=0):
@@ -1095,6 +1136,13 @@ def _colour_case(bars, *, seed=0):
     ([(10.0, 8.23)] * 5, "GB1499.2", False, "a common period off the table (Φ10's is 7 mm)"),
     ([(12.0, None)] * 5 + [(14.0, None)] * 3, "GB1499.2", False, "no period at all"),
     ([(12.0, 8.0)] * 2 + [(12.0, None)] * 6, "GB1499.2", False, "too few bars periodic"),
+    # bars of the next size up in the design's groups (a Φ14 where a Φ12 was drawn) show their
+    # own spacing: the capture still follows the table
+    ([(12.0, 8.0)] * 3 + [(12.0, 9.0)] * 2 + [(14.0, 9.0)] * 3, "GB1499.2", True,
+     "two bars of the next size up among the Φ12s"),
+    # but not a spacing two sizes off (Φ16's 10 mm among Φ12s): (6 + 1) / (8 + 2) < 0.8
+    ([(12.0, 8.0)] * 3 + [(12.0, 10.0)] * 2 + [(14.0, 9.0)] * 3, "GB1499.2", False,
+     "two pitches of no size next to the design"),
 ])
 def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expected, why):
     # A learnt mask may smooth the ribs away; the colour edges beside it still show them. The
