@@ -38,6 +38,16 @@ class BarSystem:
         """Designation of a nominal size of this system (``""`` if it is not one)."""
         return self.of_size(self.labels, nominal_mm, "")
 
+    def neighbours(self, nominal_mm: float) -> set:
+        """The size nearest ``nominal_mm`` and the sizes next to it up and down (one at either end
+        of the table).
+
+        >>> sorted(bar_system("GB1499.2").neighbours(12))
+        [10.0, 12.0, 14.0]
+        """
+        j = _nearest(self.sizes_mm, nominal_mm)
+        return set(self.sizes_mm[max(j - 1, 0):j + 2])
+
     def of_size(self, values, nominal_mm: float, default=None):
         """The entry of ``values`` (one of this system's per-size tuples) for the nominal size
         ``nominal_mm``; ``default`` where it is not one of the sizes (or ``values`` has none)."""

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (_nearest, bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
+from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
                         size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
@@ -1476,10 +1476,6 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return False
-
-    def sizes_of(i):  # the design size and its neighbours in the table
-        j = _nearest(sysm.sizes_mm, keys[i])
-        return set(sysm.sizes_mm[max(j - 1, 0):j + 2])
     reads, lengths = [], []
     for r in results:
         s, cw = r[3].get("colour_widths", (np.zeros(0), np.zeros(0)))
@@ -1491,7 +1487,7 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
         return False
     clear = {i: c for i, ((q, p), length) in enumerate(zip(reads, lengths))
              if (c := _clear_pitch(q, p, length, prm)) is not None}
-    fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
+    fit = _pitch_table(clear, keys, prm, system=system, sizes_of=lambda i: sysm.neighbours(keys[i]))
     return fit is not None and fit[2] >= prm.min_confidence
 
 
@@ -1516,11 +1512,10 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
     The band (:func:`_pitch_band`) is ``prm.pitch_k`` standard errors, each the robust spread of
     those pitches about that scale (what this capture's bars and mill show) and the bar's own
     pitch resolution (half a periodogram bin, pitch / (2 x the length read)) together. The
-    size's confidence is the share
-    of the capture's clear pitches inside the band of a size the bar may be (its design size,
-    the size its widths gave, or one of the two they left it between), (k + 1) / (n + 2): a
-    capture with few pitches to check the table against gives a confidence to match, and one
-    whose pitches often match nothing the bar may be, a low one.
+    size's confidence is the share of the capture's clear pitches inside the band of a size the
+    bar may be (its design size, the size its widths gave, or one of the two they left it
+    between), (k + 1) / (n + 2): a capture with few pitches to check the table against gives a
+    confidence to match, and one whose pitches often match nothing the bar may be, a low one.
     Rows are changed in place."""
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
