@@ -510,7 +510,7 @@ class _RefinedParams:
     crest_quantile: float = 0.95  # the crests: the widest 5 % of the sections (crests with their flanks
     # cover a fifth to a third of the pitch)
     core_quantile: float = 0.1  # the core between the ribs
-    pitch_k: float = 3.0  # a pitch matches a size's l within this many times the capture's spread of pitches
+    pitch_k: float = 3.0  # a pitch matches a size's l within this many standard errors (_pitch_band)
     rib_reach: float = 0.3  # x rib height h: crescent ribs reach d1 + 2h in silhouette at some rolls,
     # about d1 + 1.4h at others: crest widths are read as d1 + 1.7h ± 0.3h
 
@@ -789,10 +789,10 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
 
 def _ribs_in_view(reads, prm, sizes=None) -> float:
     """Chance that noise alone gives the periodicity the capture's bars show together (Fisher's
-    method over the bars' :func:`_rib_periodicity` reads ``(pitch_mm, p)``, the p-values each floored at ``prm.rib_p_floor``
-    so that one striped bar does not make a capture); 1.0 with fewer than ``prm.rib_min_bars``
-    bars to look at. The bars of one capture are seen by one camera at similar distances: where
-    it resolves the ribs of some, it resolves those of all.
+    method over the bars' :func:`_rib_periodicity` reads ``(pitch_mm, p)``, the p-values each
+    floored at ``prm.rib_p_floor`` so that one striped bar does not make a capture); 1.0 with
+    fewer than ``prm.rib_min_bars`` bars to look at. The bars of one capture are seen by one
+    camera at similar distances: where it resolves the ribs of some, it resolves those of all.
 
     Ribs also repeat at one pitch on every bar of a size (the standard's spacing), while a mask's
     own texture or noise gives each bar a pitch of its own: 1.0 too unless at least
@@ -1554,8 +1554,12 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
         width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i][3]["mask_width_mm"]
         _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
                reason, shadows[i], prm)
-        row["matches_design"] = (bool(abs(size - row["design_diameter_mm"]) < 1e-6)
-                                 if math.isfinite(row["design_diameter_mm"]) else None)
+        row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
+
+
+def _matches_design(nominal_mm, design_mm):
+    """Whether a measured size is the design's; None where the bar has no design size."""
+    return bool(abs(nominal_mm - design_mm) < 1e-6) if math.isfinite(design_mm) else None
 
 
 def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
@@ -1944,8 +1948,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                 # the side the mask lacks is most likely under the nearer bars: say so
                 row["diameter_reason"] += (f"; {occ_frac:.0%} of its cross-sections lie partly under nearer bars: "
                                            "what is seen may be a sliver beside them")
-        if row["diameter_status"] == MEASURED and math.isfinite(bar.design_mm):
-            row["matches_design"] = bool(abs(row["nominal_mm"] - bar.design_mm) < 1e-6)
+        if row["diameter_status"] == MEASURED:
+            row["matches_design"] = _matches_design(row["nominal_mm"], bar.design_mm)
         rows.append(row)
         shadows.append(in_shadow)
     if method == "refined" and ribs:
