@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (bar_system, bracketing_sizes, core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
+from ._barsizes import (bar_system, bracketing_sizes, observed_width_mm, rib_height_mm, rib_pitch_mm,
                         size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
@@ -1027,8 +1027,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # object's edge): use the latter only if needed, that is unless the sections with mask edges
     # alone are enough with room for the outliers dropped below (twice the minimum: with just
     # the minimum, one outlier left a bar with hundreds of sections "too few")
+    cut_off = np.zeros(M, bool)  # sections left out for their edge at a depth step
     if (ok & ~cut).sum() >= 2 * prm.min_sections:
         info["depth_cut"] = int((ok & cut).sum())
+        cut_off = ok & cut
         ok &= ~cut
     sel = ok | one_sided
     kept = np.flatnonzero(sel)
@@ -1057,6 +1059,18 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             np.median(st[kept, 2])) / intr.fx:
         info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity(s_k, w, band=prm.rib_band)
         info["rib_length_mm"] = float(s_k.max() - s_k.min())
+    # The crests are the widest sections, and where a bar's silhouette touches one beside it
+    # (a bar under it peeking out) they are the sections whose runs merge with it and are cut
+    # at the depth step, left out above: the crests would then be read from the core between
+    # them (a Φ12 bar beside a lower bar read 11.6 mm over its crests, 12.9 mm with them). A cut
+    # section ends at the first sample behind the bar or without depth: at its flank, or inside
+    # it where the flank has no depth. So the crests are read over the cut sections too, those
+    # within the bar's footprint (room for a size larger).
+    if math.isfinite(info["crest_mm"]) and cut_off.any():
+        wc = _tangent_correct(widths[cut_off], pl.offset_mm)
+        wc = wc[np.isfinite(wc) & (wc <= 2 * fp.half_mm[i])]
+        if len(wc):
+            info["crest_mm"] = float(np.quantile(np.concatenate([w, wc]), prm.crest_quantile))
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
@@ -1389,17 +1403,35 @@ def _off_centre(info, med, prm) -> bool:
 
 
 def _check_core(row: dict, info, prm, *, system) -> None:
-    """A bar sized from its rib crests must have the core of that size between them: where the
-    core (the narrow sections) says another size, the bar is "not measured" (its crests may be
-    hidden, or its longitudinal ribs face the sides and it shows no core)."""
-    core = core_size(info["core_mm"], system=system)
-    if core != row["nominal_mm"]:
-        sysm = bar_system(system)
-        reason = (f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(row['nominal_mm'])}, "
-                  f"the core between them ({info['core_mm']:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand")
-        # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
-        row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason,
-                   _pair=(row["nominal_mm"], core))
+    """A bar sized from its rib crests must have a core between them that a bar of that size
+    can show: where it cannot, the bar is "not measured".
+
+    The core between the transverse ribs is never narrower than the size's core d1 nor wider
+    than its rib envelope; a bar turned with its longitudinal ribs towards the sides shows
+    about the envelope all along, so the core may read anywhere between (one σ of the bar's width
+    beyond either bound is allowed). And where the core is also one the next size up can show
+    (at least its d1), only the crests tell the two apart: they are read from the few widest
+    sections, the first lost where a flank is hidden or cut at a bar beside it, so they are
+    not trusted alone to rule the larger size out.
+    """
+    sysm = bar_system(system)
+    nominal, c = row["nominal_mm"], info["core_mm"]
+    tol = row["width_sigma_mm"] if math.isfinite(row["width_sigma_mm"]) else 0.0
+    d1, env = sysm.of_size(sysm.core_mm, nominal), sysm.of_size(sysm.envelope_mm, nominal)
+    larger = [(s, k) for s, k in zip(sysm.sizes_mm, sysm.core_mm) if s > nominal]
+    if c < d1 - tol:  # the size the core can be: the largest whose d1 it reaches
+        core = max((s for s, k in zip(sysm.sizes_mm, sysm.core_mm) if k <= c), default=math.nan)
+    elif c > env + tol:  # the smallest whose envelope it fits in
+        core = next((s for s, e in zip(sysm.sizes_mm, sysm.envelope_mm) if e >= c), math.nan)
+    elif larger and c >= larger[0][1]:
+        core = larger[0][0]
+    else:
+        return
+    reason = (f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(nominal)}, "
+              f"the core between them ({c:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand")
+    # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
+    row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason,
+               _pair=(nominal, core))
 
 
 def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):

@@ -938,6 +938,31 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
 
 
+@pytest.mark.parametrize("crest_size, core_mm, expected", [
+    (14.0, 14.6, None),  # Φ14 with its longitudinal ribs turned sideways: nearer Φ16's d1, yet below it
+    (14.0, 13.1, None),  # a little under Φ14's 13.4, within σ
+    (14.0, 11.6, 12.0),  # narrower than any Φ14 shows: Φ12's core
+    (14.0, 16.9, 16.0),  # wider than Φ14's envelope (16.2) by more than σ
+    (12.0, 13.6, 14.0),  # a Φ12 may show it (up to 13.9), but so may Φ14 (from 13.4): crests alone
+])
+def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s(crest_size, core_mm, expected):
+    """GB 1499.2: core d1 Φ12 11.5, Φ14 13.4, Φ16 15.4 mm; envelopes 13.9, 16.2, 18.4 mm. A bar
+    sized from its crests keeps its size where its core lies between its d1 and its envelope
+    (± its σ, 0.5 mm here) and below the next size's d1; else it is "not measured" and names
+    the size its core points to. The first case failed before: its core is nearer Φ16's d1."""
+    from rebarlib._diameter import _check_core, _RefinedParams
+
+    row = {"nominal_mm": crest_size, "diameter_status": "measured", "confidence": 0.95, "width_sigma_mm": 0.5,
+           "diameter_reason": ""}
+    _check_core(row, {"core_mm": core_mm, "crest_mm": crest_size + 1.5}, _RefinedParams(), system="GB1499.2")
+    if expected is None:
+        assert row["diameter_status"] == "measured" and row["nominal_mm"] == crest_size
+    else:
+        assert row["diameter_status"] == "not measured" and math.isnan(row["nominal_mm"])
+        assert row["_pair"] == (crest_size, expected)
+        assert f"core between them ({core_mm:.1f} mm) Φ{expected:.0f}" in row["diameter_reason"]
+
+
 def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_mm=300.0):
     """Hand-built inputs of ``_pitch_settle``: bars designed Φ12 with the rib pitches
     ``pitches_12`` and Φ14 with ``pitches_14``, all sized by their widths, and a last bar designed
