@@ -1417,14 +1417,16 @@ def _check_core(row: dict, info, prm, *, system) -> None:
     sysm = bar_system(system)
     nominal, c = row["nominal_mm"], info["core_mm"]
     tol = row["width_sigma_mm"] if math.isfinite(row["width_sigma_mm"]) else 0.0
-    d1, env = sysm.of_size(sysm.core_mm, nominal), sysm.of_size(sysm.envelope_mm, nominal)
-    larger = [(s, k) for s, k in zip(sysm.sizes_mm, sysm.core_mm) if s > nominal]
+    d1 = sysm.of_size(sysm.core_mm, nominal, math.nan)
+    env = sysm.of_size(sysm.envelope_mm, nominal, math.nan)
+    # the next size up and its d1
+    larger = next(((s, k) for s, k in zip(sysm.sizes_mm, sysm.core_mm) if s > nominal), None)
     if c < d1 - tol:  # the size the core can be: the largest whose d1 it reaches
         core = max((s for s, k in zip(sysm.sizes_mm, sysm.core_mm) if k <= c), default=math.nan)
     elif c > env + tol:  # the smallest whose envelope it fits in
         core = next((s for s, e in zip(sysm.sizes_mm, sysm.envelope_mm) if e >= c), math.nan)
-    elif larger and c >= larger[0][1]:
-        core = larger[0][0]
+    elif larger and c >= larger[1]:
+        core = larger[0]
     else:
         return
     reason = (f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(nominal)}, "
