@@ -1596,10 +1596,10 @@ def _matches_design(nominal_mm, design_mm):
     return bool(abs(nominal_mm - design_mm) < 1e-6) if math.isfinite(design_mm) else None
 
 
-def _ambiguous_reason(width, source, conf, nominal, system, deformed) -> str:
-    """Why a width gives no size: the two sizes it lies between (what a check by hand must tell
-    apart) and the one it is nearer to, with that size's confidence."""
-    pair = bracketing_sizes(width, system=system, deformed=deformed)
+def _ambiguous_reason(width, source, conf, nominal, pair, system) -> str:
+    """Why a width gives no size: the two sizes it lies between (``pair``, from
+    :func:`bracketing_sizes`: what a check by hand must tell apart) and the one it is nearer to,
+    with that size's confidence."""
     sysm = bar_system(system)
     if pair is None:  # (beyond the table: snap_diameter gives no size there)
         return f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} sizes (confidence {conf:.2f})"
@@ -1719,9 +1719,9 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
-        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3),
-                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, system, deformed))
         pair = bracketing_sizes(width, system=system, deformed=deformed)
+        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3),
+                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, pair, system))
         if pair is not None:
             out["_pair"] = (pair[0][0], pair[1][0])
         return out
