@@ -985,6 +985,26 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
     return rows, results, keys, [False] * len(rows), _RefinedParams()
 
 
+def test_a_ribbed_bar_s_crests_are_read_where_a_bar_beside_it_cuts_them_off():
+    """The paper's set-up at 400 mm, 5° (seed 1), ribs in relief, default sensor. Upper Φ12 bar 25
+    lies beside a lower bar: at its rib crests its mask runs merge with the lower bar's and are
+    cut at the depth step, so those sections are left out of its width. Its crests must still be
+    read from them (GB 1499.2 Φ12: d1 11.5 mm, h 1.2 mm, envelope 13.9 mm): at least d1 + h. Read
+    from the kept sections alone (the core between the crests) they came to 11.6 mm, which is
+    Φ10's envelope. Whatever the bar is then sized, no bar of the capture gets a wrong size."""
+    from rebarlib.data import paper_design
+
+    design = paper_design()
+    cap = synth_capture(design, height_mm=400, tilt_deg=5, seed=1, deviations=Deviations(rib_relief=True))
+    t = _truth_table(cap, measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design))
+    bar = t[t.bar_id == 25].iloc[0]
+    assert bar.true_mm == 12.0 and bar.ribs_resolved
+    assert bar.crest_width_mm >= 11.5 + 1.2, bar.crest_width_mm
+    assert bar.crest_width_mm <= bar.envelope_mm + 0.5, bar.crest_width_mm
+    meas = t[t.diameter_status == "measured"]
+    assert (meas.nominal_mm == meas.true_mm).all(), meas[["bar_id", "true_mm", "nominal_mm"]]
+
+
 def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     # GB 1499.2 sets the transverse-rib spacing per size: Φ12 8.0 mm, Φ14 9.0 mm. The capture's
     # bars follow it (7 + 3 clear pitches within a fraction of a per cent), so the bar left
