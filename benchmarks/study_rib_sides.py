@@ -68,9 +68,9 @@ def main() -> None:
     gb = bar_system("GB1499.2")
     masks, _ = B._mask_sources()
     axes_src, _ = B._axis_sources()
+    app = Appearance(rust_fraction=0.3)  # as bench_diameter.py draws them (its cache has no key for it)
     rows = []
     for name, design, kw in B.scenarios(args.quick):
-        app = Appearance(rust_fraction=0.3)  # as bench_diameter.py draws them
         cap = B._capture(name, design, kw, app, args.cache, relief=args.ribs == "relief")
         m = masks[args.mask](cap, design)
         mask, measured_on = m if isinstance(m, tuple) else (m, cap)
