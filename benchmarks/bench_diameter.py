@@ -134,10 +134,11 @@ def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default", r
     return load_capture(folder)
 
 
-def _mask_sources():
+def _mask_sources(model_path=""):
     """Callables (capture, design) -> (H, W) mask (bool, or a float probability for the soft
     ones), or (mask, capture to measure on) for the registered ones, for each available mask,
-    and notes on the others."""
+    and notes on the others. ``model_path``: an ONNX model (with its sidecar) to use instead of
+    the shipped one for the "model" and "fused" masks (a candidate from ``training/``)."""
     sources = {"truth": lambda cap, design: cap.labels > 0,
                # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
                "dilated": lambda cap, design: _morph(cap.labels > 0, +1),
@@ -150,7 +151,9 @@ def _mask_sources():
     model = None
     if hasattr(seg, "SegmentationModel"):
         try:
-            model = seg.SegmentationModel.default()
+            model = seg.SegmentationModel(model_path) if model_path else seg.SegmentationModel.default()
+            if model_path:
+                notes.append(f"model and fused masks: {model_path}, not the shipped model")
         except Exception as e:  # noqa: BLE001 - report whatever keeps the model from loading
             notes.append(f"SegmentationModel.default() failed: {e!r}")
     else:
@@ -341,12 +344,14 @@ def main() -> None:
                          "colour-depth misregistration, as a camera's factory alignment leaves); the model "
                          "and fused masks are registered as inspect does. Only the detected axes are "
                          "meaningful then: the true axes belong to the colour image, not the moved depth")
+    ap.add_argument("--model", default="",
+                    help="ONNX segmentation model for the model and fused masks (default: the shipped one)")
     ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument("--reasons", action="store_true",
                     help="print why bars were not measured (diameter_reason, numbers left out) per combination")
     args = ap.parse_args()
     depth_shift = tuple(map(int, args.depth_shift.split(",")))
-    mask_src, notes = _mask_sources()
+    mask_src, notes = _mask_sources(args.model)
     axis_src, notes2 = _axis_sources()
     notes += notes2
     mask_src = {k: v for k, v in mask_src.items() if k in args.masks.split(",")}

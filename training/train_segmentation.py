@@ -55,26 +55,38 @@ def _render_one(job):
 
     from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
 
-    key, folder, quality = job
+    key, folder, quality, relief_label = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
     index, relief = _entry(key)
     cap = None
-    if not f_img.exists():
+    if not f_img.exists() or (relief and relief_label == "silhouette" and not f_mask.exists()):
         # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly
-        # as SegmentationModel does at run time
+        # as SegmentationModel does at run time (rendered again, identically, where only a
+        # relief capture's silhouette label is missing)
         cap = synth_segmentation_capture(index, seed=DATASET_SEED, rib_relief=relief)
         small = cv2.resize(cap.color, (IN_W, IN_H), interpolation=cv2.INTER_AREA)
         tmp_img = f_img.with_suffix(".tmp.jpg")
         cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
         tmp_img.replace(f_img)
+    f_full = folder / f"{_stem(key)}.full.jpg"
+    if relief and cap is not None and not f_full.exists():
+        # a relief capture also keeps its full-resolution render: its ribs are 1-3 px high
+        # there, under a pixel at the input's half resolution, and the tiles of
+        # SegmentationModel.predict_proba(tiled=True) show them at full resolution
+        # (train --full-zoom takes the enlarged crops from it)
+        tmp_full = f_full.with_suffix(".tmp.jpg")
+        cv2.imwrite(str(tmp_full), cap.color[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, max(quality, 95)])
+        tmp_full.replace(f_full)
     if not f_mask.exists():
         # The label stays at full resolution, so the loss sees the bar edges to the
         # full-resolution pixel (logits upsampled x2, as at run time). A bar with ribs in
         # relief is labelled with its outline over the ribs (the same scene drawn with each
         # bar as its smooth rib envelope), as an annotator outlines a ribbed bar and as the
         # diameter stage reads a mask (bar sizes by their rib envelope): the gaps between the
-        # ribs, a few pixels long at most, are not "formwork"
-        if cap is None or relief:  # (a smooth capture's render above has its labels)
+        # ribs, a few pixels long at most, are not "formwork". With ``relief_label ==
+        # "silhouette"`` it is labelled with what the render shows instead: the ribs' crests and
+        # the core between them, as the diameter stage reads the true mask of a relief capture
+        if cap is None or (relief and relief_label == "outline"):  # (else the render has them)
             cap = synth_segmentation_capture(index, seed=DATASET_SEED)
         lab = cap.labels > 0
         tmp_mask = f_mask.with_suffix(".tmp.png")
@@ -92,7 +104,8 @@ def cmd_data(args):
 
     Real bars are ribbed: ``--relief N`` adds N more training captures, the next indices after
     the extra ones, rendered with their ribs in relief (``rib_relief=True``; about 10 x the
-    render time of a smooth one) and labelled with each bar's outline over its ribs (see
+    render time of a smooth one) and labelled with each bar's outline over its ribs, or with
+    ``--relief-label silhouette`` with the ribs as the render shows them (see
     ``_render_one``), and ``--relief-val M`` validates on the first M validation captures
     rendered that way too (entries ``"<index>r"`` in ``split.json``).
     """
@@ -111,7 +124,7 @@ def cmd_data(args):
     # smooth captures first (quick), then the relief ones
     wanted = sorted(split["train"] + split["val"], key=lambda k: _entry(k)[::-1])
     t0 = time.time()
-    jobs = [(i, work / "data", args.jpeg_quality) for i in wanted]
+    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label) for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
         for n, _ in enumerate(ex.map(_render_one, jobs, chunksize=4)):
             if n % 20 == 0:
@@ -130,6 +143,20 @@ def _load(work: Path, part: str):
         imgs.append(cv2.imread(str(work / "data" / f"{_stem(i)}.jpg"))[:, :, ::-1])
         masks.append(cv2.imread(str(work / "data" / f"{_stem(i)}.png"), cv2.IMREAD_GRAYSCALE) > 0)
     return np.ascontiguousarray(np.stack(imgs)), np.stack(masks)
+
+
+def _load_full(work: Path, part: str) -> dict:
+    """{position in the part: full-resolution image (2*IN_H, 2*IN_W, 3) uint8 RGB} for the entries
+    whose full-resolution render was kept (relief captures, see ``_render_one``)."""
+    import cv2
+
+    split = json.loads((work / "split.json").read_text())
+    full = {}
+    for k, i in enumerate(split[part]):
+        f = work / "data" / f"{_stem(i)}.full.jpg"
+        if f.is_file():
+            full[k] = np.ascontiguousarray(cv2.imread(str(f))[:, :, ::-1])
+    return full
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,14 +307,17 @@ def _shadow(x, g):
     return x * (1 - use + use * factor)
 
 
-def _batch(imgs, masks, g, size, bs, zoom=0.0):
+def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
     """A training batch on the data's device: random crops (input size x size, label 2size x
     2size), flips, transposition, gain / gamma / blur / noise jitter and cast shadows.
 
     ``zoom``: the share of crops taken smaller (size / z, z uniform in 1..2) and enlarged to
     size x size (the label likewise, bilinearly, as a soft label): bars up to twice as wide as
     the data set draws them at the input, as the full-resolution tiles of
-    ``SegmentationModel.predict_proba(tiled=True)`` show them."""
+    ``SegmentationModel.predict_proba(tiled=True)`` show them. ``full``: {image index: its
+    full-resolution render (torch uint8, on the device)}; an enlarged crop of such an image is
+    taken from it (2c x 2c pixels area-resized to size x size) instead of enlarging the
+    half-resolution input, so the network sees the detail the tiles show (a rib 1-3 px high)."""
     import torch
     import torch.nn.functional as F
 
@@ -311,9 +341,18 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0):
             im, m = im.flip(0), m.flip(0)
         if flips[k][2]:
             im, m = im.transpose(0, 1), m.transpose(0, 1)
+        if c != size and full is not None and idx[k] in full:
+            im = full[idx[k]][2 * y0:2 * (y0 + c), 2 * x0:2 * (x0 + c)]
+            if flips[k][0]:
+                im = im.flip(1)
+            if flips[k][1]:
+                im = im.flip(0)
+            if flips[k][2]:
+                im = im.transpose(0, 1)
         im, m = im.permute(2, 0, 1).float(), m[None].float()
         if c != size:
-            im = F.interpolate(im[None], size=(size, size), mode="bilinear", align_corners=False)[0]
+            mode = dict(mode="area") if im.shape[-1] > size else dict(mode="bilinear", align_corners=False)
+            im = F.interpolate(im[None], size=(size, size), **mode)[0]
             m = F.interpolate(m[None], size=(2 * size, 2 * size), mode="bilinear", align_corners=False)[0]
         xs.append(im)
         ys.append(m)
@@ -459,6 +498,11 @@ def cmd_train(args):
     tag = args.tag or args.arch
     imgs, masks = (torch.from_numpy(a).to(dev) for a in _load(work, "train"))
     vimgs, vmasks = (torch.from_numpy(a).to(dev) for a in _load(work, "val"))
+    full = None
+    if args.full_zoom:
+        full = {k: torch.from_numpy(a).to(dev) for k, a in _load_full(work, "train").items()}
+        print(f"--full-zoom: {len(full)} training captures' enlarged crops from their full-resolution render",
+              flush=True)
     model = build_model(args.arch).to(dev)
     if args.init:
         # continue from an earlier run (a second, longer stage of the same recipe), or start a
@@ -495,7 +539,7 @@ def cmd_train(args):
         lr = args.lr * min(1.0, (it + 1) / 100) * 0.5 * (1 + math.cos(math.pi * frac))
         for grp in opt.param_groups:
             grp["lr"] = lr
-        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom)
+        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom, full=full)
         with torch.autocast(**amp):
             out = _upsample2(model(x)).float()
         p = torch.sigmoid(out)
@@ -589,6 +633,8 @@ def main(argv=None):
     a.add_argument("--extra", type=int, default=0, help="extra training captures beyond the 6:2:2 set")
     a.add_argument("--relief", type=int, default=0, help="extra training captures with ribs in relief")
     a.add_argument("--relief-val", type=int, default=0, help="validation captures also rendered with ribs in relief")
+    a.add_argument("--relief-label", choices=["outline", "silhouette"], default="outline",
+                   help="label of a relief capture: each bar's outline over its ribs, or its rendered silhouette")
     a.add_argument("--jobs", type=int, default=2)
     a.add_argument("--jpeg-quality", type=int, default=90)
     a = sub.add_parser("train")
@@ -604,6 +650,8 @@ def main(argv=None):
     a.add_argument("--init-onnx", default=None, help="ONNX model exported by this script to start from (see state_from_onnx)")
     a.add_argument("--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)")
     a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
+    a.add_argument("--full-zoom", action="store_true",
+                   help="take the enlarged crops from the full-resolution render where the data keeps one")
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
     a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
