@@ -155,7 +155,7 @@ def _mask_sources(model_path=""):
             if model_path:
                 notes.append(f"model and fused masks: {model_path}, not the shipped model")
         except Exception as e:  # noqa: BLE001 - report whatever keeps the model from loading
-            notes.append(f"SegmentationModel.default() failed: {e!r}")
+            notes.append(f"loading the segmentation model ({model_path or 'the shipped one'}) failed: {e!r}")
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:

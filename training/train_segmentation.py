@@ -333,7 +333,10 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
     for k in range(bs):
         c = cs[k]
         y0, x0 = int(fy[k] * (H - c + 1)), int(fx[k] * (W - c + 1))
-        im = imgs[idx[k], y0:y0 + c, x0:x0 + c]
+        if c != size and full is not None and idx[k] in full:
+            im = full[idx[k]][2 * y0:2 * (y0 + c), 2 * x0:2 * (x0 + c)]
+        else:
+            im = imgs[idx[k], y0:y0 + c, x0:x0 + c]
         m = masks[idx[k], 2 * y0:2 * (y0 + c), 2 * x0:2 * (x0 + c)]
         if flips[k][0]:
             im, m = im.flip(1), m.flip(1)
@@ -341,14 +344,6 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
             im, m = im.flip(0), m.flip(0)
         if flips[k][2]:
             im, m = im.transpose(0, 1), m.transpose(0, 1)
-        if c != size and full is not None and idx[k] in full:
-            im = full[idx[k]][2 * y0:2 * (y0 + c), 2 * x0:2 * (x0 + c)]
-            if flips[k][0]:
-                im = im.flip(1)
-            if flips[k][1]:
-                im = im.flip(0)
-            if flips[k][2]:
-                im = im.transpose(0, 1)
         im, m = im.permute(2, 0, 1).float(), m[None].float()
         if c != size:
             mode = dict(mode="area") if im.shape[-1] > size else dict(mode="bilinear", align_corners=False)
