@@ -570,6 +570,32 @@ def cmd_train(args):
     (out_dir / f"{tag}.json").write_text(json.dumps(info, indent=1))
 
 
+def cmd_eval(args):
+    """Validation IoU (%) of trained models, the smooth and the relief validation captures apart,
+    without and with the test-time flips h, v and hv: each model an ONNX file exported by this
+    script (``state_from_onnx``) or a run's state dict (``.pt``)."""
+    import torch
+
+    torch.set_num_threads(args.threads)
+    work = Path(args.work)
+    split = json.loads((work / "split.json").read_text())
+    imgs, masks = _load(work, "val")
+    relief = np.array([_entry(k)[1] for k in split["val"]])
+    parts = [(name, sel) for name, sel in (("smooth", ~relief), ("relief", relief)) if sel.any()]
+    for path in args.models:
+        model = build_model(args.arch)
+        model.load_state_dict(state_from_onnx(model, path) if str(path).endswith(".onnx")
+                              else torch.load(path, map_location="cpu"))
+        model.eval()
+        row = []
+        for flips in ((), ("h", "v", "hv")):
+            for name, sel in parts:
+                tp, fp, fn = _iou_counts(_logits_full(model, torch.from_numpy(imgs[sel]), flips=flips),
+                                         torch.from_numpy(masks[sel]))
+                row.append(f"{name}{', flips' if flips else ''} {100 * tp / max(tp + fp + fn, 1):.2f}")
+        print(f"{path}: " + "; ".join(row), flush=True)
+
+
 # ---------------------------------------------------------------------------------------------
 # export
 
@@ -661,11 +687,16 @@ def main(argv=None):
                    help="test-time flips written into the sidecar (the threshold is chosen with them)")
     a.add_argument("--max-bar-px", type=float, default=None,
                    help="the widest bar (input px) the model was trained on, written into the sidecar")
+    a = sub.add_parser("eval")
+    a.add_argument("--work", default="/tmp/rebar_seg")
+    a.add_argument("--arch", choices=ARCHS, default="deeplab_fine")
+    a.add_argument("--threads", type=int, default=2)
+    a.add_argument("models", nargs="+", help="ONNX files exported by this script, or runs' state dicts (.pt)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.segmentation import DATASET_SIZE
         args.n = DATASET_SIZE
-    {"data": cmd_data, "train": cmd_train, "export": cmd_export}[args.cmd](args)
+    {"data": cmd_data, "train": cmd_train, "eval": cmd_eval, "export": cmd_export}[args.cmd](args)
 
 
 if __name__ == "__main__":
