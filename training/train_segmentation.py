@@ -404,14 +404,15 @@ def _logits_full(model, imgs, bs=4, flips=()):
     return torch.cat(out)
 
 
-def evaluate(model, imgs, masks, bs=4):
-    """Validation IoU and Dice at full resolution (logits upsampled x2, threshold p = 0.5). Every
-    module's training mode is left as it was (frozen batch norms stay frozen)."""
+def evaluate(model, imgs, masks, bs=4, flips=()):
+    """Validation IoU and Dice at full resolution (logits upsampled x2, threshold p = 0.5; with
+    ``flips`` averaged as in :func:`_logits_full`). Every module's training mode is left as it
+    was (frozen batch norms stay frozen)."""
     modes = [(mod, mod.training) for mod in model.modules()]
     model.eval()
     tp = fp = fn = 0
     for s in range(0, len(imgs), bs):
-        a, b, c = _iou_counts(_logits_full(model, imgs[s:s + bs]), masks[s:s + bs])
+        a, b, c = _iou_counts(_logits_full(model, imgs[s:s + bs], flips=flips), masks[s:s + bs])
         tp, fp, fn = tp + a, fp + b, fn + c
     for mod, was in modes:
         mod.train(was)
@@ -586,13 +587,11 @@ def cmd_eval(args):
         model = build_model(args.arch)
         model.load_state_dict(state_from_onnx(model, path) if str(path).endswith(".onnx")
                               else torch.load(path, map_location="cpu"))
-        model.eval()
         row = []
         for flips in ((), ("h", "v", "hv")):
             for name, sel in parts:
-                tp, fp, fn = _iou_counts(_logits_full(model, torch.from_numpy(imgs[sel]), flips=flips),
-                                         torch.from_numpy(masks[sel]))
-                row.append(f"{name}{', flips' if flips else ''} {100 * tp / max(tp + fp + fn, 1):.2f}")
+                iou, _ = evaluate(model, torch.from_numpy(imgs[sel]), torch.from_numpy(masks[sel]), flips=flips)
+                row.append(f"{name}{', flips' if flips else ''} {100 * iou:.2f}")
         print(f"{path}: " + "; ".join(row), flush=True)
 
 
