@@ -21,7 +21,7 @@ Two methods:
 from __future__ import annotations
 
 import math
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass
 
 import numpy as np
@@ -1465,7 +1465,8 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
     for k, v in groups.items():
         lk = rib_pitch_mm(k, system=system)
         nearest = [float(table[np.abs(table - clear[i][0]).argmin()]) for i in v]
-        if nearest.count(lk) < max(nearest.count(x) for x in nearest):
+        counts = Counter(nearest)
+        if counts[lk] < max(counts.values()):
             return None
         own += [(i, lk) for i, x in zip(v, nearest) if x == lk]
     if len(own) < prm.rib_min_bars:
