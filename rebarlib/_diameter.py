@@ -511,6 +511,9 @@ class _RefinedParams:
     # cover a fifth to a third of the pitch)
     core_quantile: float = 0.1  # the core between the ribs
     pitch_k: float = 3.0  # a pitch matches a size's l within this many standard errors (_pitch_band)
+    face_fractions: tuple = (0.2, 0.35, 0.5, 0.65, 0.8)  # lines along a bar's face, edge to edge (_face_pitch)
+    face_step_px: float = 1.0  # samples along each line this far apart (image)
+    face_oversample: int = 4  # periodogram frequencies per resolution (1 / length read)
     rib_reach: float = 0.3  # x rib height h: crescent ribs reach d1 + 2h in silhouette at some rolls,
     # about d1 + 1.4h at others: crest widths are read as d1 + 1.7h ± 0.3h
 
@@ -785,6 +788,82 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
     if abs(pitches[0] - pitches[1]) > pitch * pitch / length:
         return None
     return _clear_pitch(pitch, max(ps), length, prm)
+
+
+def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
+    """A bar's rib pitch read from the shading of its face: ``(pitch_mm, relative resolution)``
+    where clear (p < ``prm.rib_bar_p``), else None.
+
+    A transverse rib's flanks catch the light and shade on every side of a deformed bar that
+    faces the camera, so the luminance along the bar between its edges is periodic at the rib
+    spacing l. This holds at every roll of the bar: where the longitudinal ribs lie at the sides
+    of the silhouette (a roll at which its width is constant along the bar and says least of its
+    size), one side's transverse ribs face the camera full on. The luminance is read along
+    ``prm.face_fractions`` of the way from one mask edge to the other, about a pixel apart, over
+    the bar's clean cross-sections with both edges (``info["edges"]``; never under another bar,
+    at the image border or at a crossing), less its slow changes (light, rust, shadows; a
+    Gaussian over three of the longest pitches searched). The lines' periodograms, each
+    normalised by its variance, are summed; the peak must lie inside ``prm.rib_band`` x the
+    bar's width (as for :func:`_rib_periodicity`). Its p-value takes the lines as one (their
+    noise may be correlated: what one line shows, the next may show too): number of independent
+    frequencies x exp(-peak / lines).
+
+    The face lies nearer the camera than the plane γ the positions are measured in, so it is
+    magnified on it by D / (D - h) (D the distance to the axis, h the face's height over it, a
+    circle through the edges): the pitch is scaled back by (1 - h / D).
+    """
+    s_k, lo, hi = info.get("edges", (np.zeros(0),) * 3)
+    good = np.isfinite(lo) & np.isfinite(hi)
+    if gray is None or good.sum() < prm.rib_min_sections:
+        return None
+    order = np.argsort(s_k[good])
+    s_k, lo, hi = s_k[good][order], lo[good][order], hi[good][order]
+    pl = bar.plane
+    mid = bar.p0 + float(np.median(s_k)) * pl.direction
+    dist = float(np.linalg.norm(mid))
+    ds = prm.face_step_px * float(mid[2]) / intr.fx  # mm along the bar between samples
+    width = float(np.median(hi - lo))
+    length = float(s_k[-1] - s_k[0])
+    if width <= 0 or length < 3 * prm.rib_band[1] * width:
+        return None
+    n = int(length / ds) + 1
+    s = s_k[0] + ds * np.arange(n)
+    j = np.searchsorted(s_k, s).clip(1, len(s_k) - 1)
+    gap = np.minimum(np.abs(s - s_k[j - 1]), np.abs(s - s_k[j]))
+    keep = gap <= 1.01 * float(np.median(np.diff(s_k)))  # near a clean section
+    lo_s, hi_s = np.interp(s, s_k, lo), np.interp(s, s_k, hi)
+    fr = np.asarray(prm.face_fractions, float)
+    t = lo_s[None, :] + fr[:, None] * (hi_s - lo_s)[None, :]  # (lines, n) mm across, in γ
+    P = bar.p0 + s[None, :, None] * pl.direction + t[..., None] * pl.across
+    uv = project(P.reshape(-1, 3), intr)
+    lum = _remap(gray, uv[:, 0:1], uv[:, 1:2])[:, 0].reshape(len(fr), n).astype(float)
+    # slow changes out: a Gaussian over the samples kept (normalised convolution across the gaps)
+    sig = 3 * prm.rib_band[1] * width / ds
+    half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
+    x_g = np.arange(-half, half + 1)
+    g = np.exp(-0.5 * (x_g / sig) ** 2)
+    m = keep.astype(float)
+    norm = np.maximum(np.convolve(m, g, "same"), 1e-9)
+    x = np.array([(row - np.convolve(row * m, g, "same") / norm) * m for row in lum])
+    x -= (x.sum(axis=1, keepdims=True) / m.sum()) * m
+    var = (x ** 2).sum(axis=1) / m.sum()
+    x = x[var > 1e-9]
+    if not len(x):
+        return None
+    nfft = 1 << int(math.ceil(math.log2(prm.face_oversample * n)))
+    power = (np.abs(np.fft.rfft(x, nfft, axis=1)) ** 2 / (m.sum() * var[var > 1e-9][:, None])).sum(axis=0)
+    f = np.fft.rfftfreq(nfft, ds)
+    fmin, fmax = 1 / (prm.rib_band[1] * width), min(1 / (prm.rib_band[0] * width), 0.5 / ds)
+    peak = np.zeros(len(f), bool)
+    peak[1:-1] = (power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])
+    peak &= (f >= fmin + 1 / length) & (f <= fmax - 1 / length)
+    if not peak.any():
+        return None
+    k = int(np.flatnonzero(peak)[power[peak].argmax()])
+    p = min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]) / len(x)))
+    # the face's mean height over the axis, on a circle through the edges
+    h = float(np.mean(np.sqrt(np.clip(1 - (2 * fr - 1) ** 2, 0, 1)))) * width / 2
+    return _clear_pitch(float(1 / f[k]) * (1 - h / dist), p, length, prm)
 
 
 def _ribs_in_view(reads, prm, sizes=None) -> float:
@@ -1526,16 +1605,18 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
     return fit is not None and fit[2] >= prm.min_confidence
 
 
-def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
+def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> None:
     """Bars left between two sizes, sized by their rib pitch where the standard sets one per size.
 
     Where a capture resolves ribs, each bar whose section widths are clearly periodic has a rib
     pitch (:func:`_rib_periodicity`), and GB 1499.2 sets the spacing l of each size (Φ12 8.0 mm,
     Φ14 9.0 mm: :func:`rib_pitch_mm`). A bar "not measured" because its widths lie between two
     sizes (ambiguous, crests against core, mask against point cloud: ``row["_pair"]``) is sized
-    where its pitch lies within the band of exactly one of the two and they differ in l. Its
-    pitch is its width's where that is clear, else the one both its edges show
-    (:func:`_edge_pitch`).
+    where its pitch lies within the band of exactly one of the two and they differ in l (and of
+    no size between them: a pair of sizes two apart, Φ14 and Φ18, is not told apart by a pitch
+    that Φ16 shares). Its pitch is its width's where that is clear, else the one both its edges
+    show (:func:`_edge_pitch`), else the one the shading of its face shows (``face(i)``,
+    :func:`_face_pitch`: read only for such bars).
 
     First the capture must show that its bars follow the table: the bars with a clear pitch are
     grouped by ``keys`` (each bar's design size, else the size its width is nearest to); at
@@ -1570,18 +1651,26 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system) -> None:
         pair = row.get("_pair")
         if row["diameter_status"] != NOT_MEASURED or pair is None:
             continue
-        # a bar whose width shows no clear pitch may show it along each of its edges
+        # a bar whose width shows no clear pitch may show it along each of its edges, or in the
+        # shading of its face
         read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i][3], prm), " (along both edges)")
+        if read is None and face is not None:
+            read, where = face(i), " (in the shading along its face)"
         if read is None:
             continue
         p, resolution = read
         ls = [rib_pitch_mm(sz, system=system) for sz in pair]
         if not all(math.isfinite(x) for x in ls) or ls[0] == ls[1]:
             continue
-        inside = [abs(p / (scale * lk) - 1) <= _pitch_band(spread, resolution, prm) for lk in ls]
-        if sum(inside) != 1:
+        # The pitch must name one size among all those from one of the two to the other, not
+        # only between the two: a mask and a point cloud that disagree may leave a bar between
+        # Φ14 and Φ18, and a pitch of 10 mm is Φ16's as much as Φ18's.
+        span = [sz for sz in sysm.sizes_mm if min(pair) - 1e-6 <= sz <= max(pair) + 1e-6]
+        on = [sz for sz in span
+              if abs(p / (scale * rib_pitch_mm(sz, system=system)) - 1) <= _pitch_band(spread, resolution, prm)]
+        if len(on) != 1 or on[0] not in pair:
             continue
-        j = inside.index(True)
+        j = list(pair).index(on[0])
         size, other = pair[j], pair[1 - j]
         why = row["diameter_reason"].removesuffix(": check it by hand")
         reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
@@ -1988,7 +2077,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         rows.append(row)
         shadows.append(in_shadow)
     if method == "refined" and ribs:
-        _pitch_settle(rows, results, sizes, shadows, prm, system=system)
+        _pitch_settle(rows, results, sizes, shadows, prm, system=system,
+                      face=lambda i: _face_pitch(prepared[i], results[i][3], gray, intr, prm))
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
     df["matches_design"] = df["matches_design"].astype(object)
     return df

@@ -1048,6 +1048,21 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
     assert rows[-1]["diameter_status"] == "not measured"
 
 
+def test_rib_pitch_names_no_size_a_size_between_the_two_shares():
+    # A mask and a point cloud that disagree may leave a bar between Φ14 and Φ18 (a Φ16 bar seen
+    # so): 10 mm is Φ18's spacing and Φ14's is 9 mm, but Φ16's is 10 mm too, so the pitch names
+    # no size. Between Φ14 and Φ16 (the widths rule Φ18 out) it names Φ16.
+    from rebarlib._diameter import _pitch_settle
+
+    args = ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 10.0)
+    rows, results, keys, shadows, prm = _pitch_case(*args, pair=(14.0, 18.0))
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    assert rows[-1]["diameter_status"] == "not measured"
+    rows, results, keys, shadows, prm = _pitch_case(*args, pair=(14.0, 16.0))
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    assert rows[-1]["diameter_status"] == "measured" and rows[-1]["nominal_mm"] == 16.0
+
+
 def test_rib_pitch_is_matched_after_the_scale_the_capture_s_pitches_share():
     # Every pitch of the capture reads 2.5 % long (a depth scale or focal length off), each within
     # 0.02 % of the others, over 1 m of bar (a resolution of 0.45 %, so a pitch matches a spacing
@@ -1155,6 +1170,92 @@ def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why)
     assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), _RefinedParams()) is None, why
     # too few sections to read a periodicity from
     assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), _RefinedParams()) is None
+
+
+def _striped_bar(pitch_mm, *, stripes=40.0, noise=3.0, seed=0):
+    """A hand-built bar for ``_face_pitch``: camera K, a bar of radius 8.1 mm (Φ14's envelope)
+    along the image's u axis, its axis 400 mm away; each pixel's ray traced through its centre
+    onto the cylinder, whose luminance there is 120 + ``stripes`` x cos(2π y / ``pitch_mm``), y
+    along the bar on its surface (transverse ribs shading the face), plus Gaussian noise; the
+    formwork behind it at 200. Returns the bar, its clean sections' edges and the grey image."""
+    from rebarlib._diameter import _prepare
+
+    r, z0 = 8.1, 400.0
+    a = ((np.arange(K.height) - K.cy) / K.fy)[:, None]  # ray y / z per row (across the bar)
+    b = ((np.arange(K.width) - K.cx) / K.fx)[None, :]  # ray x / z per column (along it)
+    A, B, C = a * a + 1, -2 * z0, z0 * z0 - r * r  # ray (s b, s a, s) meets y^2 + (z - z0)^2 = r^2
+    disc = B * B - 4 * A * C
+    z = (-B - np.sqrt(np.maximum(disc, 0))) / (2 * A)
+    along = z * b  # x of the hit point: along the bar
+    rng = np.random.default_rng(seed)
+    gray = np.where(disc > 0, 120 + stripes * np.cos(2 * np.pi * along / pitch_mm), 200.0)
+    gray = (gray + rng.normal(0, noise, gray.shape)).astype(np.float32)
+    half = (K.width / 2 - 2) / K.fx * z0
+    bars = pd.DataFrame([{"bar_id": 0, "layer": "upper", "level": "top", "start_x_mm": -half, "start_y_mm": 0.0,
+                          "start_z_mm": z0, "end_x_mm": half, "end_y_mm": 0.0, "end_z_mm": z0}])
+    bar = _prepare(bars, None, "GB1499.2", True, 2 * r)[0]
+    s = np.arange(0.0, 2 * half, 3 * z0 / K.fx)  # sections 3 px apart, both edges at the silhouette
+    edge = r * z0 / math.sqrt(z0 * z0 - r * r)
+    return bar, {"edges": (s, np.full(len(s), -edge), np.full(len(s), edge))}, gray
+
+
+def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
+    # The stripes lie on the bar's surface, 0.8-1.0 x its radius nearer the camera than the
+    # plane through its axis the positions are measured in: read there they are 1.8 % long
+    # (9.16 mm for 9 mm). Scaled back by the face's height, the pitch is 9 mm within a
+    # periodogram step (a 0.25 bin at 4 x oversampling over 507 mm: 0.04 mm), and 8 mm bars
+    # read 8 mm: the two sizes' spacings are told apart.
+    from rebarlib._diameter import _RefinedParams, _face_pitch
+
+    prm = _RefinedParams()
+    for pitch in (9.0, 8.0):
+        bar, info, gray = _striped_bar(pitch)
+        read, resolution = _face_pitch(bar, info, gray, K, prm)
+        assert read == pytest.approx(pitch, abs=0.06), (pitch, read)
+        assert resolution == pytest.approx(read / (2 * np.ptp(info["edges"][0])))
+
+
+@pytest.mark.parametrize("kw, why", [
+    (dict(stripes=0.0), "a face without ribs: noise only"),
+    (dict(stripes=40.0, pitch_mm=40.0), "a pitch beyond the band searched (1.2 x the bar's width)"),
+])
+def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
+    from rebarlib._diameter import _RefinedParams, _face_pitch
+
+    kw = {"pitch_mm": 9.0, **kw}
+    bar, info, gray = _striped_bar(**kw)
+    assert _face_pitch(bar, info, gray, K, _RefinedParams()) is None, why
+    # nor with too few clean sections to read along
+    s, lo, hi = info["edges"]
+    bar, info, gray = _striped_bar(9.0)
+    assert _face_pitch(bar, {"edges": (s[:10], lo[:10], hi[:10])}, gray, K, _RefinedParams()) is None
+
+
+def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_none():
+    # The bar left between Φ12 and Φ14 shows no pitch in its width nor along its edges; its face's
+    # shading shows 9.02 mm, Φ14's spacing. It is read for that bar only.
+    from rebarlib._diameter import _pitch_settle
+
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
+                                                    9.02)
+    results[-1][3].update(rib_pitch_mm=math.nan, rib_p=1.0)
+    asked = []
+
+    def face(i):
+        asked.append(i)
+        return 9.02, 9.02 / 600
+
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
+    r = rows[-1]
+    assert asked == [len(rows) - 1]
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["matches_design"] is False
+    assert r["diameter_reason"].startswith("size from the rib pitch 9.02 mm (in the shading along its face): Φ14's")
+    # a face at 8.5 mm, between the two spacings, settles nothing
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
+                                                    9.02)
+    results[-1][3].update(rib_pitch_mm=math.nan, rib_p=1.0)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=lambda i: (8.5, 8.5 / 600))
+    assert rows[-1]["diameter_status"] == "not measured"
 
 
 def _colour_case(bars, *, seed=0):
