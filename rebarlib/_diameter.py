@@ -1616,11 +1616,12 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     no size between them: a pair of sizes two apart, Φ14 and Φ18, is not told apart by a pitch
     that Φ16 shares). Its pitch is its width's where that is clear, else the one both its edges
     show (:func:`_edge_pitch`), else the one the shading of its face shows (``face(i)``,
-    :func:`_face_pitch`: read only for such bars).
+    :func:`_face_pitch`: read only where needed, once a bar).
 
-    First the capture must show that its bars follow the table: the bars with a clear pitch are
-    grouped by ``keys`` (each bar's design size, else the size its width is nearest to); at
-    least ``prm.rib_min_bars`` of them in groups of two or more, and in every such group most
+    First the capture must show that its bars follow the table: the bars with a clear pitch (in
+    their widths; where those are too few to show it, in their faces too) are grouped by
+    ``keys`` (each bar's design size, else the size its width is nearest to); at least
+    ``prm.rib_min_bars`` of them in groups of two or more, and in every such group most
     pitches nearest to its own size's l among the table's pitches (:func:`_pitch_table`: bars
     rolled by another standard, or a renderer's own rib spacing, fail here and the pitch is not
     used). Pitches are matched to the table times the scale they share (1 + their median
@@ -1643,7 +1644,18 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
         row = rows[i]
         return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
 
+    faces = {}  # bar index -> its face's read (None: none clear), each read once
+
+    def face_read(i):
+        if i not in faces:
+            faces[i] = face(i) if face is not None else None
+        return faces[i]
+
     fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
+    if (fit is None or fit[2] < prm.min_confidence) and face is not None:
+        # too few widths clearly periodic to test the table: the faces of the others may show it
+        more = {i: c for i in range(len(rows)) if i not in clear and (c := face_read(i)) is not None}
+        fit = _pitch_table({**clear, **more}, keys, prm, system=system, sizes_of=sizes_of)
     if fit is None or fit[2] < prm.min_confidence:
         return
     scale, spread, conf = fit
@@ -1654,8 +1666,8 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
         # a bar whose width shows no clear pitch may show it along each of its edges, or in the
         # shading of its face
         read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i][3], prm), " (along both edges)")
-        if read is None and face is not None:
-            read, where = face(i), " (in the shading along its face)"
+        if read is None:
+            read, where = face_read(i), " (in the shading along its face)"
         if read is None:
             continue
         p, resolution = read

@@ -1048,6 +1048,33 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
     assert rows[-1]["diameter_status"] == "not measured"
 
 
+def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
+    # No bar's width is clearly periodic, so the widths cannot show that the capture's bars follow
+    # the table; their faces can (7 + 3 pitches on Φ12's and Φ14's spacings), and the bar left
+    # between Φ12 and Φ14 is sized by its face's 9.02 mm. Faces at a renderer's own spacing
+    # (0.6 d) do not follow the table, and nothing is settled.
+    from rebarlib._diameter import _pitch_settle
+
+    def case(p12, p14):
+        rows, results, keys, shadows, prm = _pitch_case(p12, p14, 9.02)
+        pitches = [r[3]["rib_pitch_mm"] for r in results]
+        for r in results:
+            r[3]["rib_p"] = 1.0
+        return rows, results, keys, shadows, prm, (lambda i: (pitches[i], pitches[i] / 600))
+
+    on_table = ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98])
+    rows, results, keys, shadows, prm, face = case(*on_table)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
+    assert rows[-1]["diameter_status"] == "not measured"  # without the faces
+    rows, results, keys, shadows, prm, face = case(*on_table)
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
+    assert rows[-1]["diameter_status"] == "measured" and rows[-1]["nominal_mm"] == 14.0
+    assert "(in the shading along its face)" in rows[-1]["diameter_reason"]
+    rows, results, keys, shadows, prm, face = case([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38])
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
+    assert rows[-1]["diameter_status"] == "not measured"
+
+
 def test_rib_pitch_names_no_size_a_size_between_the_two_shares():
     # A mask and a point cloud that disagree may leave a bar between Φ14 and Φ18 (a Φ16 bar seen
     # so): 10 mm is Φ18's spacing and Φ14's is 9 mm, but Φ16's is 10 mm too, so the pitch names
