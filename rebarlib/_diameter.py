@@ -736,17 +736,25 @@ def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4,
     f = np.linspace(fmin, fmax, int(math.ceil((fmax - fmin) * length * oversample)) + 1)
     ph = (2 * np.pi) * np.outer(f, s)
     power = ((np.cos(ph) @ w) ** 2 + (np.sin(ph) @ w) ** 2) / (len(w) * var)
-    # A period is a peak: a local maximum at least one resolution (1 / length) inside the band.
-    # A width that wanders slowly along a smooth bar has a spectrum rising towards the longest
-    # pitch searched, and its largest value at the band's edge is that rise, not a period (seen:
-    # smooth Φ10 bars of a learnt mask with "clear" pitches at or next to 1.2 x their width)
+    k = _band_peak(f, power, fmin, fmax, length)
+    if k is None:
+        return math.nan, 1.0
+    return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
+
+
+def _band_peak(f, power, fmin, fmax, length):
+    """Index of the strongest peak of a periodogram ``power`` at frequencies ``f`` (1/mm) inside
+    [``fmin``, ``fmax``], or None: a period is a peak, a local maximum at least one resolution
+    (1 / ``length``) inside the band. A width that wanders slowly along a smooth bar has a
+    spectrum rising towards the longest pitch searched, and its largest value at the band's edge
+    is that rise, not a period (seen: smooth Φ10 bars of a learnt mask with "clear" pitches at or
+    next to 1.2 x their width)."""
     peak = np.zeros(len(f), bool)
     peak[1:-1] = (power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])
     peak &= (f >= fmin + 1 / length) & (f <= fmax - 1 / length)
     if not peak.any():
-        return math.nan, 1.0
-    k = int(np.flatnonzero(peak)[power[peak].argmax()])
-    return float(1 / f[k]), float(min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]))))
+        return None
+    return int(np.flatnonzero(peak)[power[peak].argmax()])
 
 
 def _clear_pitch(pitch, p, length_mm, prm) -> tuple[float, float] | None:
@@ -804,9 +812,9 @@ def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
     at the image border or at a crossing), less its slow changes (light, rust, shadows; a
     Gaussian over three of the longest pitches searched). The lines' periodograms, each
     normalised by its variance, are summed; the peak must lie inside ``prm.rib_band`` x the
-    bar's width (as for :func:`_rib_periodicity`). Its p-value takes the lines as one (their
-    noise may be correlated: what one line shows, the next may show too): number of independent
-    frequencies x exp(-peak / lines).
+    bar's width (:func:`_band_peak`, as for :func:`_rib_periodicity`). Its p-value takes the
+    lines as one (their noise may be correlated: what one line shows, the next may show too):
+    number of independent frequencies x exp(-peak / lines).
 
     The face lies nearer the camera than the plane γ the positions are measured in, so it is
     magnified on it by D / (D - h) (D the distance to the axis, h the face's height over it, a
@@ -847,20 +855,17 @@ def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
     x = np.array([(row - np.convolve(row * m, g, "same") / norm) * m for row in lum])
     x -= (x.sum(axis=1, keepdims=True) / m.sum()) * m
     var = (x ** 2).sum(axis=1) / m.sum()
-    x = x[var > 1e-9]
-    if not len(x):
+    varied = var > 1e-9
+    if not varied.any():
         return None
     nfft = 1 << int(math.ceil(math.log2(prm.face_oversample * n)))
-    power = (np.abs(np.fft.rfft(x, nfft, axis=1)) ** 2 / (m.sum() * var[var > 1e-9][:, None])).sum(axis=0)
+    power = (np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (m.sum() * var[varied][:, None])).sum(axis=0)
     f = np.fft.rfftfreq(nfft, ds)
     fmin, fmax = 1 / (prm.rib_band[1] * width), min(1 / (prm.rib_band[0] * width), 0.5 / ds)
-    peak = np.zeros(len(f), bool)
-    peak[1:-1] = (power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])
-    peak &= (f >= fmin + 1 / length) & (f <= fmax - 1 / length)
-    if not peak.any():
+    k = _band_peak(f, power, fmin, fmax, length)
+    if k is None:
         return None
-    k = int(np.flatnonzero(peak)[power[peak].argmax()])
-    p = min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]) / len(x)))
+    p = min(1.0, (fmax - fmin) * length * math.exp(-float(power[k]) / int(varied.sum())))
     # the face's mean height over the axis, on a circle through the edges
     h = float(np.mean(np.sqrt(np.clip(1 - (2 * fr - 1) ** 2, 0, 1)))) * width / 2
     return _clear_pitch(float(1 / f[k]) * (1 - h / dist), p, length, prm)
