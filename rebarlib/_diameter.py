@@ -1677,14 +1677,15 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
             continue
         p, resolution = read
         ls = [rib_pitch_mm(sz, system=system) for sz in pair]
-        if not all(math.isfinite(x) for x in ls) or ls[0] == ls[1]:
+        if not all(math.isfinite(x) for x in ls):
             continue
         # The pitch must name one size among all those from one of the two to the other, not
-        # only between the two: a mask and a point cloud that disagree may leave a bar between
-        # Φ14 and Φ18, and a pitch of 10 mm is Φ16's as much as Φ18's.
+        # only between the two (two sizes of one spacing then both match, and the pitch names
+        # neither): a mask and a point cloud that disagree may leave a bar between Φ14 and Φ18,
+        # and a pitch of 10 mm is Φ16's as much as Φ18's.
+        band = _pitch_band(spread, resolution, prm)
         span = [sz for sz in sysm.sizes_mm if min(pair) - 1e-6 <= sz <= max(pair) + 1e-6]
-        on = [sz for sz in span
-              if abs(p / (scale * rib_pitch_mm(sz, system=system)) - 1) <= _pitch_band(spread, resolution, prm)]
+        on = [sz for sz in span if abs(p / (scale * rib_pitch_mm(sz, system=system)) - 1) <= band]
         if len(on) != 1 or on[0] not in pair:
             continue
         j = list(pair).index(on[0])
