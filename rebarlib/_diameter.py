@@ -798,7 +798,7 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
     return _clear_pitch(pitch, max(ps), length, prm)
 
 
-def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
+def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, float] | None:
     """A bar's rib pitch read from the shading of its face: ``(pitch_mm, relative resolution)``
     where clear (p < ``prm.rib_bar_p``), else None.
 
@@ -816,12 +816,27 @@ def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
     lines as one (their noise may be correlated: what one line shows, the next may show too):
     number of independent frequencies x exp(-peak / lines).
 
+    A bar seen from one side only (too few sections with both edges; the other side under a
+    nearer bar or beyond the image border, ``info["one_edges"]``) is read on its visible half:
+    the same lines squeezed between its one edge and the axis (half the fractions, of the width
+    twice the edge's distance from the axis). There a sample is kept only inside the image and
+    outside the footprint of every nearer bar (``fp``, this bar's index ``i``): the bar over a
+    sliver has ribs too, at its own spacing.
+
     The face lies nearer the camera than the plane γ the positions are measured in, so it is
     magnified on it by D / (D - h) (D the distance to the axis, h the face's height over it, a
     circle through the edges): the pitch is scaled back by (1 - h / D).
     """
     s_k, lo, hi = info.get("edges", (np.zeros(0),) * 3)
     good = np.isfinite(lo) & np.isfinite(hi)
+    fr = np.asarray(prm.face_fractions, float)
+    one_side = good.sum() < prm.rib_min_sections
+    if one_side:
+        s_k, lo1, hi1 = info.get("one_edges", (np.zeros(0),) * 3)
+        lo = np.where(np.isfinite(lo1), lo1, hi1)  # the visible edge, and its mirror about the axis
+        hi = -lo
+        good = np.isfinite(lo)
+        fr = fr / 2  # lines from the visible edge to the axis
     if gray is None or good.sum() < prm.rib_min_sections:
         return None
     order = np.argsort(s_k[good])
@@ -830,7 +845,7 @@ def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
     mid = bar.p0 + float(np.median(s_k)) * pl.direction
     dist = float(np.linalg.norm(mid))
     ds = prm.face_step_px * float(mid[2]) / intr.fx  # mm along the bar between samples
-    width = float(np.median(hi - lo))
+    width = float(np.median(np.abs(hi - lo)))
     length = float(s_k[-1] - s_k[0])
     if width <= 0 or length < 3 * prm.rib_band[1] * width:
         return None
@@ -840,26 +855,36 @@ def _face_pitch(bar, info, gray, intr, prm) -> tuple[float, float] | None:
     gap = np.minimum(np.abs(s - s_k[j - 1]), np.abs(s - s_k[j]))
     keep = gap <= 1.01 * float(np.median(np.diff(s_k)))  # near a clean section
     lo_s, hi_s = np.interp(s, s_k, lo), np.interp(s, s_k, hi)
-    fr = np.asarray(prm.face_fractions, float)
     t = lo_s[None, :] + fr[:, None] * (hi_s - lo_s)[None, :]  # (lines, n) mm across, in γ
-    P = bar.p0 + s[None, :, None] * pl.direction + t[..., None] * pl.across
-    uv = project(P.reshape(-1, 3), intr)
+    P = (bar.p0 + s[None, :, None] * pl.direction + t[..., None] * pl.across).reshape(-1, 3)
+    uv = project(P, intr)
     lum = _remap(gray, uv[:, 0:1], uv[:, 1:2])[:, 0].reshape(len(fr), n).astype(float)
+    m = np.broadcast_to(keep, lum.shape).astype(float)  # (lines, n): the samples read
+    if one_side:
+        H, W = gray.shape[:2]
+        seen = (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+        if fp is not None and i is not None:
+            cand = _candidates(i, fp, [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+            if len(cand):
+                seen &= ~_hits_footprints(P, fp, cand)[1].any(axis=1)
+        m = m * seen.reshape(m.shape)
     # slow changes out: a Gaussian over the samples kept (normalised convolution across the gaps)
     sig = 3 * prm.rib_band[1] * width / ds
     half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
     x_g = np.arange(-half, half + 1)
     g = np.exp(-0.5 * (x_g / sig) ** 2)
-    m = keep.astype(float)
-    norm = np.maximum(np.convolve(m, g, "same"), 1e-9)
-    x = np.array([(row - np.convolve(row * m, g, "same") / norm) * m for row in lum])
-    x -= (x.sum(axis=1, keepdims=True) / m.sum()) * m
-    var = (x ** 2).sum(axis=1) / m.sum()
-    varied = var > 1e-9
+    x = np.array([(row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
+                  for row, mk in zip(lum, m)])
+    cnt = m.sum(axis=1)
+    x -= (x.sum(axis=1) / np.maximum(cnt, 1))[:, None] * m
+    var = (x ** 2).sum(axis=1) / np.maximum(cnt, 1)
+    # a line read over less than half of the bar's clean length says too little (a sliver's
+    # line that runs under the bar over it)
+    varied = (var > 1e-9) & (cnt >= 0.5 * keep.sum())
     if not varied.any():
         return None
     nfft = 1 << int(math.ceil(math.log2(prm.face_oversample * n)))
-    power = (np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (m.sum() * var[varied][:, None])).sum(axis=0)
+    power = (np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (cnt[varied] * var[varied])[:, None]).sum(axis=0)
     f = np.fft.rfftfreq(nfft, ds)
     fmin, fmax = 1 / (prm.rib_band[1] * width), min(1 / (prm.rib_band[0] * width), 0.5 / ds)
     k = _band_peak(f, power, fmin, fmax, length)
@@ -933,6 +958,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     d_width = np.full(M, np.nan)
     edge_lo = np.full(M, np.nan)  # the two edges of a section with both, mm from the axis in γ
     edge_hi = np.full(M, np.nan)
+    side_lo = np.full(M, np.nan)  # the one edge of a one-sided section, mm from the axis in γ
+    side_hi = np.full(M, np.nan)
     cut = np.zeros(M, bool)
     ok = in_img.copy()
 
@@ -1085,6 +1112,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         centres[rows] = np.where(is_two, (t_hi + t_lo) / 2, 0.0)
         edge_lo[rows] = np.where(is_two, t_lo, np.nan)
         edge_hi[rows] = np.where(is_two, t_hi, np.nan)
+        side_lo[rows] = np.where(is_one & has_lo, t_lo, np.nan)
+        side_hi[rows] = np.where(is_one & has_hi, t_hi, np.nan)
         # the point cloud of a one-sided section: from the visible half, between edge and axis
         d_centre[rows] = np.where(is_two, centres[rows], np.where(has_lo, t_lo, t_hi) / 2)
         d_width[rows] = np.where(is_two, widths[rows], widths[rows] / 2)
@@ -1134,6 +1163,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     s_k = (st[kept] - bar.p0) @ pl.direction  # the sections' places along the bar (mm)
     # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
     info["edges"] = (s_k, edge_lo[kept], edge_hi[kept])
+    info["one_edges"] = (s_k, side_lo[kept], side_hi[kept])  # (a face read from one side: _face_pitch)
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
         info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
                                                                                prm.core_quantile]))
@@ -2096,7 +2126,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         shadows.append(in_shadow)
     if method == "refined" and ribs:
         _pitch_settle(rows, results, sizes, shadows, prm, system=system,
-                      face=lambda i: _face_pitch(prepared[i], results[i][3], gray, intr, prm))
+                      face=lambda i: _face_pitch(prepared[i], results[i][3], gray, intr, prm, fp, i))
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
     df["matches_design"] = df["matches_design"].astype(object)
     return df

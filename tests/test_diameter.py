@@ -1258,6 +1258,69 @@ def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
     assert _face_pitch(bar, {"edges": (s[:10], lo[:10], hi[:10])}, gray, K, _RefinedParams()) is None
 
 
+def _one_sided(info):
+    """The striped bar seen from its low edge only: no section with both edges, each section's
+    one edge (the other side under a bar over it, or beyond the image border)."""
+    s, lo, hi = info["edges"]
+    nan = np.full(len(s), np.nan)
+    return {"edges": (s, nan, nan), "one_edges": (s, lo, nan)}
+
+
+def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
+    # The same five lines squeezed between the one edge and the axis (0.8 to 0.2 of the radius
+    # from it): their mean height over the axis is 0.83 r, so read there the stripes are 1.7 %
+    # long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
+    from rebarlib._diameter import _RefinedParams, _face_pitch
+
+    prm = _RefinedParams()
+    for pitch in (9.0, 8.0):
+        bar, info, gray = _striped_bar(pitch)
+        read, _ = _face_pitch(bar, _one_sided(info), gray, K, prm)
+        assert read == pytest.approx(pitch, abs=0.06), (pitch, read)
+    # nothing on a face without stripes, nor with too few one-edge sections
+    bar, info, gray = _striped_bar(9.0, stripes=0.0)
+    assert _face_pitch(bar, _one_sided(info), gray, K, prm) is None
+    bar, info, gray = _striped_bar(9.0)
+    s, lo, _ = _one_sided(info)["one_edges"]
+    few = {"edges": (s[:10], lo[:10] * np.nan, lo[:10] * np.nan), "one_edges": (s[:10], lo[:10], lo[:10] * np.nan)}
+    assert _face_pitch(bar, few, gray, K, prm) is None
+
+
+def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
+    # A Φ14 bar 20 mm nearer lies over the striped bar's far side and part of its visible half,
+    # and its own ribs shade at 12 mm (painted over its pixels, twice as contrasted): 12.6 mm
+    # on the plane the striped bar's positions are measured in. Its footprint (the bar with
+    # room for a size larger and a pixel and a half) reaches a further 2.8 mm.
+    from rebarlib._diameter import _footprints, _prepare, _RefinedParams, _face_pitch
+
+    prm = _RefinedParams()
+    z1, r = 380.0, 8.1
+    xh = (K.width / 2 - 2) / K.fx * 400.0  # as long as the striped bar
+    a = ((np.arange(K.height) - K.cy) / K.fy)[:, None]  # ray y / z per row
+    b = ((np.arange(K.width) - K.cx) / K.fx)[None, :]
+    # (the visible, low edge lies at +y: γ's across is -y here; the lines at y 1.7-6.6 mm)
+    for edge_y, expected in ((4.8, None), (2.3, 9.0)):
+        bar, info, gray = _striped_bar(9.0)
+        y1 = edge_y * z1 / 400.0 - r  # the nearer bar's silhouette ends over edge_y
+        over = np.abs(a * z1 - y1) <= r
+        gray = np.where(over, 120 + 80 * np.cos(2 * np.pi * (z1 * b) / 12.0), gray).astype(np.float32)
+        bars = pd.DataFrame([{"bar_id": k, "layer": "upper", "level": "top", "start_x_mm": -xh, "start_y_mm": y,
+                              "start_z_mm": z, "end_x_mm": xh, "end_y_mm": y, "end_z_mm": z}
+                             for k, (y, z) in enumerate([(0.0, 400.0), (y1, z1)])])
+        fp = _footprints(_prepare(bars, None, "GB1499.2", True, 2 * r), K)
+        one = _one_sided(info)
+        read = _face_pitch(bar, one, gray, K, prm, fp, 0)
+        if expected is None:
+            # three of the five lines on the nearer bar: read blind, they show its pitch; with
+            # the footprints every line lies within it or its margin, and nothing is read
+            blind = _face_pitch(bar, one, gray, K, prm)
+            assert blind is not None and blind[0] == pytest.approx(12.0 * 400 / z1, rel=0.03)
+            assert read is None
+        else:
+            # the two lines beyond its footprint read the striped bar's own 9 mm
+            assert read is not None and read[0] == pytest.approx(expected, abs=0.06)
+
+
 def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_none():
     # The bar left between Φ12 and Φ14 shows no pitch in its width nor along its edges; its face's
     # shading shows 9.02 mm, Φ14's spacing. It is read for that bar only.
