@@ -1651,7 +1651,8 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     no size between them: a pair of sizes two apart, Φ14 and Φ18, is not told apart by a pitch
     that Φ16 shares). Its pitch is its width's where that is clear, else the one both its edges
     show (:func:`_edge_pitch`), else the one the shading of its face shows (``face(i)``,
-    :func:`_face_pitch`: read only where needed, once a bar).
+    :func:`_face_pitch`, on its visible half where it is seen from one side: read only where
+    needed, once a bar).
 
     First the capture must show that its bars follow the table: the bars with a clear pitch (in
     their widths; where those are too few to show it, in their faces too) are grouped by
@@ -1958,7 +1959,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     and a size its core (``core_width_mm`` against the standard's core diameters) does not
     confirm is "not measured". A bar left between two sizes there (ambiguous, crests against
     core, mask against cloud) is sized by its rib pitch (its width's, else both its edges' where
-    they agree, :func:`_edge_pitch`) where the system sets one per size (GB 1499.2) and the
+    they agree, :func:`_edge_pitch`, else the shading along its face or, seen from one side,
+    along its visible half, :func:`_face_pitch`) where the system sets one per size (GB 1499.2) and the
     capture's bars show that they follow it (:func:`_pitch_settle`:
     ``width_source`` ending "+pitch", the reason naming the pitch and the two sizes' spacings).
 

@@ -1267,8 +1267,8 @@ def _one_sided(info):
 
 
 def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
-    # The same five lines squeezed between the one edge and the axis (0.8 to 0.2 of the radius
-    # from it): their mean height over the axis is 0.83 r, so read there the stripes are 1.7 %
+    # The same five lines squeezed between the one edge and the axis (at 0.8 to 0.2 of the
+    # edge's distance from the axis): their mean height over the axis is 0.83 r, so read there the stripes are 1.7 %
     # long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
     from rebarlib._diameter import _RefinedParams, _face_pitch
 
