@@ -875,9 +875,9 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     g = np.exp(-0.5 * (x_g / sig) ** 2)
     x = np.array([(row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
                   for row, mk in zip(lum, m)])
-    cnt = m.sum(axis=1)
-    x -= (x.sum(axis=1) / np.maximum(cnt, 1))[:, None] * m
-    var = (x ** 2).sum(axis=1) / np.maximum(cnt, 1)
+    cnt = np.maximum(m.sum(axis=1), 1.0)  # samples read per line (a line with none has no variance)
+    x -= (x.sum(axis=1) / cnt)[:, None] * m
+    var = (x ** 2).sum(axis=1) / cnt
     # a line read over less than half of the bar's clean length says too little (a sliver's
     # line that runs under the bar over it)
     varied = (var > 1e-9) & (cnt >= 0.5 * keep.sum())

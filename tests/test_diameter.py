@@ -1199,6 +1199,16 @@ def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why)
     assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), _RefinedParams()) is None
 
 
+def _bars_along_u(*places):
+    """A bars table of upper bars along the image's u axis, one per (y, z) place of its axis (mm),
+    as long as the striped bar of :func:`_striped_bar` (the image's width at 400 mm, less 2 px
+    at either end)."""
+    half = (K.width / 2 - 2) / K.fx * 400.0
+    return pd.DataFrame([{"bar_id": k, "layer": "upper", "level": "top", "start_x_mm": -half, "start_y_mm": y,
+                          "start_z_mm": z, "end_x_mm": half, "end_y_mm": y, "end_z_mm": z}
+                         for k, (y, z) in enumerate(places)])
+
+
 def _striped_bar(pitch_mm, *, stripes=40.0, noise=3.0, seed=0):
     """A hand-built bar for ``_face_pitch``: camera K, a bar of radius 8.1 mm (Φ14's envelope)
     along the image's u axis, its axis 400 mm away; each pixel's ray traced through its centre
@@ -1218,9 +1228,7 @@ def _striped_bar(pitch_mm, *, stripes=40.0, noise=3.0, seed=0):
     gray = np.where(disc > 0, 120 + stripes * np.cos(2 * np.pi * along / pitch_mm), 200.0)
     gray = (gray + rng.normal(0, noise, gray.shape)).astype(np.float32)
     half = (K.width / 2 - 2) / K.fx * z0
-    bars = pd.DataFrame([{"bar_id": 0, "layer": "upper", "level": "top", "start_x_mm": -half, "start_y_mm": 0.0,
-                          "start_z_mm": z0, "end_x_mm": half, "end_y_mm": 0.0, "end_z_mm": z0}])
-    bar = _prepare(bars, None, "GB1499.2", True, 2 * r)[0]
+    bar = _prepare(_bars_along_u((0.0, z0)), None, "GB1499.2", True, 2 * r)[0]
     s = np.arange(0.0, 2 * half, 3 * z0 / K.fx)  # sections 3 px apart, both edges at the silhouette
     edge = r * z0 / math.sqrt(z0 * z0 - r * r)
     return bar, {"edges": (s, np.full(len(s), -edge), np.full(len(s), edge))}, gray
@@ -1268,8 +1276,8 @@ def _one_sided(info):
 
 def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
     # The same five lines squeezed between the one edge and the axis (at 0.8 to 0.2 of the
-    # edge's distance from the axis): their mean height over the axis is 0.83 r, so read there the stripes are 1.7 %
-    # long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
+    # edge's distance from the axis): their mean height over the axis is 0.83 r, so read there
+    # the stripes are 1.7 % long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
     from rebarlib._diameter import _RefinedParams, _face_pitch
 
     prm = _RefinedParams()
@@ -1295,7 +1303,6 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
 
     prm = _RefinedParams()
     z1, r = 380.0, 8.1
-    xh = (K.width / 2 - 2) / K.fx * 400.0  # as long as the striped bar
     a = ((np.arange(K.height) - K.cy) / K.fy)[:, None]  # ray y / z per row
     b = ((np.arange(K.width) - K.cx) / K.fx)[None, :]
     # (the visible, low edge lies at +y: γ's across is -y here; the lines at y 1.7-6.6 mm)
@@ -1304,10 +1311,7 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
         y1 = edge_y * z1 / 400.0 - r  # the nearer bar's silhouette ends over edge_y
         over = np.abs(a * z1 - y1) <= r
         gray = np.where(over, 120 + 80 * np.cos(2 * np.pi * (z1 * b) / 12.0), gray).astype(np.float32)
-        bars = pd.DataFrame([{"bar_id": k, "layer": "upper", "level": "top", "start_x_mm": -xh, "start_y_mm": y,
-                              "start_z_mm": z, "end_x_mm": xh, "end_y_mm": y, "end_z_mm": z}
-                             for k, (y, z) in enumerate([(0.0, 400.0), (y1, z1)])])
-        fp = _footprints(_prepare(bars, None, "GB1499.2", True, 2 * r), K)
+        fp = _footprints(_prepare(_bars_along_u((0.0, 400.0), (y1, z1)), None, "GB1499.2", True, 2 * r), K)
         one = _one_sided(info)
         read = _face_pitch(bar, one, gray, K, prm, fp, 0)
         if expected is None:
