@@ -236,6 +236,27 @@ def test_in_test_model_with_test_time_flips(tmp_path, flips, columns):
         assert np.allclose(model.predict_proba(img)[:, 19], 1 / (1 + np.exp(-2.25)), atol=1e-5)
 
 
+def test_in_test_model_tiles_get_the_test_time_flips(tmp_path):
+    # the left-looking model on tiles: with the sidecar's flip every tile's logits are the mean of
+    # the plain and the mirrored run, so the red column at x = 50 marks x = 49 and x = 51 with the
+    # mean logit 2.25, as on a whole image (test above); flips=False runs each tile once (x = 51 only, 8.5).
+    # x = 49-51 lie inside every 40 px tile that holds them (tiles start every 20 px)
+    sidecar = {"input": {"size": [40, 25], "flips": ["h"]}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="tileflips"))
+    img = np.zeros((100, 160, 3), np.uint8)
+    img[:, 50, 0] = 200
+    sig = lambda z: 1 / (1 + np.exp(-z))  # noqa: E731
+    both = model.predict_proba(img, tiled=True)
+    assert both.shape == (100, 160)
+    assert np.allclose(both[:, [49, 51]], sig(2.25), atol=1e-5) and np.allclose(both[:, 55:100], sig(-4.0), atol=1e-5)
+    once = model.predict_proba(img, tiled=True, flips=False)
+    assert np.allclose(once[:, 51], sig(8.5), atol=1e-5) and np.allclose(once[:, 49], sig(-4.0), atol=1e-5)
+    # an image of the input's size is scored whole, with its flip or without
+    small = np.ascontiguousarray(img[:25, 30:70])
+    assert np.allclose(model.predict_proba(small, tiled=True)[:, 19], sig(2.25), atol=1e-5)
+    assert np.allclose(model.predict_proba(small, tiled=True, flips=False)[:, 19], sig(-4.0), atol=1e-5)
+
+
 # ---------------------------------------------------------------------------------------------
 # errors name the file and the problem
 
