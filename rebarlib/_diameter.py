@@ -2025,12 +2025,12 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     ribs_p = (_ribs_in_view([(r[3]["rib_pitch_mm"], r[3]["rib_p"]) for r in results], prm, sizes)
               if method == "refined" and deformed else 1.0)
     ribs = ribs_p < prm.rib_capture_p
-    if (method == "refined" and deformed and not ribs and colour_edges
-            and any(mode is True for mode in cloud_mode)):
-        # a mask that smooths the ribs away: the colour image may still show them. Only where a
-        # bar's point cloud would be fused with its mask width (axes found without an assumed
-        # radius): both then read a ribbed bar a size down and agree. An axis placed with an
-        # assumed radius vetoes that instead.
+    if method == "refined" and deformed and not ribs and colour_edges:
+        # a mask that smooths the ribs away: the colour image may still show them. Where a bar's
+        # point cloud would be fused with its mask width (axes found without an assumed radius),
+        # both then read a ribbed bar a size down and agree. An axis placed with an assumed
+        # radius vetoes that for a bar of the design size, but not for a bar one size larger
+        # than designed: read a size down, it gives the design size, which the cloud echoes
         ribs = _colour_ribs(results, sizes, prm, system=system)
     for r in results:
         info = r[3]

@@ -938,6 +938,34 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
 
 
+def test_ribs_a_mask_smooths_away_are_looked_for_in_the_colour_image_with_axes_of_an_assumed_radius(
+        relief_scene, monkeypatch):
+    """A learnt mask may smooth the ribs away (here: the same scene's smooth outline as the mask
+    of the relief capture), so its widths show no rib periodicity; the colour image is then
+    asked (``_colour_ribs``, tested on its own below) also where the axes were placed with an
+    assumed radius, as the geometry stage's are: there a bar one size larger than designed, read
+    a size down from a mask of its core, would give its design size, which the cloud's echo of
+    that radius cannot veto. Where the colour image shows the ribs, the capture resolves them."""
+    import rebarlib._diameter as dm
+    from rebarlib.synth import rib_envelope_mm
+
+    design, relief, smooth = relief_scene
+    bars = bars_from_truth(relief.truth)
+    tb = {b["id"]: b for b in relief.truth["bars"]}
+    bars["axis_radius_mm"] = [rib_envelope_mm(tb[i]["design_diameter_mm"]) / 2 for i in bars.bar_id]
+    outline = smooth.labels > 0
+    asked = []
+    monkeypatch.setattr(dm, "_colour_ribs", lambda *a, **k: asked.append(1) or True)
+    t = measure_diameters(relief, bars, outline, design=design)
+    assert asked == [1] and t.ribs_resolved.all()
+    monkeypatch.setattr(dm, "_colour_ribs", lambda *a, **k: asked.append(2) or False)
+    u = measure_diameters(relief, bars, outline, design=design)
+    assert asked == [1, 2] and not u.ribs_resolved.any()
+    # without colour edges it is not asked
+    measure_diameters(relief, bars, outline, design=design, colour_edges=False)
+    assert asked == [1, 2]
+
+
 @pytest.mark.parametrize("crest_size, core_mm, expected", [
     (14.0, 14.6, None),  # Φ14 with its longitudinal ribs turned sideways: nearer Φ16's d1, yet below it
     (14.0, 13.1, None),  # a little under Φ14's 13.4, within σ
