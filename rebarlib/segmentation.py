@@ -436,9 +436,10 @@ class SegmentationModel:
         Tiles overlap by half a tile; where they overlap the scores are blended with weights
         that fall linearly to near 0 over the outer eighth of a tile on its sides inside the
         image (a network sees less context near a tile's border). Each tile gets the sidecar's
-        test-time flips, as a whole image does (``flips``: False runs each tile once). Models without a fixed input size, and images that at that scale are no
-        larger than the input or smaller than it in one direction, are scored as by
-        :meth:`predict_proba` without tiles.
+        test-time flips, as a whole image does (``flips``: False runs each tile once). Models
+        without a fixed input size, and images that at that scale are no larger than the input
+        or smaller than it in one direction, are scored as by :meth:`predict_proba` without
+        tiles.
         """
         import cv2
 
@@ -492,8 +493,8 @@ class SegmentationModel:
         ``bar_width_px``, the widest bar's width in the image, lowers that resolution where the
         bars would otherwise be wider than the model knows (:meth:`tile_scale`). ``flips``: the
         sidecar's test-time flips (``input.flips``), on the whole image or on every tile; False
-        runs the network once per image or tile (with the shipped model's three flips, 4 × faster
-        and a less exact mask: README, "Segmentation").
+        runs the network once per image or tile instead of once per flip and once more (the
+        shipped model: 4 runs; faster, a less exact mask: README, "Full-resolution tiles").
         """
         score, _, is_logit = (self._score_tiled(color, bar_width_px, flips) if tiled
                               else self._score(color, flips))
