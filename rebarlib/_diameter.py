@@ -1960,8 +1960,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     confirm is "not measured". A bar left between two sizes there (ambiguous, crests against
     core, mask against cloud) is sized by its rib pitch (its width's, else both its edges' where
     they agree, :func:`_edge_pitch`, else the shading along its face or, seen from one side,
-    along its visible half, :func:`_face_pitch`) where the system sets one per size (GB 1499.2) and the
-    capture's bars show that they follow it (:func:`_pitch_settle`:
+    along its visible half, :func:`_face_pitch`) where the system sets one per size
+    (GB 1499.2) and the capture's bars show that they follow it (:func:`_pitch_settle`:
     ``width_source`` ending "+pitch", the reason naming the pitch and the two sizes' spacings).
 
     Examples
