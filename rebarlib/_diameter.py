@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (bar_system, bracketing_sizes, observed_width_mm, rib_height_mm, rib_pitch_mm,
+from ._barsizes import (_nearest, bar_system, bracketing_sizes, observed_width_mm, rib_height_mm, rib_pitch_mm,
                         size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
@@ -1730,6 +1730,43 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
         row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
 
 
+def _pitch_veto(rows, results, prm, *, system) -> None:
+    """A bar sized from its widths whose own widths are clearly periodic at the rib spacing of the
+    next size up (GB 1499.2 sets one per size) is not reported at the smaller size: it is "not
+    measured", a possible wrong size whose reason names both.
+
+    A mask that smooths a ribbed bar's ribs away reads its core, about the envelope of the size
+    below (Φ16's core is Φ14's envelope); where the capture as a whole shows no ribs, neither
+    :func:`_pitch_settle` nor the colour image's ribs (:func:`_colour_ribs`) can mend that, but
+    the bar's own widths may still show its ribs' pitch. The pitch must lie within
+    :func:`_pitch_band` of the next size's spacing on the read's resolution alone (no capture
+    spread to add: the table was not checked against this capture) and outside its own size's.
+    Only the size up: a clear pitch at the next size down was seen on a smooth capture by chance
+    (``docs/diameters.md``), and no mechanism reads a ribbed bar a size up. Rows are changed in
+    place."""
+    sysm = bar_system(system)
+    if not sysm.rib_pitch_mm:
+        return
+    sizes = list(sysm.sizes_mm)
+    for row, r in zip(rows, results):
+        if row["diameter_status"] != MEASURED or "pitch" in (row["width_source"] or ""):
+            continue
+        read = _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)
+        j = _nearest(sizes, row["nominal_mm"])
+        if read is None or j + 1 >= len(sizes):
+            continue
+        p, resolution = read
+        own, up = rib_pitch_mm(sizes[j], system=system), rib_pitch_mm(sizes[j + 1], system=system)
+        band = _pitch_band(0.0, resolution, prm)
+        if not (math.isfinite(own) and math.isfinite(up)) or abs(p / up - 1) > band or abs(p / own - 1) <= band:
+            continue
+        row.update(diameter_status=NOT_MEASURED, matches_design=None, diameter_reason=(
+            f"possible wrong size: the widths give {sysm.label(sizes[j])} (confidence {row['confidence']:.2f}), "
+            f"but they are periodic with a pitch of {p:.2f} mm, {sysm.label(sizes[j + 1])}'s rib spacing "
+            f"({sysm.label(sizes[j])}'s is {own:g} mm): a mask that smooths the ribs away reads a bar's core, "
+            "a size down; check this bar by hand"), nominal_mm=math.nan, confidence=0.0)
+
+
 def _matches_design(nominal_mm, design_mm):
     """Whether a measured size is the design's; None where the bar has no design size."""
     return bool(abs(nominal_mm - design_mm) < 1e-6) if math.isfinite(design_mm) else None
@@ -2129,6 +2166,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     if method == "refined" and ribs:
         _pitch_settle(rows, results, sizes, shadows, prm, system=system,
                       face=lambda i: _face_pitch(prepared[i], results[i][3], gray, intr, prm, fp, i))
+    if method == "refined" and deformed:
+        _pitch_veto(rows, results, prm, system=system)
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
     df["matches_design"] = df["matches_design"].astype(object)
     return df

@@ -1076,6 +1076,43 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
     assert rows[-1]["diameter_status"] == "not measured"
 
 
+@pytest.mark.parametrize("pitch, vetoed, why", [
+    (10.02, True, "Φ16's spacing on a bar the widths size Φ14: its core read as Φ14's envelope"),
+    (9.01, False, "its own size's spacing"),
+    (8.0, False, "the size down's spacing: seen by chance on smooth captures, and nothing reads a bar a size up"),
+    (9.5, False, "half-way: on no spacing"),
+])
+def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(pitch, vetoed, why):
+    # A ribbed Φ16 bar whose mask smooths its ribs away reads its core, about Φ14's envelope; a
+    # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, clearly
+    # periodic at 10 mm (Φ16's spacing; Φ14's is 9 mm), say it is no Φ14 (300 mm read: a pitch
+    # matches a spacing within 3 x 1.7 %).
+    from rebarlib._diameter import _pitch_veto
+
+    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+    rows[-1].update(diameter_status="measured", nominal_mm=12.0, confidence=0.95, width_source="mask+pitch")
+    rows[-1].pop("_pair")
+    _pitch_veto(rows, results, prm, system="GB1499.2")
+    r = rows[1]
+    if vetoed:
+        assert r["diameter_status"] == "not measured" and math.isnan(r["nominal_mm"]) and r["matches_design"] is None
+        assert r["diameter_reason"].startswith("possible wrong size: the widths give Φ14 (confidence 0.95), "
+                                               "but they are periodic with a pitch of 10.02 mm, Φ16's"), why
+    else:
+        assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0, why
+    assert rows[0]["diameter_status"] == "measured" and rows[0]["nominal_mm"] == 14.0  # on its own spacing
+    # a size the rib pitch gave is the pitch's own; a bar whose pitch is not clear has none to check
+    assert rows[-1]["diameter_status"] == "measured"
+    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+    results[1][3]["rib_p"] = 0.5
+    _pitch_veto(rows, results, prm, system="GB1499.2")
+    assert rows[1]["diameter_status"] == "measured"
+    # a standard that sets no spacing per size (ASTM A615) never uses it
+    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+    _pitch_veto(rows, results, prm, system="ASTM-A615")
+    assert rows[1]["diameter_status"] == "measured"
+
+
 def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
     # No bar's width is clearly periodic, so the widths cannot show that the capture's bars follow
     # the table; their faces can (7 + 3 pitches on Φ12's and Φ14's spacings), and the bar left
