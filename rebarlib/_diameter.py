@@ -1762,9 +1762,9 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
             continue
         row.update(diameter_status=NOT_MEASURED, matches_design=None, diameter_reason=(
             f"possible wrong size: the widths give {sysm.label(sizes[j])} (confidence {row['confidence']:.2f}), "
-            f"but they are periodic with a pitch of {p:.2f} mm, {sysm.label(sizes[j + 1])}'s rib spacing "
-            f"({sysm.label(sizes[j])}'s is {own:g} mm): a mask that smooths the ribs away reads a bar's core, "
-            "a size down; check this bar by hand"), nominal_mm=math.nan, confidence=0.0)
+            f"but they are periodic with a pitch of {p:.2f} mm, the rib spacing of {sysm.label(sizes[j + 1])} "
+            f"({up:g} mm; {sysm.label(sizes[j])}'s is {own:g} mm): a mask that smooths the ribs away reads a "
+            "bar's core, a size down; check this bar by hand"), nominal_mm=math.nan, confidence=0.0)
 
 
 def _matches_design(nominal_mm, design_mm):

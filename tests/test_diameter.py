@@ -1097,7 +1097,8 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
     if vetoed:
         assert r["diameter_status"] == "not measured" and math.isnan(r["nominal_mm"]) and r["matches_design"] is None
         assert r["diameter_reason"].startswith("possible wrong size: the widths give Φ14 (confidence 0.95), "
-                                               "but they are periodic with a pitch of 10.02 mm, Φ16's"), why
+                                               "but they are periodic with a pitch of 10.02 mm, the rib spacing "
+                                               "of Φ16 (10 mm; Φ14's is 9 mm)"), why
     else:
         assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0, why
     assert rows[0]["diameter_status"] == "measured" and rows[0]["nominal_mm"] == 14.0  # on its own spacing
