@@ -1741,9 +1741,12 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
     the bar's own widths may still show its ribs' pitch. The pitch must lie within
     :func:`_pitch_band` of the next size's spacing on the read's resolution alone (no capture
     spread to add: the table was not checked against this capture) and outside its own size's.
-    Only the size up: a clear pitch at the next size down was seen on a smooth capture by chance
-    (``docs/diameters.md``), and no mechanism reads a ribbed bar a size up. Rows are changed in
-    place."""
+    It overturns a size, so it asks more of the periodicity than a reported pitch does (p <
+    ``prm.rib_bar_p``, 1 %): what a whole capture needs to be judged to show ribs, p <
+    ``prm.rib_capture_p``. Among some 600 smooth bars a few are periodic at p ~ 10⁻³ by chance,
+    one of them right at the next size's spacing (``docs/diameters.md``); the Φ16 bar read as
+    Φ14 that this was written for, at 2 × 10⁻¹³. Only the size up: no mechanism reads a ribbed
+    bar a size up, and chance pitches fall on either side. Rows are changed in place."""
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return
@@ -1753,7 +1756,7 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
             continue
         read = _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)
         j = _nearest(sizes, row["nominal_mm"])
-        if read is None or j + 1 >= len(sizes):
+        if read is None or not r[3]["rib_p"] < prm.rib_capture_p or j + 1 >= len(sizes):
             continue
         p, resolution = read
         own, up = rib_pitch_mm(sizes[j], system=system), rib_pitch_mm(sizes[j + 1], system=system)

@@ -1085,11 +1085,13 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
 def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(pitch, vetoed, why):
     # A ribbed Φ16 bar whose mask smooths its ribs away reads its core, about Φ14's envelope; a
     # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, clearly
-    # periodic at 10 mm (Φ16's spacing; Φ14's is 9 mm), say it is no Φ14 (300 mm read: a pitch
+    # periodic at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a pitch
     # matches a spacing within 3 x 1.7 %).
     from rebarlib._diameter import _pitch_veto
 
     rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+    for r in results:
+        r[3]["rib_p"] = 1e-9  # as clear as a capture needs to show ribs (p < 10⁻⁶)
     rows[-1].update(diameter_status="measured", nominal_mm=12.0, confidence=0.95, width_source="mask+pitch")
     rows[-1].pop("_pair")
     _pitch_veto(rows, results, prm, system="GB1499.2")
@@ -1104,10 +1106,12 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
     assert rows[0]["diameter_status"] == "measured" and rows[0]["nominal_mm"] == 14.0  # on its own spacing
     # a size the rib pitch gave is the pitch's own; a bar whose pitch is not clear has none to check
     assert rows[-1]["diameter_status"] == "measured"
-    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
-    results[1][3]["rib_p"] = 0.5
-    _pitch_veto(rows, results, prm, system="GB1499.2")
-    assert rows[1]["diameter_status"] == "measured"
+    # nor one whose pitch is reported (p < 1 %) but not as clear as a capture needs to show ribs
+    for p_value in (0.5, 1e-3):
+        rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+        results[1][3]["rib_p"] = p_value
+        _pitch_veto(rows, results, prm, system="GB1499.2")
+        assert rows[1]["diameter_status"] == "measured"
     # a standard that sets no spacing per size (ASTM A615) never uses it
     rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
     _pitch_veto(rows, results, prm, system="ASTM-A615")
