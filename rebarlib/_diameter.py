@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._barsizes import (_nearest, bar_system, bracketing_sizes, observed_width_mm, rib_height_mm, rib_pitch_mm,
-                        size_half_gaps_mm, snap_diameter)
+from ._barsizes import (_nearest, bar_system, bracketing_sizes, observed_width_mm, rib_height_mm,
+                        rib_pitch_mm, size_half_gaps_mm, snap_diameter)
 from ._camera import Intrinsics, backproject, project, ray_directions
 from ._checks import RebarInputError
 

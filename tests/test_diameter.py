@@ -1084,16 +1084,21 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
 ])
 def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(pitch, vetoed, why):
     # A ribbed Φ16 bar whose mask smooths its ribs away reads its core, about Φ14's envelope; a
-    # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, clearly
-    # periodic at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a pitch
+    # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, periodic
+    # at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a pitch
     # matches a spacing within 3 x 1.7 %).
     from rebarlib._diameter import _pitch_veto
 
-    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
-    for r in results:
-        r[3]["rib_p"] = 1e-9  # as clear as a capture needs to show ribs (p < 10⁻⁶)
-    rows[-1].update(diameter_status="measured", nominal_mm=12.0, confidence=0.95, width_source="mask+pitch")
-    rows[-1].pop("_pair")
+    def case(p_value=1e-9, source="mask"):  # bar 1 (Φ14 by its widths) has the pitch tried
+        rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
+        for r in results:
+            r[3]["rib_p"] = p_value  # 10⁻⁹: as clear as a capture needs to show ribs (p < 10⁻⁶)
+        rows[-1].update(diameter_status="measured", nominal_mm=12.0)
+        rows[-1].pop("_pair")
+        rows[1]["width_source"] = source
+        return rows, results, prm
+
+    rows, results, prm = case()
     _pitch_veto(rows, results, prm, system="GB1499.2")
     r = rows[1]
     if vetoed:
@@ -1103,19 +1108,15 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
                                                "of Φ16 (10 mm; Φ14's is 9 mm)"), why
     else:
         assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0, why
-    assert rows[0]["diameter_status"] == "measured" and rows[0]["nominal_mm"] == 14.0  # on its own spacing
-    # a size the rib pitch gave is the pitch's own; a bar whose pitch is not clear has none to check
-    assert rows[-1]["diameter_status"] == "measured"
-    # nor one whose pitch is reported (p < 1 %) but not as clear as a capture needs to show ribs
-    for p_value in (0.5, 1e-3):
-        rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
-        results[1][3]["rib_p"] = p_value
-        _pitch_veto(rows, results, prm, system="GB1499.2")
-        assert rows[1]["diameter_status"] == "measured"
-    # a standard that sets no spacing per size (ASTM A615) never uses it
-    rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
-    _pitch_veto(rows, results, prm, system="ASTM-A615")
-    assert rows[1]["diameter_status"] == "measured"
+    assert rows[0]["nominal_mm"] == 14.0 and rows[-1]["nominal_mm"] == 12.0  # each on its own spacing
+    # Left alone: a size the rib pitch gave (the pitch's own), a pitch reported (p < 1 %) but not
+    # as clear as a capture needs to show ribs, one not clear at all, and a standard that sets no
+    # spacing per size (ASTM A615)
+    for p_value, source, system in [(1e-9, "mask+pitch", "GB1499.2"), (1e-3, "mask", "GB1499.2"),
+                                    (0.5, "mask", "GB1499.2"), (1e-9, "mask", "ASTM-A615")]:
+        rows, results, prm = case(p_value, source)
+        _pitch_veto(rows, results, prm, system=system)
+        assert all(x["diameter_status"] == "measured" for x in rows), (p_value, source, system)
 
 
 def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
