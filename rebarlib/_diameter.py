@@ -1444,15 +1444,16 @@ def _alert_other_size(out: dict, med, nom_m, conf_m, dw, nom_c, prm, covered: fl
     Not for a bar most of whose cross-sections (``covered``, a share, at least
     ``prm.hidden_fraction``) lie partly under nearer bars: its mask width is read on what is seen
     beside them, a sliver or one edge and an axis placed with the assumed radius, and the
-    confidence its σ gives is not earned. Seen over seven benchmark runs (1 to 8 alerts each):
-    every alert on such a bar named a wrong size (12 of 12), and every alert that named a bar's
-    true size was on a bar with at most a quarter of its sections covered. Its reason says why no
-    size is suggested."""
+    confidence its σ gives is not earned. Seen over seven benchmark runs (detected axes, fused
+    mask, 1 to 8 alerts each): every alert on such a bar named a size the bar is not (12 of 12),
+    and every alert that named a bar's true size was on a bar with at most a quarter of its
+    sections covered. Its reason says why no size is suggested."""
     if not (math.isfinite(nom_m) and nom_m != nom_c and conf_m >= prm.min_confidence):
         return
     if covered >= prm.hidden_fraction:
-        out["diameter_reason"] += (f"; {covered:.0%} of its cross-sections lie partly under nearer bars: its mask "
-                                   "width is read on what is seen beside them and suggests no other size")
+        out["diameter_reason"] += (
+            f"; {covered:.0%} of its cross-sections lie partly under nearer bars: its mask width "
+            "is read on what is seen beside them and suggests no other size")
     else:
         out["diameter_reason"] = (
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
@@ -1774,13 +1775,18 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
         p, resolution = read
         own, up = rib_pitch_mm(sizes[j], system=system), rib_pitch_mm(sizes[j + 1], system=system)
         band = _pitch_band(0.0, resolution, prm)
-        if not (math.isfinite(own) and math.isfinite(up)) or abs(p / up - 1) > band or abs(p / own - 1) <= band:
+        if not (math.isfinite(own) and math.isfinite(up)):
             continue
-        row.update(diameter_status=NOT_MEASURED, matches_design=None, diameter_reason=(
-            f"possible wrong size: the widths give {sysm.label(sizes[j])} (confidence {row['confidence']:.2f}), "
-            f"but they are periodic with a pitch of {p:.2f} mm, the rib spacing of {sysm.label(sizes[j + 1])} "
-            f"({up:g} mm; {sysm.label(sizes[j])}'s is {own:g} mm): a mask that smooths the ribs away reads a "
-            "bar's core, a size down; check this bar by hand"), nominal_mm=math.nan, confidence=0.0)
+        if abs(p / up - 1) > band or abs(p / own - 1) <= band:
+            continue
+        this, next_up = sysm.label(sizes[j]), sysm.label(sizes[j + 1])
+        conf = row["confidence"]
+        reason = (f"possible wrong size: the widths give {this} (confidence {conf:.2f}), but "
+                  f"they are periodic with a pitch of {p:.2f} mm, the rib spacing of {next_up} "
+                  f"({up:g} mm; {this}'s is {own:g} mm): a mask that smooths the ribs away "
+                  "reads a bar's core, a size down; check this bar by hand")
+        row.update(diameter_status=NOT_MEASURED, matches_design=None, nominal_mm=math.nan,
+                   confidence=0.0, diameter_reason=reason)
 
 
 def _matches_design(nominal_mm, design_mm):
@@ -2169,7 +2175,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         else:
             row.update(_refined_decision(info["mask_width_mm"], row["width_spread_mm"], len(w), info, in_shadow,
                                          prm, system=system, deformed=deformed, use_cloud=cloud_mode[i],
-                                         assumed_mm=bar.axis_radius_mm, mask_median=med, covered=occ_frac))
+                                         assumed_mm=bar.axis_radius_mm, mask_median=med,
+                                         covered=occ_frac))
             if ribs and row["diameter_status"] == MEASURED:
                 _check_core(row, info, prm, system=system)
             if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction

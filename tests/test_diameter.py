@@ -391,12 +391,13 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     assert "Φ10" in r["diameter_reason"]
     # The same bar with most of its sections partly under nearer bars: what is seen beside them
     # (a sliver, or one edge and an axis placed with the assumed radius) names no size. Over seven
-    # benchmark runs every such alert was false (12 of 12).
+    # benchmark runs (detected axes, fused mask) every such alert was false (12 of 12).
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, covered=0.9, **kw)
     assert r["diameter_status"] == "not measured" and "Φ8" not in r["diameter_reason"]
-    assert r["diameter_reason"] == ("mask width 9.6 mm and point-cloud width 10.0 mm disagree; 90% of its "
-                                    "cross-sections lie partly under nearer bars: its mask width is read on "
-                                    "what is seen beside them and suggests no other size")
+    assert r["diameter_reason"] == (
+        "mask width 9.6 mm and point-cloud width 10.0 mm disagree; 90% of its cross-sections lie "
+        "partly under nearer bars: its mask width is read on what is seen beside them and suggests "
+        "no other size")
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, covered=0.3, **kw)
     assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
     # the same bar with the axis where it belongs is measured as Φ10
@@ -1089,20 +1090,21 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
 @pytest.mark.parametrize("pitch, vetoed, why", [
     (10.02, True, "Φ16's spacing on a bar the widths size Φ14: its core read as Φ14's envelope"),
     (9.01, False, "its own size's spacing"),
-    (8.0, False, "the size down's spacing: seen by chance on smooth captures, and nothing reads a bar a size up"),
+    (8.0, False, "the size down's: by chance on smooth bars; nothing reads a bar a size up"),
     (9.5, False, "half-way: on no spacing"),
 ])
-def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(pitch, vetoed, why):
+def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(
+        pitch, vetoed, why):
     # A ribbed Φ16 bar whose mask smooths its ribs away reads its core, about Φ14's envelope; a
     # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, periodic
-    # at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a pitch
-    # matches a spacing within 3 x 1.7 %).
+    # at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a
+    # pitch matches a spacing within 3 x 1.7 %).
     from rebarlib._diameter import _pitch_veto
 
     def case(p_value=1e-9, source="mask"):  # bar 1 (Φ14 by its widths) has the pitch tried
         rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
         for r in results:
-            r[3]["rib_p"] = p_value  # 10⁻⁹: as clear as a capture needs to show ribs (p < 10⁻⁶)
+            r[3]["rib_p"] = p_value  # 10⁻⁹: as clear as a capture needs to show ribs (< 10⁻⁶)
         rows[-1].update(diameter_status="measured", nominal_mm=12.0)
         rows[-1].pop("_pair")
         rows[1]["width_source"] = source
@@ -1112,13 +1114,14 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
     _pitch_veto(rows, results, prm, system="GB1499.2")
     r = rows[1]
     if vetoed:
-        assert r["diameter_status"] == "not measured" and math.isnan(r["nominal_mm"]) and r["matches_design"] is None
-        assert r["diameter_reason"].startswith("possible wrong size: the widths give Φ14 (confidence 0.95), "
-                                               "but they are periodic with a pitch of 10.02 mm, the rib spacing "
-                                               "of Φ16 (10 mm; Φ14's is 9 mm)"), why
+        assert r["diameter_status"] == "not measured" and math.isnan(r["nominal_mm"])
+        assert r["matches_design"] is None
+        assert r["diameter_reason"].startswith(
+            "possible wrong size: the widths give Φ14 (confidence 0.95), but they are periodic "
+            "with a pitch of 10.02 mm, the rib spacing of Φ16 (10 mm; Φ14's is 9 mm)"), why
     else:
         assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0, why
-    assert rows[0]["nominal_mm"] == 14.0 and rows[-1]["nominal_mm"] == 12.0  # each on its own spacing
+    assert rows[0]["nominal_mm"] == 14.0 and rows[-1]["nominal_mm"] == 12.0  # on their own spacings
     # Left alone: a size the rib pitch gave (the pitch's own), a pitch reported (p < 1 %) but not
     # as clear as a capture needs to show ribs, one not clear at all, and a standard that sets no
     # spacing per size (ASTM A615)
