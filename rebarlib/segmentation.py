@@ -417,21 +417,40 @@ class SegmentationModel:
             score = cv2.resize(np.ascontiguousarray(score), (W, H), interpolation=interp)
         return score, thr, is_logit
 
-    def tile_scale(self, bar_width_px=None) -> float:
-        """The scale (≤ 1) at which :meth:`predict_proba` with ``tiled`` runs the network on an
-        image whose widest bar is ``bar_width_px`` pixels wide: 1 (full resolution) unless that
-        bar would be wider than the sidecar's ``input.max_bar_px`` (the widest bar the model is
-        known to segment, in input pixels; none: no limit), else the scale that makes it that wide.
+    def tile_scale(self, bar_width_px=None, image_size=None) -> float:
+        """The scale at which :meth:`predict_proba` with ``tiled`` runs the network on an image
+        whose widest bar is ``bar_width_px`` pixels wide and whose size is ``image_size`` (W, H).
+
+        Down (< 1) where that bar would be wider than the sidecar's ``input.max_bar_px`` (the
+        widest bar the model is known to segment, in input pixels; none: no limit): the scale
+        that makes it that wide. Up (> 1) where the image, larger than the network's fixed
+        input, is smaller than twice that input in either direction: the tiles were designed
+        and measured at twice the input (a 1280 × 800 image into a 640 × 400 input; the shipped
+        network was trained on images at the input's size with crops enlarged up to twice), so
+        a smaller image (an 848 × 480 camera's) is enlarged towards it, by the smaller of the
+        two ratios, and never so far that the widest bar exceeds ``input.max_bar_px``: its bars'
+        edges are then placed on a finer grid (README, "Full-resolution tiles"). 1 otherwise.
         """
         limit = self._inp["max_bar_px"]
-        if bar_width_px is None or limit is None or not np.isfinite(bar_width_px) or bar_width_px <= limit:
+        known = bar_width_px is not None and bool(np.isfinite(bar_width_px)) and bar_width_px > 0
+        if known and limit is not None and bar_width_px > limit:
+            return float(limit / bar_width_px)
+        size = self._inp["size"]
+        if image_size is None or size is None:
             return 1.0
-        return float(limit / bar_width_px)
+        W, H = image_size
+        if W < size[0] or H < size[1] or (W, H) == tuple(size):  # scored whole, not tiled
+            return 1.0
+        up = min(2 * size[0] / W, 2 * size[1] / H)
+        if known and limit is not None:
+            up = min(up, limit / bar_width_px)
+        return float(max(up, 1.0))
 
     def _score_tiled(self, color, bar_width_px=None, flips: bool = True):
         """The score map of an image larger than the model's fixed input, from the network run
-        on input-sized tiles of the image at full resolution, or at :meth:`tile_scale` where its
-        bars would be too wide for the model there (``bar_width_px``: the widest bar's width).
+        on input-sized tiles of the image at full resolution, or at :meth:`tile_scale`: lower
+        where its bars would be too wide for the model there (``bar_width_px``: the widest bar's
+        width), higher where the image is smaller than twice the input.
 
         Tiles overlap by half a tile; where they overlap the scores are blended with weights
         that fall linearly to near 0 over the outer eighth of a tile on its sides inside the
@@ -448,12 +467,13 @@ class SegmentationModel:
             return self._score(color, flips)
         H0, W0 = img.shape[:2]
         size = self._inp["size"]
-        scale = self.tile_scale(bar_width_px)
+        scale = self.tile_scale(bar_width_px, (W0, H0))
         W, H = (W0, H0) if scale == 1.0 else (max(1, round(W0 * scale)), max(1, round(H0 * scale)))
         if size is None or W < size[0] or H < size[1] or (W, H) == tuple(size):
             return self._score(color, flips)
         if (W, H) != (W0, H0):
-            img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
+            # area averaging to shrink, bilinear to enlarge
+            img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
         tw, th = size
 
         def starts(n, t):
@@ -489,9 +509,10 @@ class SegmentationModel:
         Label-map models give 0 or 1. ``tiled``: for an image larger than the model's fixed
         input, run the network on input-sized tiles of the image at full resolution instead of
         on the whole image down-scaled to the input (finer edges, 9 tiles for a 1280 × 800 image
-        into a 640 × 400 input, 4 for an 848 × 480 one; see :meth:`_score_tiled`);
-        ``bar_width_px``, the widest bar's width in the image, lowers that resolution where the
-        bars would otherwise be wider than the model knows (:meth:`tile_scale`). ``flips``: the
+        into a 640 × 400 input; an 848 × 480 one is first enlarged 1.51 times, to 9 tiles: see
+        :meth:`_score_tiled`); ``bar_width_px``, the widest bar's width in the image, lowers that
+        resolution where the bars would otherwise be wider than the model knows, and caps the
+        enlargement (:meth:`tile_scale`). ``flips``: the
         sidecar's test-time flips (``input.flips``), on the whole image or on every tile; False
         runs the network once per image or tile instead of once per flip and once more (the
         shipped model: 4 runs; faster, a less exact mask: README, "Full-resolution tiles").

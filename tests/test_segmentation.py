@@ -210,6 +210,37 @@ def test_in_test_model_tiles_are_down_scaled_where_bars_would_be_too_wide(tmp_pa
         SegmentationModel(_red_minus_blue_model(tmp_path, bad, name="badmax", fixed=(25, 40)))
 
 
+
+def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_path):
+    # Input 40 x 25: the tiles are designed for images of 80 x 50. A 60 x 32 image is enlarged by
+    # the smaller ratio, 80 / 60 = 4/3, unless that makes its widest bar wider than the sidecar's
+    # 10 px (an 8 px bar: 10 / 8 = 1.25); a bar too wide already shrinks it, as before. Images of
+    # twice the input or more, and images no larger than the input, keep their scale.
+    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="upscale", fixed=(25, 40)))
+    assert model.tile_scale(None, (60, 32)) == pytest.approx(4 / 3)
+    assert model.tile_scale(8, (60, 32)) == pytest.approx(1.25)
+    assert model.tile_scale(20, (60, 32)) == pytest.approx(0.5)
+    assert model.tile_scale(None, (160, 100)) == 1.0 and model.tile_scale(None, (80, 50)) == 1.0
+    assert model.tile_scale(None, (40, 25)) == 1.0 and model.tile_scale(None, (30, 20)) == 1.0
+    assert model.tile_scale(None) == 1.0  # no size given: as before
+    # the enlarged image's tiles come back at the image's own size; this model reads each pixel
+    # alone (logit (R - B) / 16), so enlarging and shrinking back leaves a smooth image's scores
+    yy, xx = np.mgrid[0:32, 0:60]
+    img = np.stack([(4 * xx).clip(0, 255), np.zeros_like(xx), (255 - 4 * xx).clip(0, 255)], -1).astype(np.uint8)
+    got = model.predict_proba(img, tiled=True)
+    want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
+    assert got.shape == (32, 60) and np.allclose(got[2:-2, 2:-2], want[2:-2, 2:-2], atol=0.02)
+    # ... from 9 tiles of the 80 x 43 enlargement (4 at the image's own 60 x 32)
+    seen = []
+    score = model._score
+    model._score = lambda tile, flips=True: seen.append(tile.shape) or score(tile, flips)
+    model.predict_proba(img, tiled=True)
+    assert len(seen) == 9 and set(seen) == {(25, 40, 3)}
+    seen.clear()
+    model.predict_proba(img, tiled=True, bar_width_px=10)  # a 10 px bar: no room to enlarge
+    assert len(seen) == 4
+
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""
