@@ -473,7 +473,8 @@ class SegmentationModel:
             return self._score(color, flips)
         if (W, H) != (W0, H0):
             # area averaging to shrink, bilinear to enlarge
-            img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+            interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+            img = cv2.resize(img, (W, H), interpolation=interp)
         tw, th = size
 
         def starts(n, t):
@@ -512,10 +513,10 @@ class SegmentationModel:
         into a 640 × 400 input; an 848 × 480 one is first enlarged 1.51 times, to 9 tiles: see
         :meth:`_score_tiled`); ``bar_width_px``, the widest bar's width in the image, lowers that
         resolution where the bars would otherwise be wider than the model knows, and caps the
-        enlargement (:meth:`tile_scale`). ``flips``: the
-        sidecar's test-time flips (``input.flips``), on the whole image or on every tile; False
-        runs the network once per image or tile instead of once per flip and once more (the
-        shipped model: 4 runs; faster, a less exact mask: README, "Full-resolution tiles").
+        enlargement (:meth:`tile_scale`). ``flips``: the sidecar's test-time flips
+        (``input.flips``), on the whole image or on every tile; False runs the network once per
+        image or tile instead of once per flip and once more (the shipped model: 4 runs; faster,
+        a less exact mask: README, "Full-resolution tiles").
         """
         score, _, is_logit = (self._score_tiled(color, bar_width_px, flips) if tiled
                               else self._score(color, flips))

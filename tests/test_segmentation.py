@@ -216,8 +216,9 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     # the smaller ratio, 80 / 60 = 4/3, unless that makes its widest bar wider than the sidecar's
     # 10 px (an 8 px bar: 10 / 8 = 1.25); a bar too wide already shrinks it, as before. Images of
     # twice the input or more, and images no larger than the input, keep their scale.
-    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="upscale", fixed=(25, 40)))
+    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10},
+               "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="up", fixed=(25, 40)))
     assert model.tile_scale(None, (60, 32)) == pytest.approx(4 / 3)
     assert model.tile_scale(8, (60, 32)) == pytest.approx(1.25)
     assert model.tile_scale(20, (60, 32)) == pytest.approx(0.5)
@@ -227,7 +228,8 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     # the enlarged image's tiles come back at the image's own size; this model reads each pixel
     # alone (logit (R - B) / 16), so enlarging and shrinking back leaves a smooth image's scores
     yy, xx = np.mgrid[0:32, 0:60]
-    img = np.stack([(4 * xx).clip(0, 255), np.zeros_like(xx), (255 - 4 * xx).clip(0, 255)], -1).astype(np.uint8)
+    img = np.stack([(4 * xx).clip(0, 255), np.zeros_like(xx), (255 - 4 * xx).clip(0, 255)], -1)
+    img = img.astype(np.uint8)
     got = model.predict_proba(img, tiled=True)
     want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
     assert got.shape == (32, 60) and np.allclose(got[2:-2, 2:-2], want[2:-2, 2:-2], atol=0.02)
