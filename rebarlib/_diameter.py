@@ -1766,11 +1766,12 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
         return
     sizes = list(sysm.sizes_mm)
     for row, r in zip(rows, results):
-        if row["diameter_status"] != MEASURED or "pitch" in (row["width_source"] or ""):
+        if (row["diameter_status"] != MEASURED or "pitch" in (row["width_source"] or "")
+                or not r[3]["rib_p"] < prm.rib_capture_p):  # (stricter than _clear_pitch's p)
             continue
         read = _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)
         j = _nearest(sizes, row["nominal_mm"])
-        if read is None or not r[3]["rib_p"] < prm.rib_capture_p or j + 1 >= len(sizes):
+        if read is None or j + 1 >= len(sizes):
             continue
         p, resolution = read
         own, up = rib_pitch_mm(sizes[j], system=system), rib_pitch_mm(sizes[j + 1], system=system)

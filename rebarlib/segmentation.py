@@ -417,6 +417,13 @@ class SegmentationModel:
             score = cv2.resize(np.ascontiguousarray(score), (W, H), interpolation=interp)
         return score, thr, is_logit
 
+    def _untiled(self, W, H) -> bool:
+        """Whether an image of W × H is scored whole rather than in tiles: the model has no
+        fixed input size, or the image is no larger than the input or smaller than it in one
+        direction."""
+        size = self._inp["size"]
+        return size is None or W < size[0] or H < size[1] or (W, H) == tuple(size)
+
     def tile_scale(self, bar_width_px=None, image_size=None) -> float:
         """The scale at which :meth:`predict_proba` with ``tiled`` runs the network on an image
         whose widest bar is ``bar_width_px`` pixels wide and whose size is ``image_size`` (W, H).
@@ -435,12 +442,9 @@ class SegmentationModel:
         known = bar_width_px is not None and bool(np.isfinite(bar_width_px)) and bar_width_px > 0
         if known and limit is not None and bar_width_px > limit:
             return float(limit / bar_width_px)
-        size = self._inp["size"]
-        if image_size is None or size is None:
+        if image_size is None or self._untiled(*image_size):
             return 1.0
-        W, H = image_size
-        if W < size[0] or H < size[1] or (W, H) == tuple(size):  # scored whole, not tiled
-            return 1.0
+        (W, H), size = image_size, self._inp["size"]
         up = min(2 * size[0] / W, 2 * size[1] / H)
         if known and limit is not None:
             up = min(up, limit / bar_width_px)
@@ -466,16 +470,15 @@ class SegmentationModel:
         if img.ndim != 3:
             return self._score(color, flips)
         H0, W0 = img.shape[:2]
-        size = self._inp["size"]
         scale = self.tile_scale(bar_width_px, (W0, H0))
         W, H = (W0, H0) if scale == 1.0 else (max(1, round(W0 * scale)), max(1, round(H0 * scale)))
-        if size is None or W < size[0] or H < size[1] or (W, H) == tuple(size):
+        if self._untiled(W, H):
             return self._score(color, flips)
         if (W, H) != (W0, H0):
             # area averaging to shrink, bilinear to enlarge
             interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
             img = cv2.resize(img, (W, H), interpolation=interp)
-        tw, th = size
+        tw, th = self._inp["size"]
 
         def starts(n, t):
             return sorted(set(range(0, n - t + 1, max(t // 2, 1))) | {n - t})
