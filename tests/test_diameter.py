@@ -699,9 +699,13 @@ def test_a_bar_cut_lengthwise_by_the_border_is_sized_from_its_one_edge(border_sc
     assert b.nominal_mm == 12 and b.matches_design is True
     assert abs(b.width_median_mm - b.envelope_mm) <= WIDTH_TOL_MM
     assert b.confidence < 1.0  # the axis's own uncertainty counts: a one-edge width is not exact
+    assert b.one_sided_share == 1.0  # and the table says where the width came from
     # the same bar in the full image is measured between its two edges, to the same size
     full = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
-    assert full.loc[bar_id].nominal_mm == 12
+    assert full.loc[bar_id].nominal_mm == 12 and full.loc[bar_id].one_sided_share == 0.0
+    # the paper's method has no one-sided widths
+    paper = measure_diameters(crop, bars, crop.labels > 0, design=design, method="paper")
+    assert (paper.one_sided_share == 0.0).all()
     # an axis the geometry stage only located (status "not measured") is not measured from
     assert "status" not in bars
     located = bars.assign(status=np.where(bars.bar_id == bar_id, "not measured", "measured"))
