@@ -527,28 +527,31 @@ def main() -> None:
         print(f"{m:<8}{k:<13}{a:<9}{len(z):>6}" + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
               + f"{az.max():>7.2f}{100 * (az > 2).mean():>7.1f}{f'{near} of {len(amb)}':>15}")
 
-    print("\nMask widths from two edges against widths from one edge and the axis (refined; bars with at least\n"
-          "half their sections one-sided, one_sided_share >= 0.5, against bars with none): the mask width\n"
-          "(width_median_mm) − true envelope, its median and RMS, and |z| as above over those measured or\n"
-          "left ambiguous. A one-sided width is off by twice the axis's error across the bar")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'sides':<6}{'n':>6}{'bias':>7}{'rms':>7}{'n z':>6}{'|z| p50':>8}"
-          f"{'p95':>6}{'max':>7}")
+    print("\nMask widths from two edges against widths from one edge and the axis (refined;\n"
+          "bars with at least half their sections one-sided, one_sided_share >= 0.5, against\n"
+          "bars with none): the mask width (width_median_mm) − true envelope, its median and\n"
+          "RMS, and |z| as above over those measured or left ambiguous. A one-sided width is\n"
+          "off by twice the axis's error across the bar")
+    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'sides':<6}{'n':>6}{'bias':>7}{'rms':>7}{'n z':>6}"
+          f"{'|z| p50':>8}{'p95':>6}{'max':>7}")
     for combo in combos:
         m, k, a = combo
         if m != "refined":
             continue
-        rs = [r for r in recs[combo] if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)]
+        rs = [r["row"] for r in recs[combo] if r["kind"] == "bar"]
+        envs = [r["env"] for r in recs[combo] if r["kind"] == "bar"]
         for label, pick in (("two", lambda s: s == 0), ("one", lambda s: s >= 0.5)):
-            g = [r for r in rs if pick(r["row"].one_sided_share)]
+            g = [(row, env) for row, env in zip(rs, envs)
+                 if np.isfinite(row.width_median_mm) and pick(row.one_sided_share)]
             if not g:
                 continue
-            err = np.array([r["row"].width_median_mm - r["env"] for r in g], float)
-            gz = [r for r in g if np.isfinite(r["row"].width_sigma_mm)]
-            az = np.abs([(r["row"].width_used_mm - r["env"]) / np.hypot(r["row"].width_sigma_mm, ENVELOPE_SIGMA_MM)
-                         for r in gz])
-            zs = (f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}" if len(az) else "")
-            print(f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}{np.sqrt(np.mean(err ** 2)):>7.2f}"
-                  f"{len(az):>6}" + zs)
+            err = np.array([row.width_median_mm - env for row, env in g], float)
+            az = np.abs([(row.width_used_mm - env) / np.hypot(row.width_sigma_mm, ENVELOPE_SIGMA_MM)
+                         for row, env in g if np.isfinite(row.width_sigma_mm)])
+            zs = (f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}"
+                  if len(az) else "")
+            print(f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}"
+                  f"{np.sqrt(np.mean(err ** 2)):>7.2f}{len(az):>6}" + zs)
 
     if args.reasons:
         print("\nWhy bars were not measured (diameter_reason, numbers left out), per combination")

@@ -41,9 +41,9 @@ BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_
 #: Columns of the table :func:`measure_diameters` returns (one row per bar, merge on bar_id).
 DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
                     "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
-                    "matches_design", "hidden", "occluded_fraction", "one_sided_share", "cloud_width_mm",
-                    "width_source",
-                    "width_used_mm", "width_sigma_mm", "circle_width_mm", "circle_sigma_mm",
+                    "matches_design", "hidden", "occluded_fraction", "one_sided_share",
+                    "cloud_width_mm", "width_source", "width_used_mm", "width_sigma_mm",
+                    "circle_width_mm", "circle_sigma_mm",
                     "crest_width_mm", "core_width_mm", "rib_pitch_mm", "ribs_resolved")
 
 MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
@@ -1997,11 +1997,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
     ``occluded_fraction`` (share of the cross-sections lying wholly or partly under nearer bars: some
-    of the bar's width there is inside a nearer bar's footprint), ``one_sided_share`` (refined: share
-    of the sections sized, kept in ``n_sections``, whose width is twice one edge's distance from the
-    axis, the other edge cut by the image border or under a nearer bar; such a width is off by
-    twice any error of the axis across the bar, so it is given a larger uncertainty; 0 for the
-    paper's method), ``cloud_width_mm``
+    of the bar's width there is inside a nearer bar's footprint), ``one_sided_share`` (refined:
+    share of the ``n_sections`` whose width is twice one edge's distance from the axis, the
+    other edge at the image border, under a nearer bar or beside a strip without depth; such a
+    width is off by twice any error of the axis across the bar, so it is given a larger
+    uncertainty; 0 for the paper's method), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud", or "mask+" the independent widths
     of veto mode, above, and "+pitch" at the end where the rib pitch told two sizes apart,
@@ -2136,7 +2136,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
-               "one_sided_share": round(info.get("one_sided_share", 0.0), 3) if method == "refined" else 0.0,
+               "one_sided_share": round(info.get("one_sided_share", 0.0), 3) if method == "refined"
+               else 0.0,
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan, "width_sigma_mm": math.nan,
                "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"],
                "crest_width_mm": info["crest_mm"], "core_width_mm": info["core_mm"],
