@@ -267,3 +267,19 @@ def test_bar_row_does_not_repeat_its_status_and_a_partly_checked_bar_is_not_pass
     html = render_html(ctx)
     assert "hidden: 90% of its cross-sections" in html and "hidden: hidden" not in html
     assert "not measured: ambiguous: width 15.2 mm" in html
+
+
+def test_a_width_from_one_edge_is_said_so_in_the_bar_table(paper):
+    # A bar sized mostly from one edge and its axis (one_sided_share >= 0.5: the other edge at the
+    # image border or under a nearer bar) has a width that hangs on the axis: its row says so.
+    # Bars sized between two edges, and results without the column, get no such note.
+    import copy
+
+    design, res = paper
+    r = copy.deepcopy(res["A_400"])
+    sized = [b for b in r["bars"] if b["diameter_status"] == "measured"]
+    sized[0]["one_sided_share"], sized[1]["one_sided_share"], sized[2]["one_sided_share"] = 1.0, 0.5, 0.3
+    html = render_html(report_context(PAPER, design, evaluate([r], design)))
+    assert html.count("from one edge and the axis") == 2
+    plain = render_html(report_context(PAPER, design, evaluate([res["A_400"]], design)))
+    assert "from one edge" not in plain
