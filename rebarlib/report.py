@@ -30,8 +30,8 @@ BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "incomplete": "#e7c21f", "n
                "hidden": "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
-             "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status", "diameter_reason",
-             "one_sided_share")
+             "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status",
+             "diameter_reason", "one_sided_share")
 VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
                 "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
 IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF

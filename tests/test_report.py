@@ -7,6 +7,7 @@ layout, with chosen numbers changed, so every verdict is known without running t
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -273,12 +274,11 @@ def test_a_width_from_one_edge_is_said_so_in_the_bar_table(paper):
     # A bar sized mostly from one edge and its axis (one_sided_share >= 0.5: the other edge at the
     # image border or under a nearer bar) has a width that hangs on the axis: its row says so.
     # Bars sized between two edges, and results without the column, get no such note.
-    import copy
-
     design, res = paper
     r = copy.deepcopy(res["A_400"])
     sized = [b for b in r["bars"] if b["diameter_status"] == "measured"]
-    sized[0]["one_sided_share"], sized[1]["one_sided_share"], sized[2]["one_sided_share"] = 1.0, 0.5, 0.3
+    for b, share in zip(sized, (1.0, 0.5, 0.3)):
+        b["one_sided_share"] = share
     html = render_html(report_context(PAPER, design, evaluate([r], design)))
     assert html.count("from one edge and the axis") == 2
     plain = render_html(report_context(PAPER, design, evaluate([res["A_400"]], design)))
