@@ -538,11 +538,10 @@ def main() -> None:
         m, k, a = combo
         if m != "refined":
             continue
-        rs = [r["row"] for r in recs[combo] if r["kind"] == "bar"]
-        envs = [r["env"] for r in recs[combo] if r["kind"] == "bar"]
+        rs = [(r["row"], r["env"]) for r in recs[combo]
+              if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)]
         for label, pick in (("two", lambda s: s == 0), ("one", lambda s: s >= 0.5)):
-            g = [(row, env) for row, env in zip(rs, envs)
-                 if np.isfinite(row.width_median_mm) and pick(row.one_sided_share)]
+            g = [(row, env) for row, env in rs if pick(row.one_sided_share)]
             if not g:
                 continue
             err = np.array([row.width_median_mm - env for row, env in g], float)

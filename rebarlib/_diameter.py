@@ -1776,9 +1776,9 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
             continue
         p, resolution = read
         own, up = rib_pitch_mm(sizes[j], system=system), rib_pitch_mm(sizes[j + 1], system=system)
-        band = _pitch_band(0.0, resolution, prm)
         if not (math.isfinite(own) and math.isfinite(up)):
             continue
+        band = _pitch_band(0.0, resolution, prm)
         if abs(p / up - 1) > band or abs(p / own - 1) <= band:
             continue
         this, next_up = sysm.label(sizes[j]), sysm.label(sizes[j + 1])
@@ -2136,8 +2136,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
-               "one_sided_share": round(info.get("one_sided_share", 0.0), 3) if method == "refined"
-               else 0.0,
+               "one_sided_share": round(info["one_sided_share"], 3) if method == "refined" else 0.0,
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan, "width_sigma_mm": math.nan,
                "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"],
                "crest_width_mm": info["crest_mm"], "core_width_mm": info["core_mm"],
