@@ -310,6 +310,12 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()
     return recs, len(missed), len(missed & set(truly_hidden))
 
 
+def _z(row, env) -> float:
+    """How far a bar's width used lies from its true envelope, in its stated σ with the size
+    table's own (what the confidence is computed from)."""
+    return (row.width_used_mm - env) / np.hypot(row.width_sigma_mm, ENVELOPE_SIGMA_MM)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few captures only")
@@ -519,8 +525,7 @@ def main() -> None:
         rs = [r for r in recs[combo] if r["kind"] == "bar" and np.isfinite(getattr(r["row"], "width_sigma_mm", np.nan))]
         if m != "refined" or not rs:
             continue
-        z = np.array([(r["row"].width_used_mm - r["env"]) / np.hypot(r["row"].width_sigma_mm, ENVELOPE_SIGMA_MM)
-                      for r in rs])
+        z = np.array([_z(r["row"], r["env"]) for r in rs])
         az = np.abs(z)
         amb = [r for r in rs if str(r["row"].diameter_reason).startswith("ambiguous")]
         near = sum(f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason) for r in amb)
@@ -545,8 +550,7 @@ def main() -> None:
             if not g:
                 continue
             err = np.array([row.width_median_mm - env for row, env in g], float)
-            az = np.abs([(row.width_used_mm - env) / np.hypot(row.width_sigma_mm, ENVELOPE_SIGMA_MM)
-                         for row, env in g if np.isfinite(row.width_sigma_mm)])
+            az = np.abs([_z(row, env) for row, env in g if np.isfinite(row.width_sigma_mm)])
             zs = (f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}"
                   if len(az) else "")
             print(f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}"
