@@ -3,6 +3,7 @@
     python benchmarks/bench_geometry.py            # full: 36 paper-slab, 6 site-slab, 6 stacked captures
     python benchmarks/bench_geometry.py --quick    # 9 captures
     python benchmarks/bench_geometry.py --camera d435-848   # the same scenes with another camera
+    python benchmarks/bench_geometry.py --sensor fattened   # ... or another depth sensor
 
 Set-up (issue "Geometry"): the paper's slab (lower Φ14, upper Φ12, spacing 200, layer distance 85)
 with cover 15 / 20 / 25 mm, seen from 400 / 500 / 600 mm with tilts 0–15° and random mesh yaw,
@@ -38,7 +39,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from _cameras import CAMERAS
+from _cameras import CAMERAS, SENSORS
 from rebarlib._camera import project
 from rebarlib._design import design_from_dict
 from rebarlib._inspect import inspect
@@ -189,12 +190,12 @@ def spacing_errors(res, truth, mapping):
     return errs
 
 
-def run(quick: bool, listing: bool = False, camera: str = "gemini2") -> pd.DataFrame:
+def run(quick: bool, listing: bool = False, camera: str = "gemini2", sensor: str = "default") -> pd.DataFrame:
     rows = []
     for slab, design, h, tilt, mesh_yaw, cam_yaw, seed in cases(quick):
         kw = dict(height_mm=h, tilt_deg=tilt, yaw_deg=cam_yaw, deviations=deviations(slab, mesh_yaw), seed=seed,
                   scene_seed=seed + 1, intrinsics=CAMERAS[camera])
-        cap = synth_capture(design, **kw)
+        cap = synth_capture(design, sensor=SENSORS[sensor], **kw)
         ideal = synth_capture(design, sensor=SensorModel.ideal(), **kw)
         tr = cap.truth
         stretch = bar_stretches(cap, own_depth_pixels(cap, ideal))
@@ -311,8 +312,10 @@ def main() -> None:
     ap.add_argument("--list", action="store_true", help="list every missed and phantom bar of the refined method")
     ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
                     help="camera the captures are rendered with (benchmarks/_cameras.py)")
+    ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
+                    help="depth-sensor model the captures are rendered with (benchmarks/_cameras.py)")
     args = ap.parse_args()
-    df = run(args.quick, listing=args.list, camera=args.camera)
+    df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor)
     if args.csv:
         df.to_csv(args.csv, index=False)
     report(df)

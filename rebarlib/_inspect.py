@@ -153,16 +153,19 @@ def registered_mask(capture: Capture, *, source: str = "fused", plane=None, mode
     apart, the model's probability and the colour image are moved onto the depth image before
     the masks are fused, so that the mask meets the axes fitted to the depth. ``capture`` is
     then a copy with the moved colour image (the one given is not changed), else the one given.
-    ``registration``: ``{"shift_px": [du, dv], "correlation": cc, "applied": bool}`` (du, dv:
-    where the depth image's content lies from the colour image's; None where it could not be
-    estimated), or None for the "depth" source (nothing to register).
+    ``registration``: ``{"shift_px": [du, dv], "correlation": cc, "applied": bool,
+    "depth_overreach_px": k}`` (du, dv: where the depth image's content lies from the colour
+    image's; None where it could not be estimated; k: the depth's edge fattening left out of
+    its mask first, ``segmentation.depth_overreach_px``), or None for the "depth" source
+    (nothing to register).
     """
     return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
                  bar_width_px=bar_width_px, register=True)
 
 
 def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
-    from .segmentation import estimate_registration, fuse_masks, mask_from_depth, shift_image, soft_mask
+    from .segmentation import (depth_overreach_px, estimate_registration, fuse_masks, mask_from_depth, shift_image,
+                               soft_mask, trim_depth_overreach)
 
     if source not in MASK_SOURCES:
         raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
@@ -173,12 +176,21 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
     depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
     valid = capture.depth_mm > 0
+    reach = 0
+    if depth is not None:
+        # the depth's bars reach beyond the colour's on every side where the sensor fattens its
+        # edges: that over-reach would widen the fused mask and, with one side of each bar in
+        # the projector's shadow, pull the registration towards the other (3 px of fattening:
+        # 0.8 px); it is left out of the depth mask for both
+        reach = depth_overreach_px(proba > model.threshold, depth, color_proba=proba, depth_valid=valid)
+        depth = trim_depth_overreach(proba > model.threshold, depth, reach)
     registration = None
     if register:
         du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
         applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
         registration = {"shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
-                        "correlation": round(cc, 4) if math.isfinite(cc) else None, "applied": applied}
+                        "correlation": round(cc, 4) if math.isfinite(cc) else None, "applied": applied,
+                        "depth_overreach_px": reach}
         if applied:
             proba = shift_image(proba, du, dv)
             capture = dataclasses.replace(capture, color=shift_image(capture.color, du, dv))
@@ -186,7 +198,7 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     if source == "model":
         mask = soft_mask(colour, proba, threshold=model.threshold) if soft else colour
     else:
-        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=valid)
+        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=valid, overreach_px=0)
         mask = soft_mask(fused, proba, threshold=model.threshold) if soft else fused
     return mask, capture, registration
 
@@ -279,6 +291,9 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
 
 
 def _note_registration(res: InspectionResult, reg: dict) -> None:
+    if reg.get("depth_overreach_px"):
+        res.notes.append(f"the depth image's bars reach {reg['depth_overreach_px']} px beyond the colour image's "
+                         "on every side (edge fattening): left out of the mask the diameters are read on")
     if reg["shift_px"] is None:
         res.notes.append("colour-depth registration could not be estimated (too few bars seen by both): "
                          "the colour image was taken as aligned to the depth image")

@@ -117,6 +117,11 @@ class SensorModel:
     edge_jump_mm : a depth step above this between neighbours is a discontinuity
     edge_hole_prob, edge_fatten_prob, flying_pixel_prob : what happens to pixels next to a
         discontinuity: no depth, foreground depth (edge fattening), or a mixed depth
+    edge_fatten_px : how far the nearer surface bleeds over an edge. 1: the pixels right next to
+        it only; k > 1: a pixel d px from the nearer surface (2 <= d <= k) also takes its depth,
+        with probability edge_fatten_prob * (k - d + 1) / k (a stereo matcher's window, 2k+1 px,
+        straddles the edge and its disparity is the nearer surface's; docs/sensors.md: "a few
+        pixels")
     projector_shadow : no depth where the projector cannot see; it sits ``projector_offset_mm``
         from the camera along x (between the two IR cameras on most active-stereo units)
     bias_mm_per_m2 : distance-dependent bias b = k z^2 (z in m), positive = too far (too low)
@@ -132,6 +137,7 @@ class SensorModel:
     edge_jump_mm: float = 5.0
     edge_hole_prob: float = 0.35
     edge_fatten_prob: float = 0.35
+    edge_fatten_px: int = 1
     flying_pixel_prob: float = 0.15
     projector_shadow: bool = True
     projector_offset_mm: float = 25.0
@@ -903,6 +909,18 @@ def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rn
         lo = s.edge_fatten_prob + s.flying_pixel_prob
         hole = edge & (u01 >= lo) & (u01 < lo + s.edge_hole_prob)
         z[hole] = 0
+    if s.edge_fatten_px > 1 and s.edge_fatten_prob > 0:
+        # the wider band: d px from a nearer surface (d >= 2), judged on the depth before the
+        # edge effects above; the pixels next to the edge are as drawn there
+        near = np.zeros((H, W), bool)
+        u2 = rng.random((H, W))
+        for d in range(2, int(s.edge_fatten_px) + 1):
+            kd = np.ones((2 * d + 1, 2 * d + 1), np.uint8)
+            zd = cv2.erode(big, kd)
+            band = valid & ~edge & ~near & (big - zd > s.edge_jump_mm)
+            take = band & (u2 < s.edge_fatten_prob * (s.edge_fatten_px - d + 1) / s.edge_fatten_px)
+            z[take] = zd[take]
+            near |= band
     if s.projector_shadow:
         proj = pose.centre + pose.rotation.T @ np.array([s.projector_offset_mm, 0.0, 0.0])
         idx = np.flatnonzero(hit)
