@@ -757,18 +757,24 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     A stereo camera's matching window straddles a bar's edge and gives the background beside it
     the bar's depth (edge fattening, docs/sensors.md: "a few pixels"); flying pixels do so now
     and then. Ring ``j`` is the pixels ``j`` px (± 0.5) outside the colour mask that the colour
-    calls background (probability under ``low_proba`` where ``color_proba`` is given) and that
-    have depth, split by the side of the bar they lie on (left, right, above, below: the
-    direction away from the nearest colour pixel). The over-reach is the largest ``j`` at which
-    the depth marks at least half of the ring as bar on every side seen (``min_pixels`` pixels
-    or more and a tenth of the best-seen side's; three sides at least): beyond that, more than half of a bar's rows would be widened by the depth, and
-    the median of its widths with them. Fattening widens a bar on both sides; a depth image
-    moved against the colour one (misregistration, :func:`estimate_registration`) reaches
-    beyond one side and falls short of the other, and is not taken for it. 0 where half of
-    ring 1 is not reached on some side (a fattening now and then leaves a median where the
-    colour puts it), or fewer than three sides are seen. Measured on a capture at 500 mm (ring 1, all sides together): 0.22 with the
-    benchmark's default sensor (0), 0.63 with 3 px of stereo fattening (1), 0.43 with three
-    times the flying pixels (0), 0.03 without edge effects (0).
+    calls background (probability under ``low_proba`` where ``color_proba`` is given), split by
+    the side of the bar they lie on (left, right, above, below: the direction away from the
+    colour mask). A side is read where at least ``min_pixels`` of its ring have depth and its
+    share with depth is at least half the best side's (a side in the projector's shadow has
+    few, and those few lie beside the shadow, where no fattening is). The over-reach is the
+    largest ``j`` at which the depth marks at least half of the ring's pixels with depth as bar
+    on every side read: beyond that, more than half of a bar's rows would be widened by the
+    depth, and the median of its widths with them. Fattening widens a bar on every side; a
+    depth image moved against the colour one (misregistration, :func:`estimate_registration`)
+    reaches beyond some sides and falls short of the others. With three or four sides read,
+    that shows in the rings. With two (one across each direction, the others in the shadow),
+    a diagonal move would look the same, so the depth must also mark as bar at least half of
+    the pixels 1 px inside the colour mask that have depth (where the colour is sure) on every
+    side: a depth image moved away from a side leaves them to the formwork or the shadow. 0
+    where half of ring 1 is not reached on a side read, or too few sides are read (a fattening
+    now and then leaves a median where the colour puts it). Measured at 500 mm (ring 1, all
+    sides together): 0.22 with the benchmark's default sensor (0), 0.63 with 3 px of stereo
+    fattening (1), 0.43 with three times the flying pixels (0), 0.03 without edge effects (0).
 
     Examples
     --------
@@ -785,22 +791,29 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     d = np.asarray(depth_mask).astype(bool)
     if c.shape != d.shape or c.ndim != 2:
         raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
-    ok = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
-    if color_proba is not None:
-        ok = ok & (np.asarray(color_proba, dtype=np.float32) < low_proba)
-    dist = cv2.distanceTransform((~c).astype(np.uint8), cv2.DIST_L2, 5)
-    gx = cv2.Sobel(dist, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(dist, cv2.CV_32F, 0, 1, ksize=3)
+    valid = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
+    p = (np.where(c, 1.0, 0.0) if color_proba is None else np.asarray(color_proba, dtype=np.float32))
+    outside = cv2.distanceTransform((~c).astype(np.uint8), cv2.DIST_L2, 5)
+    inside = cv2.distanceTransform(c.astype(np.uint8), cv2.DIST_L2, 5)
+    signed = outside - inside  # grows away from the colour mask, across its edges too
+    gx = cv2.Sobel(signed, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(signed, cv2.CV_32F, 0, 1, ksize=3)
     horiz = np.abs(gx) >= np.abs(gy)
     sides = (horiz & (gx > 0), horiz & (gx < 0), ~horiz & (gy > 0), ~horiz & (gy < 0))
+    rim = (inside > 0.5) & (inside <= 1.5) & (p > 1 - low_proba) & valid
+    rim_held = all(int((rim & s).sum()) < min_pixels or 2 * int((rim & s & d).sum()) >= int((rim & s).sum())
+                   for s in sides)
     reach = 0
     for j in range(1, max_px + 1):
-        ring = ok & (dist > j - 0.5) & (dist <= j + 0.5)
-        n = np.array([int((ring & side).sum()) for side in sides])
-        seen = n >= max(min_pixels, 0.1 * n.max())
-        # three sides at least: with two (the others in the projector's shadow, without depth)
-        # a move of the depth image along their diagonal would look the same
-        if seen.sum() < 3 or min(float(d[ring & side].mean()) for side, s in zip(sides, seen) if s) < 0.5:
+        ring = (outside > j - 0.5) & (outside <= j + 0.5) & (p < low_proba)
+        n = np.array([int((ring & s).sum()) for s in sides])
+        nv = np.array([int((ring & s & valid).sum()) for s in sides])
+        share = nv / np.maximum(n, 1)
+        read = (nv >= min_pixels) & (share >= 0.5 * share.max())
+        both_ways = bool(read[:2].any() and read[2:].any())
+        if read.sum() < 2 or not both_ways or (read.sum() == 2 and not rim_held):
+            break
+        if min(float(d[ring & s & valid].mean()) for s, r in zip(sides, read) if r) < 0.5:
             break
         reach = j
     return reach
