@@ -190,7 +190,8 @@ def spacing_errors(res, truth, mapping):
     return errs
 
 
-def run(quick: bool, listing: bool = False, camera: str = "gemini2", sensor: str = "default") -> pd.DataFrame:
+def run(quick: bool, listing: bool = False, camera: str = "gemini2",
+        sensor: str = "default") -> pd.DataFrame:
     rows = []
     for slab, design, h, tilt, mesh_yaw, cam_yaw, seed in cases(quick):
         kw = dict(height_mm=h, tilt_deg=tilt, yaw_deg=cam_yaw, deviations=deviations(slab, mesh_yaw), seed=seed,
@@ -313,7 +314,8 @@ def main() -> None:
     ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
                     help="camera the captures are rendered with (benchmarks/_cameras.py)")
     ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
-                    help="depth-sensor model the captures are rendered with (benchmarks/_cameras.py)")
+                    help="depth-sensor model the captures are rendered with "
+                         "(benchmarks/_cameras.py)")
     args = ap.parse_args()
     df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor)
     if args.csv:

@@ -17,8 +17,9 @@ from .geometry import (BarAxis, Plane, bar_directions, find_bars, find_layer_spl
 from ._diameter import (bars_from_truth, boundary_pixels, cross_section_direction, diameter_region,
                         imaginary_plane, intersect_rays_plane, measure_diameters)
 from ._barsizes import bar_system, observed_width_mm, snap_diameter
-from .segmentation import (SegmentationModel, confusion_counts, depth_overreach_px, dice, estimate_registration,
-                           fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, trim_depth_overreach)
+from .segmentation import (SegmentationModel, confusion_counts, depth_overreach_px, dice,
+                           estimate_registration, fuse_masks, iou, mask_from_depth, pixel_accuracy,
+                           shift_image, trim_depth_overreach)
 from .acceptance import Acceptance, Tolerances, evaluate, list_presets, load_tolerances
 from .report import build_report
 
@@ -36,8 +37,8 @@ __all__ = [
     "measure_diameters", "bars_from_truth", "imaginary_plane", "intersect_rays_plane",
     "cross_section_direction", "diameter_region", "boundary_pixels", "bar_system", "observed_width_mm",
     "snap_diameter",
-    "SegmentationModel", "mask_from_depth", "fuse_masks", "depth_overreach_px", "trim_depth_overreach",
-    "estimate_registration", "shift_image",
+    "SegmentationModel", "mask_from_depth", "fuse_masks", "depth_overreach_px",
+    "trim_depth_overreach", "estimate_registration", "shift_image",
     "confusion_counts", "pixel_accuracy", "iou", "dice",
     "Acceptance", "Tolerances", "evaluate", "load_tolerances", "list_presets", "build_report",
 ]

@@ -164,8 +164,8 @@ def registered_mask(capture: Capture, *, source: str = "fused", plane=None, mode
 
 
 def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
-    from .segmentation import (depth_overreach_px, estimate_registration, fuse_masks, mask_from_depth, shift_image,
-                               soft_mask, trim_depth_overreach)
+    from .segmentation import (depth_overreach_px, estimate_registration, fuse_masks,
+                               mask_from_depth, shift_image, soft_mask, trim_depth_overreach)
 
     if source not in MASK_SOURCES:
         raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
@@ -182,15 +182,16 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
         # edges: that over-reach would widen the fused mask and, with one side of each bar in
         # the projector's shadow, pull the registration towards the other (3 px of fattening:
         # 0.8 px); it is left out of the depth mask for both
-        reach = depth_overreach_px(proba > model.threshold, depth, color_proba=proba, depth_valid=valid)
-        depth = trim_depth_overreach(proba > model.threshold, depth, reach)
+        sure = proba > model.threshold
+        reach = depth_overreach_px(sure, depth, color_proba=proba, depth_valid=valid)
+        depth = trim_depth_overreach(sure, depth, reach)
     registration = None
     if register:
         du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
         applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
         registration = {"shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
-                        "correlation": round(cc, 4) if math.isfinite(cc) else None, "applied": applied,
-                        "depth_overreach_px": reach}
+                        "correlation": round(cc, 4) if math.isfinite(cc) else None,
+                        "applied": applied, "depth_overreach_px": reach}
         if applied:
             proba = shift_image(proba, du, dv)
             capture = dataclasses.replace(capture, color=shift_image(capture.color, du, dv))
@@ -292,8 +293,9 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
 
 def _note_registration(res: InspectionResult, reg: dict) -> None:
     if reg.get("depth_overreach_px"):
-        res.notes.append(f"the depth image's bars reach {reg['depth_overreach_px']} px beyond the colour image's "
-                         "on every side (edge fattening): left out of the mask the diameters are read on")
+        res.notes.append(f"the depth image's bars reach {reg['depth_overreach_px']} px beyond "
+                         "the colour image's on every side (edge fattening): left out of the mask "
+                         "the diameters are read on")
     if reg["shift_px"] is None:
         res.notes.append("colour-depth registration could not be estimated (too few bars seen by both): "
                          "the colour image was taken as aligned to the depth image")

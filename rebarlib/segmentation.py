@@ -790,9 +790,13 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     c = np.asarray(color_mask).astype(bool)
     d = np.asarray(depth_mask).astype(bool)
     if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
+        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, "
+                              f"got {d.shape}")
     valid = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
-    p = (np.where(c, 1.0, 0.0) if color_proba is None else np.asarray(color_proba, dtype=np.float32))
+    p = np.where(c, 1.0, 0.0) if color_proba is None else np.asarray(color_proba, dtype=np.float32)
+    if p.shape != c.shape or valid.shape != c.shape:
+        raise RebarInputError(f"color_proba, depth_valid: expected the shape of color_mask "
+                              f"{c.shape}, got {p.shape}, {valid.shape}")
     outside = cv2.distanceTransform((~c).astype(np.uint8), cv2.DIST_L2, 5)
     inside = cv2.distanceTransform(c.astype(np.uint8), cv2.DIST_L2, 5)
     signed = outside - inside  # grows away from the colour mask, across its edges too
@@ -801,8 +805,9 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     horiz = np.abs(gx) >= np.abs(gy)
     sides = (horiz & (gx > 0), horiz & (gx < 0), ~horiz & (gy > 0), ~horiz & (gy < 0))
     rim = (inside > 0.5) & (inside <= 1.5) & (p > 1 - low_proba) & valid
-    rim_held = all(int((rim & s).sum()) < min_pixels or 2 * int((rim & s & d).sum()) >= int((rim & s).sum())
-                   for s in sides)
+    rim_n = [int((rim & s).sum()) for s in sides]
+    rim_held = all(n < min_pixels or 2 * int((rim & s & d).sum()) >= n
+                   for s, n in zip(sides, rim_n))
     reach = 0
     for j in range(1, max_px + 1):
         ring = (outside > j - 0.5) & (outside <= j + 0.5) & (p < low_proba)
@@ -837,7 +842,8 @@ def trim_depth_overreach(color_mask, depth_mask, overreach_px: int) -> np.ndarra
     c = np.asarray(color_mask).astype(bool)
     d = np.asarray(depth_mask).astype(bool)
     if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
+        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, "
+                              f"got {d.shape}")
     if overreach_px <= 0:
         return d.copy()
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * overreach_px + 1, 2 * overreach_px + 1))
@@ -900,9 +906,11 @@ def fuse_masks(color_mask, depth_mask, *, color_proba=None, low_proba: float = 0
     if valid.shape != c.shape:
         raise RebarInputError(f"depth_valid: expected the shape of color_mask {c.shape}, got {valid.shape}")
     if color_proba is not None and np.shape(color_proba) != c.shape:
-        raise RebarInputError(f"color_proba: expected the shape of color_mask {c.shape}, got {np.shape(color_proba)}")
+        raise RebarInputError(f"color_proba: expected the shape of color_mask {c.shape}, "
+                              f"got {np.shape(color_proba)}")
     if overreach_px is None:
-        overreach_px = depth_overreach_px(c, d, color_proba=color_proba, low_proba=low_proba, depth_valid=valid)
+        overreach_px = depth_overreach_px(c, d, color_proba=color_proba, low_proba=low_proba,
+                                          depth_valid=valid)
     d = trim_depth_overreach(c, d, overreach_px)
     if support_px > 0:
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * support_px + 1, 2 * support_px + 1))

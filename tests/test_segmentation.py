@@ -12,9 +12,10 @@ from rebarlib import GEMINI2, RebarInputError
 from rebarlib._inspect import registered_mask
 from rebarlib.synth import SensorModel, misregister, synth_capture
 from rebarlib.segmentation import (
-    DATASET_SEED, SegmentationModel, confusion_counts, depth_overreach_px, dice, estimate_registration,
-    fit_formwork_plane, fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, soft_mask, split_indices,
-    synth_eval_regions, synth_segmentation_capture, trim_depth_overreach)
+    DATASET_SEED, SegmentationModel, confusion_counts, depth_overreach_px, dice,
+    estimate_registration, fit_formwork_plane, fuse_masks, iou, mask_from_depth, pixel_accuracy,
+    shift_image, soft_mask, split_indices, synth_eval_regions, synth_segmentation_capture,
+    trim_depth_overreach)
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
@@ -508,8 +509,8 @@ def test_depth_overreach_is_fattening_on_every_side_not_a_moved_depth_image(pape
     # against 0.988 without it) and pulls the registration 0.8 px towards the side not in the
     # projector's shadow (0.06 px without it)
     kw = dict(height_mm=500, tilt_deg=5, intrinsics=HALF, seed=4)
-    fat = synth_capture(paper_design, sensor=SensorModel(edge_fatten_px=3, edge_fatten_prob=0.6, edge_hole_prob=0.2),
-                        **kw)
+    sensor = SensorModel(edge_fatten_px=3, edge_fatten_prob=0.6, edge_hole_prob=0.2)
+    fat = synth_capture(paper_design, sensor=sensor, **kw)
     truth, dm, valid = fat.labels > 0, mask_from_depth(fat, rng=0), fat.depth_mm > 0
     k = depth_overreach_px(truth, dm, depth_valid=valid)
     assert k >= 1
