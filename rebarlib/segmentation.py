@@ -811,14 +811,15 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     reach = 0
     for j in range(1, max_px + 1):
         ring = (outside > j - 0.5) & (outside <= j + 0.5) & (p < low_proba)
+        with_depth = [ring & s & valid for s in sides]
         n = np.array([int((ring & s).sum()) for s in sides])
-        nv = np.array([int((ring & s & valid).sum()) for s in sides])
+        nv = np.array([int(w.sum()) for w in with_depth])
         share = nv / np.maximum(n, 1)
         read = (nv >= min_pixels) & (share >= 0.5 * share.max())
-        both_ways = bool(read[:2].any() and read[2:].any())
-        if read.sum() < 2 or not both_ways or (read.sum() == 2 and not rim_held):
+        # one side read across each direction at least (so two or more)
+        if not (read[:2].any() and read[2:].any()) or (read.sum() == 2 and not rim_held):
             break
-        if min(float(d[ring & s & valid].mean()) for s, r in zip(sides, read) if r) < 0.5:
+        if min(float(d[w].mean()) for w, r in zip(with_depth, read) if r) < 0.5:
             break
         reach = j
     return reach
