@@ -241,7 +241,16 @@ def _axis_sources():
         from rebarlib._inspect import inspect
     except ImportError as e:
         return sources, [f"no rebarlib._inspect ({e}): detected axes skipped"]
-    sources["detected"] = lambda cap, design: inspect(cap, design, diameters=False, rng=0).bars  # reproducible
+    from rebarlib._inspect import registered_mask, widest_bar_px
+
+    def detected(cap, design):
+        # as inspect fits them: where the depth's bars reach beyond the colour's (edge fattening,
+        # the over-reach its mask step measures), on the depth without that fringe; rng fixed:
+        # reproducible
+        reg = registered_mask(cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design))[2]
+        return inspect(cap, design, diameters=False, edge_trim_px=reg["depth_overreach_px"], rng=0).bars
+
+    sources["detected"] = detected
     return sources, []
 
 

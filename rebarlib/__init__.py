@@ -10,7 +10,7 @@ from ._checks import RebarInputError, check_points
 from ._cloud import remove_outliers, voxel_downsample
 from ._design import BarSet, Design, Lattice, design_from_dict, load_design
 from ._results import InspectionResult, Measurement
-from ._inspect import inspect, prepare_cloud, rebar_mask, registered_mask
+from ._inspect import inspect, prepare_cloud, rebar_mask, registered_mask, trim_edge_fattening
 from .geometry import (BarAxis, Plane, bar_directions, find_bars, find_layer_split, fit_formwork,
                        from_slab_frame, group_directions, measure_spacings, paper_find_bars,
                        paper_fit_formwork, plane_frame, to_slab_frame)
@@ -31,6 +31,7 @@ __all__ = [
     "RebarInputError", "check_points", "remove_outliers", "voxel_downsample",
     "BarSet", "Lattice", "Design", "load_design", "design_from_dict", "__version__",
     "InspectionResult", "Measurement", "inspect", "prepare_cloud", "rebar_mask", "registered_mask",
+    "trim_edge_fattening",
     "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
     "from_slab_frame", "find_layer_split", "bar_directions", "find_bars", "paper_find_bars",
     "group_directions", "measure_spacings",

@@ -6,6 +6,7 @@ row. Each stage is timed (``result.timings_s``).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import math
@@ -20,7 +21,8 @@ from ._checks import RebarInputError
 from ._design import Design
 from ._results import InspectionResult, Measurement
 
-__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "METHODS", "MASK_SOURCES"]
+__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "trim_edge_fattening", "METHODS",
+           "MASK_SOURCES"]
 
 METHODS = ("refined", "paper")
 #: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
@@ -163,6 +165,42 @@ def registered_mask(capture: Capture, *, source: str = "fused", plane=None, mode
                  bar_width_px=bar_width_px, register=True)
 
 
+def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.ndarray:
+    """The depth image without the nearer surface's last ``px`` pixels at every occluding edge.
+
+    A stereo camera's matching window gives the nearer surface's depth to the first pixels
+    beyond its edge (edge fattening, ``docs/sensors.md``): a bar's points then reach past its
+    flank. Seen from one side only (the other in the projector's shadow), a cylinder of the
+    bar's radius fitted to them slides towards the fattened side, and the spacing to the next
+    bar is off by a millimetre or more. A pixel is left out (set to 0) where a pixel within
+    ``px`` (a disk) has depth more than ``edge_mm`` farther; pixels without depth do not count
+    as farther, so a flank beside the projector's shadow keeps its points. ``px`` comes from the
+    capture (``inspect`` uses the depth's over-reach beyond the colour's bars,
+    ``segmentation.depth_overreach_px``); 0 returns the depth image as it is (a copy).
+
+    Examples
+    --------
+    >>> depth = np.full((1, 9), 500.0); depth[0, 3:6] = 470.0; depth[0, 8] = 0
+    >>> trim_edge_fattening(depth, 1)[0].tolist()
+    [500.0, 500.0, 500.0, 0.0, 470.0, 0.0, 500.0, 500.0, 0.0]
+    """
+    import cv2
+
+    depth = np.asarray(depth_mm)
+    if depth.ndim != 2:
+        raise RebarInputError(f"depth_mm: expected an (H, W) depth image, got shape {depth.shape}")
+    if int(px) != px or px < 0:
+        raise RebarInputError(f"px: expected a whole number of pixels >= 0, got {px!r}")
+    out = depth.copy()
+    if px == 0:
+        return out
+    d = depth.astype(np.float32)
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(px) + 1, 2 * int(px) + 1))
+    farthest = cv2.dilate(d, disk)  # (pixels without depth are 0: never the farther surface)
+    out[(d > 0) & (farthest - d > edge_mm)] = 0
+    return out
+
+
 def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
     from .segmentation import (depth_overreach_px, estimate_registration, fuse_masks,
                                mask_from_depth, shift_image, soft_mask, trim_depth_overreach)
@@ -219,7 +257,8 @@ def widest_bar_px(capture: Capture, design: Design) -> float:
 
 
 def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
-            mask=None, mask_source: str | None = None, register: bool = True, rng=None) -> InspectionResult:
+            mask=None, mask_source: str | None = None, register: bool = True, edge_trim_px=None,
+            rng=None) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
 
     Parameters
@@ -237,6 +276,13 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         :data:`REGISTRATION_MIN_PX` or more before the diameters (:func:`registered_mask`; the
         estimate is in ``result.extras["registration"]``, a note says when it was applied). The
         paper's method takes the images as they come.
+    edge_trim_px : refined: pixels of the nearer surface left out at every occluding edge before
+        the bars are fitted (:func:`trim_edge_fattening`, a depth camera's edge fattening).
+        None (default): the depth's over-reach beyond the colour's bars where the mask step
+        measures it (diameters with a computed "fused" mask, or ``register``;
+        ``segmentation.depth_overreach_px``), the geometry then fitted again on the trimmed
+        depth; else 0. The number used is in ``result.extras["edge_trim_px"]``, with a note.
+        The paper's method takes the depth as it comes.
     rng : seed or Generator for the random parts (RANSAC, sampling)
 
     Returns
@@ -244,24 +290,54 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     InspectionResult; bars carry their fitted points in ``result.bar_points`` (bar_id -> Cloud).
     """
     _check(capture, design, method)
+    if edge_trim_px is not None and (isinstance(edge_trim_px, bool) or not isinstance(edge_trim_px, int)
+                                     or edge_trim_px < 0):
+        raise RebarInputError(f"edge_trim_px: expected None or a whole number of pixels >= 0, got {edge_trim_px!r}")
     rng = np.random.default_rng(rng)
     if method == "paper":
         res = _inspect_paper(capture, design, rng)
-    else:
-        res = _inspect_refined(capture, design, rng)
+        if diameters:
+            _add_diameters(res, capture, design, method=method, mask=mask,
+                           mask_source=mask_source or "model", register=False, rng=rng)
+        return res
+    # the geometry may be fitted again on a trimmed depth: it then draws the same random numbers
+    rng_again = copy.deepcopy(rng)
+    trim = edge_trim_px or 0
+    res = _inspect_refined(_trimmed(capture, trim), design, rng)
     if diameters:
-        _add_diameters(res, capture, design, method=method, mask=mask,
-                       mask_source=mask_source or ("model" if method == "paper" else "fused"),
-                       register=register and method == "refined", rng=rng)
+        def refit(reach):
+            # the mask step found the depth's bars reaching beyond the colour's: the edge
+            # fattening that drew the bars' axes towards it is left out and the bars fitted again
+            first = res.timings_s
+            again = _inspect_refined(_trimmed(capture, reach), design, rng_again)
+            again.timings_s["first_fit"] = round(sum(first.values()), 6)
+            return again
+
+        res = _add_diameters(res, capture, design, method=method, mask=mask,
+                             mask_source=mask_source or "fused", register=register, rng=rng,
+                             refit=refit if edge_trim_px is None else None)
+        trim = res.extras.get("edge_trim_px", trim)
+    if trim:
+        res.extras["edge_trim_px"] = trim
+        res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every occluding edge "
+                         "of the depth image left out before the bars were fitted")
     return res
 
 
+def _trimmed(capture: Capture, px: int) -> Capture:
+    return dataclasses.replace(capture, depth_mm=trim_edge_fattening(capture.depth_mm, px)) if px else capture
+
+
 def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register,
-                   rng):
+                   rng, refit=None) -> InspectionResult:
+    """``res`` with the diameter columns; ``refit(px)``: ``res`` fitted again on the depth
+    trimmed by ``px`` (:func:`trim_edge_fattening`), called where the mask step measures an
+    over-reach of the depth's bars beyond the colour's."""
     from ._diameter import measure_diameters
 
     t = time.perf_counter()
-    if mask is None:
+    reg, given = None, mask is not None
+    if not given:
         plane = None
         if res.formwork.get("found"):
             plane = (np.asarray(res.formwork["normal"], float), float(res.formwork["offset_mm"]))
@@ -273,22 +349,27 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
         mask, capture, reg = _mask(capture, source=mask_source, plane=plane, model=None, rng=rng, soft=refined,
                                    tiled=refined, bar_width_px=widest_bar_px(capture, design) if refined else None,
                                    register=register)
-        res.extras["mask_source"] = mask_source
-        if reg is not None:
-            res.extras["registration"] = reg
-            _note_registration(res, reg)
     else:
         mask = np.asarray(mask)
         if mask.shape != capture.depth_mm.shape:
             raise RebarInputError(f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}")
-        res.extras["mask_source"] = "given"
-    res.timings_s["mask"] = time.perf_counter() - t
+    t_mask = time.perf_counter() - t
+    reach = (reg or {}).get("depth_overreach_px") or 0
+    if refit is not None and reach:
+        res = refit(reach)
+        res.extras["edge_trim_px"] = reach
+    res.extras["mask_source"] = "given" if given else mask_source
+    if reg is not None:
+        res.extras["registration"] = reg
+        _note_registration(res, reg)
+    res.timings_s["mask"] = t_mask
     t = time.perf_counter()
     if len(res.bars):
         dia = measure_diameters(capture, res.bars, mask, design=design, method=method)
         new = [c for c in dia.columns if c not in res.bars.columns or c == "bar_id"]
         res.bars = res.bars.merge(dia[new], on="bar_id", how="left")
     res.timings_s["diameter"] = time.perf_counter() - t
+    return res
 
 
 def _note_registration(res: InspectionResult, reg: dict) -> None:
