@@ -247,8 +247,10 @@ def _axis_sources():
         # as inspect fits them: where the depth's bars reach beyond the colour's (edge fattening,
         # the over-reach its mask step measures), on the depth without that fringe; rng fixed:
         # reproducible
-        reg = registered_mask(cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design))[2]
-        return inspect(cap, design, diameters=False, edge_trim_px=reg["depth_overreach_px"], rng=0).bars
+        reg = registered_mask(cap, rng=0, soft=True, tiled=True,
+                              bar_width_px=widest_bar_px(cap, design))[2]
+        return inspect(cap, design, diameters=False, edge_trim_px=reg["depth_overreach_px"],
+                       rng=0).bars
 
     sources["detected"] = detected
     return sources, []

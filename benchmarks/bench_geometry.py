@@ -201,7 +201,8 @@ def edge_trim(cap, design) -> int:
     where there is none): inspect then fits its bars on the depth without that fringe."""
     from rebarlib._inspect import registered_mask, widest_bar_px
 
-    reg = registered_mask(cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design))[2]
+    reg = registered_mask(cap, rng=0, soft=True, tiled=True,
+                          bar_width_px=widest_bar_px(cap, design))[2]
     return reg["depth_overreach_px"]
 
 
@@ -238,7 +239,8 @@ def run(quick: bool, listing: bool = False, camera: str = "gemini2",
                 "phantom": sum(v is None for v in mapping.values()),
                 "not_measured": int((res.bars.status != "measured").sum()),
                 "second_look": int(res.bars.reason.str.startswith("seen only at full resolution").sum()),
-                "edge_trim_px": trim_px if method == "refined" else 0, "spacing_n": len(sp), "spacing_max_err": max(map(abs, sp)) if sp else np.nan,
+                "edge_trim_px": trim_px if method == "refined" else 0,
+                "spacing_n": len(sp), "spacing_max_err": max(map(abs, sp)) if sp else np.nan,
                 "spacing_mean_err": float(np.mean(sp)) if sp else np.nan, "time_s": dt,
                 "approx_axis_err": " ".join(f"{e:.2f}" for e in approx),
             })
@@ -335,10 +337,12 @@ def main() -> None:
                     help="depth-sensor model the captures are rendered with "
                          "(benchmarks/_cameras.py)")
     ap.add_argument("--no-trim", action="store_true",
-                    help="fit the refined method's bars on the depth as it comes, as inspect(diameters=False) "
-                         "does, not on the depth without the edge fattening its mask step measures")
+                    help="fit the refined method's bars on the depth as it comes, as "
+                         "inspect(diameters=False) does, not on the depth without the edge "
+                         "fattening its mask step measures")
     args = ap.parse_args()
-    df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor, trim=not args.no_trim)
+    df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor,
+             trim=not args.no_trim)
     if args.csv:
         df.to_csv(args.csv, index=False)
     report(df)

@@ -21,8 +21,8 @@ from ._checks import RebarInputError
 from ._design import Design
 from ._results import InspectionResult, Measurement
 
-__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "trim_edge_fattening", "METHODS",
-           "MASK_SOURCES"]
+__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "trim_edge_fattening",
+           "METHODS", "MASK_SOURCES"]
 
 METHODS = ("refined", "paper")
 #: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
@@ -290,9 +290,10 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     InspectionResult; bars carry their fitted points in ``result.bar_points`` (bar_id -> Cloud).
     """
     _check(capture, design, method)
-    if edge_trim_px is not None and (isinstance(edge_trim_px, bool) or not isinstance(edge_trim_px, int)
-                                     or edge_trim_px < 0):
-        raise RebarInputError(f"edge_trim_px: expected None or a whole number of pixels >= 0, got {edge_trim_px!r}")
+    if edge_trim_px is not None and (isinstance(edge_trim_px, bool)
+                                     or not isinstance(edge_trim_px, int) or edge_trim_px < 0):
+        raise RebarInputError("edge_trim_px: expected None or a whole number of pixels >= 0, "
+                              f"got {edge_trim_px!r}")
     rng = np.random.default_rng(rng)
     if method == "paper":
         res = _inspect_paper(capture, design, rng)
@@ -319,13 +320,15 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         trim = res.extras.get("edge_trim_px", trim)
     if trim:
         res.extras["edge_trim_px"] = trim
-        res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every occluding edge "
-                         "of the depth image left out before the bars were fitted")
+        res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
+                         "occluding edge of the depth image left out before the bars were fitted")
     return res
 
 
 def _trimmed(capture: Capture, px: int) -> Capture:
-    return dataclasses.replace(capture, depth_mm=trim_edge_fattening(capture.depth_mm, px)) if px else capture
+    if not px:
+        return capture
+    return dataclasses.replace(capture, depth_mm=trim_edge_fattening(capture.depth_mm, px))
 
 
 def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register,
