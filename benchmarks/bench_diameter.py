@@ -137,7 +137,8 @@ def _capture(name, design, kw, app, cache, camera="gemini2", sensor="default", r
 
 def _mask_sources(model_path=""):
     """Callables (capture, design) -> (H, W) mask (bool, or a float probability for the soft
-    ones), or (mask, capture to measure on) for the registered ones, for each available mask,
+    ones), or (mask, capture to measure on, registration) for the registered ones
+    (``registered_mask``), for each available mask,
     and notes on the others. ``model_path``: an ONNX model (with its sidecar) to use instead of
     the shipped one for the "model" and "fused" masks (a candidate from ``training/``)."""
     sources = {"truth": lambda cap, design: cap.labels > 0,
@@ -165,9 +166,9 @@ def _mask_sources(model_path=""):
         def registered(cap, **kw):
             # as inspect does for the refined method: the colour side moved onto the depth image
             # where the two are misregistered (--depth-shift); the capture the bars are then
-            # measured on comes with the mask
-            mask, moved, _ = registered_mask(cap, model=model, rng=0, soft=True, **kw)
-            return mask, moved
+            # measured on comes with the mask, and the registration (its depth_overreach_px
+            # is what inspect fits the detected axes with)
+            return registered_mask(cap, model=model, rng=0, soft=True, **kw)
 
         # soft masks (the probability where it agrees with the binary mask), as rebarlib.inspect
         # passes them: the refined method finds the edges to a fraction of a pixel, the paper's
@@ -243,14 +244,16 @@ def _axis_sources():
         return sources, [f"no rebarlib._inspect ({e}): detected axes skipped"]
     from rebarlib._inspect import registered_mask, widest_bar_px
 
-    def detected(cap, design):
+    def detected(cap, design, reach=None):
         # as inspect fits them: where the depth's bars reach beyond the colour's (edge fattening,
-        # the over-reach its mask step measures), on the depth without that fringe; rng fixed:
+        # the over-reach its mask step measures; ``reach`` where the shipped model's "fused"
+        # mask has measured it already), on the depth without that fringe; rng fixed:
         # reproducible
-        reg = registered_mask(cap, rng=0, soft=True, tiled=True,
-                              bar_width_px=widest_bar_px(cap, design))[2]
-        return inspect(cap, design, diameters=False, edge_trim_px=reg["depth_overreach_px"],
-                       rng=0).bars
+        if reach is None:
+            reg = registered_mask(cap, rng=0, soft=True, tiled=True,
+                                  bar_width_px=widest_bar_px(cap, design))[2]
+            reach = reg["depth_overreach_px"]
+        return inspect(cap, design, diameters=False, edge_trim_px=reach, rng=0).bars
 
     sources["detected"] = detected
     return sources, []
@@ -396,13 +399,16 @@ def main() -> None:
         if depth_shift != (0, 0):
             cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
+        reach = None  # the over-reach the shipped model's fused mask measured (inspect's)
         for k, f in mask_src.items():
             m = f(cap, design)
-            masks[k], measured_on[k] = m if isinstance(m, tuple) else (m, cap)
+            masks[k], measured_on[k] = m[:2] if isinstance(m, tuple) else (m, cap)
+            if k == "fused" and not args.model and isinstance(m, tuple):
+                reach = m[2]["depth_overreach_px"]
         axes = {}
         for a, f in axis_src.items():
             try:
-                axes[a] = f(cap, design)
+                axes[a] = f(cap, design, reach) if a == "detected" else f(cap, design)
             except Exception as e:  # noqa: BLE001 - a failing detector is reported, not fatal
                 print(f"note: {name}: axes '{a}' failed: {e!r}")
         row = {"capture": name, "bars": len(bars_from_truth(cap.truth))}

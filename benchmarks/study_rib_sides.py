@@ -73,7 +73,7 @@ def main() -> None:
     for name, design, kw in B.scenarios(args.quick):
         cap = B._capture(name, design, kw, app, args.cache, relief=args.ribs == "relief")
         m = masks[args.mask](cap, design)
-        mask, measured_on = m if isinstance(m, tuple) else (m, cap)
+        mask, measured_on = m[:2] if isinstance(m, tuple) else (m, cap)
         bars = axes_src[args.axes](cap, design)
         ids = B._match(bars, cap.truth) if args.axes != "truth" else np.asarray(bars.bar_id, int)
         kept = {}

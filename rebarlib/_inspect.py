@@ -306,18 +306,20 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     trim = edge_trim_px or 0
     res = _inspect_refined(_trimmed(capture, trim), design, rng)
     if diameters:
+        first = res
+
         def refit(reach):
             # the mask step found the depth's bars reaching beyond the colour's: the edge
             # fattening that drew the bars' axes towards it is left out and the bars fitted again
-            first = res.timings_s
+            nonlocal trim
+            trim = reach
             again = _inspect_refined(_trimmed(capture, reach), design, rng_again)
-            again.timings_s["first_fit"] = round(sum(first.values()), 6)
+            again.timings_s["first_fit"] = round(sum(first.timings_s.values()), 6)
             return again
 
         res = _add_diameters(res, capture, design, method=method, mask=mask,
                              mask_source=mask_source or "fused", register=register, rng=rng,
                              refit=refit if edge_trim_px is None else None)
-        trim = res.extras.get("edge_trim_px", trim)
     if trim:
         res.extras["edge_trim_px"] = trim
         res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
@@ -360,7 +362,6 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
     reach = (reg or {}).get("depth_overreach_px") or 0
     if refit is not None and reach:
         res = refit(reach)
-        res.extras["edge_trim_px"] = reach
     res.extras["mask_source"] = "given" if given else mask_source
     if reg is not None:
         res.extras["registration"] = reg
