@@ -242,7 +242,7 @@ def _axis_sources():
         from rebarlib._inspect import inspect
     except ImportError as e:
         return sources, [f"no rebarlib._inspect ({e}): detected axes skipped"]
-    from rebarlib._inspect import registered_mask, widest_bar_px
+    from bench_geometry import edge_trim  # the over-reach as inspect's mask step measures it
 
     def detected(cap, design, reach=None):
         # as inspect fits them: where the depth's bars reach beyond the colour's (edge fattening,
@@ -250,9 +250,7 @@ def _axis_sources():
         # mask has measured it already), on the depth without that fringe; rng fixed:
         # reproducible
         if reach is None:
-            reg = registered_mask(cap, rng=0, soft=True, tiled=True,
-                                  bar_width_px=widest_bar_px(cap, design))[2]
-            reach = reg["depth_overreach_px"]
+            reach = edge_trim(cap, design)
         return inspect(cap, design, diameters=False, edge_trim_px=reach, rng=0).bars
 
     sources["detected"] = detected

@@ -214,15 +214,15 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
     depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
     valid = capture.depth_mm > 0
+    colour = proba > model.threshold
     reach = 0
     if depth is not None:
         # the depth's bars reach beyond the colour's on every side where the sensor fattens its
         # edges: that over-reach would widen the fused mask and, with one side of each bar in
         # the projector's shadow, pull the registration towards the other (3 px of fattening:
         # 0.8 px); it is left out of the depth mask for both
-        sure = proba > model.threshold
-        reach = depth_overreach_px(sure, depth, color_proba=proba, depth_valid=valid)
-        depth = trim_depth_overreach(sure, depth, reach)
+        reach = depth_overreach_px(colour, depth, color_proba=proba, depth_valid=valid)
+        depth = trim_depth_overreach(colour, depth, reach)
     registration = None
     if register:
         du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
@@ -232,8 +232,8 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
                         "applied": applied, "depth_overreach_px": reach}
         if applied:
             proba = shift_image(proba, du, dv)
+            colour = proba > model.threshold
             capture = dataclasses.replace(capture, color=shift_image(capture.color, du, dv))
-    colour = proba > model.threshold
     if source == "model":
         mask = soft_mask(colour, proba, threshold=model.threshold) if soft else colour
     else:

@@ -750,6 +750,16 @@ def shift_image(image, du: float, dv: float) -> np.ndarray:
     return cv2.warpAffine(img, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
+def _two_masks(color_mask, depth_mask):
+    """(colour, depth) as bool arrays of one (H, W) shape, else an input error naming it."""
+    c = np.asarray(color_mask).astype(bool)
+    d = np.asarray(depth_mask).astype(bool)
+    if c.shape != d.shape or c.ndim != 2:
+        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, "
+                              f"got {d.shape}")
+    return c, d
+
+
 def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: float = 0.2,
                        depth_valid=None, max_px: int = 6, min_pixels: int = 100) -> int:
     """How many pixels the depth's bars reach beyond the colour's, on most rows of every side.
@@ -787,11 +797,7 @@ def depth_overreach_px(color_mask, depth_mask, *, color_proba=None, low_proba: f
     """
     import cv2
 
-    c = np.asarray(color_mask).astype(bool)
-    d = np.asarray(depth_mask).astype(bool)
-    if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, "
-                              f"got {d.shape}")
+    c, d = _two_masks(color_mask, depth_mask)
     valid = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
     p = np.where(c, 1.0, 0.0) if color_proba is None else np.asarray(color_proba, dtype=np.float32)
     if p.shape != c.shape or valid.shape != c.shape:
@@ -840,11 +846,7 @@ def trim_depth_overreach(color_mask, depth_mask, overreach_px: int) -> np.ndarra
     """
     import cv2
 
-    c = np.asarray(color_mask).astype(bool)
-    d = np.asarray(depth_mask).astype(bool)
-    if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, "
-                              f"got {d.shape}")
+    c, d = _two_masks(color_mask, depth_mask)
     if overreach_px <= 0:
         return d.copy()
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * overreach_px + 1, 2 * overreach_px + 1))
@@ -893,10 +895,7 @@ def fuse_masks(color_mask, depth_mask, *, color_proba=None, low_proba: float = 0
     """
     import cv2
 
-    c = np.asarray(color_mask).astype(bool)
-    d = np.asarray(depth_mask).astype(bool)
-    if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
+    c, d = _two_masks(color_mask, depth_mask)
     H, W = c.shape
     scale = W / 1280.0
     if support_px is None:
