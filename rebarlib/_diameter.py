@@ -589,7 +589,7 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm):
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm, covered=None):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.
@@ -601,16 +601,25 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, e
     band runs under it, or a flying pixel. Such points are left out (too few left gives NaN,
     never the distance to another object), and their share of the points is returned last:
     where it is most of them, the mask runs the sections were read on are mostly another object.
+    That share is taken over the sections not ``covered`` (a boolean per section: partly under
+    a nearer bar), where the band should show this bar only; where every section is covered
+    (a bar seen beside the bar over it, its band running under that bar) it is NaN: no verdict.
     """
     if len(stations) < prm.min_sections:
         return math.nan, math.nan, 0, math.nan
     f = np.linspace(-prm.depth_core, prm.depth_core, 7)  # across the middle of each run
-    P = _section_points(depth, intr, plane, stations, centres, widths, f)
-    radial = P - np.outer(P @ plane.direction, plane.direction)
-    d = 2 * np.linalg.norm(radial, axis=1)
-    on = d <= 2 * expected_mm
-    off_share = float(1 - on.mean()) if len(d) else math.nan
-    d = d[on]
+    covered = np.zeros(len(stations), bool) if covered is None else np.asarray(covered, bool)
+
+    def distances(part):  # twice each point's distance from the axis, on the sections ``part``
+        if not part.any():
+            return np.zeros(0)
+        P = _section_points(depth, intr, plane, stations[part], centres[part], widths[part], f)
+        return 2 * np.linalg.norm(P - np.outer(P @ plane.direction, plane.direction), axis=1)
+
+    open_d, covered_d = distances(~covered), distances(covered)
+    off_share = float(np.mean(open_d > 2 * expected_mm)) if len(open_d) else math.nan
+    d = np.concatenate([open_d, covered_d])
+    d = d[d <= 2 * expected_mm]
     if len(d) < prm.min_sections * 3:
         return math.nan, math.nan, len(d), off_share
     q1, med, q3 = np.percentile(d, [25, 50, 75])
@@ -1208,7 +1217,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
-        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm) if depth_img is not None else (
+        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm, occluded[ck]) if (
+        depth_img is not None) else (
         math.nan, math.nan, 0, math.nan)
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
