@@ -602,8 +602,11 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, e
     never the distance to another object), and their share of the points is returned last:
     where it is most of them, the mask runs the sections were read on are mostly another object.
     That share is taken over the sections not ``covered`` (a boolean per section: partly under
-    a nearer bar), where the band should show this bar only; where every section is covered
-    (a bar seen beside the bar over it, its band running under that bar) it is NaN: no verdict.
+    a nearer bar), where the band should show this bar only. Where every section is covered (a
+    bar seen beside the bar over it, its band running under that bar) the points off the axis
+    are expected there: the share is NaN, no verdict, as long as enough of the bar's own points
+    are left to give a width; where they are not, it is the share over the covered sections
+    (nothing then checks a width from the bar's one edge).
     """
     if len(stations) < prm.min_sections:
         return math.nan, math.nan, 0, math.nan
@@ -621,6 +624,8 @@ def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, e
     d = np.concatenate([open_d, covered_d])
     d = d[d <= 2 * expected_mm]
     if len(d) < prm.min_sections * 3:
+        if not len(open_d) and len(covered_d):
+            off_share = float(np.mean(covered_d > 2 * expected_mm))
         return math.nan, math.nan, len(d), off_share
     q1, med, q3 = np.percentile(d, [25, 50, 75])
     return float(med), float((q3 - q1) / 1.349), len(d), off_share
@@ -1220,6 +1225,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm, occluded[ck]) if (
         depth_img is not None) else (
         math.nan, math.nan, 0, math.nan)
+    info["depth_off_covered"] = bool(len(ck) and occluded[ck].all())  # that share read under a nearer bar
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = _thinned(kept[~one_sided[kept]], prm.cloud_sections)
@@ -1893,6 +1899,12 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         # mask shows there is mostly another object (the bar over this one), not this bar
         out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the "
                                   "axis than the bar's diameter: the mask there shows another object (a bar over it)")
+        if info.get("depth_off_covered"):
+            # every section under a nearer bar (a sliver beside it): the band from its one edge to
+            # the axis runs under that bar, and too few of the bar's own points are left there
+            out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud between its visible edge and the axis "
+                                      "lies on the bar over it, and too few of its own points are left to check "
+                                      "a width from one edge")
         return out
     cap = 1.0
     if not mask_problem and cloud:
