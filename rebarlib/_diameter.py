@@ -589,7 +589,8 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm, covered=None):
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm,
+                 covered=None):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.
@@ -1222,10 +1223,10 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
     info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
-        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm, occluded[ck]) if (
-        depth_img is not None) else (
-        math.nan, math.nan, 0, math.nan)
-    info["depth_off_covered"] = bool(len(ck) and occluded[ck].all())  # that share read under a nearer bar
+        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm,
+        occluded[ck]) if depth_img is not None else (math.nan, math.nan, 0, math.nan)
+    # that share was read where every section lies under a nearer bar
+    info["depth_off_covered"] = bool(len(ck) and occluded[ck].all())
     info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = _thinned(kept[~one_sided[kept]], prm.cloud_sections)
@@ -1902,9 +1903,10 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         if info.get("depth_off_covered"):
             # every section under a nearer bar (a sliver beside it): the band from its one edge to
             # the axis runs under that bar, and too few of the bar's own points are left there
-            out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud between its visible edge and the axis "
-                                      "lies on the bar over it, and too few of its own points are left to check "
-                                      "a width from one edge")
+            out["diameter_reason"] = (
+                f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
+                "the bar over it, and too few of its own points are left to check a width from one "
+                "edge")
         return out
     cap = 1.0
     if not mask_problem and cloud:

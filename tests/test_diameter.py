@@ -1531,9 +1531,10 @@ def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitc
     pd.testing.assert_frame_equal(t.loc[rest], u.loc[rest])
 
 
-def _two_bars_capture(peek_px: float, *, hole: bool = False, k: Intrinsics = K, lower: bool = False):
-    """A hand-built capture (camera ``k``, formwork at 500 mm): an upper Φ12 bar along the image's v
-    axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
+def _two_bars_capture(peek_px: float, *, hole: bool = False, k: Intrinsics = K,
+                      lower: bool = False):
+    """A hand-built capture (camera ``k``, formwork at 500 mm): an upper Φ12 bar along the image's
+    v axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
     ``peek_px`` pixels beside the upper bar's right edge; ideal depth (none on the peeking strip
     with ``hole``), the mask the bars' silhouettes, each pixel's ray traced through its centre.
     The bar table holds the upper bar's true axis, and with ``lower`` the lower bar's too."""
@@ -1556,8 +1557,8 @@ def _two_bars_capture(peek_px: float, *, hole: bool = False, k: Intrinsics = K, 
         depth[label == 1] = 0.0
     labels = np.repeat(label[None, :], k.height, axis=0)
     grey = np.where(labels > 0, 90, 200).astype(np.uint8)
-    cap = Capture(np.repeat(grey[..., None], 3, axis=2), np.repeat(depth[None, :], k.height, axis=0), k,
-                  labels=labels)
+    depth_img = np.repeat(depth[None, :], k.height, axis=0)
+    cap = Capture(np.repeat(grey[..., None], 3, axis=2), depth_img, k, labels=labels)
     bar = {"bar_id": 0, "layer": "upper", "level": "top",
            "start_x_mm": up[0], "start_y_mm": -150.0, "start_z_mm": up[1],
            "end_x_mm": up[0], "end_y_mm": 150.0, "end_z_mm": up[1]}
@@ -1613,7 +1614,8 @@ def test_a_sliver_with_its_axis_given_is_sized_from_its_edge():
         cap, bars = _two_bars_capture(peek_px, k=k, lower=True, hole=True)
         t = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id").loc[1]
         assert t.diameter_status == "not measured" and not math.isfinite(t.nominal_mm)
-        assert "too few of its own points are left to check a width from one edge" in t.diameter_reason
+        assert "too few of its own points are left to check a width from one edge" in (
+            t.diameter_reason)
 
 
 def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_the_bar_over_it():
