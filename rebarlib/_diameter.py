@@ -1896,10 +1896,6 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
     off_bar = info.get("depth_off_share", math.nan)
     if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
-        # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
-        # mask shows there is mostly another object (the bar over this one), not this bar
-        out["diameter_reason"] = (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the "
-                                  "axis than the bar's diameter: the mask there shows another object (a bar over it)")
         if info.get("depth_off_covered"):
             # every section under a nearer bar (a sliver beside it): the band from its one edge to
             # the axis runs under that bar, and too few of the bar's own points are left there
@@ -1907,6 +1903,12 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                 f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
                 "the bar over it, and too few of its own points are left to check a width from one "
                 "edge")
+        else:
+            # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
+            # mask shows there is mostly another object (the bar over this one), not this bar
+            out["diameter_reason"] = (
+                f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the axis "
+                "than the bar's diameter: the mask there shows another object (a bar over it)")
         return out
     cap = 1.0
     if not mask_problem and cloud:
