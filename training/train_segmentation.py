@@ -55,11 +55,14 @@ def _render_one(job):
 
     from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
 
-    key, folder, quality, relief_label = job
+    key, folder, quality, relief_label, keep_full, full_quality = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
+    f_full = folder / f"{_stem(key)}.full.jpg"
     index, relief = _entry(key)
+    keep_full = keep_full or relief
     cap = None
-    if not f_img.exists() or (relief and relief_label == "silhouette" and not f_mask.exists()):
+    if (not f_img.exists() or (relief and relief_label == "silhouette" and not f_mask.exists())
+            or (keep_full and not f_full.exists())):
         # rendered at the camera's full 1280 x 800 and area-resized to the model's input exactly
         # as SegmentationModel does at run time (rendered again, identically, where only a
         # relief capture's silhouette label is missing)
@@ -68,14 +71,14 @@ def _render_one(job):
         tmp_img = f_img.with_suffix(".tmp.jpg")
         cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
         tmp_img.replace(f_img)
-    f_full = folder / f"{_stem(key)}.full.jpg"
-    if relief and cap is not None and not f_full.exists():
-        # a relief capture also keeps its full-resolution render: its ribs are 1-3 px high
-        # there, under a pixel at the input's half resolution, and the tiles of
-        # SegmentationModel.predict_proba(tiled=True) show them at full resolution
+    if keep_full and cap is not None and not f_full.exists():
+        # a relief capture (and, with ``data --full``, every training capture) also keeps its
+        # full-resolution render: a rib is 1-3 px high there, under a pixel at the input's half
+        # resolution, and the tiles of SegmentationModel.predict_proba(tiled=True) show the
+        # bars at full resolution, sharper than the half-resolution input enlarged
         # (train --full-zoom takes the enlarged crops from it)
         tmp_full = f_full.with_suffix(".tmp.jpg")
-        cv2.imwrite(str(tmp_full), cap.color[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, max(quality, 95)])
+        cv2.imwrite(str(tmp_full), cap.color[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, full_quality])
         tmp_full.replace(f_full)
     if not f_mask.exists():
         # The label stays at full resolution, so the loss sees the bar edges to the
@@ -90,7 +93,8 @@ def _render_one(job):
             cap = synth_segmentation_capture(index, seed=DATASET_SEED)
         lab = cap.labels > 0
         tmp_mask = f_mask.with_suffix(".tmp.png")
-        cv2.imwrite(str(tmp_mask), lab.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        cv2.imwrite(str(tmp_mask), lab.astype(np.uint8) * 255,
+                    [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])  # 1 bit per pixel
         tmp_mask.replace(f_mask)
     return key
 
@@ -124,7 +128,9 @@ def cmd_data(args):
     # smooth captures first (quick), then the relief ones
     wanted = sorted(split["train"] + split["val"], key=lambda k: _entry(k)[::-1])
     t0 = time.time()
-    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label) for i in wanted]
+    train = set(split["train"])
+    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label, args.full and i in train,
+             args.full_quality) for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
         for n, _ in enumerate(ex.map(_render_one, jobs, chunksize=4)):
             if n % 20 == 0:
@@ -307,7 +313,29 @@ def _shadow(x, g):
     return x * (1 - use + use * factor)
 
 
-def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
+def _colour_jitter(x, g):
+    """Colours the renderer does not draw, so that the network leans on shape and shading more
+    than on the renderer's palette (real formwork and bars come in colours it never drew):
+    saturation 0.4-1.6 (grey on a tenth of the crops), contrast 0.6-1.4 about the crop's mean,
+    and on a fifth of the crops the colour channels in another order (one order per batch).
+    x: (B, 3, H, W) float 0-255 on any device; g: torch.Generator on x's device."""
+    import torch
+
+    B, dev = x.shape[0], x.device
+    r = lambda *shape: torch.rand(*shape, generator=g, device=dev)  # noqa: E731
+    grey = (x * torch.tensor([0.299, 0.587, 0.114], device=dev).view(1, 3, 1, 1)).sum(1, keepdim=True)
+    sat = 0.4 + 1.2 * r(B, 1, 1, 1)
+    sat = torch.where(r(B, 1, 1, 1) < 0.1, torch.zeros_like(sat), sat)
+    x = grey + sat * (x - grey)
+    mean = x.mean((1, 2, 3), keepdim=True)
+    x = mean + (0.6 + 0.8 * r(B, 1, 1, 1)) * (x - mean)
+    swap = r(B) < 0.2
+    order = torch.argsort(r(3))
+    x = torch.where(swap[:, None, None, None], x[:, order], x)
+    return x.clamp(0, 255)
+
+
+def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None, colour=False):
     """A training batch on the data's device: random crops (input size x size, label 2size x
     2size), flips, transposition, gain / gamma / blur / noise jitter and cast shadows.
 
@@ -317,7 +345,8 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
     ``SegmentationModel.predict_proba(tiled=True)`` show them. ``full``: {image index: its
     full-resolution render (torch uint8, on the device)}; an enlarged crop of such an image is
     taken from it (2c x 2c pixels area-resized to size x size) instead of enlarging the
-    half-resolution input, so the network sees the detail the tiles show (a rib 1-3 px high)."""
+    half-resolution input, so the network sees the detail the tiles show (a rib 1-3 px high).
+    ``colour``: also draw colours the renderer does not (see :func:`_colour_jitter`)."""
     import torch
     import torch.nn.functional as F
 
@@ -354,6 +383,8 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None):
     x = torch.stack(xs)
     y = torch.stack(ys)
     x = _shadow(x, g)
+    if colour:
+        x = _colour_jitter(x, g)
     # photometric jitter beyond the renderer's own: gain per channel and overall, gamma
     x = x * (0.85 + 0.3 * r(bs, 3, 1, 1)) * (0.8 + 0.4 * r(bs, 1, 1, 1))
     x = 255 * (x.clamp(0, 255) / 255) ** (0.8 + 0.45 * r(bs, 1, 1, 1))
@@ -515,6 +546,9 @@ def cmd_train(args):
     if args.init_onnx:
         model.load_state_dict(state_from_onnx(model, args.init_onnx))
         print(f"init from {args.init_onnx} (batch norms folded into the convolutions)", flush=True)
+    if dev.type == "cuda":  # channels-last convolutions, cuDNN's fastest algorithms for the crop size
+        model = model.to(memory_format=torch.channels_last)
+        torch.backends.cudnn.benchmark = True
     _train_mode(model, args.freeze_bn)
     n_params = sum(p.numel() for p in model.parameters())
     print(f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
@@ -535,7 +569,10 @@ def cmd_train(args):
         lr = args.lr * min(1.0, (it + 1) / 100) * 0.5 * (1 + math.cos(math.pi * frac))
         for grp in opt.param_groups:
             grp["lr"] = lr
-        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom, full=full)
+        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom, full=full,
+                      colour=args.colour)
+        if dev.type == "cuda":
+            x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(**amp):
             out = _upsample2(model(x)).float()
         p = torch.sigmoid(out)
@@ -562,7 +599,8 @@ def cmd_train(args):
         best = v_iou
         torch.save(model.state_dict(), out_dir / f"{tag}.pt")
     info = {"arch": args.arch, "init": args.init, "parameters": n_params, "iterations": it, "batch": args.batch,
-            "crop_px": args.crop, "zoom": args.zoom, "init_onnx": args.init_onnx,
+            "crop_px": args.crop, "zoom": args.zoom, "full_zoom": args.full_zoom, "colour": args.colour,
+            "init_onnx": args.init_onnx,
             "freeze_bn": args.freeze_bn, "lr": args.lr, "minutes": args.minutes, "device": str(dev),
             "device_name": torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu",
             "threads": args.threads if dev.type == "cpu" else None, "torch": torch.__version__,
@@ -657,6 +695,9 @@ def main(argv=None):
                    help="label of a relief capture: each bar's outline over its ribs, or its rendered silhouette")
     a.add_argument("--jobs", type=int, default=2)
     a.add_argument("--jpeg-quality", type=int, default=90)
+    a.add_argument("--full", action="store_true",
+                   help="keep every training capture's full-resolution render (relief ones always)")
+    a.add_argument("--full-quality", type=int, default=95, help="JPEG quality of the full-resolution renders")
     a = sub.add_parser("train")
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--arch", choices=ARCHS, required=True)
@@ -670,6 +711,8 @@ def main(argv=None):
     a.add_argument("--init-onnx", default=None, help="ONNX model exported by this script to start from (see state_from_onnx)")
     a.add_argument("--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)")
     a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
+    a.add_argument("--colour", action="store_true",
+                   help="colour jitter beyond the renderer's palette (saturation, contrast, channel order)")
     a.add_argument("--full-zoom", action="store_true",
                    help="take the enlarged crops from the full-resolution render where the data keeps one")
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")

@@ -1,0 +1,62 @@
+"""The training script's data step (``training/train_segmentation.py data``): what it writes is
+what the network is trained on. No torch needed: rendering and writing use the runtime's own
+packages."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
+
+ROOT = Path(__file__).resolve().parents[1]
+INDEX = 301  # a training-only index (300 and up are never validation or test captures)
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("train_segmentation",
+                                                  ROOT / "training" / "train_segmentation.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _png_bit_depth(path: Path) -> int:
+    return path.read_bytes()[24]  # the IHDR chunk's bit depth, after the signature and IHDR header
+
+
+def test_a_training_capture_is_written_as_the_model_sees_it(tmp_path):
+    t = _script()
+    t._render_one((INDEX, tmp_path, 90, "silhouette", True, 85))
+    cap = synth_segmentation_capture(INDEX, seed=DATASET_SEED)
+    stem = f"{INDEX:04d}"
+
+    # the input: the capture area-resized to the network's input, as SegmentationModel does
+    img = cv2.imread(str(tmp_path / f"{stem}.jpg"))[:, :, ::-1].astype(int)
+    small = cv2.resize(cap.color, (t.IN_W, t.IN_H), interpolation=cv2.INTER_AREA).astype(int)
+    assert img.shape == (t.IN_H, t.IN_W, 3)
+    assert np.abs(img - small).mean() < 3  # JPEG quality 90
+
+    # the label: the render's own labels at full resolution, stored with one bit per pixel
+    label = tmp_path / f"{stem}.png"
+    assert _png_bit_depth(label) == 1
+    np.testing.assert_array_equal(cv2.imread(str(label), cv2.IMREAD_GRAYSCALE) > 0, cap.labels > 0)
+
+    # kept at full resolution when asked (``data --full``, and every relief capture)
+    full = cv2.imread(str(tmp_path / f"{stem}.full.jpg"))[:, :, ::-1].astype(int)
+    assert full.shape == cap.color.shape
+    assert np.abs(full - cap.color.astype(int)).mean() < 4  # JPEG quality 85
+
+    # resumable: a second run finds every file and rewrites none
+    stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
+    t._render_one((INDEX, tmp_path, 90, "silhouette", True, 85))
+    assert {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()} == stamps
+
+
+def test_a_smooth_capture_keeps_no_full_render_unless_asked(tmp_path):
+    t = _script()
+    t._render_one((INDEX, tmp_path, 90, "silhouette", False, 85))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{INDEX:04d}.jpg", f"{INDEX:04d}.png"]
