@@ -45,7 +45,7 @@ def test_a_training_capture_is_written_as_the_model_sees_it(tmp_path):
     assert _png_bit_depth(label) == 1
     np.testing.assert_array_equal(cv2.imread(str(label), cv2.IMREAD_GRAYSCALE) > 0, cap.labels > 0)
 
-    # kept at full resolution when asked (``data --full``, and every relief capture)
+    # kept at full resolution when asked (``data --full``; relief training captures by default)
     full = cv2.imread(str(tmp_path / f"{stem}.full.jpg"))[:, :, ::-1].astype(int)
     assert full.shape == cap.color.shape
     assert np.abs(full - cap.color.astype(int)).mean() < 4  # JPEG quality 85
@@ -60,3 +60,11 @@ def test_a_smooth_capture_keeps_no_full_render_unless_asked(tmp_path):
     t = _script()
     t._render_one((INDEX, tmp_path, 90, "silhouette", False, 85))
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"{INDEX:04d}.jpg", f"{INDEX:04d}.png"]
+
+
+def test_full_renders_are_kept_for_training_captures_only():
+    t = _script()
+    split = {"train": [1, 2, "10r", "11r", "12r"], "val": [3, "3r"], "test": [4]}
+    assert t._full_renders(split) == {"10r", "11r", "12r"}
+    assert t._full_renders(split, relief_full=2) == {"10r", "11r"}
+    assert t._full_renders(split, relief_full=0, every=True) == {1, 2, "10r", "11r", "12r"}

@@ -3,8 +3,8 @@
 # then their exports. Run from the repository root, with the data folder rendered first (on any
 # machine; 20 min on 2 cores):
 #   python training/train_segmentation.py data --work .segdata --extra 200 --relief 100 --relief-val 30 \
-#       --relief-label silhouette --jobs 2 --jpeg-quality 85 --full-quality 85
-# and then trimmed to fit the 64 MiB that travels to a lent GPU machine (README, stage 6).
+#       --relief-label silhouette --relief-full 60 --jobs 2 --jpeg-quality 85 --full-quality 85
+# (57.5 MB: with the code, under the 64 MiB that travels to a lent GPU machine).
 #
 #   bash training/gpu_stage6.sh train  DATA_DIR RUN_DIR MINUTES   # 6.5 min: ~8 min in all
 #   bash training/gpu_stage6.sh export DATA_DIR RUN_DIR OUT_DIR    # ~4.5 min on 16 CPU cores

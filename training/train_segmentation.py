@@ -59,7 +59,6 @@ def _render_one(job):
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
     f_full = folder / f"{_stem(key)}.full.jpg"
     index, relief = _entry(key)
-    keep_full = keep_full or relief
     cap = None
     if (not f_img.exists() or (relief and relief_label == "silhouette" and not f_mask.exists())
             or (keep_full and not f_full.exists())):
@@ -72,11 +71,11 @@ def _render_one(job):
         cv2.imwrite(str(tmp_img), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
         tmp_img.replace(f_img)
     if keep_full and cap is not None and not f_full.exists():
-        # a relief capture (and, with ``data --full``, every training capture) also keeps its
-        # full-resolution render: a rib is 1-3 px high there, under a pixel at the input's half
-        # resolution, and the tiles of SegmentationModel.predict_proba(tiled=True) show the
-        # bars at full resolution, sharper than the half-resolution input enlarged
-        # (train --full-zoom takes the enlarged crops from it)
+        # a relief training capture (and, with ``data --full``, every training capture) also
+        # keeps its full-resolution render: a rib is 1-3 px high there, under a pixel at the half
+        # resolution input, and the tiles of SegmentationModel.predict_proba(tiled=True) show
+        # the bars at full resolution, sharper than the half-resolution input enlarged
+        # (train --full-zoom takes the enlarged crops of training captures from it)
         tmp_full = f_full.with_suffix(".tmp.jpg")
         cv2.imwrite(str(tmp_full), cap.color[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, full_quality])
         tmp_full.replace(f_full)
@@ -97,6 +96,14 @@ def _render_one(job):
                     [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])  # 1 bit per pixel
         tmp_mask.replace(f_mask)
     return key
+
+
+def _full_renders(split: dict, relief_full: int | None = None, every: bool = False) -> set:
+    """The entries whose full-resolution render ``data`` keeps: the relief training captures
+    (the first ``relief_full`` of them; all if None), every training capture if ``every``, never
+    a validation capture (``train --full-zoom`` reads training crops only)."""
+    relief_train = [k for k in split["train"] if _entry(k)[1]]
+    return set(relief_train[:relief_full]) | (set(split["train"]) if every else set())
 
 
 def cmd_data(args):
@@ -128,9 +135,9 @@ def cmd_data(args):
     # smooth captures first (quick), then the relief ones
     wanted = sorted(split["train"] + split["val"], key=lambda k: _entry(k)[::-1])
     t0 = time.time()
-    train = set(split["train"])
-    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label, args.full and i in train,
-             args.full_quality) for i in wanted]
+    full = _full_renders(split, args.relief_full, args.full)
+    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label, i in full, args.full_quality)
+            for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
         for n, _ in enumerate(ex.map(_render_one, jobs, chunksize=4)):
             if n % 20 == 0:
@@ -695,8 +702,10 @@ def main(argv=None):
                    help="label of a relief capture: each bar's outline over its ribs, or its rendered silhouette")
     a.add_argument("--jobs", type=int, default=2)
     a.add_argument("--jpeg-quality", type=int, default=90)
+    a.add_argument("--relief-full", type=int, default=None,
+                   help="keep the full-resolution render of the first N relief training captures only (default: all)")
     a.add_argument("--full", action="store_true",
-                   help="keep every training capture's full-resolution render (relief ones always)")
+                   help="keep every training capture's full-resolution render")
     a.add_argument("--full-quality", type=int, default=95, help="JPEG quality of the full-resolution renders")
     a = sub.add_parser("train")
     a.add_argument("--work", default="/tmp/rebar_seg")
