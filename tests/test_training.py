@@ -9,6 +9,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
 
@@ -16,7 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 INDEX = 301  # a training-only index (300 and up are never validation or test captures)
 
 
-def _script():
+@pytest.fixture(scope="module")
+def t():
+    """The training script as a module (it is not in a package)."""
     spec = importlib.util.spec_from_file_location("train_segmentation",
                                                   ROOT / "training" / "train_segmentation.py")
     module = importlib.util.module_from_spec(spec)
@@ -28,8 +31,7 @@ def _png_bit_depth(path: Path) -> int:
     return path.read_bytes()[24]  # the IHDR chunk's bit depth, after the signature and IHDR header
 
 
-def test_a_training_capture_is_written_as_the_model_sees_it(tmp_path):
-    t = _script()
+def test_a_training_capture_is_written_as_the_model_sees_it(t, tmp_path):
     t._render_one((INDEX, tmp_path, 90, "silhouette", True, 85))
     cap = synth_segmentation_capture(INDEX, seed=DATASET_SEED)
     stem = f"{INDEX:04d}"
@@ -56,14 +58,12 @@ def test_a_training_capture_is_written_as_the_model_sees_it(tmp_path):
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()} == stamps
 
 
-def test_a_smooth_capture_keeps_no_full_render_unless_asked(tmp_path):
-    t = _script()
+def test_a_smooth_capture_keeps_no_full_render_unless_asked(t, tmp_path):
     t._render_one((INDEX, tmp_path, 90, "silhouette", False, 85))
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"{INDEX:04d}.jpg", f"{INDEX:04d}.png"]
 
 
-def test_full_renders_are_kept_for_training_captures_only():
-    t = _script()
+def test_full_renders_are_kept_for_training_captures_only(t):
     split = {"train": [1, 2, "10r", "11r", "12r"], "val": [3, "3r"], "test": [4]}
     assert t._full_renders(split) == {"10r", "11r", "12r"}
     assert t._full_renders(split, relief_full=2) == {"10r", "11r"}

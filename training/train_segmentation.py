@@ -160,7 +160,7 @@ def _load(work: Path, part: str):
 
 def _load_full(work: Path, part: str) -> dict:
     """{position in the part: full-resolution image (2*IN_H, 2*IN_W, 3) uint8 RGB} for the entries
-    whose full-resolution render was kept (relief captures, see ``_render_one``)."""
+    whose full-resolution render was kept (see ``_full_renders``)."""
     import cv2
 
     split = json.loads((work / "split.json").read_text())
