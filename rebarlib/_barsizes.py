@@ -104,6 +104,11 @@ _ALIASES = {"GB": "GB1499.2", "GB1499": "GB1499.2", "GB 1499.2": "GB1499.2", "AS
 #: Standard uncertainty (mm) of the tabulated envelope itself: rib height varies between mills.
 ENVELOPE_SIGMA_MM = 0.15
 
+#: Degrees of freedom of a width's standard uncertainty, for the sizes' likelihoods (Student's t):
+#: a width's σ is itself estimated, mostly from the spread between a capture's bars of one size
+#: (5 to 20 of them), so a width far from a size is less unlikely than a normal error says.
+WIDTH_SIGMA_DOF = 10.0
+
 
 def bar_system(name: str) -> BarSystem:
     """The bar-size table of a standard (``"GB1499.2"``, ``"ASTM-A615"``, ``"CSA"``, ``"EU"``).
@@ -227,13 +232,16 @@ def bracketing_sizes(width_mm: float, *, system: str = "GB1499.2", deformed: boo
 
 
 def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True,
-                  sigma_mm: float = 0.0) -> tuple[float, float]:
+                  sigma_mm: float = 0.0, dof: float = WIDTH_SIGMA_DOF) -> tuple[float, float]:
     """Nominal size whose observed width is nearest to ``width_mm``, and a confidence in 0..1.
 
-    The confidence is the probability that a width measured with standard uncertainty
-    ``sigma_mm`` (plus the envelope table's own :data:`ENVELOPE_SIGMA_MM`) comes from the chosen
-    size rather than the next one: 1 close to the size's expected width, 0.5 half-way between
-    two sizes. A width beyond the table by more than half a step gives ``(nan, 0.0)``.
+    The confidence is the probability of the chosen size given the width: its posterior over the
+    table's sizes, equally likely beforehand, for a width whose error about the size's observed
+    width is Student's t with ``dof`` degrees of freedom and scale ``sigma_mm`` (plus the envelope
+    table's own :data:`ENVELOPE_SIGMA_MM`): 1 close to the size's observed width, 0.5 half-way
+    between two sizes. (With ``dof=inf``, a normal error, and the sizes' observed widths ``2g``
+    apart, the width ``d`` from the nearest, it is ``1 / (1 + exp(-2g (g - d) / σ²))`` between
+    two sizes.) A width beyond the table by more than half a step gives ``(nan, 0.0)``.
 
     Parameters
     ----------
@@ -241,6 +249,7 @@ def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool =
     system : bar-size standard (see :func:`bar_system`)
     deformed : True: compare with the rib envelope (deformed bars); False: with the nominal size
     sigma_mm : standard uncertainty of ``width_mm``
+    dof : degrees of freedom of ``sigma_mm`` (:data:`WIDTH_SIGMA_DOF`; ``math.inf``: a normal error)
 
     Examples
     --------
@@ -248,7 +257,11 @@ def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool =
     (12.0, 1.0)
     >>> nominal, conf = snap_diameter(15.1, sigma_mm=0.5)  # between Φ12 (13.9) and Φ14 (16.2)
     >>> nominal, round(conf, 2)
-    (14.0, 0.54)
+    (14.0, 0.58)
+    >>> snap_diameter(13.1, sigma_mm=0.4)  # 0.8 mm from Φ12, 1.5 from Φ10 (11.6)
+    (12.0, 0.9405)
+    >>> snap_diameter(13.1, sigma_mm=0.4, dof=math.inf)  # as if σ were known exactly
+    (12.0, 0.988)
     """
     sysm = bar_system(system)
     w = float(width_mm)
@@ -263,5 +276,14 @@ def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool =
     if abs(d) > gap:  # beyond the largest or below the smallest size
         return math.nan, 0.0
     sigma = math.hypot(float(sigma_mm), ENVELOPE_SIGMA_MM)
-    conf = 0.5 * (1 + math.erf((gap - abs(d)) / (sigma * math.sqrt(2))))
+    # A bar has one of the table's sizes, so what decides is how much likelier this width is from
+    # the nearest size than from the others. (It used to be the chance that a continuous width
+    # falls on this side of the midpoint, Φ((gap − |d|) / σ), which ignores that: docs/diameters.md,
+    # "The confidence as the size's posterior".)
+    if math.isinf(dof):
+        ll = [-0.5 * ((w - o) / sigma) ** 2 for o in obs]
+    else:
+        ll = [-(dof + 1) / 2 * math.log1p(((w - o) / sigma) ** 2 / dof) for o in obs]
+    top = max(ll)
+    conf = 1.0 / sum(math.exp(x - top) for x in ll)
     return float(sizes[i]), round(conf, 4)

@@ -410,8 +410,9 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
                circle_between_mm=1.08)
     r = _refined_decision(16.95, 0.3, 150, amb, False, prm, assumed_mm=16.2 / 2, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
-    # a circle that agrees with the mask's nearer size settles it
-    r = _refined_decision(16.95, 0.3, 150, dict(amb, circle_width_mm=16.3, mask_between_mm=0.6), False, prm,
+    # a circle that agrees with the mask's nearer size settles it (the mask alone, σ 1.0 mm, is
+    # still ambiguous: confidence 0.65)
+    r = _refined_decision(16.95, 0.3, 150, dict(amb, circle_width_mm=16.3, mask_between_mm=1.0), False, prm,
                           assumed_mm=16.2 / 2, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
@@ -434,43 +435,43 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_i
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
     base = _veto_bar(stack_width_mm=math.nan, stack_sigma_mm=math.nan, stack_between_mm=math.nan)
-    # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone
-    r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
+    # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone (confidence 0.72)
+    r = _refined_decision(15.25, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
     # the reason names the two sizes a check by hand must tell apart, and the nearer one
     assert "between Φ12 (13.9 mm) and Φ14 (16.2 mm), nearer Φ14" in r["diameter_reason"]
     assert r["confidence"] < prm.min_confidence and math.isnan(r.get("nominal_mm", math.nan))
     # the bar's top 16.1 ± 0.6 mm above its supports settles it: the weighted mean of
-    # 15.4 (σ 0.6) and 16.1 (σ 0.6) is 15.75 ± 0.42, Φ14
+    # 15.25 (σ 0.6) and 16.1 (σ 0.6) is 15.675 ± 0.42, Φ14
     stack = dict(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
-    r = _refined_decision(15.4, 0.3, 150, stack, False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, stack, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+stack"
-    assert r["width_used_mm"] == pytest.approx(15.75, abs=0.01)
+    assert r["width_used_mm"] == pytest.approx(15.675, abs=0.01)
     assert "16.1 ± 0.6 mm above the bars it rests on" in r["diameter_reason"]
     # without its between-bar spread (too few bars to learn it from) it is not used
-    r = _refined_decision(15.4, 0.3, 150, dict(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, dict(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     # it may settle the size the mask leans to, never overturn it: a mask width nearer Φ12
-    # (14.8) with a stack reading Φ14 (16.4) is not measured, though their mean is nearer Φ14
-    r = _refined_decision(14.8, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    # (14.9) with a stack reading Φ14 (16.4) is not measured, though their mean is nearer Φ14
+    r = _refined_decision(14.9, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     # a circle that settles the mask's size is not enough where the stack contradicts it
     both = dict(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
-    r = _refined_decision(15.4, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    r = _refined_decision(15.4, 0.3, 150, dict(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, dict(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["width_source"] == "mask+stack+circle"
     # a stack height that agrees but could not have told Φ14 from Φ12 or Φ16 confirms nothing:
     # σ 1.2 mm is more than the smaller half step from Φ14 (1.10 mm to Φ16's 18.4) ...
-    r = _refined_decision(15.4, 0.3, 150, dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm,
+    r = _refined_decision(15.25, 0.3, 150, dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm,
                           assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
     # ... and so is a circle of σ 5 mm beside it (together σ 1.17 mm); a circle of σ 2 mm beside
     # it brings them to 1.03 mm, within the half step: settled
     weak = dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0)
-    r = _refined_decision(15.4, 0.3, 150, dict(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, dict(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    r = _refined_decision(15.4, 0.3, 150, dict(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm,
+    r = _refined_decision(15.25, 0.3, 150, dict(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm,
                           assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
 
@@ -555,10 +556,10 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
     base = _veto_bar(level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
-    # 15.4 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.7 ± 0.42, Φ14
-    r = _refined_decision(15.4, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
+    # 15.25 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.625 ± 0.42, Φ14
+    r = _refined_decision(15.25, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+level"
-    assert r["width_used_mm"] == pytest.approx(15.7, abs=0.01)
+    assert r["width_used_mm"] == pytest.approx(15.625, abs=0.01)
     assert "16.0 ± 0.6 mm above its level's supports" in r["diameter_reason"]
     # A bar seen from one edge only (along the image border), its mask clearly Φ10 (11.8 mm)
     # though the axis was placed with the Φ12 radius; its top reads 12.6 ± 0.5. The width from
@@ -698,11 +699,12 @@ def test_a_bar_cut_lengthwise_by_the_border_is_sized_from_its_one_edge(border_sc
     assert b.diameter_status == "measured", b.diameter_reason
     assert b.nominal_mm == 12 and b.matches_design is True
     assert abs(b.width_median_mm - b.envelope_mm) <= WIDTH_TOL_MM
-    assert b.confidence < 1.0  # the axis's own uncertainty counts: a one-edge width is not exact
-    assert b.one_sided_share == 1.0  # and the table says where the width came from
-    # the same bar in the full image is measured between its two edges, to the same size
+    assert b.one_sided_share == 1.0  # the table says where the width came from
+    # the same bar in the full image is measured between its two edges, to the same size, and
+    # more surely: the axis's own uncertainty counts in a one-edge width
     full = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
     assert full.loc[bar_id].nominal_mm == 12 and full.loc[bar_id].one_sided_share == 0.0
+    assert b.width_sigma_mm > 1.5 * full.loc[bar_id].width_sigma_mm
     # the paper's method has no one-sided widths
     paper = measure_diameters(crop, bars, crop.labels > 0, design=design, method="paper")
     assert (paper.one_sided_share == 0.0).all()
