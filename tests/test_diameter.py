@@ -134,6 +134,32 @@ def test_snap_diameter_per_system():
         bar_system("JIS")
 
 
+def test_snap_confidence_is_the_size_s_posterior():
+    # Between Φ12 (13.9) and Φ14 (16.2), 2g = 2.3 mm apart, with a normal error of σ (with the
+    # table's 0.15 mm): P(Φ12 | w) = 1 / (1 + exp(-2g (g - d) / σ²)), d = w - 13.9, by hand;
+    # the other sizes (Φ10 at 11.6, Φ16 at 18.4) add under 1e-6 here
+    from rebarlib._barsizes import ENVELOPE_SIGMA_MM
+
+    g = 1.15
+    for w, s in ((14.2, 0.3), (14.6, 0.4), (14.9, 0.25)):
+        sig = math.hypot(s, ENVELOPE_SIGMA_MM)
+        d = w - 13.9
+        expected = 1 / (1 + math.exp(-2 * g * (g - d) / sig ** 2))
+        nominal, conf = snap_diameter(w, sigma_mm=s, dof=math.inf)
+        assert nominal == 12.0 and conf == pytest.approx(expected, abs=1e-4)
+    # half-way it is a coin toss (with a wide σ the sizes beyond take a little of it)
+    assert snap_diameter(15.05, sigma_mm=0.1)[1] == pytest.approx(0.5, abs=1e-3)
+    assert 0.45 < snap_diameter(15.05, sigma_mm=1.0)[1] <= 0.5
+    # an estimated σ (Student's t, the default) is less sure of a width far from its size than
+    # a known one, and as sure where it lies on the size
+    far, near = snap_diameter(14.8, sigma_mm=0.4), snap_diameter(14.8, sigma_mm=0.4, dof=math.inf)
+    assert far[0] == near[0] == 12.0 and far[1] < near[1] - 0.02
+    assert snap_diameter(13.9, sigma_mm=0.2)[1] == pytest.approx(1.0, abs=1e-4)
+    # and never the other way round from the nearest size: the posterior's size is the nearest
+    for w in np.linspace(9.0, 19.0, 41):
+        assert snap_diameter(w, sigma_mm=0.5)[0] == snap_diameter(w)[0]
+
+
 def test_colour_calibration_by_hand():
     # six bars of one design size at 0.5 mm/px; colour edges sit 1 px inside the mask edges
     # (shading) plus some scatter e. Offset = median((colour - mask)/px) = -1 px; the spread
