@@ -447,7 +447,7 @@ def main() -> None:
                 reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
             bars_rr = [r for r in rr if r["kind"] == "bar"]
             dump += [{"capture": name, "method": m, "mask": k, "axes": a, "true_id": r["true_id"], "true_mm": r["true"], "true_envelope_mm": r["env"],
-                      "wrong_size": r["wrong_size"], **r["row"]._asdict()} for r in bars_rr]
+                      "wrong_size": r["wrong_size"], "shows_width": r["shows"], **r["row"]._asdict()} for r in bars_rr]
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
