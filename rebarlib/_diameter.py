@@ -1505,6 +1505,67 @@ _INDEPENDENT = {"stack": "its top {w:.1f} ± {s:.1f} mm above the bars it rests 
                 "circle": "the point cloud's shape, circle fit {w:.1f} ± {s:.1f} mm"}
 
 
+def _independent_widths(info) -> list:
+    """``(key, width, σ)`` of each width of a bar that depends neither on its mask nor on where
+    an axis placed with an assumed radius lies (:data:`_INDEPENDENT`) and is sound: measured,
+    with a σ, and calibrated against the capture's bars (``{key}_between_mm`` finite,
+    :func:`_width_calibration`)."""
+    used = []
+    for key in _INDEPENDENT:
+        w, sg = info.get(f"{key}_width_mm", math.nan), info.get(f"{key}_sigma_mm", math.nan)
+        if math.isfinite(w) and math.isfinite(sg) and sg > 0 and math.isfinite(info.get(f"{key}_between_mm", math.nan)):
+            used.append((key, w, sg))
+    return used
+
+
+def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed):
+    """``out`` as a bar sized by its independent widths alone (:func:`_independent_widths`),
+    where its mask width ``med`` and the size its axis was placed with disagree (``pair``: the
+    mask's size and the assumed one); None where they cannot tell.
+
+    Of two sources in conflict one is biased, and which one the two cannot say: the mask (a
+    learnt mask eating into a bar, an edge read at a depth step, a width from one edge and an
+    axis a fraction of a millimetre off) or the assumed size (a bar of another size than
+    designed). A third measurement that depends on neither arbitrates, as the rib pitch does
+    (:func:`_pitch_settle`): the bar's top above the bars it rests on, above its level's
+    supports, the circle fitted to its cloud. Their weighted mean, its σ enlarged where they
+    lie further apart than their σ say (Birge ratio), must be clear on its own: its σ within
+    the smaller half step from the size to its neighbours, its confidence at least
+    ``prm.min_confidence``, and the size one of the two in conflict (a third size would mean a
+    third source is off too: nothing is settled). Which of the two they may give is the mask's
+    word (``conf_m``, its own confidence in its size): the mask's size where the mask is clear
+    about it (at least ``prm.min_confidence``), else the assumed size. They never give the
+    assumed size against a clear mask (that bar keeps its "possible wrong size",
+    :func:`_alert_other_size`), nor another size on their word alone."""
+    used = _independent_widths(info)
+    if not used or not all(math.isfinite(x) for x in pair):
+        return None
+    ws = np.array([w for _, w, _ in used])
+    wt = 1 / np.array([sg for _, _, sg in used]) ** 2
+    width = float((wt * ws).sum() / wt.sum())
+    birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1)) if len(ws) > 1 else 1.0
+    sigma = max(1.0, birge) / math.sqrt(float(wt.sum()))
+    nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
+    if (nominal not in pair or conf < prm.min_confidence
+            or sigma > min(size_half_gaps_mm(nominal, system=system, deformed=deformed))):
+        return None
+    if pair[0] != pair[1] and (nominal == pair[0]) != (conf_m >= prm.min_confidence):
+        # The mask's own word decides which of the two these widths may confirm. A mask clear
+        # about another size than the assumed one is the alert a bar of the wrong size gives:
+        # one width with tails of its own (a bar lifted off its supports by a tie reads a size
+        # up) does not silence it. And a size other than the assumed one is not given on such a
+        # width where the mask is not clear about it too (on a D435-like capture, a bar lying
+        # 1 mm low on its supports, its top read 2 mm low, read a size down with a mask leaning
+        # that way at 0.74)
+        return None
+    why = (f"its mask width {med:.1f} mm is nearest Φ{pair[0]:g}, the axis was fitted with the radius of "
+           f"Φ{pair[1]:g}, and these widths, which depend on neither, tell the two apart" if pair[0] != pair[1] else
+           f"its mask width {med:.1f} mm and its point cloud, which echoes the radius its axis was fitted with, "
+           "disagree, and these widths depend on neither")
+    reason = f"size from {' and '.join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)}: {why}"
+    return _sized(out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm)
+
+
 def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     """``out`` as a bar sized from its mask width and the widths that do not depend on an axis
     placed with an assumed radius, whose own cloud width only echoes that radius: the circle
@@ -1521,16 +1582,8 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     enlarged where they lie further apart than their σ say (Birge ratio), must snap to ``size``
     (the mask's own: they confirm, never overturn) with confidence ≥ ``prm.min_confidence``.
     """
-    used = []
-    for key in _INDEPENDENT:
-        w, sg = info.get(f"{key}_width_mm", math.nan), info.get(f"{key}_sigma_mm", math.nan)
-        if not (math.isfinite(w) and math.isfinite(sg) and sg > 0
-                and math.isfinite(info.get(f"{key}_between_mm", math.nan))):
-            continue
-        if abs(med - w) / math.hypot(sigma_m, sg) > prm.veto_k:
-            return None
-        used.append((key, w, sg))
-    if not used:
+    used = _independent_widths(info)
+    if not used or any(abs(med - w) / math.hypot(sigma_m, sg) > prm.veto_k for _, w, sg in used):
         return None
     ws = np.array([med] + [w for _, w, _ in used])
     wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2
@@ -1936,8 +1989,14 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
                 # width from one edge to the axis: the axis was placed with the assumed radius (a
                 # fit over part of the bar's arc slides with it), so that width cannot overturn it
                 if conf_m >= prm.min_confidence and _two_sided(info):
-                    return _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
-                                   deformed=deformed, size=nom_m) or out
+                    settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
+                                      deformed=deformed, size=nom_m)
+                    if settled is not None:
+                        return settled
+                # else the widths that depend on neither the mask nor the axis may tell the
+                # mask's size from the assumed one
+                return _arbitrate(out, med, conf_m, (nom_m, nom_c), info, in_shadow, prm, system=system,
+                                  deformed=deformed) or out
             return out
         wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
         width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"

@@ -453,7 +453,7 @@ def _veto_bar(**changes) -> dict:
                 circle_between_mm=math.nan, **changes)
 
 
-def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_it():
+def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conflict():
     # A top-level bar's top stands one diameter above the bars it rests on (stack_mm): a width
     # that does not depend on where an axis placed with an assumed radius lies. By hand, veto mode.
     from rebarlib._diameter import _refined_decision, _RefinedParams
@@ -477,10 +477,36 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_but_never_overturns_i
     # without its between-bar spread (too few bars to learn it from) it is not used
     r = _refined_decision(15.25, 0.3, 150, dict(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    # it may settle the size the mask leans to, never overturn it: a mask width nearer Φ12
-    # (14.9) with a stack reading Φ14 (16.4) is not measured, though their mean is nearer Φ14
+    # A mask width nearer Φ12 (14.9, σ about 0.6: confidence about 0.7) than the Φ14 the axis was placed
+    # with: the mask and the assumed size are in conflict, and the stack, which depends on
+    # neither, arbitrates alone: 16.4 ± 0.6 mm is Φ14. It is not averaged with the mask (one of
+    # the two in conflict is biased).
     r = _refined_decision(14.9, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
+    assert r["width_used_mm"] == pytest.approx(16.4)
+    assert "mask width 14.9 mm is nearest Φ12, the axis was fitted with the radius of Φ14" in r["diameter_reason"]
+    # ... but it never silences a mask clear about another size than designed (14.2: Φ12 at about
+    # 0.97): that is the alert a bar of the wrong size gives, and one width (a bar lifted off
+    # its supports by a tie reads a size up) does not overrule it
+    r = _refined_decision(14.2, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
+    assert r["diameter_reason"].startswith("possible wrong size") and "gives Φ12" in r["diameter_reason"]
+    # it gives the mask's size where it agrees, also for a bar seen from one edge (whose mask
+    # width slides with an axis placed with the assumed radius, so the mask alone never could):
+    # a Φ16 bar (envelope 18.4) in a Φ14 design
+    one = dict(stack, one_sided_share=1.0, stack_width_mm=17.9, stack_sigma_mm=0.75, stack_between_mm=0.75)
+    r = _refined_decision(18.1, 0.3, 150, one, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 16.0 and r["width_source"] == "stack"
+    # but not where the mask only leans to that size (17.5 mm, about 0.65): a size other than
+    # designed is not given on one width's word
+    r = _refined_decision(17.5, 0.3, 150, one, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "not measured" and "disagree" in r["diameter_reason"]
+    # a third size (the stack reads Φ18, 20.5 mm), a width that could not tell the two apart
+    # (σ 1.2 mm, more than the smaller half step from Φ16, 1.05 mm) or one that is not clear
+    # (17.3 mm, half-way between Φ14 and Φ16) settles nothing
+    for change in (dict(stack_width_mm=20.5), dict(stack_sigma_mm=1.2), dict(stack_width_mm=17.3)):
+        r = _refined_decision(18.1, 0.3, 150, dict(one, **change), False, prm, assumed_mm=8.1, **kw)
+        assert r["diameter_status"] == "not measured", change
     # a circle that settles the mask's size is not enough where the stack contradicts it
     both = dict(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
     r = _refined_decision(15.25, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
