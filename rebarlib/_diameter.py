@@ -1513,7 +1513,8 @@ def _independent_widths(info) -> list:
     used = []
     for key in _INDEPENDENT:
         w, sg = info.get(f"{key}_width_mm", math.nan), info.get(f"{key}_sigma_mm", math.nan)
-        if math.isfinite(w) and math.isfinite(sg) and sg > 0 and math.isfinite(info.get(f"{key}_between_mm", math.nan)):
+        learnt = math.isfinite(info.get(f"{key}_between_mm", math.nan))
+        if math.isfinite(w) and math.isfinite(sg) and sg > 0 and learnt:
             used.append((key, w, sg))
     return used
 
@@ -2088,7 +2089,10 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         bars table has ``stack_mm``, else its top above its level's supports from ``top_mm``):
         the bar is measured where they agree and their combined width is clear,
         ``width_source`` "mask+" and the widths used, joined by "+" ("mask+circle",
-        "mask+stack", "mask+level+circle", ...)
+        "mask+stack", "mask+level+circle", ...). Where the mask and the assumed size disagree,
+        those widths alone arbitrate between the two (:func:`_arbitrate`, ``width_source`` the
+        widths used: "stack", "level", "level+circle", ...): the assumed size where the mask is
+        not clear about its own, the mask's size only where it is
     paper_points : detect-points per bar for ``method="paper"``
     rng : unused (the measurement is deterministic); accepted for the common signature
 
@@ -2108,8 +2112,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     uncertainty; 0 for the paper's method), ``cloud_width_mm``
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud", or "mask+" the independent widths
-    of veto mode, above, and "+pitch" at the end where the rib pitch told two sizes apart,
-    below: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    of veto mode, above, or those widths alone where they arbitrated, and "+pitch" at the end
+    where the rib pitch told two sizes apart, below: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
     ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
     the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the
