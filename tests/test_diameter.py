@@ -507,6 +507,14 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     for change in (dict(stack_width_mm=20.5), dict(stack_sigma_mm=1.2), dict(stack_width_mm=17.3)):
         r = _refined_decision(18.1, 0.3, 150, dict(one, **change), False, prm, assumed_mm=8.1, **kw)
         assert r["diameter_status"] == "not measured", change
+    # A bar seen from one edge whose mask gives the assumed size (15.6 mm, nearer Φ14) and whose
+    # cloud reads 19.0 mm, beyond twice their σ: the two disagree over where the bar's surface
+    # lies, not over its size, and a width from one edge cannot be settled with the mask (it
+    # slides with the axis). The stack settles it alone, and the reason says what disagreed.
+    far = dict(one, depth_width_mm=19.0, stack_width_mm=16.3, stack_sigma_mm=0.6, stack_between_mm=0.6)
+    r = _refined_decision(15.6, 0.3, 150, far, False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
+    assert "mask width 15.6 mm and its point cloud, which echoes the radius" in r["diameter_reason"]
     # a circle that settles the mask's size is not enough where the stack contradicts it
     both = dict(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
     r = _refined_decision(15.25, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
