@@ -1519,6 +1519,17 @@ def _independent_widths(info) -> list:
     return used
 
 
+def _birge_mean(widths, sigmas) -> tuple[float, float]:
+    """Weighted mean of independent estimates of one width and its σ, enlarged by the Birge
+    ratio (the scatter of the estimates around their mean against their σ) where they lie
+    further apart than their σ say; one estimate is its own mean."""
+    ws = np.asarray(widths, float)
+    wt = 1 / np.asarray(sigmas, float) ** 2
+    width = float((wt * ws).sum() / wt.sum())
+    birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1)) if len(ws) > 1 else 1.0
+    return width, max(1.0, birge) / math.sqrt(float(wt.sum()))
+
+
 def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed):
     """``out`` as a bar sized by its independent widths alone (:func:`_independent_widths`),
     where its mask width ``med`` and the size its axis was placed with disagree (``pair``: the
@@ -1541,11 +1552,7 @@ def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed
     used = _independent_widths(info)
     if not used or not all(math.isfinite(x) for x in pair):
         return None
-    ws = np.array([w for _, w, _ in used])
-    wt = 1 / np.array([sg for _, _, sg in used]) ** 2
-    width = float((wt * ws).sum() / wt.sum())
-    birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1)) if len(ws) > 1 else 1.0
-    sigma = max(1.0, birge) / math.sqrt(float(wt.sum()))
+    width, sigma = _birge_mean([w for _, w, _ in used], [sg for _, _, sg in used])
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
     if (nominal not in pair or conf < prm.min_confidence
             or sigma > min(size_half_gaps_mm(nominal, system=system, deformed=deformed))):
@@ -1586,17 +1593,13 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     used = _independent_widths(info)
     if not used or any(abs(med - w) / math.hypot(sigma_m, sg) > prm.veto_k for _, w, sg in used):
         return None
-    ws = np.array([med] + [w for _, w, _ in used])
-    wt = 1 / np.array([sigma_m] + [sg for _, _, sg in used]) ** 2
     # confirming needs evidence that could have told the size from its neighbours: the widths
     # together within a half size step at one σ (a circle fitted to a few millimetres of arc
     # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
-    if 1 / math.sqrt(float(wt[1:].sum())) > min(size_half_gaps_mm(size, system=system, deformed=deformed)):
+    wt = 1 / np.array([sg for _, _, sg in used]) ** 2
+    if 1 / math.sqrt(float(wt.sum())) > min(size_half_gaps_mm(size, system=system, deformed=deformed)):
         return None
-    width = float((wt * ws).sum() / wt.sum())
-    # Birge ratio: the scatter of the estimates around their mean against their σ
-    birge = math.sqrt(float((wt * (ws - width) ** 2).sum()) / (len(ws) - 1))
-    sigma = max(1.0, birge) / math.sqrt(float(wt.sum()))
+    width, sigma = _birge_mean([med] + [w for _, w, _ in used], [sigma_m] + [sg for _, _, sg in used])
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
     if nominal != size or conf < prm.min_confidence:
         return None
