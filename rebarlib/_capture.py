@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -214,45 +213,14 @@ def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite
 
 
 def load_cloud(path, *, units: str) -> np.ndarray:
-    """Read a bare point cloud (PLY, PCD, NPZ with an (N, 3) array, or CSV of x, y, z) in mm.
+    """Read a bare point cloud (PLY, PCD, XYZ/PTS/CSV/TXT, NPZ, LAS/LAZ, E57) as (N, 3) mm points
+    in the file's own frame.
 
     ``units`` must be given ("mm" or "m"): clouds arrive in either. A cloud whose extent looks
     like the other unit (under 10 units across when said to be mm, over 100 when said to be m)
-    gets a warning rather than a silent thousand-fold error.
+    gets a warning rather than a silent thousand-fold error. The readers (and the per-point
+    fields this drops) are in :mod:`rebarlib.cloud_io`; ``read_cloud`` keeps them.
     """
-    if units not in ("mm", "m"):
-        raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
-    p = Path(path)
-    if not p.is_file():
-        raise RebarInputError(f"{p}: point cloud file not found")
-    suffix = p.suffix.lower()
-    if suffix in (".ply", ".pcd"):
-        import open3d as o3d
+    from .cloud_io import read_cloud
 
-        pts = np.asarray(o3d.io.read_point_cloud(str(p)).points, dtype=np.float64)
-    elif suffix == ".npz":
-        with np.load(p) as z:
-            arrays = [z[k] for k in z.files if z[k].ndim == 2 and z[k].shape[1] == 3]
-        if not arrays:
-            raise RebarInputError(f"{p}: no (N, 3) array in the NPZ file")
-        pts = arrays[0].astype(np.float64)
-    elif suffix in (".csv", ".txt", ".xyz"):
-        try:
-            pts = np.loadtxt(p, delimiter="," if suffix == ".csv" else None, ndmin=2,
-                             comments="#", usecols=(0, 1, 2))
-        except ValueError:  # a header line
-            pts = np.loadtxt(p, delimiter="," if suffix == ".csv" else None, ndmin=2,
-                             skiprows=1, usecols=(0, 1, 2))
-    else:
-        raise RebarInputError(f"{p}: unknown point cloud format {suffix!r} (PLY, PCD, NPZ or CSV expected)")
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-        raise RebarInputError(f"{p}: expected a non-empty cloud of x, y, z points, got shape {pts.shape}")
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
-    if units == "mm" and 0 < extent < 10:
-        warnings.warn(f"{p}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)",
-                      stacklevel=2)
-    if units == "m" and extent > 100:
-        warnings.warn(f"{p}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)",
-                      stacklevel=2)
-    return pts * (1000.0 if units == "m" else 1.0)
+    return read_cloud(path, units=units, recentre=False).points

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._camera import Cloud
+from ._camera import Cloud  # noqa: F401 (the doctests build one)
 from ._checks import RebarInputError, check_positive
 
 __all__ = ["voxel_downsample", "remove_outliers", "to_open3d", "ransac_plane"]
@@ -19,7 +19,19 @@ def to_open3d(points):
     return pcd
 
 
-def voxel_downsample(cloud: Cloud, voxel_mm: float) -> Cloud:
+def _points_of(cloud):
+    """The (N, 3) points of a :class:`Cloud` (points linked to pixels), a
+    :class:`~rebarlib.cloud_io.ScanCloud` or a bare array (as ``load_cloud`` returns), and a
+    function taking indices to the same kind of object (pixel links and fields kept)."""
+    if hasattr(cloud, "points") and hasattr(cloud, "subset"):
+        return np.asarray(cloud.points, float), cloud.subset
+    pts = np.asarray(cloud, float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise RebarInputError(f"cloud: expected a Cloud, a ScanCloud or an (N, 3) array, got shape {pts.shape}")
+    return pts, lambda idx: pts[idx]
+
+
+def voxel_downsample(cloud, voxel_mm: float):
     """Keep, per occupied voxel, the original point nearest the voxel centre.
 
     Open3D's ``voxel_down_sample`` averages points (the average has no pixel) and its
@@ -28,7 +40,8 @@ def voxel_downsample(cloud: Cloud, voxel_mm: float) -> Cloud:
 
     Parameters
     ----------
-    cloud : Cloud
+    cloud : Cloud, ScanCloud or (N, 3) array; the result is of the same kind (a Cloud keeps
+        each kept point's pixel, a ScanCloud its fields)
     voxel_mm : edge of the cubic voxel, mm
 
     Examples
@@ -39,30 +52,33 @@ def voxel_downsample(cloud: Cloud, voxel_mm: float) -> Cloud:
     [0.6, 5.0]
     """
     voxel = check_positive(voxel_mm, "voxel_mm")
-    if len(cloud) == 0:
+    pts, subset = _points_of(cloud)
+    if len(pts) == 0:
         return cloud
-    keys = np.floor(cloud.points / voxel).astype(np.int64)
+    keys = np.floor(pts / voxel).astype(np.int64)
     centre = (keys + 0.5) * voxel
-    d2 = ((cloud.points - centre) ** 2).sum(axis=1)
+    d2 = ((pts - centre) ** 2).sum(axis=1)
     order = np.lexsort((d2, keys[:, 2], keys[:, 1], keys[:, 0]))
     k = keys[order]
     first = np.ones(len(k), dtype=bool)
     first[1:] = np.any(k[1:] != k[:-1], axis=1)
     keep = np.sort(order[first])
-    return cloud.subset(keep)
+    return subset(keep)
 
 
-def remove_outliers(cloud: Cloud, *, nb_neighbors: int = 20, std_ratio: float = 2.0) -> Cloud:
+def remove_outliers(cloud, *, nb_neighbors: int = 20, std_ratio: float = 2.0):
     """Statistical outlier removal (Open3D): drop points whose mean distance to their
-    ``nb_neighbors`` nearest neighbours exceeds the global mean by ``std_ratio`` std devs."""
+    ``nb_neighbors`` nearest neighbours exceeds the global mean by ``std_ratio`` std devs.
+
+    ``cloud`` is a Cloud, a ScanCloud or an (N, 3) array; the result is of the same kind."""
     if nb_neighbors < 1:
         raise RebarInputError(f"nb_neighbors: expected a positive integer, got {nb_neighbors!r}")
     check_positive(std_ratio, "std_ratio", unit="")
-    if len(cloud) <= nb_neighbors:
+    pts, subset = _points_of(cloud)
+    if len(pts) <= nb_neighbors:
         return cloud
-    _, index = to_open3d(cloud.points).remove_statistical_outlier(nb_neighbors=nb_neighbors,
-                                                                  std_ratio=std_ratio)
-    return cloud.subset(np.sort(np.asarray(index, dtype=np.int64)))
+    _, index = to_open3d(pts).remove_statistical_outlier(nb_neighbors=nb_neighbors, std_ratio=std_ratio)
+    return subset(np.sort(np.asarray(index, dtype=np.int64)))
 
 
 def ransac_plane(points, *, threshold_mm: float, iterations: int, seed: int):
