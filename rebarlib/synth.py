@@ -25,7 +25,7 @@ from ._checks import RebarInputError, check_positive
 from ._design import Design
 
 __all__ = ["Deviations", "SensorModel", "Appearance", "CameraPose", "Bar", "SlabScene",
-           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm", "misregister"]
+           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm", "misregister", "dropout_mask"]
 
 # GB 1499.2 nominal size -> (inner diameter d1, rib height h), docs/acceptance.md.
 _GB_RIBS = {6: (5.8, 0.6), 8: (7.7, 0.8), 10: (9.6, 1.0), 12: (11.5, 1.2), 14: (13.4, 1.4),
@@ -82,6 +82,16 @@ class Deviations:
     spacers, chairs, ties : cover blocks under the lower lattice, chairs between the lattices,
         tie wire at crossings
     slab_size_mm : extent of the (square) mesh
+    end_overhang_mm : None (the default, kept so that earlier renders stay identical): every bar
+        runs the whole ``slab_size_mm``. A number: a finite mesh as tied on site: each bar ends
+        this far beyond the outermost bar crossing it, so the mesh's edge is where the crossing
+        bars end; captures aimed near the edge (``target_mm``) show formwork beyond the mesh
+    edge_form : with ``end_overhang_mm``, boards standing at the slab's edges, 25 mm beyond the
+        bar ends, as high as the slab (``design.thickness_mm``, or the mesh's top + 30 mm)
+    missing_at_end : number of bars left out at the end of a row (the outermost of a set)
+    extra : number of bars added half-way between two design positions (same size as designed)
+    position_uniform_mm : each bar's offset also moves by a uniform draw in ± this (on top of
+        ``position_sigma_mm``): spacings off their design value by up to twice it
     """
 
     position_sigma_mm: float = 2.0
@@ -97,6 +107,11 @@ class Deviations:
     chairs: bool = True
     ties: bool = True
     slab_size_mm: float = 2000.0
+    end_overhang_mm: float | None = None
+    edge_form: bool = False
+    missing_at_end: int = 0
+    extra: int = 0
+    position_uniform_mm: float = 0.0
 
     @classmethod
     def none(cls) -> "Deviations":
@@ -127,6 +142,18 @@ class SensorModel:
     bias_mm_per_m2 : distance-dependent bias b = k z^2 (z in m), positive = too far (too low)
     depth_scale_mm : mm per unit of the stored 16-bit depth
     quantize : store depth on the depth_scale_mm grid (as read back from a file)
+    depth_scale_error, depth_offset_mm : systematic depth error of an uncalibrated unit: the
+        stored depth is ``(1 + depth_scale_error) * z + depth_offset_mm`` (0.015: 1.5 % too far)
+    focal_error : the lens's true focal lengths are ``(1 + focal_error)`` times the intrinsics
+        written with the capture (a factory calibration that is off); the rays are cast through
+        the true ones
+    bars_without_depth : number of lower-lattice bars in view (at least 400 mm of them seen) that
+        have no depth at all, as where a bar lies in the projector's shadow of the bar above it
+        or is too dark for the matcher; they stay in the colour image (truth: ``no_depth``)
+    dropout : fraction of the pixels with depth that lose it (0..1): wet, black or sunlit
+        surfaces the matcher finds nothing on
+    dropout_patch_px : 0 = each pixel drops out on its own (at random); k > 0 = the lost pixels
+        come in blobs about k px across (a wet patch, a glare spot), placed at random
     """
 
     baseline_mm: float = 50.0
@@ -145,6 +172,17 @@ class SensorModel:
     depth_scale_mm: float = 1.0
     max_depth_mm: float = 10_000.0
     quantize: bool = True
+    depth_scale_error: float = 0.0
+    depth_offset_mm: float = 0.0
+    focal_error: float = 0.0
+    dropout: float = 0.0
+    dropout_patch_px: float = 0.0
+    bars_without_depth: int = 0
+
+    def __post_init__(self):
+        if not (0.0 <= self.dropout <= 1.0) or not self.dropout_patch_px >= 0:
+            raise RebarInputError(f"SensorModel: dropout must be in 0..1 and dropout_patch_px >= 0, got "
+                                  f"{self.dropout!r} and {self.dropout_patch_px!r}")
 
     @classmethod
     def ideal(cls) -> "SensorModel":
@@ -157,6 +195,14 @@ class SensorModel:
     def sigma_z_mm(self, z_mm, focal_px: float):
         """Model axial noise (mm) at depth ``z_mm``."""
         return np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
+
+    def true_intrinsics(self, written: Intrinsics) -> Intrinsics:
+        """The intrinsics the rays are cast through, where ``written`` are those saved with the
+        capture (they differ by ``focal_error``)."""
+        if not self.focal_error:
+            return written
+        k = 1.0 + self.focal_error
+        return replace(written, fx=written.fx * k, fy=written.fy * k)
 
 
 FORMWORKS = ("plywood", "film", "plastic")
@@ -260,6 +306,7 @@ class Bar:
     nominal_mm: float
     envelope_mm: float
     design_mm: float
+    extra: bool = False  # a bar the design does not have (Deviations.extra)
 
     @property
     def radius_mm(self) -> float:
@@ -281,6 +328,7 @@ class SlabScene:
     boxes: tuple  # (centre (3,), half-size (3,), yaw rad, kind)
     rods: tuple  # (p0 (3,), p1 (3,), radius, kind)
     key: int = 0  # seeds what belongs to the slab, not the shot: formwork texture, which bars rust
+    ghosts: tuple = ()  # a Bar where each missing bar would have been (same order as ``missing``)
 
 
 def _sizes_near(size: float) -> list:
@@ -318,33 +366,65 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     pick = rng.permutation(len(slots))
     missing_slots = {slots[i] for i in pick[:dev.missing]}
     wrong_slots = {slots[i] for i in pick[dev.missing:dev.missing + dev.wrong_size]}
+    # the options below draw from ``rng`` only when set, so that earlier renders stay identical
+    if dev.missing_at_end:
+        ends = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in (0, len(offs) - 1)]
+        ends = [e for e in ends if e not in wrong_slots]
+        missing_slots |= {ends[i] for i in rng.permutation(len(ends))[:dev.missing_at_end]}
+    extra_slots = set()
+    if dev.extra:
+        gaps = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 2)]
+        extra_slots = {gaps[i] for i in rng.permutation(len(gaps))[:dev.extra]}
+    # a finite mesh: each set's bars run over the crossing set's extent, plus the overhang
+    extent = {}
+    if dev.end_overhang_mm is not None:
+        for layer in ("lower", "upper"):
+            offs = {lv: o for (la, lv, o) in sets if la == layer}
+            for level, other in (("bottom", "top"), ("top", "bottom")):
+                extent[(layer, level)] = (min(offs[other]) - dev.end_overhang_mm,
+                                          max(offs[other]) + dev.end_overhang_mm)
 
     base = {"lower": design.cover_mm, "upper": design.cover_mm + design.layer_distance_mm}
-    bars, missing = [], []
+    bars, missing, ghosts = [], [], []
     for si, (layer, level, offsets) in enumerate(sets):
         lat = design.lattice(layer)
         d_design = lat.level(level).diameter_mm
         bottom_env = env(lat.bottom.diameter_mm)
         along, across = (ex, ey) if level == "bottom" else (ey, ex)
-        for k, off in enumerate(offsets):
-            if (si, k) in missing_slots:
+        s_lo, s_hi = extent.get((layer, level), (-half, half))
+        s_mid, s_half = 0.5 * (s_lo + s_hi), 0.5 * (s_hi - s_lo)
+        spacing = lat.level(level).spacing_mm
+        placed = [(k, off, False) for k, off in enumerate(offsets)]
+        placed += [(k, off + spacing / 2, True) for k, off in enumerate(offsets) if (si, k) in extra_slots]
+        for k, off, is_extra in sorted(placed, key=lambda x: x[1]):
+            if not is_extra and (si, k) in missing_slots:
                 missing.append((layer, level, k))
+                # where it would have been (design position and height; no random draw)
+                e = env(d_design)
+                zc = base[layer] + (e / 2 if level == "bottom" else bottom_env + e / 2)
+                s = np.array([s_lo, s_hi])
+                ghosts.append(Bar(-1 - len(ghosts), layer, level, k, float(off), along.copy(),
+                                  s[:, None] * along + off * across + np.array([0, 0, zc]),
+                                  float(d_design), float(e), float(d_design)))
                 continue
             nominal = d_design
-            if (si, k) in wrong_slots:
+            if not is_extra and (si, k) in wrong_slots:
                 nominal = float(rng.choice(_sizes_near(d_design)))
             e = env(nominal)
             off_true = off + rng.normal(0, dev.position_sigma_mm) if dev.position_sigma_mm else off
+            if dev.position_uniform_mm:
+                off_true += rng.uniform(-dev.position_uniform_mm, dev.position_uniform_mm)
             z0 = base[layer] + rng.normal(0, dev.height_sigma_mm) if dev.height_sigma_mm else base[layer]
             # bottom bars rest on the spacers; top bars rest on the bottom bars of their lattice
             zc = z0 + e / 2 if level == "bottom" else z0 + bottom_env + e / 2
             n_seg = 12 if dev.bow_mm else 1
-            s = np.linspace(-half, half, n_seg + 1)
-            bow = dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - (s / half) ** 2) if dev.bow_mm else 0 * s
+            s = np.linspace(s_lo, s_hi, n_seg + 1)
+            bow = (dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2) if dev.bow_mm
+                   else 0 * s)
             axis = (s[:, None] * along + (off_true + bow)[:, None] * across
                     + np.array([0, 0, zc]))
             bars.append(Bar(len(bars), layer, level, k, float(off_true), along.copy(), axis, float(nominal),
-                            float(e), float(d_design)))
+                            float(e), float(d_design), extra=is_extra))
 
     boxes, rods = [], []
     lower_b, lower_t = [b for b in bars if b.layer == "lower" and b.level == "bottom"], \
@@ -352,8 +432,8 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     if dev.spacers and lower_b:
         pitch = max(2, int(round(800 / design.lower.top.spacing_mm)))
         for b in lower_b[1::pitch]:
-            for s_mm in np.arange(-half + 150, half, 800.0):
-                c = b.axis[0] + (s_mm + half) * b.direction
+            for d_mm in np.arange(150.0, _length(b), 800.0):
+                c = b.axis[0] + d_mm * b.direction
                 c = np.array([c[0], c[1], (b.axis[:, 2].mean() - b.radius_mm) / 2])
                 hs = np.array([25.0, 25.0, c[2]])
                 boxes.append((c, hs, yaw, "spacer"))
@@ -361,8 +441,8 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     if dev.chairs and upper_b and lower_t:
         top_of_lower = max(b.axis[:, 2].max() + b.radius_mm for b in lower_t)
         for b in upper_b[1::3]:
-            for s_mm in np.arange(-half + 300, half, 900.0):
-                p = b.axis[0] + (s_mm + half) * b.direction
+            for d_mm in np.arange(300.0, _length(b), 900.0):
+                p = b.axis[0] + d_mm * b.direction
                 z_top = b.axis[:, 2].mean() - b.radius_mm
                 rods.append((np.array([p[0], p[1], top_of_lower]), np.array([p[0], p[1], z_top]), 5.0, "chair"))
     if dev.ties:
@@ -379,8 +459,37 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
                     diag = (bb.direction + tb.direction) / math.sqrt(2) * (tb.radius_mm + 3)
                     c = np.array([xy[0], xy[1], z])
                     rods.append((c - diag, c + diag, 0.7, "tie"))
+    if dev.edge_form and extent:
+        boxes.extend(_edge_forms(design, bars, extent, ex, ey, yaw))
     return SlabScene(design, dev, tuple(bars), tuple(missing), tuple(boxes), tuple(rods),
-                     key=int(rng.integers(2**31)))
+                     key=int(rng.integers(2**31)), ghosts=tuple(ghosts))
+
+
+def _length(bar: Bar) -> float:
+    """Length of a bar's chord (mm)."""
+    return float(np.linalg.norm(bar.axis[-1, :2] - bar.axis[0, :2]))
+
+
+_EDGE_FORM_GAP_MM, _EDGE_FORM_THICKNESS_MM = 25.0, 18.0
+
+
+def _edge_forms(design: Design, bars, extent: dict, ex, ey, yaw) -> list:
+    """Four boards standing at the slab's edges, ``_EDGE_FORM_GAP_MM`` beyond the bar ends."""
+    x_lo = min(extent[(la, "bottom")][0] for la in ("lower", "upper")) - _EDGE_FORM_GAP_MM
+    x_hi = max(extent[(la, "bottom")][1] for la in ("lower", "upper")) + _EDGE_FORM_GAP_MM
+    y_lo = min(extent[(la, "top")][0] for la in ("lower", "upper")) - _EDGE_FORM_GAP_MM
+    y_hi = max(extent[(la, "top")][1] for la in ("lower", "upper")) + _EDGE_FORM_GAP_MM
+    top = max(float(b.axis[:, 2].max()) + b.radius_mm for b in bars) + 30.0
+    height = float(design.thickness_mm) if getattr(design, "thickness_mm", None) else top
+    t = _EDGE_FORM_THICKNESS_MM / 2
+    out = []
+    for x in (x_lo - t, x_hi + t):  # boards across x, running along y
+        c = x * ex + 0.5 * (y_lo + y_hi) * ey + np.array([0, 0, height / 2])
+        out.append((c, np.array([t, 0.5 * (y_hi - y_lo) + 2 * t, height / 2]), yaw, "edge_form"))
+    for y in (y_lo - t, y_hi + t):
+        c = 0.5 * (x_lo + x_hi) * ex + y * ey + np.array([0, 0, height / 2])
+        out.append((c, np.array([0.5 * (x_hi - x_lo), t, height / 2]), yaw, "edge_form"))
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -488,7 +597,7 @@ def _build_geometry(scene: SlabScene) -> _Geometry:
     for c, hs, yaw, kind in scene.boxes:
         v, t = _box(c, hs, yaw)
         V.append(v), T.append(t)
-        kinds.append(K_SPACER), barid.append(-1), p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+        kinds.append(K_FORMWORK if kind == "edge_form" else K_SPACER), barid.append(-1), p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
         ribs.append(no_rib)
     for p0, p1, r, kind in scene.rods:
         v, t = _prism(p0, p1, r, 8)
@@ -788,6 +897,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     sensor = sensor or SensorModel()
     app = appearance or Appearance()
     H, W = intrinsics.height, intrinsics.width
+    lens = sensor.true_intrinsics(intrinsics)  # the capture is saved with ``intrinsics``
     geo = _build_geometry(scene)
     caster = _Caster(geo)
 
@@ -795,7 +905,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         """What the rays through ``pixels`` (default: every pixel's centre) hit: world ray
         directions, z-depth t (inf on a miss), normal, hit, point, object kind, bar index (-1:
         none) and how far off the surface a shadow ray from it starts."""
-        d_world = ray_directions(intrinsics, pixels) @ pose.rotation  # rows: R^T d; z = 1, so t is the z-depth
+        d_world = ray_directions(lens, pixels) @ pose.rotation  # rows: R^T d; z = 1, so t is the z-depth
         origins = np.broadcast_to(pose.centre, d_world.shape).copy()
         t, obj, normal = caster.first_hit(origins, d_world)
         hit = np.isfinite(t)
@@ -873,9 +983,29 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
         img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
 
     truth = _truth(scene, pose, intrinsics, bar_ids, p_centre, formwork, light, rust_of_bar, sensor, app)
+    no_depth = _remove_bar_depth(depth, bar_ids, truth, sensor.bars_without_depth, rng)
+    for tb in truth["bars"]:
+        tb["no_depth"] = tb["id"] in no_depth
     meta = {"depth_scale_mm": sensor.depth_scale_mm, "device": "rebarlib synthetic (Gemini-2-like)",
             "name": name, "truth": truth}
     return Capture(img, depth, intrinsics, meta, labels, bar_ids)
+
+
+def _remove_bar_depth(depth, bar_ids, truth: dict, n: int, rng) -> set:
+    """Blank the depth of ``n`` lower-lattice bars in view (their pixels and 2 px around them);
+    returns their ids. Draws from ``rng`` only when ``n`` > 0."""
+    import cv2
+
+    if not n:
+        return set()
+    seen = [tb["id"] for tb in truth["bars"]
+            if tb["layer"] == "lower" and tb["visible"] and tb["visible_length_mm"] >= 400]
+    ids = {seen[i] for i in rng.permutation(len(seen))[:n]}
+    if ids:
+        mask = np.isin(bar_ids - 1, sorted(ids)).astype(np.uint8)
+        mask = cv2.dilate(mask, np.ones((5, 5), np.uint8))
+        depth[mask > 0] = 0
+    return ids
 
 
 def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rng, leave):
@@ -946,10 +1076,38 @@ def _sensor_depth(z_true, p, normal, hit, pose, intr, s: SensorModel, caster, rn
         z = np.where(valid & (disp > 0), fb / np.where(disp > 0, disp, 1), 0)
     if s.bias_mm_per_m2:
         z = np.where(z > 0, z + s.bias_mm_per_m2 * (z / 1000) ** 2, 0)
+    if s.depth_scale_error or s.depth_offset_mm:
+        z = np.where(z > 0, (1.0 + s.depth_scale_error) * z + s.depth_offset_mm, 0)
     z[(z > s.max_depth_mm)] = 0
+    if s.dropout > 0:
+        z[dropout_mask(z > 0, s.dropout, s.dropout_patch_px, rng)] = 0
     if s.quantize:
         z = np.round(z / s.depth_scale_mm) * s.depth_scale_mm
     return z
+
+
+def dropout_mask(valid, fraction: float, patch_px: float = 0.0, rng=None) -> np.ndarray:
+    """Pixels of ``valid`` (H, W bool) whose depth a sensor loses: ``fraction`` of them, each on
+    its own (``patch_px=0``) or in random blobs about ``patch_px`` across (a smoothed random
+    field's lowest ``fraction`` among the valid pixels).
+
+    Examples
+    --------
+    >>> m = dropout_mask(np.ones((200, 200), bool), 0.9, 8, rng=0)
+    >>> round(float(m.mean()), 2)
+    0.9
+    """
+    import cv2
+
+    rng = np.random.default_rng(rng)
+    valid = np.asarray(valid, bool)
+    field_ = rng.random(valid.shape).astype(np.float32)
+    if patch_px > 0:
+        field_ = cv2.GaussianBlur(field_, (0, 0), float(patch_px) / 2)
+    if not valid.any() or fraction <= 0:
+        return np.zeros(valid.shape, bool)
+    cut = np.quantile(field_[valid], min(float(fraction), 1.0))
+    return valid & (field_ <= cut) if fraction >= 1 else valid & (field_ < cut)
 
 
 def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, app):
@@ -986,7 +1144,7 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
             "underside_mm": round(b.underside_mm, 4),
             "top_mm": round(b.underside_mm + b.envelope_mm, 4),
             "diameter_mm": b.nominal_mm, "envelope_mm": b.envelope_mm, "design_diameter_mm": b.design_mm,
-            "wrong_size": b.nominal_mm != b.design_mm,
+            "wrong_size": b.nominal_mm != b.design_mm, "extra": bool(b.extra),
             "rust": round(float(rust_of_bar[b.id]), 3),
             "visible_pixels": int(vis), "visible_length_mm": round(s1 - s0, 2),
             "visible": bool(vis >= 100 and s1 - s0 >= 50),
@@ -1021,7 +1179,9 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
                    "rotation_world_to_camera": R.round(10).tolist(),
                    "centre_world_mm": pose.centre.round(4).tolist()},
         "bars": bars,
-        "missing": [{"layer": l, "level": v, "index": k} for l, v, k in scene.missing],
+        "missing": [{"layer": l, "level": v, "index": k, **_ghost_truth(scene, i, pose, intr)}
+                    for i, (l, v, k) in enumerate(scene.missing)],
+        "mesh": _mesh_truth(scene, pose),
         "spacings": spacings,
         "design": {"cover_mm": d.cover_mm, "layer_distance_mm": d.layer_distance_mm,
                    "lower_diameter_mm": d.lower.bottom.diameter_mm, "upper_diameter_mm": d.upper.bottom.diameter_mm},
@@ -1029,6 +1189,40 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
         "sensor": asdict(sensor),
         "appearance": {**asdict(app), "formwork": formwork, "light_world": light.round(6).tolist()},
     }
+
+
+def _ghost_truth(scene, i: int, pose, intr) -> dict:
+    """Where missing bar ``i`` would have been: its axis ends (camera frame) and how much of
+    that axis (at its top) the image frames, in mm."""
+    from ._camera import project
+
+    if i >= len(scene.ghosts):
+        return {}
+    g = scene.ghosts[i]
+    a0, a1 = g.axis[0], g.axis[-1]
+    t = np.linspace(0.0, 1.0, 401)
+    pts = a0 + t[:, None] * (a1 - a0) + np.array([0, 0, g.radius_mm])
+    cam = pose.to_camera(pts)
+    uv = project(cam, intr)
+    inside = (cam[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height)
+    step = float(np.linalg.norm(a1 - a0)) / 400
+    return {"offset_mm": round(g.offset_mm, 4), "axis_start_mm": pose.to_camera([a0])[0].round(4).tolist(),
+            "axis_end_mm": pose.to_camera([a1])[0].round(4).tolist(),
+            "in_view_mm": round(float(inside.sum()) * step, 1)}
+
+
+def _mesh_truth(scene, pose) -> dict:
+    """The finite mesh's corners per lattice (camera frame), or None for the full-slab layout."""
+    if scene.deviations.end_overhang_mm is None:
+        return {"finite": False}
+    out = {"finite": True}
+    for layer in ("lower", "upper"):
+        bb = [b for b in scene.bars if b.layer == layer]
+        if not bb:
+            continue
+        pts = np.vstack([np.vstack((b.axis[0], b.axis[-1])) for b in bb])
+        out[layer] = {"ends_camera_mm": pose.to_camera(pts).round(3).tolist()}
+    return out
 
 
 def synth_capture(design: Design, *, height_mm: float = 500.0, tilt_deg: float = 10.0,
