@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 __all__ = ["RebarInputError", "check_points", "check_positive"]
 
@@ -13,6 +13,8 @@ class RebarInputError(ValueError):
 
 def check_points(points, name: str = "points", *, min_count: int = 1) -> np.ndarray:
     """Return ``points`` as a finite ``(N, 3)`` float64 array or raise naming ``name``."""
+    import numpy as np  # here, not at the top: the command line imports this module to start
+
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise RebarInputError(f"{name}: expected an (N, 3) array of x, y, z in mm, got shape {arr.shape}")
@@ -24,12 +26,12 @@ def check_points(points, name: str = "points", *, min_count: int = 1) -> np.ndar
     return arr
 
 
-def check_positive(value, name: str, *, lo: float = 0.0, hi: float = np.inf, unit: str = "mm") -> float:
+def check_positive(value, name: str, *, lo: float = 0.0, hi: float = math.inf, unit: str = "mm") -> float:
     """Return ``value`` as a float in ``(lo, hi]`` or raise naming ``name`` and the range."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise RebarInputError(f"{name}: expected a number in {unit}, got {value!r}") from None
-    if not np.isfinite(v) or not (lo < v <= hi):
+    if not math.isfinite(v) or not (lo < v <= hi):
         raise RebarInputError(f"{name}: expected a value in ({lo:g}, {hi:g}] {unit}, got {value!r}")
     return v

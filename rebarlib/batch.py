@@ -1,0 +1,309 @@
+"""Many captures at once: :func:`inspect_many` runs ``inspect`` over a batch of captures.
+
+The captures are inspected in local worker processes (``jobs``) or on the workers of a
+``dask.distributed`` cluster (``client``); each outcome is handed back as soon as its capture is
+done (or in input order, ``ordered=True``). A capture that fails is reported as a failed
+:class:`Outcome` with a one-line cause, and the others go on.
+
+Workers read the captures themselves, from the paths given (on a cluster the path must be one
+the workers share with the caller); only the results travel back. Every worker's segmentation
+model runs on one thread (:data:`WORKER_THREADS`), so ``jobs`` processes use ``jobs`` cores
+and a dask worker runs as many inspections at once as it has threads.
+
+This module imports nothing heavy at import time: the command line loads it before it knows
+whether any capture needs computing.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["Outcome", "inspect_many", "inspect_one", "default_jobs", "WORKER_THREADS"]
+
+#: Threads of the segmentation model (onnxruntime) and of OpenCV in a batch worker: one task,
+#: one core. The results do not depend on it (``benchmarks/bench_batch.py --check``).
+WORKER_THREADS = 1
+#: Tasks kept in flight per worker (process or dask thread): enough to keep each one busy
+#: while the caller writes the last result, few enough that a batch of thousands of captures
+#: neither pickles all its tasks up front nor holds their results.
+IN_FLIGHT_PER_WORKER = 2
+
+
+@dataclass
+class Outcome:
+    """What became of one capture of a batch.
+
+    Attributes
+    ----------
+    index : position of the capture in the list given to :func:`inspect_many`
+    capture : the capture's name (its folder's name)
+    path : the capture folder as given (None for a ``Capture`` object)
+    result : the :class:`~rebarlib.InspectionResult`, or None where it failed
+    error : one line saying why it failed, or None
+    seconds : wall time of loading and inspecting it, in the worker
+    """
+
+    index: int
+    capture: str
+    path: str | None
+    result: object = None
+    error: str | None = None
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """True where the capture was inspected."""
+        return self.error is None
+
+
+def default_jobs() -> int:
+    """The cores this process may run on (all of them by default)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _one_line(exc: BaseException) -> str:
+    """A failure as one line: the message of an input error, else the type and first line."""
+    from ._checks import RebarInputError
+
+    lines = str(exc).strip().splitlines()
+    first = lines[0].strip() if lines else ""
+    if isinstance(exc, RebarInputError):
+        return first or "invalid input"
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+
+
+def _capture_name(capture) -> str:
+    if isinstance(capture, (str, os.PathLike)):
+        return Path(capture).resolve().name
+    return str(getattr(capture, "name", "") or "capture")
+
+
+_configured_threads = None
+
+
+def _configure_threads(threads) -> None:
+    """Set the segmentation model's and OpenCV's threads in this process (once per value)."""
+    global _configured_threads
+    if threads is None or threads == _configured_threads:
+        return
+    import cv2
+
+    from . import _inspect
+
+    cv2.setNumThreads(int(threads))
+    if _inspect.MODEL_THREADS != threads:
+        _inspect.MODEL_THREADS = int(threads)
+        _inspect._default_model.cache_clear()
+    _configured_threads = threads
+
+
+def inspect_one(index: int, capture, design, inspect_kw: dict | None = None, *, threads=None) -> Outcome:
+    """Load and inspect one capture; never raises for a failure of that capture.
+
+    Parameters
+    ----------
+    index : the capture's position in its batch (carried into the :class:`Outcome`)
+    capture : a capture folder (str or Path) or a :class:`~rebarlib.Capture`
+    design : :class:`~rebarlib.Design`
+    inspect_kw : keyword arguments of :func:`rebarlib.inspect`
+    threads : threads for the segmentation model and OpenCV in this process (None: as set)
+
+    Returns
+    -------
+    Outcome with the result, or with ``error`` (one line) where it failed.
+    """
+    t0 = time.perf_counter()
+    name = _capture_name(capture)
+    path = str(capture) if isinstance(capture, (str, os.PathLike)) else None
+    try:
+        _configure_threads(threads)
+        from ._capture import load_capture
+        from ._inspect import inspect
+
+        cap = load_capture(capture) if path is not None else capture
+        res = inspect(cap, design, **(inspect_kw or {}))
+        res.capture = name
+    except Exception as exc:  # one capture's failure, whatever it is, is that capture's outcome
+        return Outcome(index, name, path, None, _one_line(exc), time.perf_counter() - t0)
+    return Outcome(index, name, path, res, None, time.perf_counter() - t0)
+
+
+def _check_args(design, jobs, client, inspect_kw):
+    from ._checks import RebarInputError
+    from ._design import Design, load_design
+
+    if isinstance(design, (str, os.PathLike)):
+        design = load_design(design)
+    if not isinstance(design, Design):
+        raise RebarInputError(f"design: expected a rebarlib.Design or a design.toml path, got {type(design).__name__}")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise RebarInputError(f"jobs: expected a whole number of processes >= 1, got {jobs!r}")
+    if jobs is not None and client is not None:
+        raise RebarInputError("jobs: give either jobs (local processes) or client (a dask cluster), not both")
+    rng = inspect_kw.get("rng")
+    if rng is not None and (isinstance(rng, bool) or not isinstance(rng, int)):
+        raise RebarInputError(f"rng: a batch inspects every capture with the same whole-number seed, got {type(rng).__name__}")
+    return design
+
+
+def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = False, progress=None,
+                 **inspect_kw):
+    """Inspect many captures; yield one :class:`Outcome` per capture as each is done.
+
+    Parameters
+    ----------
+    captures : iterable of capture folders (str or Path) or :class:`~rebarlib.Capture` objects
+        (objects are sent whole to the workers; folders are read by the workers)
+    design : :class:`~rebarlib.Design` or the path of a ``design.toml``
+    client : a ``distributed.Client`` or a scheduler address (``"tcp://host:8786"``): inspect on
+        that dask cluster, whose workers must see the capture folders at the same paths
+    jobs : local worker processes (default: all cores); 1 inspects in this process, one by one
+    ordered : yield in the order of ``captures`` instead of as they finish
+    progress : called as ``progress(outcome, done, total)`` when each capture is done
+    **inspect_kw : passed to :func:`rebarlib.inspect` (``method``, ``diameters``, ``mask_source``,
+        ``rng``: a whole-number seed, used for every capture)
+
+    Yields
+    ------
+    Outcome: ``result`` where it was inspected, else ``error``, the cause in one line. An error
+    of one capture does not stop the others.
+
+    Raises
+    ------
+    RebarInputError
+        For arguments that fit no capture (a design that is not one, ``jobs`` < 1, both
+        ``jobs`` and ``client``, a seed that is not a whole number).
+
+    Examples
+    --------
+    >>> from rebarlib.data import example_capture, example_slab
+    >>> _, design = example_slab("paper_slab")
+    >>> [o.capture for o in inspect_many([example_capture("paper_slab", "A_400")], design, jobs=1,
+    ...                                  diameters=False, rng=0)]
+    ['A_400']
+    """
+    design = _check_args(design, jobs, client, inspect_kw)
+    items = list(enumerate(captures))
+    return _drive(items, design, client, jobs, ordered, progress, inspect_kw)
+
+
+def _drive(items, design, client, jobs, ordered, progress, inspect_kw):
+    total = len(items)
+    if client is not None:
+        stream = _on_dask(items, design, client, inspect_kw)
+    elif min(jobs or default_jobs(), total) <= 1:
+        stream = (inspect_one(i, c, design, inspect_kw) for i, c in items)
+    else:
+        stream = _in_processes(items, design, min(jobs or default_jobs(), total), inspect_kw)
+    stream = _counted(stream, total, progress)
+    yield from (_in_input_order(stream) if ordered else stream)
+
+
+def _counted(stream, total, progress):
+    for done, outcome in enumerate(stream, start=1):
+        if progress is not None:
+            progress(outcome, done, total)
+        yield outcome
+
+
+def _in_input_order(stream):
+    waiting, next_index = {}, 0
+    for outcome in stream:
+        waiting[outcome.index] = outcome
+        while next_index in waiting:
+            yield waiting.pop(next_index)
+            next_index += 1
+    yield from (waiting[i] for i in sorted(waiting))
+
+
+def _failed(index, capture, exc) -> Outcome:
+    path = str(capture) if isinstance(capture, (str, os.PathLike)) else None
+    return Outcome(index, _capture_name(capture), path, None, _one_line(exc), 0.0)
+
+
+def _init_worker(threads):
+    os.environ["OMP_NUM_THREADS"] = str(threads)  # Open3D's OpenMP loops, if not yet started
+    _configure_threads(threads)
+
+
+def _in_processes(items, design, jobs, inspect_kw):
+    """Outcomes from ``jobs`` local processes, at most ``IN_FLIGHT_PER_WORKER`` tasks each in flight."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    # spawn, not fork: the caller (a notebook, a server) may hold threads that a fork would copy
+    # half-way; the workers start from a clean interpreter and import what they need once
+    ctx = multiprocessing.get_context("spawn")
+    todo = iter(items)
+    running = {}
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
+                             initargs=(WORKER_THREADS,)) as pool:
+        try:
+            for i, c in _take(todo, jobs * IN_FLIGHT_PER_WORKER):
+                running[pool.submit(inspect_one, i, c, design, inspect_kw, threads=WORKER_THREADS)] = (i, c)
+            while running:
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    i, c = running.pop(fut)
+                    try:
+                        outcome = fut.result()
+                    except Exception as exc:  # the worker died, or the result could not come back
+                        outcome = _failed(i, c, exc)
+                    del fut
+                    for j, d in _take(todo, 1):
+                        running[pool.submit(inspect_one, j, d, design, inspect_kw, threads=WORKER_THREADS)] = (j, d)
+                    yield outcome
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _take(iterator, n):
+    out = []
+    for _ in range(n):
+        try:
+            out.append(next(iterator))
+        except StopIteration:
+            break
+    return out
+
+
+def _on_dask(items, design, client, inspect_kw):
+    """Outcomes from a dask.distributed cluster (``client``: a Client or a scheduler address)."""
+    from distributed import Client, as_completed
+
+    own = not isinstance(client, Client)
+    if own:
+        client = Client(str(client), set_as_default=False)
+    try:
+        # folders go as absolute paths: the workers' working folder is not the caller's
+        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c) for i, c in items]
+        width = max(2, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
+        todo = iter(items)
+        remote_design = client.scatter(design, broadcast=True)
+        running = {}
+
+        def submit(i, c):
+            fut = client.submit(inspect_one, i, c, remote_design, inspect_kw, threads=WORKER_THREADS, pure=False)
+            running[fut.key] = (i, c)
+            return fut
+
+        queue = as_completed([submit(i, c) for i, c in _take(todo, width)])
+        for fut in queue:
+            i, c = running.pop(fut.key)
+            try:
+                outcome = fut.result()
+            except Exception as exc:  # the worker was lost, or the result could not come back
+                outcome = _failed(i, c, exc)
+            fut.release()
+            for j, d in _take(todo, 1):
+                queue.add(submit(j, d))
+            yield outcome
+    finally:
+        if own:
+            client.close()
