@@ -116,6 +116,11 @@ def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 
     return Measurement(float(v.mean()), unc, int(n_points))
 
 
+#: Threads of the shipped segmentation model's session (None: onnxruntime's default, every
+#: core). A batch's workers set 1 (``rebarlib.batch``): N workers, N cores.
+MODEL_THREADS = None
+
+
 @functools.lru_cache(maxsize=1)
 def _default_model():
     from .segmentation import SegmentationModel
@@ -163,11 +168,6 @@ def registered_mask(capture: Capture, *, source: str = "fused", plane=None, mode
     """
     return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
                  bar_width_px=bar_width_px, register=True)
-
-
-#: Threads of the shipped segmentation model's session (None: onnxruntime's default, every
-#: core). A batch's workers set 1 (``rebarlib.batch``): N workers, N cores.
-MODEL_THREADS = None
 
 
 def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.ndarray:
