@@ -1,14 +1,11 @@
 """The benchmarks' line between the bars whose width the image shows and the others, drawn on a
 hand-built image of bar ids (benchmarks/_visibility.py)."""
 
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from _visibility import shows_width, width_sections  # noqa: E402
+from benchmarks._visibility import shows_width, width_sections
 
 F, CX, CY, W, H, Z = 1000.0, 320.0, 240.0, 640, 480, 500.0  # 1 px = 0.5 mm at Z
 
