@@ -219,7 +219,9 @@ class SegmentationModel:
     sidecar_json_path : path of the sidecar; default: next to the model, same name, ``.json``
     threads : onnxruntime intra-op threads (default: onnxruntime's choice)
 
-    The sidecar (see the README section "segmentation" for every key)::
+    Notes
+    -----
+    The sidecar (docs/formats.md, "Segmentation model sidecar", lists every key)::
 
         {"input":  {"size": [640, 400], "channel_order": "RGB", "mean": [...], "std": [...],
                     "layout": "NCHW", "dtype": "float32"},

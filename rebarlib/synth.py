@@ -63,6 +63,8 @@ def rib_envelope_mm(nominal_mm: float) -> float:
 class Deviations:
     """As-built deviations of the mesh from its design (all mm / degrees).
 
+    Attributes
+    ----------
     position_sigma_mm : std dev of each bar's offset across its direction (spacing varies bar to bar)
     height_sigma_mm : std dev of each bar's height (local cover deviations)
     bow_mm : in-plan sagitta of each bar over its full length (random sign)
@@ -124,6 +126,8 @@ class Deviations:
 class SensorModel:
     """Active-stereo depth sensor (docs/sensors.md). The default is a realistic Gemini-2-like unit.
 
+    Attributes
+    ----------
     baseline_mm, disparity_sigma_px : axial noise sigma_z = z^2 sigma_d / (f B)
     noise_correlation_px : the noise is smoothed over this many px (stereo matching windows
         correlate neighbouring pixels); 0 = independent pixels
@@ -212,6 +216,8 @@ FORMWORKS = ("plywood", "film", "plastic")
 class Appearance:
     """How the colour image looks. ``None`` fields are drawn at random from the seed.
 
+    Attributes
+    ----------
     formwork : "plywood", "film" (black film-faced board) or "plastic"
     rust_fraction : fraction of bars that are rusty
     sun_elevation_deg, sun_azimuth_deg : direction of the light casting shadows
