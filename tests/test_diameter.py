@@ -1006,6 +1006,7 @@ def relief_scene():
     return design, relief, smooth
 
 
+@pytest.mark.slow
 def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_scene):
     """On ribs in relief the median width reads about the next smaller size (the core between the
     ribs): the capture must be found to resolve ribs, and then each bar is sized from its crests
@@ -1109,6 +1110,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
     return rows, results, keys, [False] * len(rows), _RefinedParams()
 
 
+@pytest.mark.slow
 def test_a_ribbed_bar_s_crests_are_read_where_a_bar_beside_it_cuts_them_off():
     """The paper's set-up at 400 mm, 5° (seed 1), ribs in relief, default sensor. Upper Φ12 bar 25
     lies beside a lower bar: at its rib crests its mask runs merge with the lower bar's and are
@@ -1574,6 +1576,7 @@ def relief_pitch_scene():
     return design, cap
 
 
+@pytest.mark.slow
 def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitch(relief_pitch_scene, monkeypatch):
     import rebarlib._diameter as dm
 

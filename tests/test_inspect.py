@@ -202,6 +202,7 @@ SECOND_LOOK = {
 SECOND_LOOK_AXIS_TOL_MM = 3.0  # plan offset of the found axis from the true axis
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(SECOND_LOOK))
 def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
     cover, h, tilt, mesh_yaw, cam_yaw, seed, bar = SECOND_LOOK[case]
@@ -224,6 +225,7 @@ def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
     assert len(near) >= 1 and (near["status"] == NOT_MEASURED).all()
 
 
+@pytest.mark.slow
 def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar():
     """Upper bars stacked right above the lower bars, several lower and upper bars left out: the
     flying pixels along the upper bars' edges and the empty positions under them give no bar."""
@@ -240,6 +242,7 @@ def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar():
 
 
 
+@pytest.mark.slow
 def test_second_look_ignores_flying_pixels():
     """A sensor with over three times the default flying pixels at depth edges (mixed depths
     between the two surfaces): their chance hits on a would-be bar's cylinder are sparser than a
@@ -535,6 +538,7 @@ def _diameters(res):
     return len(measured), int((measured.matches_design == False).sum())  # noqa: E712 - object column
 
 
+@pytest.mark.slow
 def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b500, monkeypatch):
     # Measured on this capture: 14 of its 15 bars sized as aligned (registration estimated
     # (0.06, 0.05) px, not applied), 14 with the depth 2 px right and 1 px up and the registration
@@ -566,6 +570,7 @@ def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b50
 # Edge fattening
 # ------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_edge_fattening_is_left_out_before_the_bars_are_fitted(paper_design):
     # 3 px of stereo fattening (the benchmarks' "fattened" sensor): a bar's depth reaches past its
     # flank, and a bar seen from one side only slides towards it. Measured on this capture: the
