@@ -293,7 +293,7 @@ def _on_dask(items, design, client, inspect_kw):
             running[fut.key] = (i, c)
             return fut
 
-        queue = as_completed([submit(i, c) for i, c in _take(todo, width)])
+        queue = as_completed([submit(i, c) for i, c in _take(todo, width)], loop=client.loop)
         for fut in queue:
             i, c = running.pop(fut.key)
             try:
