@@ -57,6 +57,14 @@ MIN_BAR_LENGTH_MM = 50.0
 #: to check the camera's depth-to-colour alignment.
 REGISTRATION_MIN_PX = 0.5
 REGISTRATION_WARN_PX = 3.0
+#: Nearest plausible distance (mm) from the camera to the formwork: depth cameras of this kind
+#: see nothing nearer than about 150 mm. A nearer formwork means the depth is in another unit
+#: than ``camera.json``'s ``depth_scale_mm`` says (0.1 given for depth stored in mm: 10x too near).
+MIN_CAMERA_HEIGHT_MM = 150.0
+#: The farthest plausible distance is where the design's thinnest bar would span this many
+#: pixels (``fx · d / MIN_BAR_PX``): no bar can be fitted from farther, and a depth 10x too far
+#: (``depth_scale_mm`` 10 for depth stored in mm) lands there.
+MIN_BAR_PX = 2.0
 
 
 def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | None = EDGE_MM):
@@ -91,6 +99,48 @@ def _check(capture, design, method):
         raise RebarInputError(f"method: expected one of {METHODS}, got {method!r}")
     if not np.any(capture.depth_mm > 0):
         raise RebarInputError(f"capture {capture.name!r}: the depth image has no valid pixel")
+
+
+def _check_camera_height(capture: Capture, design: Design, height_mm: float, *, formwork: bool) -> None:
+    """Refuse a capture whose formwork (else its median depth) lies nearer or farther from the
+    camera than any capture could be measured from: its depth unit is almost surely wrong."""
+    thinnest = min(design.lattice(la).level(lv).diameter_mm for la in G.LAYERS for lv in G.LEVELS)
+    far = capture.intrinsics.fx * thinnest / MIN_BAR_PX
+    if MIN_CAMERA_HEIGHT_MM <= height_mm <= far:
+        return
+    src = capture.metadata.get("source")
+    where = f"{src}/camera.json" if src else f"capture {capture.name!r}"
+    what = "the formwork" if formwork else "the scene (median depth)"
+    raise RebarInputError(
+        f"{where}: depth_scale_mm looks wrong: {what} would be {height_mm:.0f} mm from the camera "
+        f"(depth_scale_mm = {capture.depth_scale_mm:g}; plausible: {MIN_CAMERA_HEIGHT_MM:.0f} to {far:.0f} mm, "
+        f"where the thinnest bar, {thinnest:g} mm, still spans {MIN_BAR_PX:g} px)")
+
+
+def _formwork_found(plane: G.Plane, h: np.ndarray, inliers: np.ndarray) -> tuple[bool, float]:
+    """Whether ``plane`` is the formwork: it holds at least 5 % of the points and no more than
+    :data:`MAX_BELOW_FRACTION` of them lie beneath it by more than 5 robust noise σ of its
+    inliers (at least 3 mm); a plane through bar tops has the bars' sides and whatever lies
+    under them below it. Returns ``(found, fraction below)``."""
+    sigma = plane.noise_mm
+    if sigma is None:
+        hi = h[inliers]
+        sigma = 1.4826 * float(np.median(np.abs(hi))) if len(hi) else 1.0
+    below = float(np.mean(h < -max(5 * (sigma or 1.0), 3.0)))
+    return below <= MAX_BELOW_FRACTION and int(inliers.sum()) >= 0.05 * len(h), below
+
+
+def _paper_formwork_found(capture: Capture, plane: G.Plane, design: Design, rng) -> tuple[bool, float]:
+    """Whether the paper's ``plane`` is the formwork: the refined method's formwork test passes
+    on the capture (its cloud, :func:`prepare_cloud`) and its plane is the paper's (normals
+    within 2°, offsets within the paper's band, t₁ = 0.8 × cover)."""
+    points = prepare_cloud(capture).points
+    thr = max(3.0, min(0.4 * design.cover_mm, 10.0))
+    ref, inl = G.fit_formwork(points, threshold_mm=thr, rng=rng)
+    found, below = _formwork_found(ref, ref.height(points), inl)
+    same = (float(np.dot(ref.normal, plane.normal)) > math.cos(math.radians(2.0))
+            and abs(ref.offset_mm - plane.offset_mm) < PAPER_T1_FACTOR * design.cover_mm)
+    return found and same, below
 
 
 def _camera_pose(plane: G.Plane) -> dict:
@@ -305,7 +355,7 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         if diameters:
             _add_diameters(res, capture, design, method=method, mask=mask,
                            mask_source=mask_source or "model", register=False, rng=rng)
-        return res
+        return _note_inputs(res, capture)
     # the geometry may be fitted again on a trimmed depth: it then draws the same random numbers
     rng_again = copy.deepcopy(rng)
     trim = edge_trim_px or 0
@@ -329,6 +379,14 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         res.extras["edge_trim_px"] = trim
         res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
                          "occluding edge of the depth image left out before the bars were fitted")
+    return _note_inputs(res, capture)
+
+
+def _note_inputs(res: InspectionResult, capture: Capture) -> InspectionResult:
+    """Notes on what the capture's files left to a default."""
+    if capture.metadata.get("depth_scale_assumed"):
+        res.notes.append(f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit "
+                         "was assumed")
     return res
 
 
@@ -414,8 +472,9 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     plane, inl = G.fit_formwork(cloud.points, threshold_mm=thr, rng=rng)
     h = plane.height(cloud.points)
     sigma = plane.noise_mm or 1.0
-    below = float(np.mean(h < -max(5 * sigma, 3.0)))
-    has_formwork = below <= MAX_BELOW_FRACTION and plane.n_inliers >= 0.05 * len(cloud)
+    has_formwork, below = _formwork_found(plane, h, inl)
+    _check_camera_height(capture, design, plane.offset_mm if has_formwork else float(np.median(cloud.points[:, 2])),
+                         formwork=has_formwork)
     if not has_formwork:
         notes.append(f"no formwork plane: {below:.0%} of the points lie under the best plane; cover not measured, "
                      "heights are relative to the lowest bars")
@@ -493,16 +552,21 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
 
     npts = lambda layer, level: sum(b.n_points for b in bars if b.layer == layer and b.level == level)
     plane_var = (sigma / math.sqrt(max(plane.n_inliers, 1))) ** 2 if has_formwork else 0.0
+    unclear = {la: _levels_unclear(bars, la) for la in G.LAYERS}
     lower_u = undersides("lower", "bottom")
     if not has_formwork:
         cover = Measurement.not_measured("no formwork visible in the capture (no plane with nothing beneath it)")
+    elif unclear["lower"]:
+        cover = Measurement.not_measured(unclear["lower"], npts("lower", "bottom"))
     elif not lower_u:
         cover = Measurement.not_measured("no bar of the lower lattice's bottom level was measured",
                                          npts("lower", "bottom"))
     else:
         cover = _mean_measure(lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom"))
     upper_u = undersides("upper", "bottom")
-    if lower_u and upper_u:
+    if unclear["lower"] or unclear["upper"]:
+        layer_distance = Measurement.not_measured(unclear["lower"] or unclear["upper"])
+    elif lower_u and upper_u:
         lm = _mean_measure(lower_u, what="lower bar")
         um = _mean_measure(upper_u, what="upper bar")
         layer_distance = Measurement(um.value_mm - lm.value_mm, math.hypot(lm.uncertainty_mm, um.uncertainty_mm),
@@ -513,6 +577,8 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     tops = [b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == "measured"]
     if not has_formwork:
         upper_top = Measurement.not_measured("no formwork visible: heights have no reference")
+    elif unclear["upper"]:
+        upper_top = Measurement.not_measured(unclear["upper"], npts("upper", "top"))
     else:
         upper_top = (_mean_measure(tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top"))
                      if tops else Measurement.not_measured("no bar of the upper lattice's top level was measured"))
@@ -542,6 +608,23 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     return res
 
 
+def _levels_unclear(bars: list, layer: str) -> str:
+    """Why the two levels of a lattice cannot be told apart on this capture, or "".
+
+    A lattice's levels are named by the order of its two direction groups' heights
+    (``geometry.assign_levels``): with measured bars in one direction only, that one is called
+    "bottom" whether it is or not. Where depth is sparse (wet, black or sunlit steel) the crossing
+    bars resting on top are the ones found, and their undersides, one bar diameter up, were
+    taken for the cover. Only a lattice with measured bars in both directions supports the
+    heights read off one level.
+    """
+    levels = {b.level for b in bars if b.layer == layer and b.status == "measured"}
+    if not levels or levels == {"bottom", "top"}:
+        return ""
+    return (f"bars of the {layer} lattice were measured in one direction only: whether they are its "
+            "bottom or its top level cannot be told (too few depth points on the other direction's bars)")
+
+
 def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
     if design.thickness_mm is None:
         return Measurement.not_measured("the design gives no slab thickness")
@@ -563,6 +646,14 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     t = time.perf_counter()
     plane, inl = G.paper_fit_formwork(cloud.points, threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
                                       max_trials=PAPER_PLANE_TRIALS, rng=rng)
+    # not in the published procedure: the plane must be the formwork, else no height above it is
+    # measured. Its wide RANSAC band (0.8 x cover) also takes a lattice's bars for a plane, so the
+    # test is the refined method's (a plane fitted to the sensor's noise, nothing beneath it),
+    # with the paper's plane required to be that one (on its own random stream: the paper's
+    # numbers stay as they were)
+    has_formwork, below = _paper_formwork_found(capture, plane, design, copy.deepcopy(rng))
+    _check_camera_height(capture, design, plane.offset_mm if has_formwork else float(np.median(cloud.points[:, 2])),
+                         formwork=has_formwork)
     T["plane"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -595,6 +686,13 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
         upper_top = Measurement(float(np.percentile(qu[:, 2], 99)), None, len(qu))
         notes.append("paper method: top of the upper lattice is the 99th percentile of the upper heights "
                      "(the paper does not measure it)")
+    if not has_formwork:
+        why = (f"no formwork visible in the capture: {below:.0%} of the points lie under the best plane "
+               "(heights above it would be heights above the bars)")
+        cover = Measurement.not_measured(why)
+        layer_distance = Measurement.not_measured(why + "; the paper's layer split t2 is a height above the formwork")
+        upper_top = Measurement.not_measured(why)
+        notes.append(why)
     T["cover"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -623,7 +721,8 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
                            upper_top=upper_top, top_cover=_top_cover(design, upper_top),
                            bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
-                           formwork={**plane.to_dict(), "found": True}, camera=_camera_pose(plane),
+                           formwork={**plane.to_dict(), "found": bool(has_formwork)},
+                           camera=_camera_pose(plane) if has_formwork else {},
                            timings_s=T, notes=notes, extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
     res.bar_points = {i: c for i, c in enumerate(clouds)}
     return res
