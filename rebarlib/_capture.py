@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,6 +16,14 @@ __all__ = ["Capture", "load_capture", "save_capture", "load_cloud", "read_intrin
            "write_intrinsics", "CAPTURE_FILES"]
 
 CAPTURE_FILES = ("color.png | color.jpg", "depth.png", "camera.json")
+
+#: Largest image a capture may hold, in pixels (50 megapixels: 6 times a 4K frame, 50 times the
+#: 1280 x 800 depth of the cameras this toolkit is for). Image headers are read and checked
+#: against this and ``camera.json`` before anything is decoded: a few-kilobyte PNG can declare
+#: 30000 x 30000 pixels and take gigabytes to decode.
+MAX_IMAGE_PIXELS = 50_000_000
+#: ``depth_scale_mm`` when ``camera.json`` gives none (said in the result's notes).
+DEFAULT_DEPTH_SCALE_MM = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,7 +67,7 @@ class Capture:
 
     @property
     def depth_scale_mm(self) -> float:
-        return float(self.metadata.get("depth_scale_mm", 1.0))
+        return float(self.metadata.get("depth_scale_mm", DEFAULT_DEPTH_SCALE_MM))
 
 
 def _read_json(path: Path) -> dict:
@@ -84,9 +93,18 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
         if key not in data:
             raise RebarInputError(f"{path}: missing key '{key}' (Open3D intrinsic JSON: width, height, "
                                   "intrinsic_matrix column-major [fx,0,0, 0,fy,0, cx,cy,1])")
+    for key in ("width", "height"):
+        _image_side(data[key], f"{path}: {key}")
+    if data["width"] * data["height"] > MAX_IMAGE_PIXELS:
+        raise RebarInputError(f"{path}: width x height = {data['width']} x {data['height']} is over the "
+                              f"limit of {MAX_IMAGE_PIXELS / 1e6:g} megapixels per image")
+    for key in ("device", "captured_at"):
+        if key in data and not isinstance(data[key], str):
+            raise RebarInputError(f"{path}: {key} must be a text string, got {_short(data[key])}")
     m = data["intrinsic_matrix"]
-    if not (isinstance(m, list) and len(m) == 9 and all(isinstance(x, (int, float)) for x in m)):
-        raise RebarInputError(f"{path}: intrinsic_matrix must be a list of 9 numbers, got {m!r}")
+    if not (isinstance(m, list) and len(m) == 9
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in m)):
+        raise RebarInputError(f"{path}: intrinsic_matrix must be a list of 9 finite numbers, got {_short(m)}")
     K = np.array(m, dtype=np.float64).reshape(3, 3).T  # stored column-major
     if abs(K[0, 1]) > 1e-9 or abs(K[1, 0]) > 1e-9 or np.abs(K[2] - [0, 0, 1]).max() > 1e-9:
         raise RebarInputError(f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}")
@@ -96,11 +114,89 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
     except RebarInputError as exc:
         raise RebarInputError(f"{path}: {exc}") from None
     extra = {k: v for k, v in data.items() if k not in ("width", "height", "intrinsic_matrix")}
-    scale = extra.get("depth_scale_mm", 1.0)
+    if "depth_scale_mm" not in extra:
+        extra["depth_scale_assumed"] = True
+    scale = extra.get("depth_scale_mm", DEFAULT_DEPTH_SCALE_MM)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (0 < scale <= 100):
-        raise RebarInputError(f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {scale!r}")
+        raise RebarInputError(f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {_short(scale)}")
     extra["depth_scale_mm"] = float(scale)
     return intr, extra
+
+
+def _short(value, n: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _image_side(value, where: str) -> int:
+    """A width or height from ``camera.json``: a whole number of pixels, 1 or more."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise RebarInputError(f"{where}: expected a whole number of pixels, got "
+                              f"{type(value).__name__} {_short(value)}")
+    if value < 1:
+        raise RebarInputError(f"{where}: expected at least 1 pixel, got {value}")
+    return value
+
+
+def image_size(path) -> tuple[int, int]:
+    """``(width, height)`` of a PNG or JPEG file from its header alone (nothing is decoded).
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file when it is neither a PNG nor a JPEG, or its header is cut short.
+    """
+    path = Path(path)
+    with open(path, "rb") as f:
+        head = f.read(24)
+        if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) == 24 and head[12:16] == b"IHDR":
+            return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        if head[:2] == b"\xff\xd8":
+            f.seek(2)
+            return _jpeg_size(f, path)
+    raise RebarInputError(f"{path}: not a PNG or JPEG file (its header is neither)")
+
+
+def _jpeg_size(f, path: Path) -> tuple[int, int]:
+    """Walk a JPEG's segments to its first start-of-frame marker and read the frame's size."""
+    while True:
+        b = f.read(1)
+        if b != b"\xff":
+            break
+        while b == b"\xff":  # fill bytes before a marker
+            b = f.read(1)
+        if not b:
+            break
+        marker = b[0]
+        if 0xD0 <= marker <= 0xD8 or marker == 0x01:  # markers without a length
+            continue
+        size = f.read(2)
+        if len(size) < 2 or int.from_bytes(size, "big") < 2:
+            break
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            body = f.read(5)
+            if len(body) < 5:
+                break
+            return int.from_bytes(body[3:5], "big"), int.from_bytes(body[1:3], "big")
+        f.seek(int.from_bytes(size, "big") - 2, 1)
+    raise RebarInputError(f"{path}: JPEG header cut short or damaged (no frame size found)")
+
+
+def _check_image_headers(color: Path, depth: Path, intr: Intrinsics, camera_json: Path) -> None:
+    """Refuse images whose headers declare a size over the limit, sizes that differ, or a size
+    other than camera.json's: all before anything is decoded."""
+    sizes = {}
+    for path in (color, depth):
+        w, h = sizes[path] = image_size(path)
+        if w * h > MAX_IMAGE_PIXELS:
+            raise RebarInputError(f"{path}: declares {w} x {h} pixels, over the limit of "
+                                  f"{MAX_IMAGE_PIXELS / 1e6:g} megapixels per image (not decoded)")
+    (cw, ch), (dw, dh) = sizes[color], sizes[depth]
+    if (cw, ch) != (dw, dh):
+        raise RebarInputError(f"{color.parent}: colour {cw}x{ch} and depth {dw}x{dh} differ in size: "
+                              "depth must be aligned to colour")
+    if (dw, dh) != (intr.width, intr.height):
+        raise RebarInputError(f"{camera_json}: says {intr.width}x{intr.height} but the images are {dw}x{dh}")
 
 
 def write_intrinsics(path, intrinsics: Intrinsics, **extra) -> None:
@@ -134,10 +230,14 @@ def load_capture(path) -> Capture:
     colors = [folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()]
     if not colors:
         raise RebarInputError(f"{folder}: no color.png or color.jpg in the capture folder")
+    if len(colors) > 1:
+        raise RebarInputError(f"{folder}: holds {' and '.join(c.name for c in colors)}: which one is the "
+                              "capture's colour image is ambiguous; keep one")
     depth_path = folder / "depth.png"
     if not depth_path.is_file():
         raise RebarInputError(f"{depth_path}: file not found (16-bit depth image expected)")
     intr, meta = read_intrinsics(folder / "camera.json")
+    _check_image_headers(colors[0], depth_path, intr, folder / "camera.json")
 
     color = _imread(colors[0], cv2.IMREAD_UNCHANGED)
     if color.ndim == 2:
