@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,18 +14,74 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict"]
+__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict", "DESIGN_KEYS"]
 
 #: Direction groups of a lattice: its bottom bars and the bars resting on them.
 LEVELS = ("bottom", "top")
+#: Bar surfaces: ribbed bars are seen at their rib envelope, plain round bars at their diameter.
+SURFACES = ("deformed", "plain")
+
+#: Every key a design file may hold, per table: the one list an unknown key is checked against
+#: (a misspelt key would otherwise be dropped without a word, and the item it names with it).
+#: ``[tolerances]`` is checked by ``Tolerances.with_overrides``, which knows the preset's items.
+#: A module that reads a new key adds it here.
+DESIGN_KEYS = {
+    "": {"slab", "design", "tolerances"},
+    "slab": {"id", "element", "location", "standard", "project", "drawing", "contractor", "record",
+             "lot", "bar_system"},
+    "design": {"cover_mm", "layer_distance_mm", "thickness_mm", "lower", "upper", "bar_system"},
+    "lattice": {"diameter_mm", "spacing_mm", "surface", *LEVELS},
+    "level": {"diameter_mm", "spacing_mm", "surface"},
+}
+
+
+def _check_keys(table: dict, kind: str, where: str) -> None:
+    """Refuse a key of ``table`` that is not in ``DESIGN_KEYS[kind]``, suggesting the nearest."""
+    known = DESIGN_KEYS[kind]
+    for key in table:
+        if key in known:
+            continue
+        near = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.6)
+        hint = f"did you mean '{near[0]}'? " if near else ""
+        raise RebarInputError(f"{where}: unknown key '{key}'; {hint}expected one of {sorted(known)}")
+
+
+def _table(data: dict, key: str, where: str, *, required: bool) -> dict:
+    """``data[key]`` checked to be a table (``{}`` when absent and not required)."""
+    if key not in data:
+        if required:
+            raise RebarInputError(f"{where}: missing table [{key}]")
+        return {}
+    value = data[key]
+    if not isinstance(value, dict):
+        raise RebarInputError(f"{where}: [{key}] must be a table (a [{key}] header with keys under it), "
+                              f"got {type(value).__name__} {_short(value)}")
+    return value
+
+
+def _short(value, n: int = 40) -> str:
+    text = repr(value)
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _text(table: dict, key: str, where: str, default: str) -> str:
+    """An optional text value of ``table`` (a string; numbers are accepted as their text)."""
+    v = table.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (str, int, float)):
+        raise RebarInputError(f"{where}.{key}: expected a text string, got {type(v).__name__} {_short(v)}")
+    return str(v)
 
 
 @dataclass(frozen=True)
 class BarSet:
-    """One direction of one lattice: parallel bars of one size at one spacing (mm)."""
+    """One direction of one lattice: parallel bars of one size at one spacing (mm).
+
+    ``surface``: "deformed" (ribbed: seen at its rib envelope) or "plain" (a plain round bar,
+    e.g. HPB300: seen at its diameter)."""
 
     diameter_mm: float
     spacing_mm: float
+    surface: str = "deformed"
 
 
 @dataclass(frozen=True)
@@ -88,17 +145,26 @@ def _number(table: dict, key: str, where: str, *, lo: float, hi: float):
 
 def _lattice(table: dict, where: str) -> Lattice:
     if not isinstance(table, dict):
-        raise RebarInputError(f"{where}: expected a table with diameter_mm and spacing_mm")
+        raise RebarInputError(f"{where}: expected a table with diameter_mm and spacing_mm, "
+                              f"got {type(table).__name__} {_short(table)}")
+    _check_keys(table, "lattice", where)
     sets = {}
     for lvl in LEVELS:
         sub = table.get(lvl, {})
+        if not isinstance(sub, dict):
+            raise RebarInputError(f"{where}.{lvl}: expected a table with diameter_mm and/or spacing_mm, "
+                                  f"got {type(sub).__name__} {_short(sub)}")
+        _check_keys(sub, "level", f"{where}.{lvl}")
         values = []
         for key, lo, hi in (("diameter_mm", 4, 60), ("spacing_mm", 30, 1000)):
             if key in sub:
                 values.append(_number(sub, key, f"{where}.{lvl}", lo=lo, hi=hi))
             else:  # the lattice-wide value applies to both directions
                 values.append(_number(table, key, where, lo=lo, hi=hi))
-        sets[lvl] = BarSet(*values)
+        surface = sub.get("surface", table.get("surface", "deformed"))
+        if surface not in SURFACES:
+            raise RebarInputError(f"{where}.{lvl}.surface: expected one of {SURFACES}, got {surface!r}")
+        sets[lvl] = BarSet(*values, surface=surface)
     return Lattice(**sets)
 
 
@@ -113,10 +179,16 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     >>> d.lower.bottom.diameter_mm, d.upper_top_mm
     (14.0, 129.0)
     """
-    slab = data.get("slab", {})
+    if not isinstance(data, dict):
+        raise RebarInputError(f"{source}: expected the tables [slab] and [design], got {type(data).__name__}")
+    _check_keys(data, "", source)
+    slab = _table(data, "slab", source, required=False)
     des = data.get("design")
     if not isinstance(des, dict):
         raise RebarInputError(f"{source}: missing table [design] with cover_mm and layer_distance_mm")
+    _check_keys(slab, "slab", f"{source}: slab")
+    _check_keys(des, "design", f"{source}: design")
+    tolerances = _table(data, "tolerances", source, required=False)
     where = f"{source}: design"
     for layer in ("lower", "upper"):
         if layer not in des:
@@ -139,12 +211,16 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     sid = slab.get("id", "")
     if not isinstance(sid, str) or not sid.strip():
         raise RebarInputError(f"{source}: [slab] needs an 'id' string (e.g. id = \"S-101\")")
+    sw = f"{source}: slab"
+    for key in ("project", "drawing", "contractor", "record", "lot"):
+        _text(slab, key, sw, "")
+    bar_sys = (_text(des, "bar_system", where, "") if "bar_system" in des
+               else _text(slab, "bar_system", sw, "GB1499.2"))
     return Design(
         slab_id=sid, cover_mm=cover, layer_distance_mm=layer_distance, lower=lower, upper=upper,
-        thickness_mm=thickness, element=str(slab.get("element", "slab")),
-        location=str(slab.get("location", "")), standard=str(slab.get("standard", "GB50204-2015")),
-        bar_system=str(des.get("bar_system", slab.get("bar_system", "GB1499.2"))),
-        slab=dict(slab), tolerances=dict(data.get("tolerances", {})), source=source)
+        thickness_mm=thickness, element=_text(slab, "element", sw, "slab"),
+        location=_text(slab, "location", sw, ""), standard=_text(slab, "standard", sw, "GB50204-2015"),
+        bar_system=bar_sys, slab=dict(slab), tolerances=dict(tolerances), source=source)
 
 
 def load_design(path) -> Design:

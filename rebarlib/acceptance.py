@@ -320,18 +320,58 @@ def list_presets() -> dict:
     >>> sorted(list_presets())
     ['ACI117-318', 'EN13670-class1', 'GB50204-2015', 'custom']
     """
+    return {name: path for name, (path, _) in _preset_table().items()}
+
+
+def _preset_table() -> dict:
+    """``{name: (path, names that select it)}``: its name, file stem, ``standard`` and ``aliases``."""
     out = {}
     for p in sorted(PRESETS_DIR.glob("*.toml")):
         try:
-            out[str(tomllib.loads(p.read_text(encoding="utf-8")).get("name", p.stem))] = p
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError:  # a broken preset is reported when it is loaded by path
-            out[p.stem] = p
+            data = {}
+        name = str(data.get("name", p.stem))
+        aliases = data.get("aliases", [])
+        spellings = [name, p.stem, str(data.get("standard", ""))]
+        spellings += [str(a) for a in aliases] if isinstance(aliases, list) else []
+        out[name] = (p, {_norm(a) for a in spellings if _norm(a)})
     return out
+
+
+def preset_path(name: str) -> Path:
+    """The shipped preset a standard's name selects: its ``name``, file stem, ``standard`` or
+    one of its ``aliases`` (case, spaces and punctuation ignored). Anything else is refused
+    with the list of presets: a standard that merely looks alike ("GB50010-2010", "ACI 350")
+    is another code, and judging it by a neighbour's tolerances would be wrong.
+
+    Examples
+    --------
+    >>> preset_path("ACI 318").stem
+    'aci117_318'
+    """
+    table = _preset_table()
+    match = [path for path, spellings in table.values() if _norm(str(name)) in spellings]
+    if len(match) != 1:
+        listed = "; ".join(f"{n} (also: {', '.join(_aliases(p))})" if _aliases(p) else n
+                           for n, (p, _) in sorted(table.items()))
+        raise RebarInputError(f"tolerances: unknown preset {str(name)!r}; expected one of: {listed}; "
+                              "or a path to a .toml tolerance file")
+    return match[0]
+
+
+def _aliases(path: Path) -> list:
+    try:
+        aliases = tomllib.loads(path.read_text(encoding="utf-8")).get("aliases", [])
+    except tomllib.TOMLDecodeError:
+        return []
+    return [str(a) for a in aliases] if isinstance(aliases, list) else []
 
 
 def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
     """Read a tolerance preset by name (``"GB50204-2015"``, ``"ACI117-318"``, ``"EN13670-class1"``,
-    ``"custom"``; case and punctuation ignored) or from a TOML file path.
+    ``"custom"``, or an alias listed in the preset file; case and punctuation ignored, see
+    :func:`preset_path`) or from a TOML file path.
 
     Examples
     --------
@@ -345,23 +385,10 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
         return name_or_path
     text = str(name_or_path)
     path = Path(text)
-    if not (path.suffix == ".toml" and path.is_file()):
-        presets = list_presets()
-        match = [p for n, p in presets.items() if _norm(n) in (_norm(text),) or _norm(p.stem) == _norm(text)]
-        if not match:
-            # A short name ("aci", "en13670", "gb") picks the one preset it starts.
-            match = [p for n, p in presets.items() if _norm(text) and _norm(n).startswith(_norm(text))]
-        if not match and path.suffix != ".toml":
-            # A code named another way ("ACI 318", "EN 1992-1-1", "GB 50204") picks the one preset
-            # of that family; the report prints which preset was used.
-            family = re.match(r"[a-z]*", _norm(text)).group()
-            match = [p for n, p in presets.items() if family and re.match(r"[a-z]*", _norm(n)).group() == family]
-        if len(match) != 1:
-            if path.suffix == ".toml":
-                raise RebarInputError(f"{path}: tolerance file not found")
-            raise RebarInputError(f"tolerances: unknown preset {text!r}; expected one of "
-                                  f"{sorted(presets)} or a path to a .toml file")
-        path = match[0]
+    if path.suffix == ".toml" and not path.is_file():
+        raise RebarInputError(f"{path}: tolerance file not found")
+    if path.suffix != ".toml":
+        path = preset_path(text)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
