@@ -12,6 +12,7 @@ import json
 import sys
 from pathlib import Path
 
+from . import _cli_floor as _floor
 from ._checks import RebarInputError
 
 
@@ -33,6 +34,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--method", choices=("paper", "refined"), default="refined",
                    help="inspection method when the captures are inspected here (default: refined)")
     p.add_argument("--no-exports", action="store_true", help="do not write the CSV/JSON exports")
+    _floor.add_arguments(p)  # SLAB_DIR may be a floor: a folder of slab folders
     return p
 
 
@@ -87,6 +89,8 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
 
 
 def run(args) -> int:
+    if _floor.is_floor(args.slab_dir):  # one report per slab and a floor summary
+        return _floor.run_floor(args)
     from ._design import load_design
     from .acceptance import evaluate, load_tolerances
     from .report import build_report

@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Outcome", "inspect_many", "inspect_one", "default_jobs", "WORKER_THREADS"]
+__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "default_jobs", "WORKER_THREADS"]
 
 #: Threads of the segmentation model (onnxruntime) and of OpenCV in a batch worker: one task,
 #: one core. The results do not depend on it (``benchmarks/bench_batch.py --check``).
@@ -189,18 +189,24 @@ def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = Fa
     ['A_400']
     """
     design = _check_args(design, jobs, client, inspect_kw)
-    items = list(enumerate(captures))
-    return _drive(items, design, client, jobs, ordered, progress, inspect_kw)
+    return _drive([(c, design) for c in captures], client, jobs, ordered, progress, inspect_kw)
 
 
-def _drive(items, design, client, jobs, ordered, progress, inspect_kw):
+def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw):
+    """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once."""
+    pairs = [(c, _check_args(d, jobs, client, inspect_kw)) for c, d in pairs]
+    return _drive(pairs, client, jobs, ordered, progress, inspect_kw)
+
+
+def _drive(pairs, client, jobs, ordered, progress, inspect_kw):
+    items = [(i, c, d) for i, (c, d) in enumerate(pairs)]
     total = len(items)
     if client is not None:
-        stream = _on_dask(items, design, client, inspect_kw)
+        stream = _on_dask(items, client, inspect_kw)
     elif min(jobs or default_jobs(), total) <= 1:
-        stream = (inspect_one(i, c, design, inspect_kw) for i, c in items)
+        stream = (inspect_one(i, c, d, inspect_kw) for i, c, d in items)
     else:
-        stream = _in_processes(items, design, min(jobs or default_jobs(), total), inspect_kw)
+        stream = _in_processes(items, min(jobs or default_jobs(), total), inspect_kw)
     stream = _counted(stream, total, progress)
     yield from (_in_input_order(stream) if ordered else stream)
 
@@ -232,7 +238,7 @@ def _init_worker(threads):
     _configure_threads(threads)
 
 
-def _in_processes(items, design, jobs, inspect_kw):
+def _in_processes(items, jobs, inspect_kw):
     """Outcomes from ``jobs`` local processes, at most ``IN_FLIGHT_PER_WORKER`` tasks each in flight."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -245,8 +251,8 @@ def _in_processes(items, design, jobs, inspect_kw):
     with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
                              initargs=(WORKER_THREADS,)) as pool:
         try:
-            for i, c in _take(todo, jobs * IN_FLIGHT_PER_WORKER):
-                running[pool.submit(inspect_one, i, c, design, inspect_kw, threads=WORKER_THREADS)] = (i, c)
+            for i, c, d in _take(todo, jobs * IN_FLIGHT_PER_WORKER):
+                running[pool.submit(inspect_one, i, c, d, inspect_kw, threads=WORKER_THREADS)] = (i, c)
             while running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done:
@@ -256,8 +262,8 @@ def _in_processes(items, design, jobs, inspect_kw):
                     except Exception as exc:  # the worker died, or the result could not come back
                         outcome = _failed(i, c, exc)
                     del fut
-                    for j, d in _take(todo, 1):
-                        running[pool.submit(inspect_one, j, d, design, inspect_kw, threads=WORKER_THREADS)] = (j, d)
+                    for j, c2, d in _take(todo, 1):
+                        running[pool.submit(inspect_one, j, c2, d, inspect_kw, threads=WORKER_THREADS)] = (j, c2)
                     yield outcome
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -273,7 +279,7 @@ def _take(iterator, n):
     return out
 
 
-def _on_dask(items, design, client, inspect_kw):
+def _on_dask(items, client, inspect_kw):
     """Outcomes from a dask.distributed cluster (``client``: a Client or a scheduler address)."""
     from distributed import Client, as_completed
 
@@ -282,18 +288,20 @@ def _on_dask(items, design, client, inspect_kw):
         client = Client(str(client), set_as_default=False)
     try:
         # folders go as absolute paths: the workers' working folder is not the caller's
-        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c) for i, c in items]
+        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d) for i, c, d in items]
         width = max(2, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
         todo = iter(items)
-        remote_design = client.scatter(design, broadcast=True)
+        designs = {}  # each design sent to the workers once
         running = {}
 
-        def submit(i, c):
-            fut = client.submit(inspect_one, i, c, remote_design, inspect_kw, threads=WORKER_THREADS, pure=False)
+        def submit(i, c, d):
+            if id(d) not in designs:
+                designs[id(d)] = client.scatter(d, broadcast=True)
+            fut = client.submit(inspect_one, i, c, designs[id(d)], inspect_kw, threads=WORKER_THREADS, pure=False)
             running[fut.key] = (i, c)
             return fut
 
-        queue = as_completed([submit(i, c) for i, c in _take(todo, width)], loop=client.loop)
+        queue = as_completed([submit(*item) for item in _take(todo, width)], loop=client.loop)
         for fut in queue:
             i, c = running.pop(fut.key)
             try:
@@ -301,8 +309,8 @@ def _on_dask(items, design, client, inspect_kw):
             except Exception as exc:  # the worker was lost, or the result could not come back
                 outcome = _failed(i, c, exc)
             fut.release()
-            for j, d in _take(todo, 1):
-                queue.add(submit(j, d))
+            for item in _take(todo, 1):
+                queue.add(submit(*item))
             yield outcome
     finally:
         if own:

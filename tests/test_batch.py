@@ -272,3 +272,57 @@ def test_dask_cluster_gives_the_local_results(tmp_path, capsys):
 
 def test_outcome_ok():
     assert Outcome(0, "a", None).ok and not Outcome(0, "a", None, error="x").ok
+
+
+# ------------------------------------------------------------------------------------------------
+# rebar report over a floor: a folder of slab folders
+# ------------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def floor(tmp_path):
+    """A floor of two slabs: the paper slab (its captures linked) and one whose design is broken."""
+    fl = tmp_path / "floor"
+    fl.mkdir()
+    (fl / "S1").symlink_to(PAPER, target_is_directory=True)
+    (fl / "S2" / "A_400").mkdir(parents=True)
+    (fl / "S2" / "design.toml").write_text("[design]\ncover_mm = 'twenty'\n", encoding="utf-8")
+    shutil.copy(example_capture("paper_slab", "A_400") / "camera.json", fl / "S2" / "A_400")
+    return fl
+
+
+def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys):
+    res = tmp_path / "res"
+    assert main(["inspect", str(floor / "S1" / "A_400"), "--design", str(DESIGN_TOML), "--out", str(res / "S1"),
+                 "--no-diameters", "--quiet"]) == 0
+    out = tmp_path / "reports"
+    rc = main(["report", str(floor), "--results", str(res), "--out", str(out), "--format", "html", "--quiet"])
+    assert rc == 1  # S2 could not be reported; S1 was
+    rows = {r["slab"]: r for r in _summary_of(out / "floor_summary.csv")}
+    assert list(rows) == ["S1", "S2"]
+    s1 = rows["S1"]
+    saved = json.loads((out / "S1_acceptance.json").read_text(encoding="utf-8"))
+    assert s1["verdict"] == saved["verdict"] == "incomplete" and s1["slab_id"] == "S-101"
+    assert s1["report"] == "S1.html" and (out / "S1.html").is_file() and (out / "S1_checkpoints.csv").is_file()
+    assert s1["captures"] == "4" and s1["captures_without_result"] == "3"  # only A_400 was inspected
+    failed = [i["item"] for i in saved["items"] if i["verdict"] == "fail"]
+    still_open = [i["item"] for i in saved["items"] if i["verdict"] in ("not measured", "incomplete")]
+    assert s1["failed_items"].split(";") == (failed or [""]) and s1["open_items"].split(";") == (still_open or [""])
+    assert rows["S2"]["verdict"] == "not reported" and "S2/design.toml" in rows["S2"]["reason"]
+    assert not (out / "S2.html").exists()
+    assert "1 not reported" in capsys.readouterr().err
+
+
+def test_floor_report_checks_its_outputs_before_computing(floor, tmp_path, capsys, no_compute):
+    out = tmp_path / "reports"
+    out.mkdir()
+    (out / "S1.html").write_text("an earlier report", encoding="utf-8")
+    assert main(["report", str(floor), "--out", str(out), "--format", "html"]) == 2
+    assert "S1.html exists" in capsys.readouterr().err
+    assert main(["report", str(floor), "--out", str(out / "floor.pdf")]) == 2
+    assert "give a folder" in capsys.readouterr().err
+    assert (out / "S1.html").read_text(encoding="utf-8") == "an earlier report"
+
+
+def _summary_of(path: Path) -> list:
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
