@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ._checks import RebarInputError
 
-__all__ = ["BarSystem", "BAR_SYSTEMS", "bar_system", "observed_width_mm", "snap_diameter"]
+__all__ = ["BAR_SYSTEMS", "BarSystem", "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter"]
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,44 @@ BAR_SYSTEMS = {
     "EU": _system("EU", (6, 8, 10, 12, 16, 20, 25, 32, 40, 50),
                   ("Ø6", "Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø32", "Ø40", "Ø50"), smooth=(6,)),
 }
-_ALIASES = {"GB": "GB1499.2", "GB1499": "GB1499.2", "GB 1499.2": "GB1499.2", "ASTM": "ASTM-A615",
+
+# Designs from other markets (issue 58). Nominal diameters are those each standard defines; only
+# JIS G 3112 / KS D 3504 list an outer diameter over the ribs per size, the others' envelopes are
+# estimated with the GB 1499.2 ratio (``_gb_like``) and marked so in docs/scanned_clouds.md.
+# JIS G 3112 (SD295..SD490) and KS D 3504 share the D-series: nominal diameter (mm) and the
+# maximum outer diameter over the ribs given in the standard's dimension table (reference values
+# as published in the JIS table; recalled, not checked against the standard's text here).
+_JIS = (("D6", 6.35, 7.0), ("D10", 9.53, 11.0), ("D13", 12.7, 14.0), ("D16", 15.9, 18.0),
+        ("D19", 19.1, 21.0), ("D22", 22.2, 25.0), ("D25", 25.4, 28.0), ("D29", 28.6, 33.0),
+        ("D32", 31.8, 36.0), ("D35", 34.9, 40.0), ("D38", 38.1, 43.0), ("D41", 41.3, 46.0),
+        ("D51", 50.8, 58.0))
+
+
+def _jis_like(name: str) -> BarSystem:
+    return BarSystem(name, tuple(d for _, d, _ in _JIS), tuple(lb for lb, _, _ in _JIS),
+                     tuple(e for _, _, e in _JIS),
+                     tuple(_gb_like(d, _GB_CORE_RATIO) for _, d, _ in _JIS))
+
+
+BAR_SYSTEMS.update({
+    "JIS-G3112": _jis_like("JIS-G3112"),
+    "KS-D3504": _jis_like("KS-D3504"),
+    # AS/NZS 4671: D500N deformed bars N10..N40 (nominal = designation); envelopes estimated
+    "AS/NZS4671": _system("AS/NZS4671", (10, 12, 16, 20, 24, 28, 32, 36, 40),
+                          ("N10", "N12", "N16", "N20", "N24", "N28", "N32", "N36", "N40")),
+    # IS 1786: HYSD bars, nominal sizes 8..40 mm; envelopes estimated
+    "IS1786": _system("IS1786", (8, 10, 12, 16, 20, 25, 28, 32, 36, 40),
+                      ("Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø28", "Ø32", "Ø36", "Ø40")),
+    # BS 4449: B500 bars, preferred sizes 8..50 mm ("H" on UK drawings); envelopes estimated
+    "BS4449": _system("BS4449", (8, 10, 12, 16, 20, 25, 32, 40, 50),
+                      ("H8", "H10", "H12", "H16", "H20", "H25", "H32", "H40", "H50")),
+})
+
+_ALIASES = {"JIS": "JIS-G3112", "JIS G 3112": "JIS-G3112", "JIS G3112": "JIS-G3112", "KS": "KS-D3504",
+            "KS D 3504": "KS-D3504", "KS D3504": "KS-D3504", "AS/NZS 4671": "AS/NZS4671", "AS4671": "AS/NZS4671",
+            "AS/NZS": "AS/NZS4671", "NZS4671": "AS/NZS4671", "IS 1786": "IS1786", "IS": "IS1786",
+            "BS 4449": "BS4449", "BS": "BS4449",
+            "GB": "GB1499.2", "GB1499": "GB1499.2", "GB 1499.2": "GB1499.2", "ASTM": "ASTM-A615",
             "A615": "ASTM-A615", "ASTM A615": "ASTM-A615", "CSA G30.18": "CSA", "UK": "EU", "EN": "EU"}
 
 #: Standard uncertainty (mm) of the tabulated envelope itself: rib height varies between mills.
@@ -138,6 +175,21 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     sysm = bar_system(system)
     e = sysm.of_size(sysm.envelope_mm, nominal_mm)
     return e if e is not None else _gb_like(float(nominal_mm))
+
+
+def barset_width_mm(bar_set, system: str = "GB1499.2") -> float:
+    """Outer width of the bars of one design bar set: the rib envelope of a deformed bar, the
+    true diameter of a plain one (``bar_set.surface == "plain"``: plain round bars have no ribs,
+    so cover, heights and sizes use their diameter).
+
+    Examples
+    --------
+    >>> from rebarlib._design import BarSet
+    >>> barset_width_mm(BarSet(12, 200)), barset_width_mm(BarSet(8, 200, surface="plain"))
+    (13.9, 8.0)
+    """
+    deformed = getattr(bar_set, "surface", "deformed") != "plain"
+    return float(observed_width_mm(bar_set.diameter_mm, system=system, deformed=deformed))
 
 
 def _nearest(values, x: float) -> int:
