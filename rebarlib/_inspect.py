@@ -154,7 +154,9 @@ def _design_spacing(design: Design) -> dict:
 
 def _radii(design: Design, layer: str) -> dict:
     lat = design.lattice(layer)
-    return {lv: G.envelope_mm(lat.level(lv).diameter_mm, design.bar_system) / 2 for lv in G.LEVELS}
+    from ._barsizes import barset_width_mm  # a plain bar (surface = "plain") is seen at its diameter
+
+    return {lv: barset_width_mm(lat.level(lv), design.bar_system) / 2 for lv in G.LEVELS}
 
 
 def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 0) -> Measurement:
