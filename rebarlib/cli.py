@@ -12,7 +12,7 @@ import sys
 
 from ._checks import RebarInputError
 
-SUBCOMMANDS = ("synth", "inspect", "report")
+SUBCOMMANDS = ("synth", "inspect", "inspect-cloud", "report")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,9 +23,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for name in SUBCOMMANDS:
         try:
-            mod = importlib.import_module(f"rebarlib._cli_{name}")
+            mod = importlib.import_module(f"rebarlib._cli_{name.replace('-', '_')}")
         except ModuleNotFoundError as exc:
-            if exc.name != f"rebarlib._cli_{name}":
+            if exc.name != f"rebarlib._cli_{name.replace('-', '_')}":
                 raise
             continue
         p = mod.add_parser(sub)

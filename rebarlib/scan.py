@@ -100,9 +100,7 @@ def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: di
     from ._manifest import file_digest, make_manifest
 
     p = Path(cloud_path).resolve()
-    man = {"capture_folder": None, "capture_digest": None}
-    if design_path is not None or True:
-        man = make_manifest(p.parent, design_path, method=method, options=options)
+    man = make_manifest(p.parent, design_path, method=method, options=options)
     man.update({"capture_folder": None, "capture_digest": None, "cloud_file": str(p),
                 "cloud_digest": file_digest(p), "rebarlib_version": __version__})
     return man
