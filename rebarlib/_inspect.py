@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
+from . import _counts as C
 from . import geometry as G
-from ._camera import depth_to_points
+from ._camera import Cloud, depth_to_points
 from ._capture import Capture
 from ._checks import RebarInputError
 from ._design import Design
@@ -65,6 +66,31 @@ MIN_CAMERA_HEIGHT_MM = 150.0
 #: pixels (``fx · d / MIN_BAR_PX``): no bar can be fitted from farther, and a depth 10x too far
 #: (``depth_scale_mm`` 10 for depth stored in mm) lands there.
 MIN_BAR_PX = 2.0
+
+
+def facing_up(capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2,
+              min_cos: float = 0.5) -> np.ndarray:
+    """Which of ``pixels`` (N, 2) see a surface facing up, away from the formwork: the normal
+    from the depth image (cross product of the neighbours ``step_px`` away) makes an angle under
+    60° (``min_cos``) with the plane's normal. Pixels without the neighbours' depth: False."""
+    depth = np.asarray(capture.depth_mm, float)
+    H, W = depth.shape
+    u = np.asarray(pixels)[:, 0].astype(int)
+    v = np.asarray(pixels)[:, 1].astype(int)
+    K = capture.intrinsics
+
+    def point(uu, vv):
+        uu, vv = np.clip(uu, 0, W - 1), np.clip(vv, 0, H - 1)
+        z = depth[vv, uu]
+        return np.column_stack(((uu - K.cx) * z / K.fx, (vv - K.cy) * z / K.fy, z)), z > 0
+
+    (pu, ok1), (pl, ok2) = point(u + step_px, v), point(u - step_px, v)
+    (pd, ok3), (pt, ok4) = point(u, v + step_px), point(u, v - step_px)
+    n = np.cross(pu - pl, pd - pt)
+    norm = np.linalg.norm(n, axis=1)
+    ok = ok1 & ok2 & ok3 & ok4 & (norm > 0)
+    cos = np.abs(n @ np.asarray(plane.normal, float)) / np.where(norm > 0, norm, 1.0)
+    return ok & (cos >= min_cos)
 
 
 def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | None = EDGE_MM):
@@ -130,17 +156,21 @@ def _formwork_found(plane: G.Plane, h: np.ndarray, inliers: np.ndarray) -> tuple
     return below <= MAX_BELOW_FRACTION and int(inliers.sum()) >= 0.05 * len(h), below
 
 
-def _paper_formwork_found(capture: Capture, plane: G.Plane, design: Design, rng) -> tuple[bool, float]:
-    """Whether the paper's ``plane`` is the formwork: the refined method's formwork test passes
-    on the capture (its cloud, :func:`prepare_cloud`) and its plane is the paper's (normals
-    within 2°, offsets within the paper's band, t₁ = 0.8 × cover)."""
+def _formwork_of(capture: Capture, design: Design, rng) -> tuple[G.Plane, bool, float]:
+    """The refined method's formwork test on a capture (its cloud, :func:`prepare_cloud`):
+    ``(plane, found, fraction of points beneath it)``; also refuses a capture whose formwork,
+    else its median depth, is at an implausible distance (:func:`_check_camera_height`)."""
     points = prepare_cloud(capture).points
     thr = max(3.0, min(0.4 * design.cover_mm, 10.0))
     ref, inl = G.fit_formwork(points, threshold_mm=thr, rng=rng)
     found, below = _formwork_found(ref, ref.height(points), inl)
-    same = (float(np.dot(ref.normal, plane.normal)) > math.cos(math.radians(2.0))
-            and abs(ref.offset_mm - plane.offset_mm) < PAPER_T1_FACTOR * design.cover_mm)
-    return found and same, below
+    _check_camera_height(capture, design, ref.offset_mm if found else float(np.median(points[:, 2])), formwork=found)
+    return ref, found, below
+
+
+def _same_plane(a: G.Plane, b: G.Plane, band_mm: float) -> bool:
+    """Normals within 2° and offsets within ``band_mm``."""
+    return float(np.dot(a.normal, b.normal)) > math.cos(math.radians(2.0)) and abs(a.offset_mm - b.offset_mm) < band_mm
 
 
 def _camera_pose(plane: G.Plane) -> dict:
@@ -315,7 +345,7 @@ def widest_bar_px(capture: Capture, design: Design) -> float:
 
 def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
             mask=None, mask_source: str | None = None, register: bool = True, edge_trim_px=None,
-            rng=None) -> InspectionResult:
+            rng=None, calibration=None) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
 
     Parameters
@@ -341,6 +371,11 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         depth; else 0. The number used is in ``result.extras["edge_trim_px"]``, with a note.
         The paper's method takes the depth as it comes.
     rng : seed or Generator for the random parts (RANSAC, sampling)
+    calibration : a ``rebarlib.calibration.Calibration`` or the path of a calibration file
+        (``rebar calibrate``): its intrinsics and depth correction are applied to the capture
+        first, and its uncertainties replace the device profile's in the budget. Either way the
+        uncertainties carry the camera's systematic terms (``rebarlib.uncertainty``; the terms
+        in ``result.extras["uncertainty"]``).
 
     Returns
     -------
@@ -352,16 +387,18 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         raise RebarInputError("edge_trim_px: expected None or a whole number of pixels >= 0, "
                               f"got {edge_trim_px!r}")
     rng = np.random.default_rng(rng)
+    capture, cal = _calibrated(capture, calibration)
     if method == "paper":
         res = _inspect_paper(capture, design, rng)
         if diameters:
             _add_diameters(res, capture, design, method=method, mask=mask,
                            mask_source=mask_source or "model", register=False, rng=rng)
-        return _note_inputs(res, capture)
+        return _budget(_note_inputs(res, capture), capture, design, cal)
     # the geometry may be fitted again on a trimmed depth: it then draws the same random numbers
     rng_again = copy.deepcopy(rng)
     trim = edge_trim_px or 0
-    res = _inspect_refined(_trimmed(capture, trim), design, rng)
+    mask_cache = {}  # the colour model's mask, computed once if the counts need it
+    res = _inspect_refined(_trimmed(capture, trim), design, rng, mask_cache)
     if diameters:
         first = res
 
@@ -370,7 +407,7 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
             # fattening that drew the bars' axes towards it is left out and the bars fitted again
             nonlocal trim
             trim = reach
-            again = _inspect_refined(_trimmed(capture, reach), design, rng_again)
+            again = _inspect_refined(_trimmed(capture, reach), design, rng_again, mask_cache)
             again.timings_s["first_fit"] = round(sum(first.timings_s.values()), 6)
             return again
 
@@ -381,7 +418,27 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         res.extras["edge_trim_px"] = trim
         res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
                          "occluding edge of the depth image left out before the bars were fitted")
-    return _note_inputs(res, capture)
+    return _budget(_note_inputs(res, capture), capture, design, cal)
+
+
+def _calibrated(capture: Capture, calibration):
+    """``(capture, calibration)``: the capture with the calibration applied, or as it is."""
+    if calibration is None:
+        return capture, None
+    from .calibration import apply_calibration, load_calibration
+
+    cal = load_calibration(calibration)
+    return apply_calibration(capture, cal), cal
+
+
+def _budget(res: InspectionResult, capture: Capture, design: Design, cal) -> InspectionResult:
+    """The uncertainty budget's systematic terms (``rebarlib.uncertainty``), and the calibration."""
+    from .uncertainty import apply_budget
+
+    if cal is not None:
+        res.extras["calibration"] = {**cal.to_dict(), "file": cal.source, "summary": cal.summary()}
+    return apply_budget(res, design, device=capture.metadata.get("device"), calibration=cal,
+                        intrinsics=capture.intrinsics)
 
 
 def _note_inputs(res: InspectionResult, capture: Capture) -> InspectionResult:
@@ -460,7 +517,7 @@ def _note_registration(res: InspectionResult, reg: dict) -> None:
                          "depth-to-colour alignment")
 
 
-def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
+def _inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | None = None) -> InspectionResult:
     T = {}
     t = time.perf_counter()
     cloud = prepare_cloud(capture)
@@ -501,6 +558,16 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
     bar_sel = np.where(h > above_thr)[0] if has_formwork else np.arange(len(h))
     q = G.to_slab_frame(cloud.points[bar_sel], plane)
     split = G.find_layer_split(q[:, 2])
+    if split is None and len(q) >= MIN_LATTICE_POINTS and has_formwork:
+        # A vertical surface (an edge form at the slab's edge, a wall, a column's side) puts
+        # points at every height and fills the band between the lattices; the lattices' bars
+        # are seen mostly from above. Try again on the points whose surface faces up.
+        up = facing_up(capture, cloud.pixels[bar_sel], plane)
+        if up.sum() >= MIN_LATTICE_POINTS:
+            split = G.find_layer_split(q[up, 2])
+            if split is not None:
+                notes.append(f"layer split at {split:.0f} mm found on the upward-facing points only: vertical "
+                             "surfaces (an edge form, a wall) fill the band between the lattices")
     layer_of = G.split_layers(q[:, 2], split_mm=split)
     layer_names = ["lower", "upper"]
     if len(q) < MIN_LATTICE_POINTS:
@@ -586,17 +653,24 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
                      if tops else Measurement.not_measured("no bar of the upper lattice's top level was measured"))
     top_cover = _top_cover(design, upper_top)
 
+    # every empty design position and every close pair examined on evidence (docs/verdicts.md);
+    # bars seen only in colour (no depth) join the bars found
+    def count_mask():
+        if mask_cache is not None and "model" in mask_cache:
+            return mask_cache["model"]
+        m = registered_mask(capture, source="model", plane=(plane.normal, plane.offset_mm))[0]
+        if mask_cache is not None:
+            mask_cache["model"] = m
+        return m
+
+    positions, placed, boundary = C.examine_positions(
+        bars, design_spacing=_design_spacing(design), plane=plane, depth_mm=capture.depth_mm,
+        intrinsics=capture.intrinsics, mask=count_mask, noise_mm=plane.noise_mm)
+    bars = bars + placed
+    bar_clouds = bar_clouds + [Cloud(np.zeros((0, 3)), np.zeros((0, 2), np.int32)) for _ in placed]
     spacings = G.measure_spacings(bars, design_spacing=_design_spacing(design))
-    if has_formwork:
-        spacings = G.flag_hidden_gaps(spacings, bars, plane=plane, depth_mm=capture.depth_mm,
-                                      intrinsics=capture.intrinsics, min_length_mm=MIN_BAR_LENGTH_MM)
-    heights = {}
-    for b in bars:
-        heights.setdefault((b.layer, b.level), []).append(b.axis_height_mm)
-    heights = {k: float(np.median(v)) for k, v in heights.items()}
-    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=plane,
-                          depth_mm=capture.depth_mm, intrinsics=capture.intrinsics, heights=heights,
-                          min_length_mm=MIN_BAR_LENGTH_MM)
+    spacings = C.settle_spacings(spacings, bars, positions)
+    counts = C.count_table(bars, positions, _design_spacing(design))
     T["measure"] = time.perf_counter() - t
 
     table = G.bars_table(bars, plane, points=[c.points for c in bar_clouds])
@@ -605,7 +679,9 @@ def _inspect_refined(capture: Capture, design: Design, rng) -> InspectionResult:
                            formwork={**plane.to_dict(), "found": bool(has_formwork)},
                            camera=_camera_pose(plane) if has_formwork else {},
                            timings_s=T, notes=notes,
-                           extras={"layer_split_mm": split, "n_points": int(len(cloud))})
+                           extras={"layer_split_mm": split, "n_points": int(len(cloud)),
+                                   "mesh_boundary": boundary})
+    res.positions = positions
     res.bar_points = {i: c for i, c in enumerate(bar_clouds)}
     return res
 
@@ -640,6 +716,11 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
 
     T = {}
     t = time.perf_counter()
+    # not in the published procedure: is the formwork in view (and at a plausible distance)? The
+    # paper's plane, with its wide RANSAC band (0.8 x cover), also takes a lattice for a plane,
+    # so the test is the refined method's, on its own random stream (the paper's numbers stay
+    # as they were); the paper's plane must then be that one
+    ref_plane, ref_found, below = _formwork_of(capture, design, copy.deepcopy(rng))
     cloud = depth_to_points(capture.depth_mm, capture.intrinsics)
     cloud = voxel_downsample(cloud, PAPER_VOXEL_MM)
     cloud = remove_outliers(cloud, nb_neighbors=PAPER_NB, std_ratio=PAPER_STD)
@@ -648,14 +729,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     t = time.perf_counter()
     plane, inl = G.paper_fit_formwork(cloud.points, threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
                                       max_trials=PAPER_PLANE_TRIALS, rng=rng)
-    # not in the published procedure: the plane must be the formwork, else no height above it is
-    # measured. Its wide RANSAC band (0.8 x cover) also takes a lattice's bars for a plane, so the
-    # test is the refined method's (a plane fitted to the sensor's noise, nothing beneath it),
-    # with the paper's plane required to be that one (on its own random stream: the paper's
-    # numbers stay as they were)
-    has_formwork, below = _paper_formwork_found(capture, plane, design, copy.deepcopy(rng))
-    _check_camera_height(capture, design, plane.offset_mm if has_formwork else float(np.median(cloud.points[:, 2])),
-                         formwork=has_formwork)
+    has_formwork = ref_found and _same_plane(ref_plane, plane, PAPER_T1_FACTOR * design.cover_mm)
     T["plane"] = time.perf_counter() - t
 
     t = time.perf_counter()

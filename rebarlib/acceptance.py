@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ._checks import RebarInputError
+from ._decision import BEYOND_NP, WITHIN_NP, check_rule, decide, decide_size, risk_summary
 from ._design import Design
 
 if sys.version_info >= (3, 11):
@@ -41,14 +42,17 @@ ACCEPTED, REJECTED, SLAB_INCOMPLETE = "accepted", "rejected", "incomplete"
 # Deviations come from results rounded to 0.001 mm; a deviation that equals its limit to within
 # this is on the limit (inside), so "exactly 1.5x" is not lost to binary rounding.
 _EPS = 1e-6
+#: Coverage factor of the expanded uncertainties the decision rules use (rebarlib.uncertainty).
+COVERAGE_K = 2.0
 
 CHECKPOINT_COLUMNS = [
     "item", "label", "capture", "layer", "level", "what", "unit", "design_value", "measured_value",
-    "deviation", "uncertainty", "tolerance", "tol_minus", "tol_plus", "status", "flag", "reason"]
+    "deviation", "uncertainty", "tolerance", "tol_minus", "tol_plus", "status", "flag", "reason",
+    "expanded_uncertainty", "decision", "risk"]
 ITEM_COLUMNS = [
     "item", "label", "unit", "design_value", "design_text", "tolerance", "checkpoints", "measured",
     "passed", "pass_ratio", "worst_deviation", "beyond", "beyond_max", "not_measured", "excluded",
-    "verdict", "reason", "rule", "clause"]
+    "verdict", "reason", "rule", "clause", "not_proven"]
 
 _ITEM_KEYS = {"minus_mm", "plus_mm", "minus_bars", "plus_bars", "minus_fraction_of_design",
               "plus_by_thickness_mm", "lot_rule", "clause", "interpretation", "confirmed", "note"}
@@ -144,6 +148,8 @@ class Tolerances:
     title: str = ""
     source: str = ""
     overrides: tuple = ()
+    #: how a value with an uncertainty is judged against a limit (rebarlib._decision)
+    decision_rule: str = "simple"
 
     def item(self, key: str) -> ItemTolerance:
         """The tolerance of ``key``; ``spacing_<layer>_<level>`` falls back to ``spacing``.
@@ -168,7 +174,7 @@ class Tolerances:
         return self.lot_rules[name]
 
     def with_overrides(self, table: dict, *, source: str = "design.toml") -> "Tolerances":
-        """Apply a design file's ``[tolerances]`` table (see the README for its keys).
+        """Apply a design file's ``[tolerances]`` table (docs/formats.md lists its keys).
 
         Flat keys: ``<item>_mm`` (symmetric), ``<item>_minus_mm``, ``<item>_plus_mm``,
         ``<item>_lot_rule``, ``bar_count_bars`` / ``bar_count_minus_bars`` / ``bar_count_plus_bars``,
@@ -189,8 +195,12 @@ class Tolerances:
         items = dict(self.items)
         rules = dict(self.lot_rules)
         item_names = set(items) | {f"spacing_{a}_{b}" for a in LAYERS for b in LEVELS}
+        rule_name = self.decision_rule
         for key, value in table.items():
             where = f"{source}: tolerances.{key}"
+            if key == "decision_rule":
+                rule_name = check_rule(value, where)
+                continue
             if isinstance(value, dict):
                 if key not in item_names:
                     raise RebarInputError(f"{where}: unknown item; expected one of {sorted(item_names)}")
@@ -226,12 +236,12 @@ class Tolerances:
                 changes["plus_by_thickness_mm"] = None
             items[item] = replace(base, clause=f"{base.clause} — overridden in {Path(source).name}"
                                   if "overridden" not in base.clause else base.clause, **changes)
-        return replace(self, items=items, lot_rules=rules,
+        return replace(self, items=items, lot_rules=rules, decision_rule=rule_name,
                        overrides=self.overrides + tuple(f"{k} = {v!r}" for k, v in table.items()))
 
     def to_dict(self) -> dict:
         return {"name": self.name, "standard": self.standard, "edition": self.edition,
-                "source": self.source, "overrides": list(self.overrides),
+                "source": self.source, "overrides": list(self.overrides), "decision_rule": self.decision_rule,
                 "items": {k: _item_as_table(v) for k, v in self.items.items()},
                 "lot_rules": {k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()}}
 
@@ -414,7 +424,8 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
             raise RebarInputError(f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table")
     return Tolerances(name=str(data.get("name", path.stem)), standard=str(data.get("standard", path.stem)),
                       edition=str(data.get("edition", "")), items=items, lot_rules=rules,
-                      title=str(data.get("title", "")), source=where)
+                      title=str(data.get("title", "")), source=where,
+                      decision_rule=check_rule(data.get("decision_rule", "simple"), where))
 
 
 # --------------------------------------------------------------------------------------------
@@ -454,7 +465,14 @@ class Acceptance:
                 "standard": self.tolerances.standard, "tolerances": self.tolerances.to_dict(),
                 "missing_captures": [{"capture": c, "reason": r} for c, r in self.missing_captures],
                 "notes": list(self.notes), "items": _records(self.items),
+                "decision": self.decision_summary(),
                 "checkpoints": _records(self.checkpoints)}
+
+    def decision_summary(self) -> dict:
+        """The decision rule, the checkpoints it left "not proven" and the false accept / false
+        reject probabilities it implied (``rebarlib._decision.risk_summary``)."""
+        recs = self.checkpoints.to_dict(orient="records") if "decision" in self.checkpoints else []
+        return risk_summary(recs, self.tolerances.decision_rule, COVERAGE_K)
 
     def to_json(self, **kw) -> str:
         return json.dumps(self.to_dict(), indent=kw.pop("indent", 1), ensure_ascii=False, **kw)
@@ -527,6 +545,26 @@ def _judge(deviation, minus, plus, max_factor):
     if side > 0 and abs(deviation) > factor * side + _EPS:
         return BEYOND_MAX, FLAGS[BEYOND_MAX]
     return BEYOND, FLAGS[BEYOND]
+
+
+def _judge_with_rule(item, deviation, minus, plus, max_factor, U, confidence, rule_name):
+    """``(status, flag, decision, risk)`` of a deviation under the decision rule: guarded
+    acceptance narrows each limit by U before :func:`_judge` (a bar size: accepted only where its
+    confidence proves it); the decision marks what the interval leaves unproven
+    (``rebarlib._decision``). Simple acceptance and shared risk judge as :func:`_judge` does."""
+    status, flag = _judge(deviation, minus, plus, max_factor)
+    if item.startswith("bar_size"):
+        decision, risk = decide_size(status == WITHIN, status == WITHIN, confidence, COVERAGE_K)
+    else:
+        decision, risk = decide(status == WITHIN, deviation, minus, plus, U, COVERAGE_K)
+    if rule_name == "guarded" and status == WITHIN and decision == WITHIN_NP:
+        # inside the limit, not by the guard band: not accepted (ILAC-G8 binary guarded acceptance)
+        status = BEYOND
+        if item.startswith("bar_size"):
+            risk = None if risk is None else round(1.0 - risk, 3)
+        else:
+            risk = decide(False, deviation, minus, plus, U, COVERAGE_K)[1]
+    return status, flag, decision, risk
 
 
 def _size_text(d, system: str) -> str:
@@ -640,22 +678,27 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
     rows = []
 
     def add(item, capture, layer, level, what, design_value, measured, uncertainty=None, *,
-            status=None, reason="", deviation=None):
+            status=None, reason="", deviation=None, confidence=None):
         t = tol.item(_tol_key(item))
         minus, plus = t.limits(design_value, thickness_mm=thickness)
         rule = tol.rule(t.lot_rule)
-        flag = ""
+        flag, decision, risk = "", None, None
+        U = None if uncertainty is None or item.startswith("bar_size") else COVERAGE_K * uncertainty
         if status is None:
             if measured is None or design_value is None:
                 status = NOT_MEASURED
             else:
                 deviation = measured - design_value if deviation is None else deviation
-                status, flag = _judge(deviation, minus, plus, rule.max_factor)
+                status, flag, decision, risk = _judge_with_rule(item, deviation, minus, plus, rule.max_factor, U,
+                                                                confidence, tol.decision_rule)
         rows.append({"item": item, "label": labels[item], "capture": capture, "layer": layer, "level": level,
                      "what": what, "unit": t.unit, "design_value": design_value, "measured_value": measured,
                      "deviation": None if deviation is None else round(deviation, 3),
                      "uncertainty": uncertainty, "tolerance": _tol_text(minus, plus, t.unit),
-                     "tol_minus": minus, "tol_plus": plus, "status": status, "flag": flag, "reason": reason})
+                     "tol_minus": minus, "tol_plus": plus, "status": status, "flag": flag, "reason": reason,
+                     "expanded_uncertainty": None if U is None else round(U, 3),
+                     "decision": decision or (status if status in (WITHIN, BEYOND, BEYOND_MAX) else None),
+                     "risk": risk})
 
     bar_rows = []
     for r in res:
@@ -671,7 +714,7 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
             v = _num(rec.get("spacing_mm"))
             ok = rec.get("status", "measured") == "measured" and v is not None
             add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
-                _num(rec.get("design_spacing_mm")) or dv, v if ok else None,
+                _num(rec.get("design_spacing_mm")) or dv, v if ok else None, _num(rec.get("uncertainty_mm")),
                 reason="" if ok else (rec.get("reason") or "spacing not measured"))
         bars = _table(r, "bars")
         has_diam = len(bars) and ("nominal_mm" in bars.columns or "diameter_status" in bars.columns)
@@ -688,9 +731,12 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
             reason = "" if ok else (rec.get("diameter_reason") or
                                     ("diameter stage not run" if not has_diam else "diameter not measured"))
             # the width's standard uncertainty (refined); the paper's vote has none: its spread
-            u = _num(rec.get("width_sigma_mm"))
+            # (with the systematic terms where the uncertainty budget gave them)
+            u = _num(rec.get("width_uncertainty_mm"))
+            u = u if u is not None else _num(rec.get("width_sigma_mm"))
             add(item, cap, la, lv, what, ddv, nominal if ok else None,
-                u if u is not None else _num(rec.get("width_spread_mm")), reason=reason)
+                u if u is not None else _num(rec.get("width_spread_mm")), reason=reason,
+                confidence=_num(rec.get("budget_confidence")))
         counts = _table(r, "counts")
         for la in LAYERS:
             for lv in LEVELS:
@@ -704,15 +750,24 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
                 if found is None or expected is None:
                     add(item, cap, la, lv, "count", expected, None, reason="bar count not measured")
                     continue
-                n_miss = int(_num(rec.get("missing")) or max(expected - found, 0))
-                n_extra = int(_num(rec.get("extra")) or max(found - expected, 0))
+                # missing and extra bars are counted only on evidence (docs/verdicts.md); a
+                # position that could be neither leaves the count not measured
+                n_miss = int(_num(rec.get("missing")) or 0)
+                n_extra = int(_num(rec.get("extra")) or 0)
+                n_open = int(_num(rec.get("not_measured")) or 0)
+                seen = str(rec.get("evidence") or "")
                 t = tol.item("bar_count")
                 minus, plus = t.limits()
                 bad_miss = minus is not None and n_miss > minus
                 bad_extra = plus is not None and n_extra > plus
+                what = f"{n_miss} missing, {n_extra} extra" + (f" ({seen})" if seen else "")
+                if not (bad_miss or bad_extra) and n_open:
+                    add(item, cap, la, lv, what, expected, None,
+                        reason=f"{n_open} bar position(s) could not be judged: "
+                               + _open_positions(_table(r, "positions"), la, lv))
+                    continue
                 status, flag = (BEYOND, "*") if (bad_miss or bad_extra) else (WITHIN, "")
-                add(item, cap, la, lv, f"{n_miss} missing, {n_extra} extra", expected, found,
-                    status=status, deviation=found - expected)
+                add(item, cap, la, lv, what, expected, found, status=status, deviation=found - expected)
                 rows[-1]["flag"] = flag
         for rec in bars.to_dict(orient="records") if len(bars) else []:
             bar_rows.append({"capture": cap, "bar_id": rec.get("bar_id"), "layer": rec.get("layer"),
@@ -733,6 +788,15 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
                       missing_captures=missing, notes=tuple(notes))
 
 
+def _open_positions(positions: pd.DataFrame, layer: str, level: str) -> str:
+    """The reasons of the positions of one direction that were neither found nor judged."""
+    if not len(positions) or "status" not in positions:
+        return "see the result's positions table"
+    sel = positions[(positions["layer"] == layer) & (positions["level"] == level)
+                    & (positions["status"] == "not measured")]
+    return "; ".join(f"at {float(o):.0f} mm: {r}" for o, r in zip(sel["offset_mm"], sel["reason"])) or "–"
+
+
 def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, labels: dict) -> dict:
     t = tol.item(_tol_key(key))
     rule = tol.rule(t.lot_rule)
@@ -742,6 +806,7 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
     n, n_meas = len(counted), len(measured)
     passed = int((measured["status"] == WITHIN).sum())
     n_beyond_max = int((measured["status"] == BEYOND_MAX).sum())
+    n_not_proven = int(measured["decision"].isin([WITHIN_NP, BEYOND_NP]).sum()) if "decision" in measured else 0
     n_nm = n - n_meas
     ratio = passed / n_meas if n_meas else None
     worst = None
@@ -783,7 +848,7 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
             "passed": passed, "pass_ratio": None if ratio is None else round(ratio, 4),
             "worst_deviation": None if worst is None else round(worst, 3), "beyond": n_meas - passed,
             "beyond_max": n_beyond_max, "not_measured": n_nm, "excluded": len(cp) - n,
-            "verdict": verdict, "reason": reason,
+            "verdict": verdict, "reason": reason, "not_proven": n_not_proven,
             "rule": rule_txt + (f" ({labels_txt})" if labels_txt else ""),
             "clause": t.clause + (f" — {t.note}" if t.note else "")}
 

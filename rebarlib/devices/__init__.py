@@ -34,7 +34,8 @@ class DeviceProfile:
 
     ``depth_percent`` at ``depth_at_mm``: the limit of the systematic depth error. ``grows``:
     "with distance" (active or passive stereo: a disparity offset, an error ``k z²``, so the
-    relative error grows linearly with z) or "constant" (a scale ``s``, plus ``offset_mm``).
+    relative error grows linearly with z, plus a constant scale ``scale_percent``) or "constant"
+    (a scale ``s``, plus ``offset_mm``).
     ``focal_percent``, ``principal_point_px``, ``registration_px``: limits of the factory
     calibration's residuals. All limits are half-widths of rectangular distributions.
     """
@@ -48,6 +49,7 @@ class DeviceProfile:
     depth_at_mm: float
     grows: str
     offset_mm: float
+    scale_percent: float
     focal_percent: float
     principal_point_px: float
     registration_px: float
@@ -67,20 +69,21 @@ class DeviceProfile:
         Examples
         --------
         >>> load_device("gemini2").depth_limits()
-        {'scale': 0.0, 'offset_mm': 0.0, 'quad_mm_per_m2': 10.0}
+        {'scale': 0.005, 'offset_mm': 0.0, 'quad_mm_per_m2': 10.0}
         """
         a = self.depth_percent / 100.0
         if self.grows == "with distance":
             # A z_ref of error at z_ref, growing as z²: k (z_ref / 1 m)² = A z_ref
             k = a * self.depth_at_mm / (self.depth_at_mm / 1000.0) ** 2
-            return {"scale": 0.0, "offset_mm": float(self.offset_mm), "quad_mm_per_m2": round(k, 6)}
+            return {"scale": self.scale_percent / 100.0, "offset_mm": float(self.offset_mm),
+                    "quad_mm_per_m2": round(k, 6)}
         return {"scale": a, "offset_mm": float(self.offset_mm), "quad_mm_per_m2": 0.0}
 
     def to_dict(self) -> dict:
         return {"key": self.key, "name": self.name, "principle": self.principle,
                 "range_mm": list(self.range_mm), "depth_error": {
                     "percent": self.depth_percent, "at_mm": self.depth_at_mm, "grows": self.grows,
-                    "offset_mm": self.offset_mm, "confirmed": self.depth_confirmed, "source": self.depth_source},
+                    "offset_mm": self.offset_mm, "scale_percent": self.scale_percent, "confirmed": self.depth_confirmed, "source": self.depth_source},
                 "intrinsics": {"focal_percent": self.focal_percent, "principal_point_px": self.principal_point_px,
                                "registration_px": self.registration_px, "source": self.intrinsics_source},
                 "default": self.is_default}
@@ -116,6 +119,7 @@ def _from_file(path: Path) -> DeviceProfile:
         depth_percent=_num(dep, "percent", f"{where}: depth_error", hi=50),
         depth_at_mm=_num(dep, "at_mm", f"{where}: depth_error", lo=1),
         grows=grows, offset_mm=_num({"o": dep.get("offset_mm", 0.0)}, "o", f"{where}: depth_error.offset_mm", hi=500),
+        scale_percent=_num({"s": dep.get("scale_percent", 0.0)}, "s", f"{where}: depth_error.scale_percent", hi=50),
         focal_percent=_num(intr, "focal_percent", f"{where}: intrinsics", hi=20),
         principal_point_px=_num(intr, "principal_point_px", f"{where}: intrinsics", hi=500),
         registration_px=_num(intr, "registration_px", f"{where}: intrinsics", hi=100),

@@ -1,0 +1,333 @@
+"""The uncertainty budget of an inspection: every measured length's standard uncertainty,
+term by term, in the GUM's way (docs/uncertainty.md).
+
+The measurement stages give each value and its *random* standard uncertainty (the spread of
+the fits). :func:`apply_budget` adds the *systematic* terms that no fit can see — the depth
+camera's depth scale, offset and non-linearity, its focal length and principal point, the
+colour-depth registration, the spread of bars' rib envelopes between mills and the assumed bar
+shape — each as a standard uncertainty ``u(x)`` of an input, a sensitivity coefficient ``c``
+and a contribution ``|c| u(x)``; the combined standard uncertainty is the root sum of squares
+(the inputs taken as uncorrelated). The values themselves are not changed.
+
+The inputs come from a calibration file (``rebar calibrate``) where one is given, else from the
+device profile that ``camera.json``'s ``device`` picks (``rebarlib/devices``); a datasheet limit
+``a`` is read as a rectangular distribution, ``u = a / sqrt(3)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ._barsizes import ENVELOPE_SIGMA_MM, observed_width_mm, rib_height_mm, snap_diameter
+from ._results import InspectionResult, Measurement
+from .devices import device_for, load_device
+
+__all__ = ["COVERAGE_K", "Inputs", "Term", "inputs_for", "height_terms", "length_terms", "width_terms",
+           "combine", "apply_budget"]
+
+#: Coverage factor of every expanded uncertainty U = k u printed (about 95 % for a normal error).
+COVERAGE_K = 2.0
+_SQRT3 = math.sqrt(3.0)
+#: Half-width of the assumed-shape term, as a share of the rib height h: a cylinder of the rib
+#: envelope fitted to a ribbed bar's visible top (crests and the core between them). Set from
+#: the cover errors seen on captures rendered with ribs in relief (+0.06 to +0.17 mm on Φ12-Φ14,
+#: h = 1.2-1.4 mm), not from a model.
+SHAPE_SHARE_OF_RIB = 0.125
+#: Residual colour-depth misregistration (px) after ``inspect`` has estimated it: the estimate's
+#: own error where the shift was undone, else the largest shift it leaves (REGISTRATION_MIN_PX).
+REGISTRATION_RESIDUAL_PX = (0.4, 0.5)
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Standard uncertainties of the systematic inputs, and where they come from."""
+
+    source: str  # "device profile" | "calibration"
+    name: str  # the profile's name or the calibration file
+    u_scale: float  # relative
+    u_offset_mm: float
+    u_quad_mm_per_m2: float  # k of the stereo error k (z / 1 m)²
+    u_focal: float  # relative
+    u_pp_px: float
+    u_registration_px: float
+    default_profile: bool = False
+
+    def to_dict(self) -> dict:
+        return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class Term:
+    """One line of a budget: input, its standard uncertainty (in ``unit``), sensitivity, contribution (mm)."""
+
+    name: str
+    kind: str  # "random" | "systematic"
+    u_input: float
+    unit: str
+    sensitivity: float
+    contribution_mm: float
+
+    def to_dict(self) -> dict:
+        return {"term": self.name, "kind": self.kind, "u_input": _r(self.u_input), "unit": self.unit,
+                "sensitivity": _r(self.sensitivity), "contribution_mm": _r(self.contribution_mm)}
+
+
+def _r(x, nd=6):
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
+
+
+def inputs_for(device: str | None = None, *, profile=None, calibration=None) -> Inputs:
+    """The systematic inputs: from ``calibration`` (a ``Calibration``) where given, else from
+    ``profile`` (a ``DeviceProfile`` or its key) or the profile ``device`` matches.
+
+    Examples
+    --------
+    >>> i = inputs_for("rebarlib synthetic (Gemini-2-like)")
+    >>> i.name, round(i.u_quad_mm_per_m2, 3), round(i.u_focal, 5)
+    ('Orbbec Gemini 2', 5.774, 0.00289)
+    """
+    prof, matched = (load_device(profile), True) if profile is not None else device_for(device)
+    reg = prof.registration_px / _SQRT3
+    if calibration is not None:
+        c = calibration
+        K = c.intrinsics
+        return Inputs("calibration", c.source or "calibration", c.u_depth_scale, c.u_depth_offset_mm, 0.0,
+                      max(c.u_intrinsics[0] / K.fx, c.u_intrinsics[1] / K.fy), max(c.u_intrinsics[2:4]), reg)
+    lim = prof.depth_limits()
+    return Inputs("device profile", prof.name, lim["scale"] / _SQRT3, lim["offset_mm"] / _SQRT3,
+                  lim["quad_mm_per_m2"] / _SQRT3, prof.focal_percent / 100 / _SQRT3,
+                  prof.principal_point_px / _SQRT3, reg, default_profile=not matched or prof.is_default)
+
+
+def _t(name, u, unit, c, kind="systematic") -> Term:
+    return Term(name, kind, float(u), unit, float(c), abs(float(c) * float(u)))
+
+
+def height_terms(h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
+                 envelope_mm=0.0, rib_mm=0.0) -> list:
+    """Budget of a height above the formwork (or a difference of two), ``h_mm`` long.
+
+    A height is a depth difference: a depth scale error s changes it by ``s h``, the stereo
+    error ``k z²`` by ``2 k z h`` (its slope at the working depth ``depth_mm``), an offset not
+    at all. A focal-length error stretches the image's directions, so only the part of ``h``
+    across the line of sight, ``sin² tilt``, changes. ``envelope_mm``: standard uncertainty of
+    the rib envelopes the height depends on (the underside = fitted axis minus the assumed
+    envelope radius: sensitivity 1 on the envelope's diameter); ``rib_mm``: the rib height of
+    the bars whose assumed shape the height depends on.
+    """
+    h = abs(float(h_mm))
+    z_m = depth_mm / 1000.0
+    s2 = math.sin(math.radians(tilt_deg or 0.0)) ** 2
+    return [
+        _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
+        _t("depth scale", inp.u_scale, "1", h),
+        _t("depth offset", inp.u_offset_mm, "mm", 0.0),
+        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0),
+        _t("focal length", inp.u_focal, "1", h * s2),
+        _t("principal point", inp.u_pp_px, "px", 0.0),
+        _t("rib envelope (spread between mills)", envelope_mm, "mm", 1.0 if envelope_mm else 0.0),
+        _t("assumed bar shape", SHAPE_SHARE_OF_RIB * rib_mm / _SQRT3, "mm", 1.0 if rib_mm else 0.0),
+    ]
+
+
+def length_terms(L_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
+                 focal_px: float) -> list:
+    """Budget of a length across the line of sight (a spacing), ``L_mm`` long, at ``depth_mm``.
+
+    Lateral coordinates are ``z (u - c) / f``: a depth scale error s changes a length by ``s L``,
+    an offset o by ``o L / z``, the stereo error ``k z²`` by ``k z L``, the focal length by
+    ``L`` per unit; an error of the principal point shears the view by ``dc / f``, which
+    changes a length in the tilted formwork plane by ``L sin(tilt) cos(tilt) dc / f``.
+    """
+    L = abs(float(L_mm))
+    z = float(depth_mm)
+    t = math.radians(tilt_deg or 0.0)
+    return [
+        _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
+        _t("depth scale", inp.u_scale, "1", L),
+        _t("depth offset", inp.u_offset_mm, "mm", L / z),
+        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", z / 1000.0 * L / 1000.0),
+        _t("focal length", inp.u_focal, "1", L),
+        _t("principal point", inp.u_pp_px, "px", L * math.sin(t) * math.cos(t) / focal_px),
+    ]
+
+
+def width_terms(w_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
+                focal_px: float, registration_px: float) -> list:
+    """Budget of a bar's width: a length (:func:`length_terms`) plus the colour-depth
+    registration: the mask's edges come from the colour image and its extent from the depth, so
+    a residual shift of ``registration_px`` widens or narrows the mask on one side by up to that
+    (sensitivity: the pixel's size at ``depth_mm``)."""
+    terms = length_terms(w_mm, u_random_mm, inp, depth_mm=depth_mm, tilt_deg=tilt_deg, focal_px=focal_px)
+    return terms + [_t("colour-depth registration", registration_px / _SQRT3, "px", depth_mm / focal_px)]
+
+
+def combine(terms) -> float:
+    """Combined standard uncertainty: root sum of squares of the contributions (mm).
+
+    Examples
+    --------
+    >>> combine([_t("a", 0.3, "mm", 1.0), _t("b", 0.004, "1", 100.0)])
+    0.5
+    """
+    return float(math.sqrt(sum(t.contribution_mm ** 2 for t in terms)))
+
+
+def _budget_dict(terms, value) -> dict:
+    u = combine(terms)
+    return {"value_mm": _r(value, 3), "u_mm": _r(u, 4), "k": COVERAGE_K, "U_mm": _r(COVERAGE_K * u, 4),
+            "terms": [t.to_dict() for t in terms]}
+
+
+def _working_depth(res: InspectionResult) -> float:
+    bars = res.bars
+    if bars is not None and len(bars) and "start_z_mm" in bars:
+        z = np.concatenate([bars["start_z_mm"].to_numpy(float), bars["end_z_mm"].to_numpy(float)])
+        z = z[np.isfinite(z)]
+        if len(z):
+            return float(np.median(z))
+    return float((res.camera or {}).get("height_mm") or 600.0)
+
+
+def _registration_residual(res: InspectionResult, inp: Inputs) -> float:
+    reg = res.extras.get("registration")
+    if not reg or reg.get("shift_px") is None:
+        return inp.u_registration_px * _SQRT3  # not estimated: the device's limit
+    if reg.get("applied"):
+        return REGISTRATION_RESIDUAL_PX[0]
+    return min(math.hypot(*reg["shift_px"]), REGISTRATION_RESIDUAL_PX[1])
+
+
+def _with_u(m: Measurement, u: float) -> Measurement:
+    return replace(m, uncertainty_mm=u) if m.ok else m
+
+
+def apply_budget(res: InspectionResult, design, *, device: str | None = None, calibration=None,
+                 intrinsics=None) -> InspectionResult:
+    """Put the systematic terms into ``res``'s uncertainties (in place; returns ``res``).
+
+    - cover, layer distance, top of the upper bars and top cover: ``uncertainty_mm`` becomes the
+      combined standard uncertainty (the fits' own is kept in the budget as its random term);
+    - spacings: a new ``uncertainty_mm`` column (the two axes' standard errors and the
+      systematic terms);
+    - bars with a width: ``width_uncertainty_mm`` (combined) and ``budget_confidence``, the
+      size's posterior with that uncertainty and the envelope table's spread
+      (``snap_diameter``); the diameter stage's own ``confidence`` still decides whether a size
+      is given;
+    - ``res.extras["uncertainty"]``: the inputs, every measurement's terms, k;
+    - a note where the device is unknown and the conservative profile was used.
+    """
+    inp = inputs_for(device, calibration=calibration)
+    z = _working_depth(res)
+    tilt = float((res.camera or {}).get("tilt_deg") or 0.0)
+    f = float(intrinsics.fx) if intrinsics is not None else 616.0
+    system = getattr(design, "bar_system", "GB1499.2")
+
+    def deformed(layer):
+        return getattr(design.lattice(layer).bottom, "surface", "deformed") != "plain"
+
+    def env(layer):  # a plain bar has no rib envelope to spread
+        return ENVELOPE_SIGMA_MM if deformed(layer) else 0.0
+
+    def rib(layer):
+        if not deformed(layer):
+            return 0.0
+        d = design.lattice(layer).bottom.diameter_mm
+        return rib_height_mm(observed_width_mm(d, system=system), system=system)
+
+    geo = {"depth_mm": z, "tilt_deg": tilt}
+    out = {"k": COVERAGE_K, "inputs": inp.to_dict(), "working_depth_mm": round(z, 1), "tilt_deg": round(tilt, 2),
+           "measurements": {}}
+    specs = {"cover": dict(envelope_mm=env("lower"), rib_mm=rib("lower")),
+             "layer_distance": dict(envelope_mm=math.hypot(env("lower"), env("upper")),
+                                    rib_mm=math.hypot(rib("lower"), rib("upper"))),
+             "upper_top": {}}
+    for key, extra in specs.items():
+        m = getattr(res, key)
+        if not m.ok:
+            continue
+        terms = height_terms(m.value_mm, m.uncertainty_mm or 0.0, inp, **geo, **extra)
+        out["measurements"][key] = _budget_dict(terms, m.value_mm)
+        setattr(res, key, _with_u(m, combine(terms)))
+    if res.top_cover.ok and res.upper_top.ok:
+        # top cover = design thickness - top of the upper bars: the same budget
+        res.top_cover = _with_u(res.top_cover, res.upper_top.uncertainty_mm)
+        out["measurements"]["top_cover"] = {**out["measurements"]["upper_top"],
+                                            "value_mm": _r(res.top_cover.value_mm, 3)}
+    res.spacings = _spacing_budget(res, inp, z, tilt, f, out)
+    res.bars = _width_budget(res, inp, z, tilt, f, system, out)
+    res.extras["uncertainty"] = out
+    if inp.default_profile:
+        res.notes.append(f"device {device or '(none named)'!r} matches no device profile: the uncertainty budget "
+                         "uses the conservative default (3 % depth scale, 1 % focal length); calibrate the "
+                         "camera (rebar calibrate) for smaller uncertainties")
+    return res
+
+
+def _bar_depth(bars, i) -> float:
+    row = bars.loc[bars["bar_id"] == i]
+    if not len(row):
+        return math.nan
+    return float((row["start_z_mm"].iloc[0] + row["end_z_mm"].iloc[0]) / 2)
+
+
+def _spacing_budget(res, inp, z, tilt, f, out):
+    sp = res.spacings
+    if sp is None:
+        return sp
+    sp = sp.copy()
+    bars = res.bars
+    se = dict(zip(bars["bar_id"], bars["axis_se_mm"])) if len(bars) and "axis_se_mm" in bars else {}
+    us, rows = [], []
+    for rec in sp.to_dict(orient="records"):
+        v = rec.get("spacing_mm")
+        if v is None or not np.isfinite(v):
+            us.append(math.nan)
+            continue
+        a, b = (se.get(rec["bar_a"], math.nan), se.get(rec["bar_b"], math.nan))
+        u_rand = math.hypot(*(x if np.isfinite(x) else 0.5 for x in (a, b)))
+        zz = np.nanmean([_bar_depth(bars, rec["bar_a"]), _bar_depth(bars, rec["bar_b"])]) if len(bars) else z
+        terms = length_terms(v, u_rand, inp, depth_mm=zz if np.isfinite(zz) else z, tilt_deg=tilt, focal_px=f)
+        us.append(combine(terms))
+        rows.append({"bar_a": int(rec["bar_a"]), "bar_b": int(rec["bar_b"]), **_budget_dict(terms, v)})
+    sp["uncertainty_mm"] = np.asarray(us, float)
+    out["spacings"] = rows
+    return sp
+
+
+def _width_budget(res, inp, z, tilt, f, system, out):
+    bars = res.bars
+    if bars is None or not len(bars) or "width_sigma_mm" not in bars:
+        return bars
+    bars = bars.copy()
+    reg = _registration_residual(res, inp)
+    wcol = "width_used_mm" if "width_used_mm" in bars else "width_mm"
+    us, confs, rows = [], [], []
+    for rec in bars.to_dict(orient="records"):
+        w, u0 = rec.get(wcol), rec.get("width_sigma_mm")
+        if w is None or not np.isfinite(w) or u0 is None or not np.isfinite(u0):
+            us.append(math.nan)
+            confs.append(math.nan)
+            continue
+        zb = (rec["start_z_mm"] + rec["end_z_mm"]) / 2
+        terms = width_terms(w, u0, inp, depth_mm=zb if np.isfinite(zb) else z, tilt_deg=tilt, focal_px=f,
+                            registration_px=reg)
+        u = combine(terms)
+        us.append(u)
+        confs.append(snap_diameter(w, system=system, sigma_mm=u)[1])
+        rows.append({"bar_id": int(rec["bar_id"]), **_budget_dict(terms, w)})
+    bars["width_uncertainty_mm"] = np.asarray(us, float)
+    bars["budget_confidence"] = np.asarray(confs, float)
+    out["widths"] = rows
+    return bars
+
+
+def profile_text(inp: Inputs) -> str:
+    """How the systematic inputs were set, for the report: "factory calibration, device profile
+    ..." or "calibrated: FILE"."""
+    if inp.source == "calibration":
+        return f"calibrated ({inp.name})"
+    return f"factory calibration, device profile {inp.name}" + (" (no profile matched)" if inp.default_profile else "")
