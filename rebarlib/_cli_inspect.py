@@ -25,8 +25,6 @@ from pathlib import Path
 
 OUTPUT_FILES = ("result.json", "bars.csv", "spacings.csv", "counts.csv")
 SUMMARY_NAME = "summary.csv"
-SUMMARY_COLUMNS = ("capture", "status", "cover_mm", "layer_distance_mm", "worst_spacing_deviation_mm",
-                   "seconds", "reason")
 
 
 def add_parser(sub):
@@ -44,6 +42,9 @@ def add_parser(sub):
     p.add_argument("--mask-source", choices=("fused", "model", "depth"), default=None,
                    help="rebar mask for the diameters (default: fused for refined, model for paper)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the RANSAC / sampling steps")
+    p.add_argument("--calibration", metavar="FILE", default=None,
+                   help="calibration file from `rebar calibrate`: its intrinsics and depth correction are "
+                        "applied, and its uncertainties replace the device profile's (docs/uncertainty.md)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=int, default=None, metavar="N",
                        help="local worker processes (default: all cores; 1: one capture at a time here)")
@@ -112,7 +113,12 @@ def _check_paths(captures, out: Path) -> list:
 
 
 def _options(args) -> dict:
-    return {"diameters": not args.no_diameters, "mask_source": args.mask_source, "seed": args.seed}
+    opts = {"diameters": not args.no_diameters, "mask_source": args.mask_source, "seed": args.seed}
+    if getattr(args, "calibration", None):
+        from .calibration import calibration_id
+
+        opts["calibration"] = calibration_id(args.calibration)  # its file name and digest
+    return opts
 
 
 def _up_to_date(target: Path, capture: Path, design_path: Path, method: str, options: dict):
@@ -144,23 +150,10 @@ def result_files(res, manifest: dict) -> dict:
     return files
 
 
-def _worst_deviation(spacings) -> float | None:
-    devs = [s.get("deviation_mm") for s in spacings or [] if isinstance(s, dict)]
-    devs = [d for d in devs if isinstance(d, (int, float))]
-    return max(devs, key=abs) if devs else None
-
-
-def summary_row(name: str, status: str, data: dict | None = None, seconds=None, reason: str = "") -> dict:
-    """One row of ``summary.csv`` from a result dict (``InspectionResult.to_dict`` or result.json)."""
-    data = data or {}
-    sec = "" if seconds is None else f"{seconds:.2f}"
-    return {"capture": name, "status": status, "cover_mm": data.get("cover_mm"),
-            "layer_distance_mm": data.get("layer_distance_mm"),
-            "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")), "seconds": sec, "reason": reason}
-
-
 def summary_csv(rows) -> str:
     """``summary.csv``'s text: a header and one row per capture, empty cells where not measured."""
+    from .batch import SUMMARY_COLUMNS
+
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -207,7 +200,7 @@ def run(args) -> int:
 def _run_locked(args, design, design_path, out, captures, targets) -> int:
     from ._manifest import make_manifest
     from ._outdir import write_file_atomically, write_folder_atomically
-    from .batch import inspect_many
+    from .batch import inspect_many, summary_row
 
     options = _options(args)
     rows = {}
@@ -228,7 +221,8 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
         jobs = None if client else (args.jobs or None)
         outcomes = inspect_many([captures[i] for i in todo], design, client=client, jobs=jobs,
                                 method=args.method, diameters=not args.no_diameters,
-                                mask_source=args.mask_source, rng=args.seed)
+                                mask_source=args.mask_source, rng=args.seed,
+                                calibration=getattr(args, "calibration", None))
         for o in outcomes:
             i = todo[o.index]
             name = targets[i].name

@@ -29,7 +29,7 @@ from ._camera import Intrinsics
 from ._capture import Capture
 from ._checks import RebarInputError
 
-__all__ = ["Calibration", "calibrate", "apply_calibration", "load_calibration", "find_board"]
+__all__ = ["Calibration", "calibrate", "apply_calibration", "load_calibration", "find_board", "calibration_id"]
 
 FORMAT = "rebarlib calibration 1"
 #: At least this many captures must show the whole board.
@@ -134,6 +134,16 @@ def load_calibration(path) -> Calibration:
                            str(d.get("calibrated_on", "")), tuple(d.get("captures") or ()), source=str(path))
     except (KeyError, TypeError, ValueError, RebarInputError) as exc:
         raise RebarInputError(f"--calibration {path}: malformed calibration file ({exc})") from None
+
+
+def calibration_id(path) -> dict:
+    """``{"file": name, "sha256": digest}`` of a calibration file, after checking that it reads
+    (for a result's manifest options: a result made with another calibration is not the same)."""
+    import hashlib
+
+    load_calibration(path)
+    data = Path(path).read_bytes()
+    return {"file": Path(path).name, "sha256": hashlib.sha256(data).hexdigest()}
 
 
 def apply_calibration(capture: Capture, calibration: Calibration) -> Capture:

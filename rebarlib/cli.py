@@ -12,7 +12,7 @@ import sys
 
 from ._checks import RebarInputError
 
-SUBCOMMANDS = ("synth", "inspect", "inspect-cloud", "report")
+SUBCOMMANDS = ("synth", "inspect", "inspect-cloud", "report", "calibrate")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,7 +38,9 @@ def main(argv=None) -> int:
     try:
         return int(args._run(args) or 0)
     except RebarInputError as exc:
-        print(f"rebar {args.command}: error: {exc}", file=sys.stderr)
+        from ._terminal import clean  # the message may quote text from a file
+
+        print(f"rebar {args.command}: error: {clean(exc)}", file=sys.stderr)
         return 2
 
 

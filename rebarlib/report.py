@@ -20,7 +20,7 @@ from ._camera import project
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import Design
-from .acceptance import Acceptance, is_true
+from .acceptance import COVERAGE_K, Acceptance, is_true
 
 __all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
            "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
@@ -34,6 +34,10 @@ _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", 
              "diameter_reason", "one_sided_share")
 VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
                 "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
+#: Longest text a design file's field (slab id, location, project, ...) is printed with; a longer
+#: one is cut there with an ellipsis (the exports keep it whole). A 14 000-character id once made
+#: the PDF take minutes to lay out; 200 characters fill three lines of the identification table.
+FIELD_MAX_CHARS = 200
 IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
@@ -326,6 +330,33 @@ def _capture_folders(source) -> tuple[Path | None, dict]:
     return None, {}
 
 
+def _camera_basis(r: dict) -> str:
+    """How the camera's systematic errors entered a result's uncertainties: "calibrated on ..."
+    or "factory calibration, device profile ..." (``rebarlib.uncertainty``)."""
+    extras = r.get("extras") or {}
+    cal = extras.get("calibration")
+    if cal:
+        return cal.get("summary") or f"calibrated ({cal.get('file', 'calibration file')})"
+    inp = (extras.get("uncertainty") or {}).get("inputs")
+    if not inp:
+        return "not recorded (the result has no uncertainty budget: the uncertainties are the fits' alone)"
+    text = f"factory calibration, device profile {inp.get('name')}"
+    return text + (" (no profile matched the device: conservative default)" if inp.get("default_profile") else "")
+
+
+def _decision_context(acceptance: Acceptance) -> dict:
+    """The decision rule and what it implied on this slab, in words for the methods section."""
+    d = acceptance.decision_summary()
+    pct = lambda x: f"{100 * x:.1f} %"  # noqa: E731
+    d["text"] = (f"{d['within_not_proven']} checkpoint(s) within tolerance but not proven (the interval "
+                 f"± U reaches over a limit), {d['beyond_not_proven']} beyond but not proven. Over the "
+                 f"{d['checkpoints_with_u']} checkpoints with an uncertainty, the expected number of false "
+                 f"accepts is {d['expected_false_accepts']:.2f} (largest single chance "
+                 f"{pct(d['max_false_accept'])}) and of false rejects {d['expected_false_rejects']:.2f} "
+                 f"(largest {pct(d['max_false_reject'])}), for a normal error of standard deviation U / k.")
+    return d
+
+
 def report_context(source, design: Design, acceptance: Acceptance, *, now=None) -> dict:
     """Everything the template prints, as plain values (numbers already judged by ``acceptance``).
 
@@ -346,6 +377,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             if src and Path(src).is_dir():
                 folders[r["capture"]] = Path(src)
     now = now or _dt.datetime.now()
+    design = _limited(design)
     slab = dict(design.slab)
     tol = acceptance.tolerances
     cp = acceptance.checkpoints
@@ -397,6 +429,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             "height": _fmt(cam.get("height_mm"), 0, "mm"),
             "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
             "device": meta.get("device", "not recorded"), "captured_at": meta.get("captured_at", "not recorded"),
+            "camera_basis": _camera_basis(r),
             "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
         })
 
@@ -429,6 +462,13 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             u = sub["uncertainty"].astype(float)
             uncertainty.append({"label": sub["label"].iloc[0], "text":
                                 f"{u.median():.1f} mm (median over {len(u)} capture(s), max {u.max():.1f} mm)"})
+    u_sp = cp[cp["item"].str.startswith("spacing") & cp["uncertainty"].notna()]
+    if len(u_sp):
+        u = u_sp["uncertainty"].astype(float)
+        uncertainty.append({"label": "Spacing (each gap's standard uncertainty)",
+                            "text": f"{u.median():.1f} mm (median over {len(u)} gaps, max {u.max():.1f} mm)"})
+    for row in uncertainty:
+        row["text"] += f"; expanded U = {COVERAGE_K:g} u (k = {COVERAGE_K:g})"
     u_bar = cp[cp["item"].str.startswith("bar_size") & cp["uncertainty"].notna()]
     if len(u_bar):
         uncertainty.append({"label": "Bar width (each bar's standard uncertainty; its spread along the bar "
@@ -467,7 +507,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
         "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons),
         "notes": list(acceptance.notes),
         "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows, "captures": captures,
-        "uncertainty": uncertainty, "not_measured": nm_rows,
+        "uncertainty": uncertainty, "not_measured": nm_rows, "decision": _decision_context(acceptance),
         "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
         "colours": BAR_COLOURS, "layer_colours": LAYER_COLOURS,
     }
@@ -532,6 +572,27 @@ def _env():
 
 def _svg_uri(svg: str) -> str:
     return "data:image/svg+xml;base64," + base64.b64encode(svg.encode("utf-8")).decode("ascii")
+
+
+def limit_text(text, n: int = FIELD_MAX_CHARS) -> str:
+    """``text`` cut to ``n`` characters, the last an ellipsis, where it is longer.
+
+    Examples
+    --------
+    >>> limit_text("S-101"), limit_text("x" * 300, 10)
+    ('S-101', 'xxxxxxxxx…')
+    """
+    text = str(text)
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _limited(design: Design) -> Design:
+    """The design with every text field from its file cut to :data:`FIELD_MAX_CHARS`."""
+    from dataclasses import replace
+
+    slab = {k: limit_text(v) if isinstance(v, str) else v for k, v in design.slab.items()}
+    return replace(design, slab_id=limit_text(design.slab_id), element=limit_text(design.element),
+                   location=limit_text(design.location), slab=slab)
 
 
 def render_html(context: dict) -> str:

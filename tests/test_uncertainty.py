@@ -1,0 +1,272 @@
+"""The uncertainty budget (rebarlib.uncertainty), device profiles (rebarlib.devices) and the
+decision rules in the verdict (rebarlib._decision, acceptance.evaluate).
+
+The sensitivity coefficients are checked against the depth error model itself: points are
+moved by a known depth scale / offset / stereo error and the change of a length or height is
+compared with the coefficient times the error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rebarlib import Measurement, RebarInputError, evaluate, load_tolerances
+from rebarlib._results import InspectionResult
+from rebarlib.devices import device_for, list_devices, load_device
+from rebarlib.uncertainty import (COVERAGE_K, Inputs, apply_budget, combine, height_terms, inputs_for,
+                                  length_terms, width_terms)
+
+Z = 600.0  # working depth, mm
+F = 616.4  # focal length, px
+
+
+def _inputs(**kw) -> Inputs:
+    base = dict(source="test", name="test", u_scale=0.0, u_offset_mm=0.0, u_quad_mm_per_m2=0.0, u_focal=0.0,
+                u_pp_px=0.0, u_registration_px=0.0)
+    return Inputs(**{**base, **kw})
+
+
+def _term(terms, name):
+    return next(t for t in terms if t.name.startswith(name))
+
+
+def _depth_error(z, s=0.0, o=0.0, k=0.0):
+    """The depth a camera with these systematic errors reads for a true depth z (mm)."""
+    return (1 + s) * z + o + k * (z / 1000.0) ** 2
+
+
+def _backproject(u, v, z, f=F, c=(640.0, 400.0)):
+    return np.array([(u - c[0]) * z / f, (v - c[1]) * z / f, z])
+
+
+# ------------------------------------------------------------------------------------------------
+# Device profiles
+# ------------------------------------------------------------------------------------------------
+
+def test_every_shipped_profile_loads_with_a_source_and_positive_limits():
+    devices = list_devices()
+    assert {"gemini2", "femto", "azure_kinect", "realsense_d405", "realsense_d435", "realsense_d455", "zed",
+            "phone_lidar", "unknown"} <= set(devices)
+    for key, p in devices.items():
+        assert p.depth_percent > 0 and p.focal_percent > 0 and p.depth_source, key
+        lim = p.depth_limits()
+        assert lim["scale"] > 0 or lim["quad_mm_per_m2"] > 0, key
+
+
+@pytest.mark.parametrize("device, key", [
+    ("rebarlib synthetic (Gemini-2-like)", "gemini2"), ("Orbbec Gemini 2", "gemini2"),
+    ("Intel RealSense D435I", "realsense_d435"), ("Intel(R) RealSense(TM) Depth Camera 455", "unknown"),
+    ("RealSense D455", "realsense_d455"), ("Orbbec Femto Bolt", "femto"), ("Azure Kinect DK", "azure_kinect"),
+    ("iPhone 13 Pro", "phone_lidar"), ("ZED 2i", "zed"), ("", "unknown"), (None, "unknown")])
+def test_device_strings_pick_their_profile(device, key):
+    prof, matched = device_for(device)
+    assert prof.key == key and matched == (key != "unknown")
+
+
+def test_stereo_profile_error_grows_with_distance_as_the_datasheet_says():
+    # Gemini 2: 2 % of the distance at 2 m (k z²: 40 mm at 2 m), 0.5 % constant scale
+    lim = load_device("gemini2").depth_limits()
+    assert lim["quad_mm_per_m2"] * 2.0 ** 2 == pytest.approx(0.02 * 2000)
+    assert lim["scale"] == pytest.approx(0.005)
+    # ToF: 0.1 % of the distance plus 11 mm
+    tof = load_device("azure_kinect").depth_limits()
+    assert tof == {"scale": pytest.approx(0.001), "offset_mm": 11.0, "quad_mm_per_m2": 0.0}
+
+
+def test_unknown_device_name_is_an_error_only_when_asked_for_by_name():
+    with pytest.raises(RebarInputError, match="no profile matches"):
+        load_device("my own camera")
+    assert inputs_for("my own camera").default_profile
+
+
+def test_inputs_are_rectangular_standard_uncertainties_of_the_limits():
+    i = inputs_for(profile="azure_kinect")
+    assert i.u_offset_mm == pytest.approx(11.0 / math.sqrt(3))
+    assert i.u_scale == pytest.approx(0.001 / math.sqrt(3))
+    assert i.u_focal == pytest.approx(0.003 / math.sqrt(3))
+
+
+# ------------------------------------------------------------------------------------------------
+# Sensitivity coefficients against the error model
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("field, err", [("u_scale", 0.01), ("u_offset_mm", 5.0), ("u_quad_mm_per_m2", 20.0)])
+def test_length_sensitivities_match_the_depth_error_model(field, err):
+    # two points 200 mm apart across the line of sight at depth Z, read through the error
+    L = 200.0
+    a, b = np.array([-L / 2, 0, Z]), np.array([L / 2, 0, Z])
+    kw = {"u_scale": "s", "u_offset_mm": "o", "u_quad_mm_per_m2": "k"}[field]
+    za = _depth_error(Z, **{kw: err})
+    moved = np.linalg.norm(b * za / Z - a * za / Z)  # each point slides along its ray
+    terms = length_terms(L, 0.0, _inputs(**{field: err}), depth_mm=Z, tilt_deg=0.0, focal_px=F)
+    assert combine(terms) == pytest.approx(abs(moved - L), rel=1e-6)
+
+
+@pytest.mark.parametrize("field, err, first_order", [("u_scale", 0.01, True), ("u_offset_mm", 5.0, True),
+                                                     ("u_quad_mm_per_m2", 20.0, False)])
+def test_height_sensitivities_match_the_depth_error_model(field, err, first_order):
+    # a height along the line of sight: two depths h apart, read through the error
+    h = 85.0
+    kw = {"u_scale": "s", "u_offset_mm": "o", "u_quad_mm_per_m2": "k"}[field]
+    moved = _depth_error(Z, **{kw: err}) - _depth_error(Z - h, **{kw: err})
+    terms = height_terms(h, 0.0, _inputs(**{field: err}), depth_mm=Z - h / 2, tilt_deg=0.0)
+    # k z² is linearised at the middle of the height: exact for a quadratic
+    assert combine(terms) == pytest.approx(abs(moved - h), rel=1e-6, abs=1e-9)
+
+
+def test_focal_length_stretches_lengths_not_heights_seen_square_on():
+    u_f = 0.004
+    L = 200.0
+    # a point pair imaged through a lens whose focal length is (1 + u_f) x the one written
+    uv = [(640 - L / 2 * F * (1 + u_f) / Z, 400), (640 + L / 2 * F * (1 + u_f) / Z, 400)]
+    a, b = (_backproject(u, v, Z) for u, v in uv)
+    lt = length_terms(L, 0.0, _inputs(u_focal=u_f), depth_mm=Z, tilt_deg=0.0, focal_px=F)
+    assert combine(lt) == pytest.approx(np.linalg.norm(b - a) - L, rel=1e-9)
+    ht = height_terms(85.0, 0.0, _inputs(u_focal=u_f), depth_mm=Z, tilt_deg=0.0)
+    assert combine(ht) == 0.0
+    ht20 = height_terms(85.0, 0.0, _inputs(u_focal=u_f), depth_mm=Z, tilt_deg=20.0)
+    assert combine(ht20) == pytest.approx(85.0 * u_f * math.sin(math.radians(20)) ** 2)
+
+
+def test_combined_is_the_root_sum_of_squares_and_keeps_the_random_term():
+    terms = height_terms(85.0, 0.3, _inputs(u_scale=0.004), depth_mm=Z, tilt_deg=0.0, envelope_mm=0.15)
+    expected = math.sqrt(0.3 ** 2 + (85 * 0.004) ** 2 + 0.15 ** 2)
+    assert combine(terms) == pytest.approx(expected)
+    assert _term(terms, "fits").kind == "random" and _term(terms, "depth scale").kind == "systematic"
+
+
+def test_registration_reaches_a_width_through_the_pixel_size():
+    t = width_terms(13.9, 0.0, _inputs(), depth_mm=Z, tilt_deg=0.0, focal_px=F, registration_px=0.5)
+    assert combine(t) == pytest.approx(0.5 / math.sqrt(3) * Z / F)
+
+
+# ------------------------------------------------------------------------------------------------
+# The budget applied to a result
+# ------------------------------------------------------------------------------------------------
+
+def _result(paper_design, device_bars_z=600.0) -> InspectionResult:
+    bars = pd.DataFrame({
+        "bar_id": [0, 1, 2], "layer": ["lower"] * 3, "level": ["bottom"] * 3,
+        "start_z_mm": [device_bars_z] * 3, "end_z_mm": [device_bars_z] * 3, "axis_se_mm": [0.1, 0.2, 0.1],
+        "status": ["measured"] * 3, "width_used_mm": [16.1, 16.3, 13.8], "width_sigma_mm": [0.2, 0.2, 0.2]})
+    spacings = pd.DataFrame({"layer": ["lower"] * 2, "level": ["bottom"] * 2, "bar_a": [0, 1], "bar_b": [1, 2],
+                             "spacing_mm": [199.0, 203.0], "design_spacing_mm": [200.0, 200.0],
+                             "deviation_mm": [-1.0, 3.0], "status": ["measured"] * 2, "reason": ["", ""]})
+    return InspectionResult("A", "refined", Measurement(20.4, 0.05, 500), Measurement(85.3, 0.07, 900),
+                            Measurement(125.0, 0.06, 400), Measurement.not_measured("no thickness"),
+                            bars, spacings, camera={"height_mm": 650.0, "tilt_deg": 10.0})
+
+
+def test_apply_budget_keeps_every_value_and_records_every_term(paper_design):
+    res = _result(paper_design)
+    before = (res.cover.value_mm, res.layer_distance.value_mm, res.spacings["spacing_mm"].tolist(),
+              res.bars["width_used_mm"].tolist())
+    apply_budget(res, paper_design, device="rebarlib synthetic (Gemini-2-like)", intrinsics=None)
+    assert (res.cover.value_mm, res.layer_distance.value_mm, res.spacings["spacing_mm"].tolist(),
+            res.bars["width_used_mm"].tolist()) == before
+    ub = res.extras["uncertainty"]
+    assert ub["k"] == COVERAGE_K and ub["inputs"]["name"] == "Orbbec Gemini 2"
+    cover = ub["measurements"]["cover"]
+    assert {t["term"] for t in cover["terms"]} >= {"fits (random)", "depth scale", "focal length",
+                                                    "rib envelope (spread between mills)", "assumed bar shape"}
+    assert res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4) and res.cover.uncertainty_mm > 0.05
+    assert cover["U_mm"] == pytest.approx(2 * cover["u_mm"], abs=2e-4)
+    # the layer distance is longer than the cover: its scale term is larger
+    ld = {t["term"]: t["contribution_mm"] for t in ub["measurements"]["layer_distance"]["terms"]}
+    cv = {t["term"]: t["contribution_mm"] for t in cover["terms"]}
+    assert ld["depth scale"] == pytest.approx(cv["depth scale"] * 85.3 / 20.4, rel=1e-3)
+    # spacings: random from the two axes, plus the systematic terms
+    u_sp = res.spacings["uncertainty_mm"].to_numpy()
+    assert np.all(u_sp > math.hypot(0.1, 0.2))
+    # widths: combined uncertainty and a confidence no higher than with the random term alone
+    assert np.all(res.bars["width_uncertainty_mm"] > res.bars["width_sigma_mm"])
+    assert res.bars["budget_confidence"].between(0, 1).all()
+    assert not any("matches no device profile" in n for n in res.notes)
+
+
+def test_unknown_device_uses_the_conservative_default_and_says_so(paper_design):
+    known = apply_budget(_result(paper_design), paper_design, device="Orbbec Gemini 2")
+    unknown = apply_budget(_result(paper_design), paper_design, device="a camera nobody knows")
+    assert any("matches no device profile" in n for n in unknown.notes)
+    assert unknown.extras["uncertainty"]["inputs"]["default_profile"]
+    assert unknown.layer_distance.uncertainty_mm > known.layer_distance.uncertainty_mm
+
+
+# ------------------------------------------------------------------------------------------------
+# Decision rules
+# ------------------------------------------------------------------------------------------------
+
+def _meas(v, u):
+    return {"value_mm": v, "uncertainty_mm": u, "n_points": 100, "status": "measured", "reason": ""}
+
+
+def _slab(cover, u_cover, spacing=None, u_sp=None):
+    r = {"capture": "A", "measurements": {"cover": _meas(cover, u_cover), "layer_distance": _meas(85.0, 0.3)}}
+    if spacing is not None:
+        r["spacings"] = [{"layer": "lower", "level": "bottom", "bar_a": 0, "bar_b": 1, "spacing_mm": spacing,
+                          "design_spacing_mm": 200.0, "deviation_mm": spacing - 200.0, "status": "measured",
+                          "reason": "", "uncertainty_mm": u_sp}]
+    return r
+
+
+def _cp(acc, item):
+    return acc.checkpoints.set_index("item").loc[item]
+
+
+def test_every_preset_names_simple_acceptance_and_design_can_override(paper_design):
+    from dataclasses import replace
+
+    for name in ("GB50204-2015", "ACI117-318", "EN13670-class1", "custom"):
+        assert load_tolerances(name).decision_rule == "simple"
+    d = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"})
+    acc = evaluate([_slab(21.5, 0.3)], d)
+    assert acc.tolerances.decision_rule == "guarded"
+    with pytest.raises(RebarInputError, match="decision_rule"):
+        evaluate([_slab(21.5, 0.3)], replace(paper_design, tolerances={"decision_rule": "lenient"}))
+
+
+def test_simple_acceptance_marks_a_straddling_interval_but_keeps_the_verdict(paper_design):
+    # GB 50204 slab cover ±3 mm on a 20 mm design (paper design): 22.6 is within, U = 0.8 straddles +3
+    acc = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], paper_design)
+    c = _cp(acc, "cover")
+    assert c["status"] == "within" and c["decision"] == "within, not proven"
+    assert c["expanded_uncertainty"] == pytest.approx(0.8)
+    # the chance it is out of tolerance: the normal tail beyond the limit, 0.4 / 0.4 = 1 sigma
+    assert c["risk"] == pytest.approx(1 - 0.8413, abs=1e-3)
+    assert acc.items.set_index("item").loc["cover", "not_proven"] == 1
+    assert acc.items.set_index("item").loc["cover", "verdict"] == "pass"
+    s = acc.decision_summary()
+    assert s["rule"] == "simple" and s["within_not_proven"] == 1 and "50 %" in s["worst_case"]
+
+
+def test_beyond_not_proven_and_a_clear_within(paper_design):
+    acc = evaluate([_slab(paper_design.cover_mm + 3.3, 0.4)], paper_design)
+    assert _cp(acc, "cover")["decision"] == "beyond, not proven" and _cp(acc, "cover")["status"] == "beyond"
+    acc = evaluate([_slab(paper_design.cover_mm + 0.5, 0.4)], paper_design)
+    assert _cp(acc, "cover")["decision"] == "within" and _cp(acc, "cover")["risk"] < 1e-6
+
+
+def test_guarded_acceptance_narrows_the_limit_by_U(paper_design):
+    from dataclasses import replace
+
+    guarded = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"})
+    # within by 0.4 mm < U = 0.8: accepted under simple acceptance, not under guarded acceptance
+    simple = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], paper_design)
+    g = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], guarded)
+    assert _cp(simple, "cover")["status"] == "within" and _cp(g, "cover")["status"] == "beyond"
+    assert _cp(g, "cover")["decision"] == "within, not proven"
+    # its risk is now that of a false reject: the chance it is within after all
+    assert _cp(g, "cover")["risk"] == pytest.approx(0.8413, abs=1e-3)
+    # within by more than U: accepted under both
+    g2 = evaluate([_slab(paper_design.cover_mm + 2.0, 0.4)], guarded)
+    assert _cp(g2, "cover")["status"] == "within"
+
+
+def test_spacing_uncertainty_reaches_the_checkpoints(paper_design):
+    acc = evaluate([_slab(20.0, 0.2, spacing=208.5, u_sp=1.0)], paper_design)
+    sp = acc.checkpoints[acc.checkpoints["item"] == "spacing_lower_bottom"].iloc[0]
+    assert sp["uncertainty"] == 1.0 and sp["decision"] == "within, not proven"
