@@ -323,6 +323,14 @@ def _records(df) -> list:
             for r in df.to_dict(orient="records")]
 
 
+def _no_image_text(result: dict, has_folder: bool) -> str:
+    """Why a capture's section shows no colour image (a scanned cloud has none: its plan view does)."""
+    if (result.get("extras") or {}).get("cloud") is not None:
+        return "a scanned point cloud has no colour image; the plan view below shows its bars"
+    return "colour image or camera.json unreadable" if has_folder else \
+        "no capture folder with a colour image and camera.json"
+
+
 def _capture_folders(source) -> tuple[Path | None, dict]:
     if isinstance(source, (str, Path)):
         slab = Path(source)
@@ -422,8 +430,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
         cam = r.get("camera") or {}
         captures.append({
             "name": name, "method": r.get("method", ""), "image": image,
-            "image_missing": "" if image else ("no capture folder with a colour image and camera.json"
-                                               if name not in folders else "colour image or camera.json unreadable"),
+            "image_missing": "" if image else _no_image_text(r, name in folders),
             "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design),
             "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
             "height": _fmt(cam.get("height_mm"), 0, "mm"),
