@@ -21,7 +21,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "default_jobs", "WORKER_THREADS"]
+__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "summary_row", "summary_table",
+           "SUMMARY_COLUMNS", "default_jobs", "WORKER_THREADS"]
 
 #: Threads of the segmentation model (onnxruntime) and of OpenCV in a batch worker: one task,
 #: one core. The results do not depend on it (``benchmarks/bench_batch.py --check``).
@@ -57,6 +58,40 @@ class Outcome:
     def ok(self) -> bool:
         """True where the capture was inspected."""
         return self.error is None
+
+
+#: Columns of a batch's summary (``OUT/summary.csv``, :func:`summary_table`).
+SUMMARY_COLUMNS = ("capture", "status", "cover_mm", "layer_distance_mm", "worst_spacing_deviation_mm",
+                   "seconds", "reason")
+
+
+def _worst_deviation(spacings):
+    devs = [s.get("deviation_mm") for s in spacings or [] if isinstance(s, dict)]
+    devs = [d for d in devs if isinstance(d, (int, float))]
+    return max(devs, key=abs) if devs else None
+
+
+def summary_row(name: str, status: str, data: dict | None = None, seconds=None, reason: str = "") -> dict:
+    """One row of a batch summary from a result dict (``InspectionResult.to_dict()`` or a
+    ``result.json``): cover, layer distance, the spacing deviation largest in size (signed),
+    mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed)."""
+    data = data or {}
+    sec = "" if seconds is None else f"{seconds:.2f}"
+    return {"capture": name, "status": status, "cover_mm": data.get("cover_mm"),
+            "layer_distance_mm": data.get("layer_distance_mm"),
+            "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")), "seconds": sec, "reason": reason}
+
+
+def summary_table(outcomes):
+    """A pandas DataFrame with one :func:`summary_row` per outcome (status "ok" or "failed"),
+    in the order of the captures."""
+    import pandas as pd
+
+    rows = [summary_row(o.capture, "ok" if o.ok else "failed", o.result.to_dict() if o.ok else None,
+                        o.seconds, o.error or "") for o in sorted(outcomes, key=lambda o: o.index)]
+    table = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+    table["seconds"] = pd.to_numeric(table["seconds"])
+    return table
 
 
 def default_jobs() -> int:
@@ -148,7 +183,8 @@ def _check_args(design, jobs, client, inspect_kw):
         raise RebarInputError("jobs: give either jobs (local processes) or client (a dask cluster), not both")
     rng = inspect_kw.get("rng")
     if rng is not None and (isinstance(rng, bool) or not isinstance(rng, int)):
-        raise RebarInputError(f"rng: a batch inspects every capture with the same whole-number seed, got {type(rng).__name__}")
+        raise RebarInputError("rng: a batch inspects every capture with the same whole-number seed, "
+                              f"got {type(rng).__name__}")
     return design
 
 
@@ -236,6 +272,8 @@ def _failed(index, capture, exc) -> Outcome:
 def _init_worker(threads):
     os.environ["OMP_NUM_THREADS"] = str(threads)  # Open3D's OpenMP loops, if not yet started
     _configure_threads(threads)
+    # import the stages now, so that a capture's seconds are its own, not the worker's start-up
+    from . import _diameter, _inspect  # noqa: F401
 
 
 def _in_processes(items, jobs, inspect_kw):

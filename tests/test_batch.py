@@ -326,3 +326,16 @@ def test_floor_report_checks_its_outputs_before_computing(floor, tmp_path, capsy
 def _summary_of(path: Path) -> list:
     with open(path, newline="", encoding="utf-8") as f:
         return list(csv.DictReader(f))
+
+
+def test_summary_table_is_the_summary_csv_of_the_outcomes(tmp_path):
+    from rebarlib.batch import SUMMARY_COLUMNS, summary_table
+
+    caps = [example_capture("paper_slab", "D_500"), _broken_capture(tmp_path)]
+    outcomes = list(inspect_many(caps, PAPER_DESIGN, jobs=1, diameters=False, rng=0))
+    table = summary_table(outcomes[::-1])  # back in the captures' order
+    assert list(table.columns) == list(SUMMARY_COLUMNS) and list(table["capture"]) == ["D_500", "broken"]
+    assert list(table["status"]) == ["ok", "failed"]
+    data = outcomes[0].result.to_dict()
+    assert table.loc[0, "cover_mm"] == data["cover_mm"] and table.loc[0, "layer_distance_mm"] == data["layer_distance_mm"]
+    assert pd.isna(table.loc[1, "cover_mm"]) and "no color.png" in table.loc[1, "reason"]
