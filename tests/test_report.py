@@ -29,6 +29,13 @@ HIDE_EVERY = 5  # every 5th visible bar is reported hidden under crossing bars
 EVIL = "<img src=file:///etc/passwd>"
 
 
+def with_manifest(result: dict, capture: str) -> dict:
+    """The result with the manifest `rebar inspect` stores: made from PAPER's capture and design."""
+    from rebarlib._manifest import make_manifest
+
+    return {**result, "manifest": make_manifest(PAPER / capture, PAPER / "design.toml", method="refined")}
+
+
 def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict:
     """A result.json dict holding the synthetic capture's ground truth."""
     t = json.loads((capture_dir / "truth.json").read_text(encoding="utf-8"))
@@ -167,7 +174,7 @@ def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     results = tmp_path / "results"
     for name, r in res.items():  # C_600 and D_500 have no result
         (results / name).mkdir(parents=True)
-        (results / name / "result.json").write_text(json.dumps(r), encoding="utf-8")
+        (results / name / "result.json").write_text(json.dumps(with_manifest(r, name)), encoding="utf-8")
     out = tmp_path / "report" / "S-101.pdf"
     assert main(["report", str(PAPER), "--results", str(results), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -191,7 +198,8 @@ def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
 def test_cli_html_with_another_standard(paper, tmp_path):
     _, res = paper
     (tmp_path / "res" / "A_400").mkdir(parents=True)
-    (tmp_path / "res" / "A_400" / "result.json").write_text(json.dumps(res["A_400"]), encoding="utf-8")
+    (tmp_path / "res" / "A_400" / "result.json").write_text(json.dumps(with_manifest(res["A_400"], "A_400")),
+                                                            encoding="utf-8")
     out = tmp_path / "r.html"
     assert main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out),
                  "--standard", "ACI117-318", "--no-exports"]) == 0
@@ -247,7 +255,7 @@ def test_cli_inspects_captures_itself_without_results(paper, tmp_path, monkeypat
     saved = json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))
     assert saved["missing_captures"] == [{"capture": "D_500", "reason": "inspection failed: depth image empty"}]
     monkeypatch.setitem(sys.modules, "rebarlib._inspect", None)  # the stage is not installed
-    assert main(["report", str(PAPER), "--out", str(out)]) == 2
+    assert main(["report", str(PAPER), "--out", str(out), "--force"]) == 2  # (the report exists)
     assert "--results" in capsys.readouterr().err
 
 
