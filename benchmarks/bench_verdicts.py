@@ -1,0 +1,260 @@
+"""Verdicts over many rendered slabs: is a slab rejected only for defects that are there?
+
+Renders ``--slabs`` slabs (default 60) of finite double-layer meshes, 2-4 captures each (heights
+400-700 mm, tilts 0-20°, any yaw of mesh and camera, the mesh's edge in view in a third of them,
+lower bars without depth in a quarter of the captures, rust on some). Even-numbered slabs have no
+defect; odd ones exactly one, in turn: a missing bar inside the view, a missing bar at a row's
+end, a bar of the wrong size, cover off by +5 mm, one spacing off by +25 mm, layer distance off by
++8 mm. The first capture of a defective slab is aimed at the defect. Every slab is inspected
+(``rebarlib.inspect``, refined, diameters) and judged (``rebarlib.evaluate``) under its design's
+standard: GB 50204-2015, except the spacing-defect slabs, which are judged under EN 13670 class 1
+(every spacing within ±20 mm): GB 50204's general-item rule accepts a lot with up to 20 % of its
+spacings out of tolerance, so one spacing 25 mm off is within that code's allowance.
+
+Prints the verdict confusion matrix (truth: clean / defective against accepted / incomplete /
+rejected), per item the false fails and the missed defects, and whether each rejected slab names
+its true defect. Renders are cached (``--cache DIR``), so a second run only inspects.
+
+    python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
+#: the acceptance item a defect must fail
+DEFECT_ITEM = {"missing_inside": "bar_count", "missing_end": "bar_count", "wrong_size": "bar_size",
+               "cover": "cover", "spacing": "spacing", "layer_distance": "layer_distance"}
+DESIGNS = (  # (lower Φ, lower spacing, upper Φ, upper spacing, cover, layer distance)
+    (14, 200, 12, 200, 20, 85),
+    (12, 150, 10, 150, 25, 70),
+    (16, 200, 14, 180, 30, 100),
+)
+
+
+def design_toml(k: int, defect: str | None) -> str:
+    dl, sl, du, su, cover, ld = DESIGNS[k % len(DESIGNS)]
+    std = "EN13670-class1" if defect == "spacing" else "GB50204-2015"
+    return (f'[slab]\nid = "V-{k:03d}"\nstandard = "{std}"\n\n[design]\ncover_mm = {cover}\n'
+            f"layer_distance_mm = {ld}\n\n[design.lower]\ndiameter_mm = {dl}\nspacing_mm = {sl}\n\n"
+            f"[design.upper]\ndiameter_mm = {du}\nspacing_mm = {su}\n")
+
+
+def _render_slab(args) -> str:
+    """Render slab ``k`` into ``cache/slab_k`` (design.toml, captures, slab.json); returns the folder."""
+    k, cache = args
+    import rebarlib as R
+    from rebarlib import synth as S
+
+    folder = Path(cache) / f"slab_{k:03d}"
+    if (folder / "slab.json").exists():
+        return str(folder)
+    rng = np.random.default_rng([2026, k])
+    defect = None if k % 2 == 0 else DEFECTS[(k // 2) % len(DEFECTS)]
+    design = R.design_from_dict(_toml(design_toml(k, defect)), source=f"slab {k}")
+    render = design
+    if defect == "cover":
+        render = _with(design, cover_mm=design.cover_mm + 5)
+    elif defect == "layer_distance":
+        render = _with(design, layer_distance_mm=design.layer_distance_mm + 8)
+    dev = S.Deviations(end_overhang_mm=float(rng.uniform(25, 75)), mesh_yaw_deg=float(rng.uniform(0, 180)),
+                       position_sigma_mm=1.5, position_uniform_mm=4.0, slab_size_mm=float(rng.uniform(1600, 2400)),
+                       missing=1 if defect == "missing_inside" else 0,
+                       missing_at_end=1 if defect == "missing_end" else 0,
+                       wrong_size=1 if defect == "wrong_size" else 0)
+    scene = S.make_scene(render, dev, rng=np.random.default_rng([2026, k, 1]))
+    if defect == "spacing":
+        scene = _open_one_gap(scene, rng, 25.0)
+    n_cap = int(rng.integers(2, 5)) if k % 5 == 0 else 2
+    edge_view = k % 3 == 0
+    targets = _targets(scene, defect, n_cap, edge_view, rng)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "design.toml").write_text(design_toml(k, defect), encoding="utf-8")
+    caps = []
+    for j, target in enumerate(targets):
+        h = float(rng.uniform(400, 700))
+        pose = S.CameraPose.looking_down(h, tilt_deg=float(rng.uniform(0, 20)), yaw_deg=float(rng.uniform(0, 360)),
+                                         target_mm=tuple(target))
+        shadow = int(rng.random() < 0.25)
+        sensor = S.SensorModel(bars_without_depth=shadow)
+        app = S.Appearance(rust_fraction=float(rng.choice([0.0, 0.0, 0.3, 0.8])))
+        cap = S.render_capture(scene, pose, sensor=sensor, appearance=app, rng=np.random.default_rng([2026, k, 2, j]),
+                               name=f"C{j}_{int(h)}")
+        R.save_capture(cap, folder / f"C{j}_{int(h)}", overwrite=True)
+        caps.append(f"C{j}_{int(h)}")
+    meta = {"slab": k, "defect": defect, "captures": caps, "edge_view": edge_view,
+            "shadows": sum(1 for c in caps if json.loads((folder / c / "truth.json").read_text())["sensor"]
+                           .get("bars_without_depth"))}
+    (folder / "slab.json").write_text(json.dumps(meta), encoding="utf-8")
+    return str(folder)
+
+
+def _toml(text: str) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    return tomllib.loads(text)
+
+
+def _with(design, **kw):
+    import dataclasses
+
+    return dataclasses.replace(design, **kw)
+
+
+def _open_one_gap(scene, rng, by_mm: float):
+    """Move every bar beyond one inner gap of one upper set by ``by_mm`` (that gap opens by it)."""
+    import dataclasses
+
+    sets = {}
+    for b in scene.bars:
+        sets.setdefault((b.layer, b.level), []).append(b)
+    layer_level = ("upper", "bottom") if rng.random() < 0.5 else ("upper", "top")
+    row = sorted(sets[layer_level], key=lambda b: b.offset_mm)
+    cut = int(rng.integers(2, len(row) - 2))
+    moved = {b.id for b in row[cut:]}
+    bars = []
+    for b in scene.bars:
+        if b.id in moved:
+            b = dataclasses.replace(b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b))
+        bars.append(b)
+    out = dataclasses.replace(scene, bars=tuple(bars))
+    object.__setattr__(out, "_opened_gap", (layer_level, row[cut - 1].id, row[cut].id))
+    return out
+
+
+def _across(scene, b) -> np.ndarray:
+    """The unit vector along which ``make_scene`` offsets bar ``b``."""
+    yaw = math.radians(scene.deviations.mesh_yaw_deg)
+    ex = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    ey = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    return ey if b.level == "bottom" else ex
+
+
+def _targets(scene, defect, n: int, edge_view: bool, rng) -> list:
+    """Where each capture looks (world x, y mm): the first at the defect, one at the mesh's edge
+    where asked, the others inside the mesh."""
+    pts = np.vstack([b.axis[[0, -1], :2] for b in scene.bars])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    out = []
+    focus = None
+    if defect in ("missing_inside", "missing_end") and scene.ghosts:
+        g = scene.ghosts[0]
+        focus = g.axis[0, :2] + rng.uniform(0.3, 0.7) * (g.axis[-1, :2] - g.axis[0, :2])
+        if defect == "missing_end":  # step towards the mesh's middle, so the edge and the row are in view
+            mid = 0.5 * (lo + hi)
+            focus = focus + 0.25 * (mid - focus) / max(np.linalg.norm(mid - focus), 1) * 400
+    elif defect == "wrong_size":
+        b = next(b for b in scene.bars if b.nominal_mm != b.design_mm)
+        focus = b.axis[0, :2] + rng.uniform(0.35, 0.65) * (b.axis[-1, :2] - b.axis[0, :2])
+    elif defect == "spacing":
+        _, ia, ib = scene._opened_gap
+        a, b = scene.bars[ia], scene.bars[ib]
+        focus = 0.5 * (a.axis.mean(0)[:2] + b.axis.mean(0)[:2])
+    if focus is not None:
+        out.append(focus)
+    if edge_view and len(out) < n:
+        side = rng.integers(4)
+        x = rng.uniform(lo[0] + 300, hi[0] - 300)
+        y = rng.uniform(lo[1] + 300, hi[1] - 300)
+        x = [lo[0] + 150, hi[0] - 150, x, x][side]
+        y = [y, y, lo[1] + 150, hi[1] - 150][side]
+        out.append(np.array([x, y]))
+    while len(out) < n:
+        out.append(rng.uniform(lo + 350, hi - 350))
+    return [tuple(map(float, t)) for t in out[:n]]
+
+
+def _inspect_slab(folder: str) -> dict:
+    import rebarlib as R
+
+    folder = Path(folder)
+    meta = json.loads((folder / "slab.json").read_text())
+    out_file = folder / "verdict.json"
+    design = R.load_design(folder / "design.toml")
+    t = time.perf_counter()
+    results = [R.inspect(R.load_capture(folder / c), design, rng=0).to_dict() for c in meta["captures"]]
+    acc = R.evaluate(results, design)
+    items = acc.items
+    failed = sorted({str(i).split("_lower")[0].split("_upper")[0] for i, v in zip(items["item"], items["verdict"])
+                     if v == "fail"})
+    incomplete = sorted({str(i).split("_lower")[0].split("_upper")[0]
+                         for i, v in zip(items["item"], items["verdict"]) if v not in ("pass", "fail")})
+    rec = {**meta, "verdict": acc.verdict, "failed": failed, "incomplete": incomplete,
+           "reasons": list(acc.reasons), "seconds": round(time.perf_counter() - t, 2)}
+    out_file.write_text(json.dumps(rec, indent=1), encoding="utf-8")
+    return rec
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--slabs", type=int, default=60)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--cache", default="/tmp/rebarlib_verdicts")
+    ap.add_argument("--start", type=int, default=0, help="first slab number")
+    args = ap.parse_args(argv)
+    cache = Path(args.cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    ks = list(range(args.start, args.start + args.slabs))
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(args.jobs) as ex:
+        folders = list(ex.map(_render_slab, [(k, str(cache)) for k in ks]))
+        t1 = time.perf_counter()
+        recs = list(ex.map(_inspect_slab, folders))
+    t2 = time.perf_counter()
+    print(f"{len(recs)} slabs, {sum(len(r['captures']) for r in recs)} captures "
+          f"(render {t1 - t0:.0f} s, inspect + judge {t2 - t1:.0f} s, {args.jobs} processes)\n")
+    report(recs)
+    return 0
+
+
+def report(recs: list) -> None:
+    verdicts = ("accepted", "incomplete", "rejected")
+    print("| truth \\ verdict | " + " | ".join(verdicts) + " |")
+    print("|---|" + "---:|" * len(verdicts))
+    for truth in ("clean", "defective"):
+        sel = [r for r in recs if (r["defect"] is None) == (truth == "clean")]
+        print(f"| {truth} ({len(sel)}) | " + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts)
+              + " |")
+    print("\nPer defect: slabs, rejected naming the defect, rejected for something else only, incomplete, "
+          "accepted (missed)\n")
+    print("| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for d in DEFECTS:
+        sel = [r for r in recs if r["defect"] == d]
+        named = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] in r["failed"] for r in sel)
+        other = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] not in r["failed"] for r in sel)
+        print(f"| {d} | {len(sel)} | {named} | {other} | {sum(r['verdict'] == 'incomplete' for r in sel)} | "
+              f"{sum(r['verdict'] == 'accepted' for r in sel)} |")
+    items = ("cover", "layer_distance", "spacing", "bar_size", "bar_count")
+    print("\nPer item: false fails (failed on a slab without that defect), missed (defect of that item, "
+          "item not failed), left incomplete\n")
+    print("| item | false fails | missed | incomplete (clean slabs) |")
+    print("|---|---:|---:|---:|")
+    for it in items:
+        false = sum(it in r["failed"] and DEFECT_ITEM.get(r["defect"]) != it for r in recs)
+        missed = sum(DEFECT_ITEM.get(r["defect"]) == it and it not in r["failed"] for r in recs)
+        inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None)
+        print(f"| {it} | {false} | {missed} | {inc} |")
+    print("\nSlabs not as expected:")
+    for r in recs:
+        want = "accepted" if r["defect"] is None else "rejected"
+        extra = [f for f in r["failed"] if f != DEFECT_ITEM.get(r["defect"])]
+        if r["verdict"] != want or extra:
+            print(f"- slab {r['slab']:03d} ({r['defect'] or 'clean'}, {len(r['captures'])} captures, edge view "
+                  f"{r['edge_view']}, shadows {r['shadows']}): {r['verdict']}; failed {r['failed']}; "
+                  f"incomplete {r['incomplete']}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
