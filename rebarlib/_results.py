@@ -81,7 +81,9 @@ class InspectionResult:
       reason``; the diameter stage adds its columns (``nominal_mm``, ``diameter_status``, ...).
     - ``spacings``: ``layer, level, bar_a, bar_b, spacing_mm, design_spacing_mm, deviation_mm,
       status, reason`` in order across the bars.
-    - ``counts``: ``layer, level, found, expected, missing, extra``.
+    - ``counts``: ``layer, level, found, expected, missing, extra, not_measured, outside,
+      evidence`` (missing and extra bars are counted only on evidence: docs/verdicts.md).
+    - ``positions``: one row per examined position (``_counts.POSITION_COLUMNS``).
     """
 
     capture: str
@@ -93,6 +95,8 @@ class InspectionResult:
     bars: object  # pandas.DataFrame
     spacings: object  # pandas.DataFrame
     counts: object = None  # pandas.DataFrame
+    #: every examined bar position: empty design positions and close pairs (``_counts``)
+    positions: object = None  # pandas.DataFrame
     formwork: dict = field(default_factory=dict)  # normal, offset_mm, n_inliers (camera frame)
     camera: dict = field(default_factory=dict)  # height_mm, tilt_deg of the camera over the formwork
     timings_s: dict = field(default_factory=dict)
@@ -110,7 +114,8 @@ class InspectionResult:
                              "upper_top": self.upper_top.to_dict(), "top_cover": self.top_cover.to_dict()},
             "formwork": self.formwork, "camera": self.camera,
             "bars": _table_records(self.bars), "spacings": _table_records(self.spacings),
-            "counts": _table_records(self.counts), "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
+            "counts": _table_records(self.counts), "positions": _table_records(self.positions),
+            "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
             "notes": list(self.notes), "extras": self.extras,
         }
 
