@@ -432,7 +432,8 @@ _READERS = {".ply": _read_ply, ".pcd": _read_pcd, ".xyz": _read_text, ".pts": _r
 
 def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     """Write ``cloud`` (its absolute coordinates) to ``path`` in the format its suffix names,
-    in ``units``; ``intensity`` and ``colors`` are written where the format has room for them."""
+    in ``units``; ``intensity`` and ``colors`` are written where the format has room for them,
+    ``normals`` in PLY, and every field in NPZ."""
     if units not in UNIT_SCALE:
         raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
     p = Path(path)
@@ -442,7 +443,7 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     rgb = cloud.fields.get("colors")
     rgb8 = None if rgb is None else np.clip(np.round(np.asarray(rgb) * 255), 0, 255).astype(np.uint8)
     if suffix == ".ply":
-        _write_ply(p, xyz, inten, rgb8)
+        _write_ply(p, xyz, inten, rgb8, cloud.fields.get("normals"))
     elif suffix == ".pcd":
         _write_pcd(p, xyz, inten)
     elif suffix in (".xyz", ".pts", ".txt", ".csv"):
@@ -460,14 +461,18 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     return p
 
 
-def _write_ply(p, xyz, inten, rgb8):
+def _write_ply(p, xyz, inten, rgb8, normals=None):
     cols = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    if normals is not None:
+        cols += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
     if inten is not None:
         cols.append(("intensity", "<f4"))
     if rgb8 is not None:
         cols += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
     arr = np.empty(len(xyz), np.dtype(cols))
     arr["x"], arr["y"], arr["z"] = xyz.T
+    if normals is not None:
+        arr["nx"], arr["ny"], arr["nz"] = np.asarray(normals, float).T
     if inten is not None:
         arr["intensity"] = inten
     if rgb8 is not None:

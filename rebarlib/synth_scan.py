@@ -170,7 +170,8 @@ def scan_scene(scene: SlabScene, stations, scanner: ScannerModel | None = None, 
 
     Returns
     -------
-    points : (N, 3) world mm; truth : :class:`ScanTruth`; fields : ``intensity`` (N,), ``station`` (N,)
+    points : (N, 3) world mm; truth : :class:`ScanTruth`; fields : ``intensity`` (N,), ``station`` (N,),
+        ``normals`` (N, 3): the true surface normal at each return, turned toward its station
     """
     scanner = scanner or ScannerModel()
     if not stations:
@@ -180,16 +181,18 @@ def scan_scene(scene: SlabScene, stations, scanner: ScannerModel | None = None, 
     region = tuple(float(v) for v in (region or (-half, half, -half, half)))
     top = max(float(b.axis[:, 2].max() + b.radius_mm) for b in scene.bars) + 10.0
     geo, caster, S = _geometry(scene, formwork)
-    pts, labels, inten, station_of = [], [], [], []
+    pts, labels, inten, station_of, normals = [], [], [], [], []
     for k, st in enumerate(stations):
         pos = np.asarray(getattr(st, "position_mm", st), float)
         d = _station_rays(pos, region, top, scanner)
-        p, lab, it = _shoot(pos, d, geo, caster, S, scanner, region, rng)
-        pts.append(p), labels.append(lab), inten.append(it), station_of.append(np.full(len(p), k, np.int16))
+        p, lab, it, nr = _shoot(pos, d, geo, caster, S, scanner, region, rng)
+        pts.append(p), labels.append(lab), inten.append(it), normals.append(nr)
+        station_of.append(np.full(len(p), k, np.int16))
     points = np.vstack(pts)
     labels = np.concatenate(labels)
     truth = ScanTruth(scene, labels, _scanned_lengths(scene, points, labels, region), region, formwork)
-    return points, truth, {"intensity": np.concatenate(inten), "station": np.concatenate(station_of)}
+    return points, truth, {"intensity": np.concatenate(inten), "station": np.concatenate(station_of),
+                           "normals": np.vstack(normals)}
 
 
 def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
@@ -200,13 +203,14 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     cos_inc = np.abs((normal * d).sum(axis=1))
     keep = hit & (rng.random(len(t)) < np.where(hit, cos_inc, 0.0) ** sc.incidence_power)
     idx = np.flatnonzero(keep)
-    t, o, cos_i = t[idx], obj[idx], cos_inc[idx]
+    t, o, cos_i, nrm = t[idx], obj[idx], cos_inc[idx], normal[idx]
     kind, bar = geo.obj_kind[o], geo.obj_bar[o]
     label = np.where(kind == S.K_BAR, bar, np.where(kind == S.K_FORMWORK, LABEL_FORMWORK, LABEL_OTHER))
     true_p = pos + d[idx] * t[:, None]
     x0, x1, y0, y1 = region
     inside = (true_p[:, 0] >= x0) & (true_p[:, 0] <= x1) & (true_p[:, 1] >= y0) & (true_p[:, 1] <= y1)
-    idx, t, label, cos_i, true_p = idx[inside], t[inside], label[inside], cos_i[inside], true_p[inside]
+    idx, t, label, cos_i, true_p, nrm = (idx[inside], t[inside], label[inside], cos_i[inside], true_p[inside],
+                                         nrm[inside])
     rng_t = t.copy()
     # mixed pixels: a grazing return on a bar averages the bar with what lies behind it
     graze = np.flatnonzero((label >= 0) & (cos_i < 0.3) & (rng.random(len(t)) < sc.mixed_fraction))
@@ -224,7 +228,7 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     rng_t = rng_t + rng.normal(0.0, sc.range_sigma_mm, len(t))
     points = pos + d[idx] * rng_t[:, None]
     inten = np.clip(cos_i * 4.0e6 / np.maximum(t, 100.0) ** 2 * np.where(label >= 0, 0.6, 1.0), 0, 1) * 1000
-    return points, label.astype(np.int32), inten
+    return points, label.astype(np.int32), inten, nrm
 
 
 def _scanned_lengths(scene: SlabScene, points, labels, region) -> dict:
@@ -278,7 +282,10 @@ def export_scan(path, points, truth: ScanTruth, fields: dict | None = None, *, u
     R = frame_rotation(up)
     origin = np.asarray(origin_mm, float)
     file_pts = np.asarray(points, float) @ R.T + origin
-    write_cloud(path, ScanCloud(file_pts, np.zeros(3), dict(fields or {})), units=units)
+    fields = dict(fields or {})
+    if "normals" in fields:
+        fields["normals"] = np.asarray(fields["normals"], float) @ R.T
+    write_cloud(path, ScanCloud(file_pts, np.zeros(3), fields), units=units)
     truth.rotation, truth.origin_mm = R, origin
     return truth
 

@@ -1,0 +1,147 @@
+"""Scanned point clouds: file formats, cleaning arrays, inspect_cloud on synthetic scans with
+ground truth (tolerances stated per test), bar-size tables of other markets."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from rebarlib import RebarInputError, design_from_dict, load_design, remove_outliers, voxel_downsample
+from rebarlib._barsizes import bar_system, barset_width_mm
+from rebarlib.cloud_io import ScanCloud, read_cloud, write_cloud
+from rebarlib.scan import diameter_resolvable, inspect_cloud
+from rebarlib.synth_scan import ScannerModel, export_scan, score_scan, synth_scan
+
+DESIGN = "examples/paper_slab/design.toml"
+FORMATS = (".ply", ".pcd", ".xyz", ".pts", ".csv", ".txt", ".npz", ".las", ".laz", ".e57")
+
+
+@pytest.fixture(scope="module")
+def design():
+    return load_design(DESIGN)
+
+
+def _scan(design, sigma, *, formwork=True, seed=0, step=0.1):
+    return synth_scan(design, scanner=ScannerModel(range_sigma_mm=sigma, step_az_deg=step, step_el_deg=step),
+                      formwork=formwork, rng=seed)
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_formats_round_trip_with_fields_and_large_offsets(tmp_path, suffix):
+    g = np.random.default_rng(1)
+    absolute = g.normal(0, 400, (500, 3)) + np.array([4.5e8, 5.2e9, 3.0e5])  # georeferenced, mm
+    cloud = ScanCloud(absolute - absolute[0], absolute[0], {"intensity": g.uniform(0, 900, 500)})
+    write_cloud(tmp_path / f"c{suffix}", cloud, units="m")
+    back = read_cloud(tmp_path / f"c{suffix}", units="m")
+    # LAS stores 0.1 mm steps; the others keep doubles (text: 1 um)
+    assert np.abs(back.absolute_mm - absolute).max() < 0.06
+    assert np.abs(back.points).max() < 5000  # re-centred: small numbers
+    assert "intensity" in back.fields and len(back.fields["intensity"]) == 500
+
+
+def test_unknown_format_and_missing_units(tmp_path):
+    (tmp_path / "c.obj").write_text("v 0 0 0\n")
+    with pytest.raises(RebarInputError, match="unknown point cloud format"):
+        read_cloud(tmp_path / "c.obj", units="mm")
+    with pytest.raises(RebarInputError, match="units"):
+        inspect_cloud(tmp_path / "c.obj", load_design(DESIGN))
+
+
+def test_cleaning_accepts_arrays_and_scan_clouds():
+    g = np.random.default_rng(0)
+    pts = np.vstack([g.normal(0, 10, (2000, 3)), [[1e4, 1e4, 1e4]]])
+    kept = remove_outliers(pts)
+    assert isinstance(kept, np.ndarray) and len(kept) < len(pts) and np.abs(kept).max() < 1e3
+    sc = ScanCloud(pts, np.zeros(3), {"intensity": np.arange(len(pts), dtype=float)})
+    thin = voxel_downsample(sc, 5.0)
+    assert isinstance(thin, ScanCloud) and len(thin.fields["intensity"]) == len(thin) < len(sc)
+    assert np.allclose(sc.points[thin.fields["intensity"].astype(int)], thin.points)
+
+
+@pytest.mark.slow
+def test_scan_with_formwork_finds_every_bar_and_measures_to_tolerance(design):
+    pts, truth, _ = _scan(design, 10.0, seed=0)
+    res = inspect_cloud(pts, design)
+    s = score_scan(res, truth)
+    assert s["missed"] == 0 and s["phantoms"] == 0, s
+    assert s["spacing_max_abs_err_mm"] <= 8.0  # sigma 10 mm, bars 14/12 mm
+    assert abs(s["layer_distance_err_mm"]) <= 3.0
+    assert abs(s["cover_err_mm"]) <= 4.0
+    assert res.formwork["found"] and "formwork" in res.notes[0]
+
+
+@pytest.mark.slow
+def test_scan_without_formwork_y_up_far_origin_in_metres(design, tmp_path):
+    pts, truth, fields = _scan(design, 10.0, formwork=False, seed=5)
+    export_scan(tmp_path / "site.laz", pts, truth, fields, units="m", up="+y", origin_mm=(20000.0, 5000.0, -3000.0))
+    res = inspect_cloud(tmp_path / "site.laz", design, units="m", up="+y")
+    s = score_scan(res, truth)
+    assert s["missed"] == 0 and s["phantoms"] == 0, s
+    assert s["spacing_max_abs_err_mm"] <= 8.0
+    assert abs(s["layer_distance_err_mm"]) <= 3.0
+    assert not res.cover.ok and "no datum" in res.cover.reason
+
+
+@pytest.mark.slow
+def test_up_sign_from_the_normals_without_formwork(design, tmp_path):
+    # sigma 15 mm: the crossings cannot tell the sign here, the scanner's normals can
+    pts, truth, fields = _scan(design, 15.0, formwork=False, seed=1)
+    export_scan(tmp_path / "geo.ply", pts, truth, fields, units="m", up="-y", origin_mm=(5e8, 3e9, 1.2e5))
+    res = inspect_cloud(read_cloud(tmp_path / "geo.ply", units="m"), design)
+    s = score_scan(res, truth)
+    assert "normals" in res.notes[0]
+    assert s["missed"] == 0 and s["phantoms"] == 0, s  # upside down, no bar would match its level
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("flip", [False, True])
+def test_up_sign_from_the_crossings_at_low_noise(design, flip):
+    pts, truth, _ = _scan(design, 5.0, formwork=False, seed=0)
+    res = inspect_cloud(pts * np.array([1.0, -1.0, -1.0]) if flip else pts, design)
+    assert "GUESSED" in res.notes[0]
+    assert (res.extras["cloud"]["up"][2] < 0) == flip  # up is the world's +z either way
+    assert res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
+
+
+def test_diameter_criterion():
+    ok, _ = diameter_resolvable(0.5, 7.0, 1.1, 2000)
+    assert ok
+    ok, why = diameter_resolvable(10.0, 7.0, 1.1, 2000)
+    assert not ok and "quarter of the bar's radius" in why
+    ok, why = diameter_resolvable(1.5, 7.0, 1.1, 20)
+    assert not ok and "half gap" in why
+
+
+def test_bar_systems_of_other_markets_and_plain_bars():
+    jis = bar_system("JIS G 3112")
+    assert jis.label(12.7) == "D13" and jis.of_size(jis.envelope_mm, 12.7) == 14.0
+    assert bar_system("KS D 3504").sizes_mm == jis.sizes_mm
+    for name, label in (("AS/NZS 4671", "N12"), ("IS 1786", "Ø12"), ("BS 4449", "H12")):
+        s = bar_system(name)
+        assert s.label(12) == label and s.of_size(s.envelope_mm, 12) > 12
+    d = design_from_dict({"slab": {"id": "S", "bar_system": "JIS"}, "design": {
+        "cover_mm": 25, "layer_distance_mm": 90, "lower": {"diameter_mm": 12.7, "spacing_mm": 200},
+        "upper": {"diameter_mm": 12.7, "spacing_mm": 200, "top": {"surface": "plain", "diameter_mm": 8}}}})
+    assert barset_width_mm(d.upper.top, d.bar_system) == 8.0
+    assert barset_width_mm(d.lower.bottom, d.bar_system) == 14.0
+    with pytest.raises(RebarInputError, match="surface"):
+        design_from_dict({"slab": {"id": "S"}, "design": {"cover_mm": 25, "layer_distance_mm": 90,
+                          "lower": {"diameter_mm": 12, "spacing_mm": 200, "surface": "smooth"},
+                          "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+
+
+@pytest.mark.slow
+def test_cli_inspect_cloud_writes_results_with_manifest(design, tmp_path):
+    from rebarlib.cli import main
+
+    pts, truth, fields = _scan(design, 5.0, seed=2, step=0.12)
+    export_scan(tmp_path / "scan.ply", pts, truth, fields, units="mm")
+    rc = main(["inspect-cloud", str(tmp_path / "scan.ply"), "--units", "mm", "--up", "+z", "--design", DESIGN,
+               "--out", str(tmp_path / "out")])
+    assert rc == 0
+    data = json.loads((tmp_path / "out" / "scan" / "result.json").read_text())
+    assert data["method"] == "cloud" and data["manifest"]["cloud_digest"].startswith("sha256:")
+    assert data["measurements"]["cover"]["status"] == "measured"
+    assert all((tmp_path / "out" / "scan" / f).is_file() for f in ("bars.csv", "spacings.csv", "counts.csv"))
