@@ -79,7 +79,8 @@ def check_outputs(paths, *, inputs=(), input_folders=(), force: bool = False) ->
 
     ``inputs``: files never written over (the design file, the results' files); ``input_folders``:
     folders nothing is written into (the capture folders: a new file there would change the
-    capture). An existing output is replaced only with ``force``.
+    capture; and each capture's results folder, which ``rebar inspect`` replaces whole). An
+    existing output is replaced only with ``force``.
     """
     files = {Path(f).resolve() for f in inputs}
     folders = [Path(d).resolve() for d in input_folders]
@@ -90,8 +91,8 @@ def check_outputs(paths, *, inputs=(), input_folders=(), force: bool = False) ->
             raise RebarInputError(f"--out {path}: is an input of this report; refusing to write over it")
         inside = next((d for d in folders if real == d or d in real.parents), None)
         if inside is not None:
-            raise RebarInputError(f"--out {path}: lies inside the capture folder {inside}; refusing to write "
-                                  "into an input (choose a path outside the captures)")
+            raise RebarInputError(f"--out {path}: lies inside the input folder {inside} (a capture, or its "
+                                  "results); refusing to write into it (choose a path outside)")
         if path.is_dir():
             raise RebarInputError(f"--out {path}: is a folder; name the report file, or give the folder "
                                   "with a trailing / to name the report after the slab")
@@ -198,8 +199,9 @@ def run(args) -> int:
     tolerances = _tolerances(args.standard, design, load_tolerances)
     out, fmt, outputs = report_paths(args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports)
     captures = find_captures(slab) if slab.is_dir() else []
+    result_folders = [Path(args.results) / c.name for c in captures] if args.results else []
     check_outputs(outputs, inputs=[design_path, *(_result_files(args.results) if args.results else [])],
-                  input_folders=captures, force=args.force)
+                  input_folders=[*captures, *result_folders], force=args.force)
     out.parent.mkdir(parents=True, exist_ok=True)
     results, missing = collect_results(slab, results_dir=args.results, design=design, method=args.method,
                                        design_path=design_path)

@@ -98,7 +98,7 @@ def test_report_refuses_to_write_inside_a_capture_folder(slab, monkeypatch, caps
     before = (slab / "B" / "depth.png").read_bytes()
     for out in (slab / "B" / "depth.png", slab / "B" / "new_report.pdf"):
         assert main(["report", str(slab), "--out", str(out), "--force"]) == 2
-        assert "inside the capture folder" in _err(capsys)
+        assert "inside the input folder" in _err(capsys)
     assert (slab / "B" / "depth.png").read_bytes() == before
     assert not (slab / "B" / "new_report.pdf").exists()
 
@@ -112,6 +112,9 @@ def test_report_refuses_to_write_over_a_results_file_or_an_existing_export(slab,
     assert main(["report", str(slab), "--results", str(results), "--out", str(target), "--force"]) == 2
     assert "input of this report" in _err(capsys)
     assert target.read_bytes() == before
+    # nor a new file among a capture's results (rebar inspect replaces that folder whole)
+    assert main(["report", str(slab), "--results", str(results), "--out", str(results / "A" / "r.pdf")]) == 2
+    assert "inside the input folder" in _err(capsys)
     # the exports beside the report are checked like the report itself
     (tmp_path / "r_checkpoints.csv").write_text("mine\n", encoding="utf-8")
     assert main(["report", str(slab), "--out", str(tmp_path / "r.pdf")]) == 2
