@@ -1,0 +1,120 @@
+"""Bar counts from evidence (rebarlib._counts): rendered situations with known ground truth.
+
+Each scene is a finite mesh (``Deviations.end_overhang_mm``) rendered by ``rebarlib.synth``;
+the tests assert what the truth says: no missing bar where none is missing (mesh edge in view,
+a bar without depth, spacings jittered by up to ±15 mm), the missing or extra bar where there
+is one.
+"""
+
+import numpy as np
+import pytest
+
+import rebarlib as R
+from rebarlib import _counts as C
+from rebarlib import synth as S
+
+DESIGN = R.design_from_dict({"slab": {"id": "T"}, "design": {
+    "cover_mm": 20, "layer_distance_mm": 85,
+    "lower": {"diameter_mm": 14, "spacing_mm": 200}, "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+
+
+def _inspect(dev, *, target, sensor=None, seed=3, height=550.0, tilt=10.0, yaw=20.0):
+    cap = S.synth_capture(DESIGN, height_mm=height, tilt_deg=tilt, yaw_deg=yaw, target_mm=target, seed=seed,
+                          deviations=dev, sensor=sensor)
+    return cap, R.inspect(cap, DESIGN, diameters=False, rng=0)
+
+
+def _counts(res):
+    return res.counts.set_index(["layer", "level"])
+
+
+def test_runs_and_lattice_index():
+    assert C._runs(np.array([0, 1, 1, 0, 1], bool)) == [(1, 3), (4, 5)]
+    idx, _ = C._lattice_index(np.array([0.0, 203.0, 395.0, 490.0, 601.0]), 200.0)
+    assert list(idx) == [0, 1, 2, 2, 3]  # 490 shares position 2 with 395: one extra there
+
+
+@pytest.mark.slow
+def test_mesh_edge_in_view_is_not_missing_bars():
+    # aimed 150 mm inside the mesh's corner: formwork beyond the last bars of two rows
+    dev = S.Deviations(end_overhang_mm=50, position_uniform_mm=7.5)
+    cap, res = _inspect(dev, target=(850, 850), seed=5)
+    c = _counts(res)
+    assert cap.truth["missing"] == []
+    assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
+    outside = res.positions[res.positions["status"] == C.OUTSIDE]
+    assert len(outside) >= 1  # the rows continue past the edge only on paper
+    assert all("crossing bars end" in r for r in outside["reason"])
+    edge = res.extras["mesh_boundary"]["upper"]
+    assert edge["corners_camera_mm"] is not None
+
+
+@pytest.mark.slow
+def test_missing_bar_at_the_row_end_is_found():
+    dev = S.Deviations(end_overhang_mm=50, missing_at_end=1)
+    # an upper bar: a lower one may lie under an upper bar of its direction, hidden (not measured)
+    scene = next(sc for sc in (S.make_scene(DESIGN, dev, rng=np.random.default_rng(k)) for k in range(11, 40))
+                 if sc.ghosts[0].layer == "upper")
+    g = scene.ghosts[0]
+    mid = 0.5 * (g.axis[0, :2] + g.axis[-1, :2])
+    centre = np.zeros(2)
+    target = mid + 0.3 * (centre - mid)
+    pose = S.CameraPose.looking_down(550, tilt_deg=8, yaw_deg=15, target_mm=tuple(target))
+    cap = S.render_capture(scene, pose, rng=np.random.default_rng(1))
+    res = R.inspect(cap, DESIGN, diameters=False, rng=0)
+    miss = cap.truth["missing"][0]
+    assert miss["in_view_mm"] > 300
+    c = _counts(res)
+    assert int(c.loc[(miss["layer"], miss["level"]), "missing"]) == 1
+    others = c.drop(index=(miss["layer"], miss["level"]))
+    assert (others["missing"].fillna(0) == 0).all()
+
+
+@pytest.mark.slow
+def test_bar_without_depth_counts_as_found_and_is_placed_from_the_mask():
+    dev = S.Deviations(end_overhang_mm=50)
+    cap, res = _inspect(dev, target=(0, 0), sensor=S.SensorModel(bars_without_depth=1), seed=7)
+    gone = [b for b in cap.truth["bars"] if b["no_depth"]]
+    assert len(gone) == 1
+    c = _counts(res)
+    assert (c["missing"].fillna(0) == 0).all()
+    placed = res.positions[res.positions["status"] == C.PRESENT_NO_DEPTH]
+    assert len(placed) == 1
+    row = placed.iloc[0]
+    assert (row["layer"], row["level"]) == (gone[0]["layer"], gone[0]["level"])
+    # its spacings, measured from the mask's centre line, within 3 σ + 1 mm of the truth
+    bar_id = int(row["bar_id"])
+    sp = res.spacings[((res.spacings["bar_a"] == bar_id) | (res.spacings["bar_b"] == bar_id))
+                      & (res.spacings["status"] == "measured")]
+    assert len(sp) >= 1
+    truth = {(t["bar_a"], t["bar_b"]): t["spacing_mm"] for t in cap.truth["spacings"]}
+    ids = {tb["id"] for tb in cap.truth["bars"]}
+    assert gone[0]["id"] in ids
+    near = [abs(v) for (a, b), v in truth.items() if gone[0]["id"] in (a, b)]
+    tol = 3 * float(row["position_sigma_mm"]) + 1.0
+    assert any(min(abs(s - n) for n in near) <= tol for s in sp["spacing_mm"])
+
+
+@pytest.mark.slow
+def test_jittered_spacings_are_not_missing_bars():
+    dev = S.Deviations(end_overhang_mm=50, position_sigma_mm=0.0, position_uniform_mm=7.5)  # spacings ±15 mm
+    cap, res = _inspect(dev, target=(100, -50), seed=9, tilt=15)
+    c = _counts(res)
+    assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
+    dev_true = [abs(t["spacing_mm"] - 200) for t in cap.truth["spacings"]]
+    assert max(dev_true) > 8  # the jitter is really there
+
+
+@pytest.mark.slow
+def test_extra_bar_needs_and_gets_its_own_evidence():
+    dev = S.Deviations(end_overhang_mm=50, extra=1)
+    scene = S.make_scene(DESIGN, dev, rng=np.random.default_rng(4))
+    extra = next(b for b in scene.bars if b.extra)
+    mid = 0.5 * (extra.axis[0, :2] + extra.axis[-1, :2])
+    pose = S.CameraPose.looking_down(550, tilt_deg=5, yaw_deg=30, target_mm=tuple(mid))
+    cap = S.render_capture(scene, pose, rng=np.random.default_rng(2))
+    res = R.inspect(cap, DESIGN, diameters=False, rng=0)
+    c = _counts(res)
+    assert int(c.loc[(extra.layer, extra.level), "extra"]) == 1
+    assert int(c["extra"].fillna(0).sum()) == 1
+    assert (c["missing"].fillna(0) == 0).all()
