@@ -453,7 +453,9 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
         it["ratio_text"] = _pct(it["pass_ratio"])
         it["extra_text"] = ", ".join(t for t in (f"+{it['not_measured']} n/m" if it["not_measured"] else "",
-                                                 f"+{it['excluded']} hidden" if it["excluded"] else "") if t)
+                                                 f"+{it['excluded']} hidden" if it["excluded"] else "",
+                                                 f"{it['not_proven']} not proven" if it.get("not_proven") else "")
+                                     if t)
     checkpoints = _records(cp)
     for c in checkpoints:
         nd = 0 if c["unit"] == "bars" else 1

@@ -80,7 +80,7 @@ def test_inspect_with_the_calibration_shrinks_the_errors(cal, paper_design):
         # over a dozen gaps is the scale's footprint (200 mm x 1.9 % = 3.8 mm uncalibrated)
         return float(np.median(sp["spacing_mm"]) - np.median(list(truth_sp.values())))
 
-    e_ld = (plain.layer_distance.value_mm - t["layer_distance_mm"], fixed.layer_distance.value_mm - t["layer_distance_mm"])
+    e_ld = tuple(r.layer_distance.value_mm - t["layer_distance_mm"] for r in (plain, fixed))
     e_sp = (spacing_error(plain), spacing_error(fixed))
     # uncalibrated: the 1.5 % depth scale shows (85 mm x 1.5 % = 1.3 mm, ~3.8 mm on a spacing)
     assert e_ld[0] > 0.8 and e_sp[0] > 2.5

@@ -83,7 +83,8 @@ class DeviceProfile:
         return {"key": self.key, "name": self.name, "principle": self.principle,
                 "range_mm": list(self.range_mm), "depth_error": {
                     "percent": self.depth_percent, "at_mm": self.depth_at_mm, "grows": self.grows,
-                    "offset_mm": self.offset_mm, "scale_percent": self.scale_percent, "confirmed": self.depth_confirmed, "source": self.depth_source},
+                    "offset_mm": self.offset_mm, "scale_percent": self.scale_percent,
+                    "confirmed": self.depth_confirmed, "source": self.depth_source},
                 "intrinsics": {"focal_percent": self.focal_percent, "principal_point_px": self.principal_point_px,
                                "registration_px": self.registration_px, "source": self.intrinsics_source},
                 "default": self.is_default}
