@@ -1,0 +1,305 @@
+"""Speed of many captures: one capture's stages, a batch's throughput, a dask cluster, start-up.
+
+Tables printed (medians of repeated runs; the machine may be shared, so the load average is
+printed with each table, and CPU seconds beside wall seconds):
+
+1. ``stages``: ``inspect()`` of one 1280 x 800 example capture with diameters, per stage, with
+   the segmentation model on onnxruntime's default threads and on one thread (as in a batch).
+   Target: whole capture <= 1.0 s on 2 cores.
+2. ``startup``: ``rebar --help``, and ``rebar report --results`` of the 4-capture paper slab
+   (PDF), wall time including the interpreter's start-up. Targets: 0.3 s and 3 s.
+3. ``batch``: ``rebar inspect --jobs J`` over N copies of the paper slab's 4 captures (hard
+   links): captures per minute and the peak memory of the whole process tree. Target:
+   >= 100 captures/min for ``--jobs 2`` on 24 captures; 1000 captures in <= 10 min (``--big``).
+4. ``dask``: the same batch on a local dask.distributed cluster of 1, then 2 worker processes
+   (one thread each): captures per minute and the scaling.
+
+``--dump FILE`` writes the results of the five example captures (seed 0, timings left out) as
+JSON; ``--check FILE`` runs them again and says whether every bar, spacing, count and measurement
+is identical to the dump (a speed change must leave them so).
+
+    python benchmarks/bench_batch.py                   # all tables, 24 captures, 3 repeats
+    python benchmarks/bench_batch.py --only batch --n 200 --jobs 2
+    python benchmarks/bench_batch.py --big 1000        # the 1000-capture run (long)
+    python benchmarks/bench_batch.py --dump before.json ; ...change... ; --check before.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+PAPER = EXAMPLES / "paper_slab"
+REBAR = [sys.executable, "-m", "rebarlib"]
+
+
+def load() -> str:
+    return "load average " + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + f" on {os.cpu_count()} cores"
+
+
+def table(title: str, header: list, rows: list) -> None:
+    print(f"\n## {title}  ({load()})\n")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "|".join("---" for _ in header) + "|")
+    for r in rows:
+        print("| " + " | ".join(str(x) for x in r) + " |")
+    sys.stdout.flush()
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. one capture's stages
+
+
+def _stage_run(threads: str, repeats: int) -> dict:
+    code = f"""
+import json, statistics, time, sys
+import rebarlib._inspect as I
+threads = {threads!r}
+if threads != "default":
+    import cv2
+    I.MODEL_THREADS = int(threads); cv2.setNumThreads(int(threads))
+from rebarlib import load_capture, load_design
+d = load_design({str(PAPER / 'design.toml')!r})
+cap = load_capture({str(PAPER / 'B_500')!r})
+I.inspect(cap, d, rng=0)
+walls, cpus, st = [], [], {{}}
+for i in range({repeats}):
+    t = time.perf_counter(); c = time.process_time(); r = I.inspect(cap, d, rng=0)
+    walls.append(time.perf_counter() - t); cpus.append(time.process_time() - c)
+    for k, v in r.timings_s.items():
+        st.setdefault(k, []).append(v)
+print(json.dumps({{"wall": statistics.median(walls), "cpu": statistics.median(cpus),
+                  "stages": {{k: statistics.median(v) for k, v in st.items()}}}}))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def bench_stages(repeats: int) -> None:
+    runs = {t: _stage_run(t, repeats) for t in ("default", "1")}
+    stages = list(runs["default"]["stages"])
+    rows = [[s] + [f"{runs[t]['stages'].get(s, float('nan')):.3f}" for t in runs] for s in stages]
+    rows.append(["**whole capture, wall**"] + [f"**{runs[t]['wall']:.3f}**" for t in runs])
+    rows.append(["whole capture, CPU"] + [f"{runs[t]['cpu']:.3f}" for t in runs])
+    table(f"stages: inspect() of examples/paper_slab/B_500 with diameters, median of {repeats} (s)",
+          ["stage", "model threads: default", "model threads: 1"], rows)
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. start-up
+
+
+def _wall(cmd, repeats: int, **kw) -> float:
+    walls = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        subprocess.run(cmd, capture_output=True, check=True, cwd=ROOT, **kw)
+        walls.append(time.perf_counter() - t)
+    return statistics.median(walls)
+
+
+def bench_startup(repeats: int) -> None:
+    rebar = shutil.which("rebar", path=str(Path(sys.executable).parent)) or "rebar"
+    with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
+        res = Path(tmp) / "res"
+        subprocess.run([*REBAR, "inspect", *[str(p) for p in sorted(PAPER.iterdir()) if p.is_dir()],
+                        "--design", str(PAPER / "design.toml"), "--out", str(res), "--quiet", "--jobs", "2"],
+                       check=True, cwd=ROOT, capture_output=True)
+        walls = []
+        for i in range(repeats):
+            t = time.perf_counter()
+            subprocess.run([rebar, "report", str(PAPER), "--results", str(res), "--out", str(Path(tmp) / f"r{i}.pdf")],
+                           capture_output=True, check=True, cwd=ROOT)
+            walls.append(time.perf_counter() - t)
+        rows = [["rebar --help", f"{_wall([rebar, '--help'], repeats):.3f}", "0.3"],
+                ["rebar report --results (4 captures, PDF)", f"{statistics.median(walls):.3f}", "3.0"]]
+    table(f"startup: wall seconds with the interpreter's start-up, median of {repeats}", ["command", "s", "target"], rows)
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. a batch with rebar inspect --jobs
+
+
+def copies(folder: Path, n: int) -> list:
+    """``n`` capture folders: the paper slab's captures, hard-linked (copied where links fail)."""
+    src = sorted(p for p in PAPER.iterdir() if (p / "camera.json").is_file())
+    out = []
+    for i in range(n):
+        dst = folder / f"{src[i % len(src)].name}_{i:04d}"
+        try:
+            shutil.copytree(src[i % len(src)], dst, copy_function=os.link)
+        except OSError:
+            shutil.copytree(src[i % len(src)], dst)
+        out.append(dst)
+    return out
+
+
+class PeakMemory:
+    """Peak resident memory of this process's children (the whole tree), sampled every 0.2 s."""
+
+    def __init__(self, pid: int):
+        import psutil
+
+        self.proc, self.peak, self._stop = psutil.Process(pid), 0, threading.Event()
+        self._t = threading.Thread(target=self._run, daemon=True)
+        self._t.start()
+
+    def _run(self):
+        import psutil
+
+        while not self._stop.is_set():
+            try:
+                procs = [self.proc] + self.proc.children(recursive=True)
+                rss = 0
+                for p in procs:
+                    try:
+                        rss += p.memory_info().rss
+                    except psutil.Error:
+                        pass
+                self.peak = max(self.peak, rss)
+            except psutil.Error:
+                pass
+            self._stop.wait(0.2)
+
+    def stop(self) -> float:
+        self._stop.set()
+        self._t.join()
+        return self.peak / 2**20
+
+
+def run_batch(caps: list, out: Path, *extra) -> tuple:
+    """``rebar inspect`` over ``caps``: (wall s, peak MiB of the process tree, exit status)."""
+    t = time.perf_counter()
+    p = subprocess.Popen([*REBAR, "inspect", *map(str, caps), "--design", str(PAPER / "design.toml"),
+                          "--out", str(out), "--quiet", *extra], cwd=ROOT, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True)
+    mem = PeakMemory(p.pid)
+    _, err = p.communicate()
+    wall = time.perf_counter() - t
+    peak = mem.stop()
+    if p.returncode != 0:
+        print(err, file=sys.stderr)
+    return wall, peak, p.returncode
+
+
+def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
+        caps = copies(Path(tmp) / "caps", n)
+        for jobs in jobs_list:
+            walls, peaks = [], []
+            for r in range(repeats):
+                wall, peak, rc = run_batch(caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs))
+                walls.append(wall)
+                peaks.append(peak)
+            w = statistics.median(walls)
+            rows.append([jobs, n, f"{w:.1f}", f"{60 * n / w:.1f}", f"{max(peaks):.0f}", rc])
+    table(f"batch: rebar inspect --jobs J over {n} copies of the paper slab's captures (diameters on), "
+          f"median of {repeats}", ["jobs", "captures", "wall s", "captures/min", "peak MiB (tree)", "exit"], rows)
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. dask
+
+
+def bench_dask(n: int, repeats: int) -> None:
+    from distributed import LocalCluster
+
+    rows, rate1 = [], None
+    with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
+        caps = copies(Path(tmp) / "caps", n)
+        for workers in (1, 2):
+            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                              host="127.0.0.1") as cluster:
+                # a first small batch lets every worker import the stages before the clock starts
+                run_batch(caps[:2 * workers], Path(tmp) / f"warm_{workers}", "--dask", cluster.scheduler_address)
+                walls = [run_batch(caps, Path(tmp) / f"out_{workers}_{r}", "--dask", cluster.scheduler_address)[0]
+                         for r in range(repeats)]
+            w = statistics.median(walls)
+            rate = 60 * n / w
+            rate1 = rate1 or rate
+            rows.append([workers, n, f"{w:.1f}", f"{rate:.1f}", f"{rate / rate1:.2f}"])
+    table(f"dask: rebar inspect --dask on a local cluster (1 thread per worker), {n} captures, median of {repeats}",
+          ["workers", "captures", "wall s", "captures/min", "scaling"], rows)
+
+
+# ---------------------------------------------------------------------------------------------
+# accuracy unchanged
+
+
+def dump_results() -> dict:
+    from rebarlib import inspect, load_capture, load_design
+
+    out = {}
+    for slab in ("paper_slab", "site_slab"):
+        design = load_design(EXAMPLES / slab / "design.toml")
+        for cap in sorted(p for p in (EXAMPLES / slab).iterdir() if (p / "camera.json").is_file()):
+            r = inspect(load_capture(cap), design, rng=0).to_dict()
+            r.pop("timings_s", None)
+            out[f"{slab}/{cap.name}"] = r
+    return json.loads(json.dumps(out, sort_keys=True, default=str))
+
+
+def _differences(a, b, path="") -> list:
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [d for k in sorted(set(a) | set(b)) for d in _differences(a.get(k), b.get(k), f"{path}.{k}")]
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
+    return [] if a == b else [f"{path}: {a!r} -> {b!r}"]
+
+
+def check(path: Path) -> int:
+    before = json.loads(path.read_text(encoding="utf-8"))
+    now = dump_results()
+    bad = 0
+    for key in sorted(set(before) | set(now)):
+        diff = _differences(before.get(key), now.get(key))
+        bad += bool(diff)
+        print(f"{key}: " + ("identical" if not diff else f"{len(diff)} differences, e.g. " + "; ".join(diff[:5])))
+    return 1 if bad else 0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--only", choices=("stages", "startup", "batch", "dask"), action="append")
+    ap.add_argument("--n", type=int, default=24, help="captures in the batch and dask tables (default 24)")
+    ap.add_argument("--jobs", type=int, action="append", help="--jobs values of the batch table (default 1 and 2)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--big", type=int, metavar="N", help="only the batch table, once, over N captures with --jobs 2")
+    ap.add_argument("--dump", type=Path, metavar="FILE")
+    ap.add_argument("--check", type=Path, metavar="FILE")
+    a = ap.parse_args(argv)
+    if a.dump:
+        a.dump.write_text(json.dumps(dump_results(), indent=1, sort_keys=True), encoding="utf-8")
+        print(f"results of the five examples written to {a.dump}")
+        return 0
+    if a.check:
+        return check(a.check)
+    if a.big:
+        bench_batch(a.big, [2], 1)
+        return 0
+    only = set(a.only or ("stages", "startup", "batch", "dask"))
+    if "stages" in only:
+        bench_stages(max(a.repeats, 5))
+    if "startup" in only:
+        bench_startup(max(a.repeats, 5))
+    if "batch" in only:
+        bench_batch(a.n, a.jobs or [1, 2], a.repeats)
+    if "dask" in only:
+        bench_dask(a.n, a.repeats)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
