@@ -169,7 +169,7 @@ def _lattice(table: dict, where: str) -> Lattice:
 
 
 def design_from_dict(data: dict, *, source: str = "design") -> Design:
-    """Build a :class:`Design` from the parsed TOML tables (see the README for the format).
+    """Build a :class:`Design` from the parsed TOML tables (docs/formats.md, "Design files").
 
     Examples
     --------

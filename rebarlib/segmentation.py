@@ -145,7 +145,7 @@ def _bad(path, problem):
 def _read_sidecar(path: Path) -> dict:
     if not path.is_file():
         raise _bad(path, "sidecar JSON not found (expected next to the ONNX file, same name, .json; "
-                         "see the README section 'segmentation' for its keys)")
+                         "docs/formats.md lists its keys)")
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
@@ -441,7 +441,8 @@ class SegmentationModel:
         network was trained on images at the input's size with crops enlarged up to twice), so
         a smaller image (an 848 × 480 camera's) is enlarged towards it, by the smaller of the
         two ratios, and never so far that the widest bar exceeds ``input.max_bar_px``: its bars'
-        edges are then placed on a finer grid (README, "Full-resolution tiles"). 1 otherwise.
+        edges are then placed on a finer grid (docs/benchmarks.md, "Full-resolution tiles"). 1
+        otherwise.
         """
         limit = self._inp["max_bar_px"]
         known = bar_width_px is not None and bool(np.isfinite(bar_width_px)) and bar_width_px > 0
@@ -524,7 +525,7 @@ class SegmentationModel:
         enlargement (:meth:`tile_scale`). ``flips``: the sidecar's test-time flips
         (``input.flips``), on the whole image or on every tile; False runs the network once per
         image or tile instead of once per flip and once more (the shipped model: 4 runs; faster,
-        a less exact mask: README, "Full-resolution tiles").
+        a less exact mask: docs/benchmarks.md, "Full-resolution tiles").
         """
         ready = self._take_prefetched(color, tiled=tiled, bar_width_px=bar_width_px, flips=flips)
         if ready is not None:
@@ -728,7 +729,8 @@ def estimate_registration(color_proba, depth_mask, *, depth_valid=None,
     (OpenCV's ECC, translation only), coarse to fine over Gaussian blurs of ``blur_px`` (the
     coarsest reaches a few pixels). Pixels without depth are left out.
 
-    Measured on synthetic captures of two cameras (README, "Colour-depth registration"): within
+    Measured on synthetic captures of two cameras (docs/benchmarks.md, "Colour-depth
+    registration"): within
     0.3 px (0.7 px with three times the flying pixels) for whole-pixel shifts up to 4 px; within
     0.6 px where the colour is also moved by a fraction of a pixel (both masks aliased, as on
     synthetic images, pull the estimate toward whole pixels).

@@ -895,7 +895,7 @@ def render_capture(scene: SlabScene, pose: CameraPose, *, intrinsics: Intrinsics
     """Render one RGB-D capture of ``scene`` seen from ``pose``, with ground truth.
 
     Returns a :class:`~rebarlib.Capture` with ``labels``, ``bar_ids`` and
-    ``metadata["truth"]`` (see the README for the keys). Deterministic for a given ``rng`` seed.
+    ``metadata["truth"]`` (docs/formats.md, "truth.json", lists the keys). Deterministic for a given ``rng`` seed.
     """
     import cv2
 
