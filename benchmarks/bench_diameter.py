@@ -446,8 +446,9 @@ def main() -> None:
             if n_missed_hidden:
                 reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
             bars_rr = [r for r in rr if r["kind"] == "bar"]
-            dump += [{"capture": name, "method": m, "mask": k, "axes": a, "true_id": r["true_id"], "true_mm": r["true"], "true_envelope_mm": r["env"],
-                      "wrong_size": r["wrong_size"], "shows_width": r["shows"], **r["row"]._asdict()} for r in bars_rr]
+            dump += [{"capture": name, "method": m, "mask": k, "axes": a, "true_id": r["true_id"],
+                      "true_mm": r["true"], "true_envelope_mm": r["env"], "wrong_size": r["wrong_size"],
+                      "shows_width": r["shows"], **r["row"]._asdict()} for r in bars_rr]
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
@@ -494,7 +495,8 @@ def main() -> None:
         wrong_hi = [r for r in wrong if r["conf"] >= HIGH_CONFIDENCE]
         extra = sum(r["kind"] == "extra" for r in recs[combo])
         base = max(nb - hidden, 1)
-        cut = sum(r["status"] != "hidden" and r["cut"] for r in rr) + sum(r["kind"] == "missed-cut" for r in recs[combo])
+        cut = (sum(r["status"] != "hidden" and r["cut"] for r in rr)
+               + sum(r["kind"] == "missed-cut" for r in recs[combo]))
         meas_uncut = sum(not r["cut"] for r in meas)
         false_hidden = sum(r["status"] == "hidden" and not r["truly_hidden"] for r in rr)
         truly_hidden = sum(r["truly_hidden"] for r in rr) + missed_hidden[combo]
@@ -561,7 +563,8 @@ def main() -> None:
         az = np.abs(z)
         amb = [r for r in rs if str(r["row"].diameter_reason).startswith("ambiguous")]
         near = sum(f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason) for r in amb)
-        print(f"{m:<8}{k:<13}{a:<9}{len(z):>6}" + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
+        print(f"{m:<8}{k:<13}{a:<9}{len(z):>6}"
+              + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
               + f"{az.max():>7.2f}{100 * (az > 2).mean():>7.1f}{f'{near} of {len(amb)}':>15}")
 
     print("\nMask widths from two edges against widths from one edge and the axis (refined;\n"

@@ -10,8 +10,9 @@ with cover 15 / 20 / 25 mm, seen from 400 / 500 / 600 mm with tilts 0–15° and
 and the site-like slab (Φ8 @ 150, cover 15, layer distance 54), all with the realistic default
 sensor; and the paper's slab *stacked* (each upper bar right above the lower bar of its
 direction, 6 bars left out: lower bars seen only as slivers, empty positions under upper bars,
-where a method that looks hard for hidden bars could invent one). Prints tables shaped like the paper's Tables 4 and 5 (actual, detected, absolute and
-relative error), the worst case per height, spacing errors and bar detection.
+where a method that looks hard for hidden bars could invent one). Prints tables shaped like the
+paper's Tables 4 and 5 (actual, detected, absolute and relative error), the worst case per
+height, spacing errors and bar detection.
 
 A bar counts as *measurable* when the truth bar-id image shows a continuous stretch of it at
 least 50 mm long (gaps up to 10 mm closed) in pixels whose depth is the bar's own surface: the
@@ -257,8 +258,8 @@ def run(quick: bool, listing: bool = False, camera: str = "gemini2",
                 for k, v in mapping.items():
                     if v is None:
                         r = res.bars.iloc[k]
-                        print(f"      phantom: bar {k} ({r.layer} {r.level}, {r.visible_length_mm:.0f} mm, {r.n_points} "
-                              f"points, {r.status}) {r.reason}", flush=True)
+                        print(f"      phantom: bar {k} ({r.layer} {r.level}, {r.visible_length_mm:.0f} mm, "
+                              f"{r.n_points} points, {r.status}) {r.reason}", flush=True)
     df = pd.DataFrame(rows)
     for q in ("cover", "ld"):
         df[f"{q}_abs_err"] = (df[q] - df[f"{q}_true"]).abs()

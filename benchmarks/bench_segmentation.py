@@ -163,7 +163,8 @@ def main(argv=None):
             t = time.perf_counter()
             m.predict_mask(img)
             ts.append(1000 * (time.perf_counter() - t))
-        print(f"| {name} | {np.median(ts):7.1f} | {np.percentile(ts, 90):7.1f} | {m.onnx_path.stat().st_size / 1024:7.0f} |")
+        size_kib = m.onnx_path.stat().st_size / 1024
+        print(f"| {name} | {np.median(ts):7.1f} | {np.percentile(ts, 90):7.1f} | {size_kib:7.0f} |")
     m = models[shipped]
     ts = []
     for _ in range(args.speed_runs):

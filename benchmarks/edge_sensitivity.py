@@ -40,7 +40,8 @@ def main() -> None:
                 counts[(m, s)] = _add(counts[(m, s)], confusion_counts(mask, truth, region=regions[s]))
     for s in SUBSETS:
         print(f"{s}: edge-pixel share of bar pixels {100 * edge[s][0] / edge[s][1]:.1f} %, IoU of the truth "
-              f"dilated 1 px {100 * iou(counts[('dilated', s)]):.2f}, eroded 1 px {100 * iou(counts[('eroded', s)]):.2f}")
+              f"dilated 1 px {100 * iou(counts[('dilated', s)]):.2f}, "
+              f"eroded 1 px {100 * iou(counts[('eroded', s)]):.2f}")
 
 
 if __name__ == "__main__":

@@ -53,7 +53,8 @@ class Capture:
         h, w = self.intrinsics.height, self.intrinsics.width
         if self.color.shape != (h, w, 3) or self.color.dtype != np.uint8:
             raise RebarInputError(
-                f"color: expected ({h}, {w}, 3) uint8 RGB from the intrinsics, got {self.color.shape} {self.color.dtype}")
+                f"color: expected ({h}, {w}, 3) uint8 RGB from the intrinsics, "
+                f"got {self.color.shape} {self.color.dtype}")
         if self.depth_mm.shape != (h, w):
             raise RebarInputError(f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}")
 

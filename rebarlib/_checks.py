@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for the annotations only: importing this module must not load NumPy
+    import numpy as np
 
 __all__ = ["RebarInputError", "check_points", "check_positive"]
 

@@ -203,8 +203,9 @@ def pixels_in_region(corners, shape) -> np.ndarray:
     Examples
     --------
     >>> corners = diameter_region([10.0, 20.0], [0.0, 1.0], [1.0, 0.0], long_px=4, short_px=2)
-    >>> pixels_in_region(corners, (40, 40)).tolist()
-    [[9, 18], [10, 18], [11, 18], [9, 19], [10, 19], [11, 19], [9, 20], [10, 20], [11, 20], [9, 21], [10, 21], [11, 21], [9, 22], [10, 22], [11, 22]]
+    >>> pixels_in_region(corners, (40, 40)).tolist()  # doctest: +NORMALIZE_WHITESPACE
+    [[9, 18], [10, 18], [11, 18], [9, 19], [10, 19], [11, 19], [9, 20], [10, 20], [11, 20],
+     [9, 21], [10, 21], [11, 21], [9, 22], [10, 22], [11, 22]]
     """
     q = np.asarray(corners, float).reshape(4, 2)
     c = q.mean(axis=0)
@@ -501,8 +502,10 @@ class _RefinedParams:
     # enough shows its core between the transverse ribs and the rib envelope only at their
     # crests, so its median width reads about the next smaller size's envelope.
     rib_band: tuple = (0.4, 1.2)  # rib pitches searched, x the bar's median width (standards: 0.5-0.7 d)
-    rib_min_sections: int = 24  # sections needed to read a bar's crests and core and look for its rib pitch
-    rib_capture_p: float = 1e-6  # the capture shows ribs where its bars' periodicity together is this unlikely from noise
+    # sections needed to read a bar's crests and core and look for its rib pitch
+    rib_min_sections: int = 24
+    # the capture shows ribs where its bars' periodicity together is this unlikely from noise
+    rib_capture_p: float = 1e-6
     rib_p_floor: float = 1e-8  # one bar's p-value counts at most this much (one striped bar is not a capture)
     rib_min_bars: int = 3  # bars needed to judge a capture; as many must show one pitch clearly
     rib_pitch_tol: float = 0.1  # a bar's clear pitch agrees with its size's where within this share of it
@@ -2104,7 +2107,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     pandas.DataFrame, one row per bar, columns :data:`DIAMETER_COLUMNS`: ``width_median_mm`` and
     ``width_spread_mm`` (robust σ, IQR/1.349) of the widths over ``n_sections`` cross-sections
     (refined: between the two edges; where too few sections show both, as on a bar cut lengthwise
-    by the image border, also twice one edge's distance from the axis), ``nominal_mm`` (NaN unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
+    by the image border, also twice one edge's distance from the axis), ``nominal_mm`` (NaN
+    unless measured), ``confidence`` 0..1, ``diameter_status`` ("measured",
     "not measured", "hidden"), ``diameter_reason``, ``design_diameter_mm``, ``matches_design``
     (None unless measured with a known design), ``hidden`` (mostly covered by nearer bars),
     ``occluded_fraction`` (share of the cross-sections lying wholly or partly under nearer bars: some
@@ -2116,7 +2120,8 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     (refined: diameter from the point cloud, twice the median distance of the bar's points from
     its axis), ``width_source`` ("mask", "cloud", "mask+cloud", or "mask+" the independent widths
     of veto mode, above, or those widths alone where they arbitrated, and "+pitch" at the end
-    where the rib pitch told two sizes apart, below: what the size came from), ``width_used_mm`` (the width that was snapped; refined, also for a bar left
+    where the rib pitch told two sizes apart, below: what the size came from), ``width_used_mm``
+    (the width that was snapped; refined, also for a bar left
     ambiguous between two sizes) and ``width_sigma_mm`` (refined: its standard uncertainty, what
     the confidence is computed from with the size table's own 0.15 mm), ``circle_width_mm`` and
     ``circle_sigma_mm`` (refined, for axes placed with an assumed radius, where it is used: the

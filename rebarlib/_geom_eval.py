@@ -6,8 +6,8 @@ Rules (stated once, here):
 
 - A detected bar *matches* a true bar of the same layer when the mid point of its axis lies
   within ``MAX_OFFSET_MM`` of the true axis line (camera frame) and both its ends within twice
-  that; of several candidates the one nearest the mid point wins. Each true bar takes at most one detected bar; a second detected
-  bar on the same true bar, or one matching no true bar, is a **phantom**.
+  that; of several candidates the one nearest the mid point wins. Each true bar takes at most
+  one detected bar; a second detected bar on the same true bar, or one matching no true bar, is a **phantom**.
 - A true bar is **measurable** (must be found) when the renderer flags it ``visible``, its
   visible stretch is at least ``MEASURABLE_LENGTH_MM`` long, and its visible pixels cover at
   least ``MEASURABLE_AREA_FRACTION`` of the pixels the stretch would cover if nothing hid it
@@ -75,7 +75,8 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
             if t["layer"] != r.layer:
                 continue
             a, b = np.asarray(t["axis_start_mm"], float), np.asarray(t["axis_end_mm"], float)
-            if max(_line_dist(s, a, b), _line_dist(e, a, b)) > 2 * MAX_OFFSET_MM or _line_dist(mid, a, b) > MAX_OFFSET_MM:
+            ends_off = max(_line_dist(s, a, b), _line_dist(e, a, b)) > 2 * MAX_OFFSET_MM
+            if ends_off or _line_dist(mid, a, b) > MAX_OFFSET_MM:
                 continue
             off = _line_dist(mid, a, b)
             if best is None or off < best[0]:

@@ -1090,7 +1090,8 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
         pts_all = q[remaining]
         # hypotheses are scored on a random subset (the count ranks hypotheses the same way up
         # to sampling noise); the chosen line's inliers are then taken from all points
-        pts = pts_all if len(pts_all) <= score_points else pts_all[rng.choice(len(pts_all), score_points, replace=False)]
+        pts = (pts_all if len(pts_all) <= score_points
+               else pts_all[rng.choice(len(pts_all), score_points, replace=False)])
         best_n, best = -1, None
         for s in range(0, max_trials, chunk):
             k = min(chunk, max_trials - s)
@@ -1343,8 +1344,9 @@ def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_
         if hidden:
             out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
             out.loc[i, "status"] = "not measured"
-            out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between these bars "
-                                    "cannot be seen (hidden under an upper bar or without depth), so it is not one spacing")
+            out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between "
+                                    "these bars cannot be seen (hidden under an upper bar or without depth), "
+                                    "so it is not one spacing")
     return out
 
 
@@ -1397,9 +1399,10 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
         seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
         off = _placed_offset(b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise)
         out.append(_level_axis(b, off, level, status="not measured",
-                               reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, over {seen:.0f} mm, "
-                                      f"at whole cross-sections) and the circle fitted to the strip seen sits {dh:+.1f} mm "
-                                      "off the other bars of its direction: its axis cannot be placed"))
+                               reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, "
+                                      f"over {seen:.0f} mm, at whole cross-sections) and the circle fitted to "
+                                      f"the strip seen sits {dh:+.1f} mm off the other bars of its direction: "
+                                      "its axis cannot be placed"))
     return out
 
 
@@ -1483,9 +1486,10 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
                 c, t0, t1, cloud = found
                 new.append(BarAxis(layer, d, c, 0.0, h_axis, 0.0, t0, t1, r, len(cloud), float("nan"), None,
                                    ref.group, level=level, status="not measured",
-                                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over {t1 - t0:.0f} mm "
-                                           "(slivers beside a bar above it, or cut by the image border): it is "
-                                           "there, but its axis cannot be placed to the millimetre")))
+                                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over "
+                                           f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "
+                                           "image border): it is there, but its axis cannot be placed to the "
+                                           "millimetre")))
                 clouds.append(cloud)
                 offs = np.sort(np.append(offs, c))
     return new, clouds

@@ -15,7 +15,7 @@ visible (rib) envelope: cover and layer distance are measured to the envelope, l
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -518,7 +518,8 @@ def _prism(p0, p1, r, n=_N_SIDES):
     i = np.arange(n)
     j = (i + 1) % n
     side = np.vstack((np.column_stack((i, j, n + i)), np.column_stack((j, n + j, n + i))))
-    caps = np.vstack((np.column_stack((np.full(n, 2 * n), j, i)), np.column_stack((np.full(n, 2 * n + 1), n + i, n + j))))
+    caps = np.vstack((np.column_stack((np.full(n, 2 * n), j, i)),
+                      np.column_stack((np.full(n, 2 * n + 1), n + i, n + j))))
     return verts, np.vstack((side, caps))
 
 
@@ -603,7 +604,8 @@ def _build_geometry(scene: SlabScene) -> _Geometry:
     for c, hs, yaw, kind in scene.boxes:
         v, t = _box(c, hs, yaw)
         V.append(v), T.append(t)
-        kinds.append(K_FORMWORK if kind == "edge_form" else K_SPACER), barid.append(-1), p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
+        kinds.append(K_FORMWORK if kind == "edge_form" else K_SPACER), barid.append(-1)
+        p0s.append(np.zeros(3)), p1s.append(np.zeros(3)), rs.append(0.0)
         ribs.append(no_rib)
     for p0, p1, r, kind in scene.rods:
         v, t = _prism(p0, p1, r, 8)
@@ -1185,8 +1187,8 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
                    "rotation_world_to_camera": R.round(10).tolist(),
                    "centre_world_mm": pose.centre.round(4).tolist()},
         "bars": bars,
-        "missing": [{"layer": l, "level": v, "index": k, **_ghost_truth(scene, i, pose, intr)}
-                    for i, (l, v, k) in enumerate(scene.missing)],
+        "missing": [{"layer": lay, "level": v, "index": k, **_ghost_truth(scene, i, pose, intr)}
+                    for i, (lay, v, k) in enumerate(scene.missing)],
         "mesh": _mesh_truth(scene, pose),
         "spacings": spacings,
         "design": {"cover_mm": d.cover_mm, "layer_distance_mm": d.layer_distance_mm,

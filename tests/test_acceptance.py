@@ -210,7 +210,8 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert items.loc["bar_size_lower_bottom", "worst_deviation"] == -2.0
     assert items.loc["bar_size_lower_top", "verdict"] == "not measured"
     assert "too few sections" in items.loc["bar_size_lower_top", "reason"]
-    assert (items.loc["bar_size_upper_bottom", "excluded"], items.loc["bar_size_upper_bottom", "verdict"]) == (1, "pass")
+    upper_bottom = items.loc["bar_size_upper_bottom"]
+    assert (upper_bottom["excluded"], upper_bottom["verdict"]) == (1, "pass")
     assert any("hidden" in n for n in acc.notes)
     bv = acc.bars.set_index("bar_id")["verdict"]
     assert (bv[2], bv[3], bv[4], bv[5]) == ("fail", "not checked", "hidden", "pass")

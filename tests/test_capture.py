@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rebarlib import Capture, GEMINI2, RebarInputError, load_capture, load_cloud, save_capture
-from rebarlib.synth import Deviations, synth_capture
+from rebarlib.synth import synth_capture
 
 SMALL = GEMINI2.scaled(0.25)
 

@@ -19,7 +19,9 @@ WIDTH_TOL_MM = 0.8  # ideal sensor, truth mask: median width within ~1 px of the
 MIN_MEASURED_SHARE = 0.7  # of the bars visible over at least half their view
 HIGH_CONFIDENCE = 0.9
 CLOUD_WIDTH_TOL_MM = 0.3  # ideal sensor, true axis: point-cloud diameter vs true envelope
-PAPER_RIGHT_OR_NEXT = 0.8  # share of the paper method's votes that are the size or the next one  # a wrong size must never be reported with this confidence or more
+# share of the paper method's votes that are the size or the next one
+# (a wrong size must never be reported with this confidence or more)
+PAPER_RIGHT_OR_NEXT = 0.8
 K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)  # a simple camera for hand computations
 
 

@@ -296,7 +296,7 @@ def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
 
     # through _approximate_axes: two measured bars at height 20 give the level
     d = np.array([1.0, 0.0])
-    t = rng.uniform(0, 300, n)
+    _t = rng.uniform(0, 300, n)  # unused, but drawn: the draws after it stay as the test was written
     off_all = np.r_[s, np.full(10, -100.0), np.full(10, 100.0)]
     h_all = np.r_[h, np.full(20, 28.0)]
     sliver = BarAxis("lower", d, float(np.median(s)), 0.0, 23.0, 0.0, 0.0, 300.0, 8.0, n, 0.3, np.arange(n), 0,
@@ -384,7 +384,6 @@ def test_hidden_bar_beside_a_spacer_is_reported_not_measured():
     q, on_bar, info = lattice_points(bottom_offsets=BOTTOM + [hidden], top_offsets=TOP, angle_deg=33.0)
     q = q[on_bar]
     across = q[:, :2] @ info["n1"]
-    along = q[:, :2] @ info["d1"]
     of_hidden = (np.abs(across - hidden) < 8.1) & (q[:, 2] < info["hb"] + 8.1 + 1.0)
     rng = np.random.default_rng(5)
     q = q[~of_hidden | (rng.random(len(q)) < 0.1)]

@@ -98,7 +98,8 @@ def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
     assert res.cover.status == MEASURED and abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
     assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
     assert abs(res.upper_top.value_mm - t["upper_top_mm"]) <= UPPER_TOP_TOL_MM
-    assert res.top_cover.ok and abs(res.top_cover.value_mm - (design.thickness_mm - t["upper_top_mm"])) <= UPPER_TOP_TOL_MM
+    true_top_cover = design.thickness_mm - t["upper_top_mm"]
+    assert res.top_cover.ok and abs(res.top_cover.value_mm - true_top_cover) <= UPPER_TOP_TOL_MM
     for m in (res.cover, res.layer_distance, res.upper_top):
         assert m.n_points > 100 and 0 < m.uncertainty_mm < 1.0
     # the camera pose over the formwork

@@ -561,7 +561,8 @@ def cmd_train(args):
     print(f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
           f"device {dev}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=1e-4)
-    amp = dict(device_type="cuda", dtype=torch.bfloat16) if dev.type == "cuda" else dict(device_type="cpu", enabled=False)
+    amp = (dict(device_type="cuda", dtype=torch.bfloat16) if dev.type == "cuda"
+           else dict(device_type="cpu", enabled=False))
     budget = args.minutes * 60
     t0 = time.time()
     last_val = t0
@@ -682,7 +683,8 @@ def cmd_export(args):
                   **({"max_bar_px": args.max_bar_px} if args.max_bar_px else {})},
         "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
         "model": {"architecture": args.arch, "trained_by": "training/train_segmentation.py",
-                  "parameters": info["parameters"], "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
+                  "parameters": info["parameters"],
+                  "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
                   "val_iou_at_threshold": round(best_iou, 5)},
     }
     (out / f"{args.name}.json").write_text(json.dumps(sidecar, indent=2) + "\n")
@@ -717,7 +719,8 @@ def main(argv=None):
     a.add_argument("--lr", type=float, default=3e-3)
     a.add_argument("--val-every-s", type=float, default=240)
     a.add_argument("--init", default=None, help="state dict to start from (continue training)")
-    a.add_argument("--init-onnx", default=None, help="ONNX model exported by this script to start from (see state_from_onnx)")
+    a.add_argument("--init-onnx", default=None,
+                   help="ONNX model exported by this script to start from (see state_from_onnx)")
     a.add_argument("--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)")
     a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
     a.add_argument("--colour", action="store_true",
