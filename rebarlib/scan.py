@@ -505,14 +505,6 @@ def diameter_resolvable(noise_mm: float, radius_mm: float, half_gap_mm: float, n
     return True, ""
 
 
-def _circle_radius(s, h) -> float:
-    """Least-squares (Kåsa) circle radius of cross-section points (offset across, height)."""
-    A = np.c_[2 * s, 2 * h, np.ones(len(s))]
-    b = s ** 2 + h ** 2
-    (xc, yc, k), *_ = np.linalg.lstsq(A, b, rcond=None)
-    return float(math.sqrt(max(k + xc ** 2 + yc ** 2, 0.0)))
-
-
 def _envelope(design: Design, layer: str, level: str) -> float:
     from ._barsizes import barset_width_mm
 
@@ -531,7 +523,7 @@ def _to_axis(b: _Bar, layer: str, level: str, group: int, r: float, datum_h: flo
     axis_h = b.mean_h - datum_h - _SURFACE_MEAN * r
     se = b.resid_sd / math.sqrt(max(b.n, 1))
     return G.BarAxis(layer, b.direction, b.centre, b.slope, axis_h, 0.0, b.t0, b.t1, r, b.n, b.resid_sd,
-                     None, group, level, arc_deg=float("nan"), axis_se_mm=se)
+                     b.idx, group, level, arc_deg=float("nan"), axis_se_mm=se)
 
 
 def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, min_length_mm: float = 100.0,
@@ -596,8 +588,8 @@ def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, m
     notes.append(f"up: {up_how}")
     sig = float(np.median([v[0] for v in noise.values()]))
     notes.append(f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
-                 f"{sig:.1f} mm across the bars in plan" if datum.found else
-                 f"noise σ: {sig:.1f} mm across the bars in plan (no formwork)")
+                 f"spread {sig:.1f} mm across the bars in plan (noise and what lies beside them)" if datum.found else
+                 f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)")
     return _assemble(sc, design, plane, datum, result_bars, sig, notes, diameters, q,
                      name=name, t_start=t_start, up_how=up_how)
 
@@ -886,26 +878,72 @@ def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
 
 
 def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) -> pd.DataFrame:
+    """Bar sizes where :func:`diameter_resolvable` allows: a free-radius circle through the bar's
+    cross-section points (offset across its axis, height), its width snapped to the design's
+    bar system; else "not measured" with the criterion that failed."""
     from ._barsizes import bar_system, size_half_gaps_mm, snap_diameter
 
     system = design.bar_system
     sysm = bar_system(system)
-    nominal, status, reason, width = [], [], [], []
+    rows = []
     for b in bars:
         bs = design.lattice(b.layer).level(b.level)
         deformed = getattr(bs, "surface", "deformed") == "deformed"
-        gaps = size_half_gaps_mm(bs.diameter_mm, system=system, deformed=deformed) if \
-            bs.diameter_mm in sysm.sizes_mm else (1.0, 1.0)
-        ok, why = diameter_resolvable(noise, b.radius_mm, min(gaps), b.n_points)
-        if not ok:
-            nominal.append(None), status.append("not measured"), reason.append(why), width.append(None)
+        i = min(range(len(sysm.sizes_mm)), key=lambda k: abs(sysm.sizes_mm[k] - bs.diameter_mm))
+        gap = min(size_half_gaps_mm(sysm.sizes_mm[i], system=system, deformed=deformed))
+        cross = [c for c in (_cross_axes(b, x) for x in bars if x.layer == b.layer and x.level != b.level)
+                 if np.isfinite(c)]
+        fit = _cross_section_width(b, q, noise, cross)
+        if fit is not None and not 0.7 < fit[0] / (2 * b.radius_mm) < 1.4:
+            rows.append((None, None, None, "not measured",
+                         f"the circle through its cross-section is {fit[0]:.1f} mm wide against the set's "
+                         f"{2 * b.radius_mm:.1f} mm: something else lies in its cross-section"))
             continue
-        nominal.append(None), status.append("not measured"), width.append(None)
-        reason.append("cross-section points are not kept for this bar")
+        if fit is None:
+            rows.append((None, None, None, "not measured", "its cross-section points do not fix a circle"))
+            continue
+        w, sd, sigma, n = fit
+        ok, why = diameter_resolvable(sigma, b.radius_mm, gap, n)
+        if not ok:
+            rows.append((None, None, None, "not measured", why))
+            continue
+        nominal, conf = snap_diameter(w, system=system, deformed=deformed, sigma_mm=sd)
+        rows.append((nominal, w, conf, "measured", ""))
     table = table.copy()
-    table["nominal_mm"] = pd.to_numeric(pd.Series(nominal, dtype=object), errors="coerce")
-    table["width_mm"] = pd.to_numeric(pd.Series(width, dtype=object), errors="coerce")
-    table["diameter_status"] = status
-    table["diameter_reason"] = reason
-    _ = (snap_diameter, q)
+    for k, col in enumerate(("nominal_mm", "width_mm", "diameter_confidence")):
+        table[col] = pd.to_numeric(pd.Series([r[k] for r in rows], dtype=object), errors="coerce")
+    table["diameter_status"] = [r[3] for r in rows]
+    table["diameter_reason"] = [r[4] for r in rows]
     return table
+
+
+def _cross_section_width(b: G.BarAxis, q, noise, crossings=()) -> tuple[float, float, float, int] | None:
+    """Width (2 × radius) of the circle through a bar's points in its cross-section, its standard
+    error (from three independent thirds of the bar), the noise about the circle (robust σ of the
+    residuals) and the points used; None if no circle fits."""
+    p = q[b.point_index]
+    t = p[:, :2] @ b.direction
+    s_ = p[:, :2] @ b.normal2d - (b.offset_mm + b.slope * t)
+    h = p[:, 2]
+    keep = (np.abs(s_) < b.radius_mm + 3 * noise) & (np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 3 * noise)
+    keep &= _crossing_free(t, list(crossings), 3 * b.radius_mm)  # away from the bars crossing it
+    cut = noise
+    for _ in range(4):
+        if keep.sum() < 30:
+            return None
+        xc, yc, rad = _circle(s_[keep], h[keep])
+        res = np.hypot(s_ - xc, h - yc) - rad
+        cut = max(min(cut, 3 * _mad(res[keep])), 0.2)
+        keep &= np.abs(res) < 3 * cut
+        sigma = _mad(res[keep])
+    thirds = [_circle(s_[keep][k::3], h[keep][k::3])[2] for k in range(3)]
+    if not np.all(np.isfinite(thirds)):
+        return None
+    return 2 * rad, 2 * float(np.std(thirds, ddof=1)) / math.sqrt(3), sigma, int(keep.sum())
+
+
+def _circle(s, h) -> tuple[float, float, float]:
+    """Least-squares (Kåsa) circle through cross-section points: centre (s, h) and radius."""
+    A = np.c_[2 * s, 2 * h, np.ones(len(s))]
+    (xc, yc, k), *_ = np.linalg.lstsq(A, s ** 2 + h ** 2, rcond=None)
+    return float(xc), float(yc), float(math.sqrt(max(k + xc ** 2 + yc ** 2, 0.0)))

@@ -145,3 +145,19 @@ def test_cli_inspect_cloud_writes_results_with_manifest(design, tmp_path):
     assert data["method"] == "cloud" and data["manifest"]["cloud_digest"].startswith("sha256:")
     assert data["measurements"]["cover"]["status"] == "measured"
     assert all((tmp_path / "out" / "scan" / f).is_file() for f in ("bars.csv", "spacings.csv", "counts.csv"))
+
+
+@pytest.mark.slow
+def test_diameters_where_the_noise_allows(design):
+    pts, truth, _ = synth_scan(design, scanner=ScannerModel(range_sigma_mm=0.5, step_az_deg=0.06,
+                                                     step_el_deg=0.06, mixed_fraction=0.2), rng=0)
+    bars = inspect_cloud(pts, design).bars
+    sized = bars[bars["diameter_status"] == "measured"]
+    assert len(sized) >= 0.6 * len(bars)
+    sure = sized[sized["diameter_confidence"] >= 0.9]
+    want = sure["layer"].map({"lower": 14.0, "upper": 12.0})
+    assert len(sure) >= 0.5 * len(bars) and (sure["nominal_mm"] == want).all()
+    # at sigma 10 mm nothing is sized, and each bar says why
+    pts, truth, _ = _scan(design, 10.0, seed=0)
+    bars = inspect_cloud(pts, design).bars
+    assert (bars["diameter_status"] == "not measured").all() and bars["diameter_reason"].str.len().min() > 10
