@@ -52,6 +52,7 @@ def _summary(out: Path) -> list:
 # inspect_many
 # ------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_inspect_many_reports_a_failure_and_goes_on(tmp_path):
     bad = _broken_capture(tmp_path)
     a, b = example_capture("paper_slab", "A_400"), example_capture("paper_slab", "B_500")
@@ -146,6 +147,7 @@ def test_cli_batch_summary_manifest_and_a_failed_capture(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["A_400", "D_500", "summary.csv"]  # no lock, no temp left
 
 
+@pytest.mark.slow
 def test_cli_resume_keeps_only_results_of_the_same_inputs(tmp_path, capsys):
     a, b = _copy(tmp_path, "A_400", "B_500")
     out = tmp_path / "out"
