@@ -179,7 +179,11 @@ class PeakMemory:
 
 
 def run_batch(caps: list, out: Path, *extra) -> tuple:
-    """``rebar inspect`` over ``caps``: (wall s, peak MiB of the process tree, exit status)."""
+    """``rebar inspect`` over ``caps``: (wall s, peak MiB of the process tree, exit status, CPU s
+    of the command and its worker processes)."""
+    import resource
+
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     p = subprocess.Popen([*REBAR, "inspect", *map(str, caps), "--design", str(PAPER / "design.toml"),
                           "--out", str(out), "--quiet", *extra], cwd=ROOT, stdout=subprocess.DEVNULL,
@@ -188,9 +192,11 @@ def run_batch(caps: list, out: Path, *extra) -> tuple:
     _, err = p.communicate()
     wall = time.perf_counter() - t
     peak = mem.stop()
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     if p.returncode != 0:
         print(err, file=sys.stderr)
-    return wall, peak, p.returncode
+    return wall, peak, p.returncode, cpu
 
 
 def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
@@ -198,15 +204,18 @@ def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         caps = copies(Path(tmp) / "caps", n)
         for jobs in jobs_list:
-            walls, peaks = [], []
+            walls, peaks, cpus = [], [], []
             for r in range(repeats):
-                wall, peak, rc = run_batch(caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs))
+                wall, peak, rc, cpu = run_batch(caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs))
                 walls.append(wall)
                 peaks.append(peak)
+                cpus.append(cpu)
             w = statistics.median(walls)
-            rows.append([jobs, n, f"{w:.1f}", f"{60 * n / w:.1f}", f"{max(peaks):.0f}", rc])
+            rows.append([jobs, n, f"{w:.1f}", f"{60 * n / w:.1f}", f"{statistics.median(cpus) / n:.2f}",
+                         f"{max(peaks):.0f}", rc])
     table(f"batch: rebar inspect --jobs J over {n} copies of the paper slab's captures (diameters on), "
-          f"median of {repeats}", ["jobs", "captures", "wall s", "captures/min", "peak MiB (tree)", "exit"], rows)
+          f"median of {repeats}", ["jobs", "captures", "wall s", "captures/min", "CPU s per capture (all processes)",
+                                   "peak MiB (tree)", "exit"], rows)
 
 
 # ---------------------------------------------------------------------------------------------
