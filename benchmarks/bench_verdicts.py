@@ -144,16 +144,25 @@ def _across(scene, b) -> np.ndarray:
 def _targets(scene, defect, n: int, edge_view: bool, rng) -> list:
     """Where each capture looks (world x, y mm): the first at the defect, one at the mesh's edge
     where asked, the others inside the mesh."""
+    # the mesh's extent in its own frame (x along the bottom bars, y along the top bars)
+    yaw = math.radians(scene.deviations.mesh_yaw_deg)
+    ex = np.array([math.cos(yaw), math.sin(yaw)])
+    ey = np.array([-math.sin(yaw), math.cos(yaw)])
     pts = np.vstack([b.axis[[0, -1], :2] for b in scene.bars])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    local = np.column_stack((pts @ ex, pts @ ey))
+    lo, hi = local.min(axis=0), local.max(axis=0)
+
+    def world(xy):
+        return xy[0] * ex + xy[1] * ey
+
     out = []
     focus = None
     if defect in ("missing_inside", "missing_end") and scene.ghosts:
         g = scene.ghosts[0]
         focus = g.axis[0, :2] + rng.uniform(0.3, 0.7) * (g.axis[-1, :2] - g.axis[0, :2])
-        if defect == "missing_end":  # step towards the mesh's middle, so the edge and the row are in view
-            mid = 0.5 * (lo + hi)
-            focus = focus + 0.25 * (mid - focus) / max(np.linalg.norm(mid - focus), 1) * 400
+        if defect == "missing_end":  # step 100 mm towards the mesh's middle: the edge and the row in view
+            mid = world(0.5 * (lo + hi))
+            focus = focus + 100.0 * (mid - focus) / max(np.linalg.norm(mid - focus), 1.0)
     elif defect == "wrong_size":
         b = next(b for b in scene.bars if b.nominal_mm != b.design_mm)
         focus = b.axis[0, :2] + rng.uniform(0.35, 0.65) * (b.axis[-1, :2] - b.axis[0, :2])
@@ -169,9 +178,9 @@ def _targets(scene, defect, n: int, edge_view: bool, rng) -> list:
         y = rng.uniform(lo[1] + 300, hi[1] - 300)
         x = [lo[0] + 150, hi[0] - 150, x, x][side]
         y = [y, y, lo[1] + 150, hi[1] - 150][side]
-        out.append(np.array([x, y]))
+        out.append(world((x, y)))
     while len(out) < n:
-        out.append(rng.uniform(lo + 350, hi - 350))
+        out.append(world(rng.uniform(lo + 350, hi - 350)))
     return [tuple(map(float, t)) for t in out[:n]]
 
 

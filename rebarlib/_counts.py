@@ -14,9 +14,10 @@ position where no bar was found is *examined*, never assumed:
    left out) is sampled at the height of the would-be bar's top, slice by slice along the row
    (every ``step_mm``). Each sample's pixel shows something at the bar's height, the support
    below it (formwork, or the level underneath), something above it (another bar, which hides
-   the spot), or no depth. A slice is *empty* when the support is seen across the corridor with
-   no unseen stretch as wide as the bar, *occupied* when a stretch at least a radius wide is at
-   the bar's height, and *unknown* otherwise (the cause is kept).
+   the spot), or no depth. A slice is *occupied* when a stretch at least a radius wide anywhere
+   in the corridor is at the bar's height, *empty* when it is not and the core shows no unseen
+   stretch as wide as the bar (a bar within a quarter spacing of its place would show), and
+   *unknown* otherwise (the cause is kept).
 4. **What the colour shows.** The rebar mask (the colour model's) is sampled over the same
    slices, at the would-be bar's axis height, outside every found bar's pixels: a slice shows a
    bar when a stretch at least a radius wide is rebar.
@@ -306,8 +307,11 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
         if any((b - a) * step >= r for a, b in _runs(band[k])):
             state[k] = 2
             continue
-        # unseen stretches of the corridor (outside the image does not count: see the core)
-        unseen = (nodepth[k] | hidden[k] | band[k])
+        # unseen stretches of the core, where a bar within a quarter spacing of its place would
+        # lie (outside the image does not count: the core is in it). A bar could hide in an
+        # unseen stretch farther out only a quarter spacing or more off its place, a defect of
+        # its own that leaves its position empty.
+        unseen = (nodepth[k] | hidden[k] | band[k]) & core
         long = [(a, b) for a, b in _runs(unseen) if (b - a) * step >= 2 * r]
         if not long:
             state[k] = 1

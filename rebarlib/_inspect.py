@@ -578,7 +578,10 @@ def _inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | N
         # are seen mostly from above. Try again on the points whose surface faces up.
         up = facing_up(capture, cloud.pixels[bar_sel], plane)
         if up.sum() >= MIN_LATTICE_POINTS:
-            split = G.find_layer_split(q[up, 2])
+            # the tops of one lattice's two levels leave a gap of about a bar's diameter in
+            # these heights; the band between the lattices is the design's clear distance
+            clear = design.layer_distance_mm - design.lower.thickness_mm
+            split = G.find_layer_split(q[up, 2], min_gap_mm=max(6.0, 0.5 * clear))
             if split is not None:
                 notes.append(f"layer split at {split:.0f} mm found on the upward-facing points only: vertical "
                              "surfaces (an edge form, a wall) fill the band between the lattices")

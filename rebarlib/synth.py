@@ -842,6 +842,8 @@ def _sample(field_img, x, y, extent, cell):
     import cv2
 
     n = len(x)
+    if n == 0:  # nothing of this kind in view (a capture of bare formwork has no bar pixels)
+        return np.zeros((0,) + field_img.shape[2:], np.float32)
     cols = 1024  # remap wants maps under 32767 px a side: lay the samples out in rows
     pad = (-n) % cols
     mx = np.pad(((x + extent) / cell).astype(np.float32), (0, pad)).reshape(-1, cols)
