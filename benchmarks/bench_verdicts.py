@@ -211,20 +211,27 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--cache", default="/tmp/rebarlib_verdicts")
     ap.add_argument("--start", type=int, default=0, help="first slab number")
+    ap.add_argument("--report-only", action="store_true",
+                    help="print the tables from the slabs already judged in --cache (no rendering)")
     args = ap.parse_args(argv)
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     ks = list(range(args.start, args.start + args.slabs))
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(args.jobs) as ex:
-        folders = list(ex.map(_render_slab, [(k, str(cache)) for k in ks]))
-        t1 = time.perf_counter()
-        recs = list(ex.map(_inspect_slab, folders))
-    t2 = time.perf_counter()
+    if args.report_only:
+        recs = [json.loads(f.read_text()) for f in sorted(cache.glob("slab_*/verdict.json"))]
+    else:
+        with ProcessPoolExecutor(args.jobs) as ex:
+            recs = list(ex.map(_render_and_judge, [(k, str(cache)) for k in ks]))
     print(f"{len(recs)} slabs, {sum(len(r['captures']) for r in recs)} captures "
-          f"(render {t1 - t0:.0f} s, inspect + judge {t2 - t1:.0f} s, {args.jobs} processes)\n")
+          f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
+          f"{sum(r['seconds'] for r in recs):.0f} s of it in all)\n")
     report(recs)
     return 0
+
+
+def _render_and_judge(args) -> dict:
+    return _inspect_slab(_render_slab(args))
 
 
 def report(recs: list) -> None:

@@ -57,7 +57,8 @@ MISSING, PRESENT, PRESENT_NO_DEPTH, NOT_MEASURED = "missing", "present", "presen
 OUTSIDE, NOT_IN_VIEW, EXTRA, NOT_EXTRA = "outside the mesh", "not in view", "extra", "not counted"
 
 POSITION_COLUMNS = ["layer", "level", "kind", "offset_mm", "status", "reason", "in_view_mm", "empty_mm",
-                    "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm", "position_sigma_mm", "bar_id"]
+                    "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm", "position_sigma_mm", "bar_id",
+                    "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm", "end_y_mm", "end_z_mm"]
 
 
 @dataclass(frozen=True)
@@ -468,6 +469,7 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
                     nb_bar = rec.pop("_new")
                     new_bars.append(nb_bar)
                     rec["bar_id"] = len(bars) + len(new_bars) - 1
+                rec.update(_line_ends(row, float(rec["offset_mm"]), _t_range(nb), plane))
                 rows_out.append({"layer": layer, "level": level, **rec})
             rows_out.extend({"layer": layer, "level": level, **rec}
                             for rec in _pairs(row, plane, intr, foot, get_mask if mask is not None else None, prm))
@@ -521,6 +523,15 @@ def _line_in_view(row: _Row, p: float, b: BarAxis, plane, intr, prm) -> bool:
     t = np.arange(b.t0_mm, b.t1_mm + 1e-9, prm.step_mm)
     _, inside = _samples(row, p, t, np.array([0.0]), row.height + row.radius, plane, intr)
     return inside.sum() * prm.step_mm >= prm.min_evidence_mm
+
+
+def _line_ends(row: _Row, p: float, t_range, plane: Plane) -> dict:
+    """Camera-frame ends of the would-be axis at plan offset ``p`` (for drawing it)."""
+    t = np.array(t_range, float)
+    plan = t[:, None] * row.direction + p * row.normal
+    cam = from_slab_frame(np.column_stack((plan, np.full(2, row.height))), plane)
+    return {f"{end}_{c}_mm": round(float(cam[i, j]), 2) for i, end in enumerate(("start", "end"))
+            for j, c in enumerate("xyz")}
 
 
 def _t_range(nb) -> tuple:

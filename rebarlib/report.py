@@ -228,8 +228,11 @@ def _plan_basis(normal):
     return e1, e2
 
 
-def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, design: Design) -> dict | None:
-    """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing."""
+def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, design: Design,
+               positions: list | None = None, boundary: dict | None = None) -> dict | None:
+    """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing; with
+    ``positions`` (the result's examined positions) the missing and unjudged positions, with
+    ``boundary`` (``extras["mesh_boundary"]``) each lattice's outline in the view."""
     e1, e2 = _plan_basis((formwork or {}).get("normal"))
     segs, by_id = [], {}
     for rec in bars:
@@ -253,6 +256,23 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
                      "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"})
     if not segs:
         return None
+    marks = []
+    for rec in positions or []:
+        ax = _axis(rec)
+        status = rec.get("status")
+        if ax is None or status not in ("missing", "not measured"):
+            continue
+        a, b = (np.array([p @ e1, p @ e2]) for p in ax)
+        marks.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "missing": status == "missing",
+                      "text": "missing" if status == "missing" else "?", "lx": (a[0] + b[0]) / 2,
+                      "ly": (a[1] + b[1]) / 2})
+    outlines = []
+    for layer, info in (boundary or {}).items():
+        corners = (info or {}).get("corners_camera_mm") if isinstance(info, dict) else None
+        if corners:
+            pts2 = [(float(np.asarray(c) @ e1), float(np.asarray(c) @ e2)) for c in corners]
+            outlines.append({"points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2),
+                             "colour": LAYER_COLOURS.get(layer, "#555")})
     pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
                    + [[s["lx"], s["ly"]] for s in segs])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -277,7 +297,8 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         labels.append({"x": mid[0], "y": mid[1], "x0": pa[0], "y0": pa[1], "x1": pb[0], "y1": pb[1],
                        "text": "n/m" if v is None else f"{v:.0f}", "bad": status in ("beyond", "beyond max"),
                        "layer": rec.get("layer")})
-    return {"segments": segs, "labels": labels, "x": lo[0] - pad, "y": lo[1] - pad,
+    return {"segments": segs, "labels": labels, "marks": marks, "outlines": outlines,
+            "x": lo[0] - pad, "y": lo[1] - pad,
             # An extra strip at the bottom holds the scale bar, clear of the bar ids.
             "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 3 * pad, "font": span / 45,
             "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 2.0}
@@ -431,7 +452,9 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
         captures.append({
             "name": name, "method": r.get("method", ""), "image": image,
             "image_missing": "" if image else _no_image_text(r, name in folders),
-            "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design),
+            "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design,
+                               positions=r.get("positions") or [],
+                               boundary=(r.get("extras") or {}).get("mesh_boundary")),
             "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
             "height": _fmt(cam.get("height_mm"), 0, "mm"),
             "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
