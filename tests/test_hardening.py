@@ -274,7 +274,8 @@ def test_unknown_design_key_is_named_with_the_nearest_known_key():
         design_from_dict(data, source="d.toml")
     data = copy.deepcopy(PAPER_DESIGN)
     data["design"]["lower"]["bottom"] = {"spacing": 150}
-    with pytest.raises(RebarInputError, match=r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'"):
+    with pytest.raises(RebarInputError,
+                       match=r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'"):
         design_from_dict(data, source="d.toml")
 
 
