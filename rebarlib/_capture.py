@@ -216,6 +216,20 @@ def _imread(path: Path, flags):
     return img
 
 
+def _read_truth_image(path: Path, intr: Intrinsics) -> np.ndarray:
+    """A synthetic capture's one-channel ground-truth image, its header checked like the images'."""
+    import cv2
+
+    w, h = image_size(path)
+    if (w, h) != (intr.width, intr.height):
+        raise RebarInputError(f"{path}: is {w}x{h}, not the capture's {intr.width}x{intr.height} "
+                              "(checked before decoding)")
+    img = _imread(path, cv2.IMREAD_UNCHANGED)
+    if img.ndim != 2:
+        raise RebarInputError(f"{path}: expected a single-channel image, got shape {img.shape}")
+    return img
+
+
 def load_capture(path) -> Capture:
     """Read a capture folder: ``color.png`` (or ``.jpg``), ``depth.png`` (16-bit), ``camera.json``.
 
@@ -269,9 +283,9 @@ def load_capture(path) -> Capture:
     if (folder / "truth.json").is_file():
         meta["truth"] = _read_json(folder / "truth.json")
     if (folder / "labels.png").is_file():
-        labels = _imread(folder / "labels.png", cv2.IMREAD_UNCHANGED).astype(np.uint8)
+        labels = _read_truth_image(folder / "labels.png", intr).astype(np.uint8)
     if (folder / "bar_ids.png").is_file():
-        bar_ids = _imread(folder / "bar_ids.png", cv2.IMREAD_UNCHANGED).astype(np.int32)
+        bar_ids = _read_truth_image(folder / "bar_ids.png", intr).astype(np.int32)
     return Capture(color, depth, intr, meta, labels, bar_ids)
 
 

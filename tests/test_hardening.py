@@ -400,3 +400,9 @@ def test_paper_method_with_no_formwork_in_view_does_not_measure_cover():
     res = inspect(bare, load_design(PAPER / "design.toml"), method="paper", diameters=False, rng=0)
     assert not res.cover.ok and "no formwork visible" in res.cover.reason
     assert not res.upper_top.ok and not res.top_cover.ok and res.formwork["found"] is False
+
+
+def test_truth_images_are_checked_before_decoding(slab):
+    _png_claiming(slab / "A" / "labels.png", 30000, 30000)
+    with pytest.raises(RebarInputError, match=r"labels\.png: is 30000x30000, not the capture's 320x200"):
+        load_capture(slab / "A")
