@@ -257,6 +257,10 @@ class SegmentationModel:
             so.intra_op_num_threads = int(threads)
             so.inter_op_num_threads = 1
         so.log_severity_level = 3
+        # the session's threads sleep between runs instead of spinning: spinning threads burn a
+        # core while the rest of inspect() runs and, with other processes on the machine (a
+        # batch's workers), take it from them; the numbers computed are the same either way
+        so.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             self._session = ort.InferenceSession(str(self.onnx_path), so, providers=["CPUExecutionProvider"])
         except Exception as e:  # onnxruntime raises its own exception types for unreadable models
