@@ -570,6 +570,18 @@ def _inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | N
     top_of_formwork = float(np.percentile(band, 99)) if len(band) else 0.0
     above_thr = max(4 * sigma, 3.0, top_of_formwork + sigma) if has_formwork else -1.0
     bar_sel = np.where(h > above_thr)[0] if has_formwork else np.arange(len(h))
+    if has_formwork:
+        # Nothing of the mesh stands far above its design top: what does (an edge form's top, a
+        # tool, a boot) is not rebar. The margin, a quarter of the design top and at least 30 mm,
+        # keeps a mesh placed centimetres too high (itself a cover or layer-distance defect).
+        top_limit = design.upper_top_mm + max(30.0, 0.25 * design.upper_top_mm)
+        high = h[bar_sel] > top_limit
+        if high.any():
+            if high.mean() > 0.01:
+                notes.append(f"{high.mean():.0%} of the points above the formwork lie more than "
+                             f"{top_limit - design.upper_top_mm:.0f} mm above the design's top of the mesh "
+                             f"({design.upper_top_mm:.0f} mm): left out as not rebar (an edge form, an object)")
+            bar_sel = bar_sel[~high]
     q = G.to_slab_frame(cloud.points[bar_sel], plane)
     split = G.find_layer_split(q[:, 2])
     if split is None and len(q) >= MIN_LATTICE_POINTS and has_formwork:
