@@ -38,6 +38,8 @@ _EXPORTS = {
     ".acceptance": ["Acceptance", "Tolerances", "evaluate", "list_presets", "load_tolerances"],
     ".report": ["build_report"],
     ".batch": ["inspect_many"],
+    ".scan": ["inspect_cloud"],
+    ".cloud_io": ["ScanCloud", "read_cloud", "write_cloud"],
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 
@@ -58,7 +60,7 @@ __all__ = [
     "trim_depth_overreach", "estimate_registration", "shift_image",
     "confusion_counts", "pixel_accuracy", "iou", "dice",
     "Acceptance", "Tolerances", "evaluate", "load_tolerances", "list_presets", "build_report",
-    "inspect_many",
+    "inspect_many", "inspect_cloud", "ScanCloud", "read_cloud", "write_cloud",
 ]
 
 
