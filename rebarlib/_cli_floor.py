@@ -29,10 +29,9 @@ SEED = 0
 
 
 def _clean(text) -> str:
-    try:
-        from ._terminal import clean
-    except ImportError:  # pragma: no cover - the terminal module is not installed
-        return str(text)
+    """``text`` safe to print: a name from a file cannot start a line or move the cursor."""
+    from ._terminal import clean
+
     return clean(text)
 
 

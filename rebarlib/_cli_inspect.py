@@ -139,10 +139,9 @@ def _up_to_date(target: Path, capture: Path, design_path: Path, method: str, opt
     return data if manifest.get("options") == options else None
 
 
-def result_files(res, manifest: dict) -> dict:
-    """The files of one capture's result folder, as file name -> text."""
-    data = res.to_dict()
-    data["manifest"] = manifest
+def result_files(res, data: dict) -> dict:
+    """The files of one capture's result folder, as file name -> text (``data``: the result's
+    ``to_dict()`` with its ``"manifest"``)."""
     files = {"result.json": json.dumps(data, indent=1) + "\n",
              "bars.csv": res.bars.to_csv(index=False), "spacings.csv": res.spacings.to_csv(index=False)}
     if res.counts is not None:
@@ -172,8 +171,12 @@ def progress_bar(total: int, *, quiet: bool, unit: str = "capture"):
 
 
 def _say(bar, text: str, *, err: bool = False) -> None:
+    """Print one line (made safe for the terminal) without breaking the progress bar."""
     from tqdm import tqdm
 
+    from ._terminal import clean
+
+    text = clean(text)
     stream = sys.stderr if err else sys.stdout
     if bar.disable:
         print(text, file=stream)
@@ -211,7 +214,6 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
             rows[i] = summary_row(tgt.name, "resumed", data)
         else:
             todo.append(i)
-    manifests = {}
     failed = 0
     bar = progress_bar(len(todo), quiet=args.quiet)
     try:
@@ -232,9 +234,10 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
                 _say(bar, f"{name}: error: {o.error}", err=True)
                 bar.update(1)
                 continue
-            manifests[i] = make_manifest(captures[i], design_path, method=args.method, options=options)
-            write_folder_atomically(out, name, result_files(o.result, manifests[i]))
-            rows[i] = summary_row(name, "ok", o.result.to_dict(), o.seconds)
+            data = o.result.to_dict()
+            data["manifest"] = make_manifest(captures[i], design_path, method=args.method, options=options)
+            write_folder_atomically(out, name, result_files(o.result, data))
+            rows[i] = summary_row(name, "ok", data, o.seconds)
             if not args.quiet:
                 _say(bar, summary_line(o.result))
             bar.update(1)
@@ -242,6 +245,8 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
         bar.close()
         write_file_atomically(out / SUMMARY_NAME, summary_csv(rows[i] for i in sorted(rows)))
     n_ok = sum(r["status"] == "ok" for r in rows.values())
-    print(f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, {failed} failed; "
-          f"summary: {out / SUMMARY_NAME}", file=sys.stderr if failed else sys.stdout)
+    from ._terminal import clean
+
+    print(clean(f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, "
+                f"{failed} failed; summary: {out / SUMMARY_NAME}"), file=sys.stderr if failed else sys.stdout)
     return 1 if failed else 0

@@ -379,3 +379,13 @@ def test_inspect_with_the_model_started_ahead_gives_the_same_result(monkeypatch)
     for d in (plain, ahead):
         d.pop("timings_s")
     assert ahead == plain
+
+
+def test_cli_prints_a_capture_name_with_control_characters_escaped(tmp_path, capsys):
+    cap = tmp_path / "caps" / "A\nfake: cover 20.0 mm\x1b[2J"
+    shutil.copytree(example_capture("paper_slab", "A_400"), cap)
+    assert _inspect([cap], tmp_path / "out") == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\\x1b" in out and "A\\nfake" in out
+    assert not any(line.startswith("fake") for line in out.splitlines())
+    assert [r["capture"] for r in _summary(tmp_path / "out")] == [cap.name]  # the file keeps the real name
