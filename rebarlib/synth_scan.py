@@ -198,7 +198,8 @@ def scan_scene(scene: SlabScene, stations, scanner: ScannerModel | None = None, 
 def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     """Returns of one station's rays: points, labels and intensities."""
     origins = np.broadcast_to(pos, d.shape)
-    t, obj, normal = caster.first_hit(origins, d)
+    with np.errstate(invalid="ignore"):  # rays that miss everything come back as inf / NaN
+        t, obj, normal = caster.first_hit(origins, d)
     hit = np.isfinite(t) & (t < sc.max_range_mm)
     cos_inc = np.abs((normal * d).sum(axis=1))
     keep = hit & (rng.random(len(t)) < np.where(hit, cos_inc, 0.0) ** sc.incidence_power)
@@ -216,7 +217,8 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     graze = np.flatnonzero((label >= 0) & (cos_i < 0.3) & (rng.random(len(t)) < sc.mixed_fraction))
     if len(graze):
         behind_o = true_p[graze] + d[idx[graze]] * 60.0
-        t2, _, _ = caster.first_hit(behind_o, d[idx[graze]])
+        with np.errstate(invalid="ignore"):
+            t2, _, _ = caster.first_hit(behind_o, d[idx[graze]])
         ok = np.isfinite(t2) & (t2 < 1500.0)
         mix = rng.random(len(graze))
         rng_t[graze[ok]] = t[graze[ok]] + mix[ok] * (t2[ok] + 60.0)

@@ -161,3 +161,20 @@ def test_diameters_where_the_noise_allows(design):
     pts, truth, _ = _scan(design, 10.0, seed=0)
     bars = inspect_cloud(pts, design).bars
     assert (bars["diameter_status"] == "not measured").all() and bars["diameter_reason"].str.len().min() > 10
+
+
+@pytest.mark.slow
+def test_partly_scanned_mesh_and_a_station_above_it(design):
+    from rebarlib.synth_scan import Station
+
+    # a third of the mesh scanned: every bar with >= 100 mm of returns found, nothing else
+    pts, truth, _ = synth_scan(design, scanner=ScannerModel(range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1),
+                               region=(-1000, 200, -1000, 300), rng=4)
+    s = score_scan(inspect_cloud(pts, design), truth)
+    assert 15 <= s["scanned"] < 40 and s["missed"] == 0 and s["phantoms"] == 0, s
+    assert s["spacing_max_abs_err_mm"] <= 5.0 and abs(s["layer_distance_err_mm"]) <= 3.0
+    # a hand-held scanner looking down from 1.2 m, two positions
+    pts, truth, _ = synth_scan(design, stations=[Station((0.0, 0.0, 1200.0)), Station((600.0, -400.0, 1200.0))],
+                               scanner=ScannerModel(range_sigma_mm=5.0, step_az_deg=0.25, step_el_deg=0.25), rng=3)
+    s = score_scan(inspect_cloud(pts, design), truth)
+    assert s["missed"] == 0 and s["phantoms"] == 0 and s["spacing_max_abs_err_mm"] <= 3.0, s
