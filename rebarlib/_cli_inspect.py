@@ -112,6 +112,11 @@ def _check_paths(captures, out: Path) -> list:
     return targets
 
 
+def _absolute(path):
+    """A path the workers can open whatever their working folder (a dask worker's is not ours)."""
+    return None if path is None else str(Path(path).resolve())
+
+
 def _options(args) -> dict:
     opts = {"diameters": not args.no_diameters, "mask_source": args.mask_source, "seed": args.seed}
     if getattr(args, "calibration", None):
@@ -224,7 +229,7 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
         outcomes = inspect_many([captures[i] for i in todo], design, client=client, jobs=jobs,
                                 method=args.method, diameters=not args.no_diameters,
                                 mask_source=args.mask_source, rng=args.seed,
-                                calibration=getattr(args, "calibration", None))
+                                calibration=_absolute(getattr(args, "calibration", None)))
         for o in outcomes:
             i = todo[o.index]
             name = targets[i].name
