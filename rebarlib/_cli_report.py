@@ -124,6 +124,20 @@ def check_manifests(pairs: list, *, design_path) -> None:
         raise RebarInputError("--results: refusing results that do not belong to this report: " + "; ".join(problems))
 
 
+def _clouds(slab_dir) -> list:
+    """Scanned cloud files of a slab folder that holds no capture folder (their results come from
+    ``rebar inspect-cloud``). Beside captures, a .csv or .txt is an export, not a scan."""
+    from .cloud_io import cloud_files
+    from .report import find_captures
+
+    return [] if find_captures(slab_dir) else cloud_files(slab_dir)
+
+
+def _name(capture: Path) -> str:
+    """A capture's name in the results folder: a folder's name, a cloud file's stem."""
+    return capture.stem if capture.is_file() else capture.name
+
+
 def _result_files(results_dir) -> list:
     rdir = Path(results_dir)
     return [p for p in rdir.rglob("*") if p.is_file()] if rdir.is_dir() else []
@@ -151,6 +165,11 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
     from .report import find_captures
 
     captures = find_captures(slab_dir)
+    clouds = _clouds(slab_dir)
+    if clouds and results_dir is None:
+        raise RebarInputError(f"{slab_dir}: scanned clouds ({clouds[0].name}, ...) are judged from their results: "
+                              "run `rebar inspect-cloud` and pass its output with --results DIR")
+    captures += clouds
     if not captures:
         raise RebarInputError(f"{slab_dir}: no capture folders (sub-folders with camera.json) in the slab folder")
     results, missing = [], []
@@ -160,11 +179,11 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
             raise RebarInputError(f"--results {rdir}: folder not found (expected <capture>/result.json inside)")
         pairs = []
         for cap in captures:
-            path = rdir / cap.name / "result.json"
+            path = rdir / _name(cap) / "result.json"
             if path.is_file():
                 pairs.append((cap, _read_result(path)))
             else:
-                missing.append((cap.name, f"no result: {path} does not exist"))
+                missing.append((_name(cap), f"no result: {path} does not exist"))
         if design_path is not None:
             check_manifests(pairs, design_path=design_path)
         results = [r for _, r in pairs]
@@ -199,7 +218,9 @@ def run(args) -> int:
     tolerances = _tolerances(args.standard, design, load_tolerances)
     out, fmt, outputs = report_paths(args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports)
     captures = find_captures(slab) if slab.is_dir() else []
-    result_folders = [Path(args.results) / c.name for c in captures] if args.results else []
+    if args.results and slab.is_dir():
+        captures += _clouds(slab)
+    result_folders = [Path(args.results) / _name(c) for c in captures] if args.results else []
     check_outputs(outputs, inputs=[design_path, *(_result_files(args.results) if args.results else [])],
                   input_folders=[*captures, *result_folders], force=args.force)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -70,7 +70,10 @@ def manifest_problems(manifest: dict | None, *, capture_folder=None, design_path
     out = []
     if capture_folder is not None:
         cap = Path(capture_folder).resolve()
-        if manifest.get("capture_digest") != capture_digest(cap):
+        if cap.is_file():  # a scanned cloud (``rebar inspect-cloud``): its own digest
+            if manifest.get("cloud_digest") != file_digest(cap):
+                out.append(f"the cloud file {cap.name} is not the one the result was made from")
+        elif manifest.get("capture_digest") != capture_digest(cap):
             out.append(f"the files of capture {cap.name} changed since the result was made")
     if design_path is not None and manifest.get("design_digest") != file_digest(design_path):
         out.append(f"it was made against another design file than {Path(design_path).name}")

@@ -21,7 +21,7 @@ import numpy as np
 
 from ._checks import RebarInputError
 
-__all__ = ["CLOUD_SUFFIXES", "UNIT_SCALE", "ScanCloud", "read_cloud", "write_cloud"]
+__all__ = ["CLOUD_SUFFIXES", "UNIT_SCALE", "ScanCloud", "cloud_files", "read_cloud", "write_cloud"]
 
 #: mm per unit of a file
 UNIT_SCALE = {"mm": 1.0, "m": 1000.0}
@@ -64,6 +64,14 @@ class ScanCloud:
 # ----------------------------------------------------------------------------------------------
 # Reading
 # ----------------------------------------------------------------------------------------------
+
+def cloud_files(folder) -> list:
+    """The point cloud files directly in ``folder`` (by suffix), sorted by name."""
+    f = Path(folder)
+    if not f.is_dir():
+        return []
+    return sorted(p for p in f.iterdir() if p.is_file() and p.suffix.lower() in CLOUD_SUFFIXES)
+
 
 def read_cloud(path, *, units: str, recentre: bool = True) -> ScanCloud:
     """Read a point cloud file into a :class:`ScanCloud` (mm, re-centred, fields kept).

@@ -4,6 +4,7 @@ ground truth (tolerances stated per test), bar-size tables of other markets."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -178,3 +179,24 @@ def test_partly_scanned_mesh_and_a_station_above_it(design):
                                scanner=ScannerModel(range_sigma_mm=5.0, step_az_deg=0.25, step_el_deg=0.25), rng=3)
     s = score_scan(inspect_cloud(pts, design), truth)
     assert s["missed"] == 0 and s["phantoms"] == 0 and s["spacing_max_abs_err_mm"] <= 3.0, s
+
+
+@pytest.mark.slow
+def test_report_of_a_slab_folder_of_clouds(design, tmp_path):
+    from rebarlib.cli import main
+
+    slab = tmp_path / "slab"
+    slab.mkdir()
+    (slab / "design.toml").write_text(Path(DESIGN).read_text(encoding="utf-8"), encoding="utf-8")
+    pts, truth, fields = _scan(design, 5.0, seed=2, step=0.12)
+    export_scan(slab / "bay1.ply", pts, truth, fields, units="m")
+    # clouds are judged from their results only
+    assert main(["report", str(slab), "--out", str(tmp_path / "r0.pdf")]) == 2
+    assert main(["inspect-cloud", str(slab / "bay1.ply"), "--units", "m", "--design", str(slab / "design.toml"),
+                 "--out", str(tmp_path / "res")]) == 0
+    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r.pdf")]) == 0
+    assert (tmp_path / "r.pdf").stat().st_size > 10_000
+    # a changed cloud is not the one the result was made from
+    with open(slab / "bay1.ply", "ab") as f:
+        f.write(b"\n")
+    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r2.pdf")]) == 2
