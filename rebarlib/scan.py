@@ -9,8 +9,9 @@ direction, and its axis is the mean of many noisy points, not a fitted cross-sec
 Stages (each a function):
 
 1. :func:`mesh_up` — the mesh's normal (the formwork's, or the thin direction of the bars' cloud)
-   and its sign: the given ``up``, else away from the formwork, else toward the denser lattice
-   (a scanner looks down on the mesh, so the lower lattice is shadowed). Never from the origin.
+   and its sign: the given ``up``, else away from the formwork, else from the file's normals
+   (oriented to the scanner), else guessed from the crossings (:func:`crossing_lift`). Never
+   from the origin.
 2. :func:`find_datum` — the formwork (or ground) plane under the mesh if the scan holds one, with
    the range noise measured on it; cover is measured from it, and without it cover is "not
    measured".
@@ -19,9 +20,9 @@ Stages (each a function):
    then the bars of each as peaks of the offset histogram that stand out of their local
    background by more than its counting noise (thresholds from the measured density and noise,
    not fixed ratios), and that run at least ``min_length_mm``.
-5. Axes: per bar, a robust line through its points away from the crossings; height from the
-   mean height of its points (points cover the upper half of a bar: the mean lies 2r/π above
-   the axis).
+5. Axes: per bar, a robust line through its band's points; height from the mean height of its
+   points away from the crossings (points cover the upper half of a bar: the mean lies 2r/π
+   above the axis), over a formwork as one component of a formwork/bar mixture.
 6. Spacings (:func:`rebarlib.geometry.measure_spacings`), layer distance, cover, diameters (only
    where the noise allows, see :func:`diameter_resolvable`).
 """
@@ -47,7 +48,6 @@ __all__ = ["as_scan_cloud", "cloud_manifest", "crossing_lift", "diameter_resolva
 
 METHOD = "cloud"
 _SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar's upper half, x radius
-_MAX_FIT_POINTS = 200_000
 
 
 # ----------------------------------------------------------------------------------------------
@@ -452,9 +452,19 @@ def lattice_bars(q, *, radius_mm: dict, spacing_mm: float, noise_mm: float, min_
     """The bars of one lattice: ``[(direction index, _Bar), ...]`` from its slab-frame points.
 
     Directions: the sharpest plan angle, then the sharpest at least 30° from it once the first
-    direction's bars are taken out. Bars: offset peaks of ``z`` ≥ 5 over their local counting
-    noise, the histogram smoothed by the bar's own spread (noise and radius), at least half a
-    design spacing apart, running ``min_length_mm`` or more (cells sized by the density along).
+    direction's bars are taken out. Bars: offset peaks standing 5 counting-noise σ over their
+    local background, the histogram smoothed by the bar's own spread (noise and radius), at
+    least 0.45 design spacing (and three spreads) apart, running ``min_length_mm`` or more
+    (cells sized by the density along). Phantoms made of crossing bars' points are dropped.
+
+    Parameters
+    ----------
+    q : (N, 3) slab-frame points of the lattice, mm
+    radius_mm : ``{direction index: radius}`` of the bars (0 and 1)
+    spacing_mm : the design spacing of the lattice (the smaller of its two levels')
+    noise_mm : noise of the points across the bars, mm (sets the bands and the smoothing)
+    min_length_mm : a bar runs at least this far
+    rng : seed or Generator of the sampling in the angular scan
     """
     rng = np.random.default_rng(rng)
     plan, h = q[:, :2], q[:, 2]
@@ -575,8 +585,10 @@ def _mean_measure(values, ses, n_points: int) -> Measurement:
     return Measurement(float(np.mean(v)), sd, n_points)
 
 
-def _to_axis(b: _Bar, layer: str, level: str, group: int, r: float, datum_h: float) -> G.BarAxis:
-    axis_h = b.mean_h - datum_h - _SURFACE_MEAN * r
+def _to_axis(b: _Bar, layer: str, level: str, group: int, r: float) -> G.BarAxis:
+    """A bar as a :class:`~rebarlib.geometry.BarAxis` (slab frame): its axis lies 2r/π under the
+    mean height of its points."""
+    axis_h = b.mean_h - _SURFACE_MEAN * r
     se = b.resid_sd / math.sqrt(max(b.n, 1))
     return G.BarAxis(layer, b.direction, b.centre, b.slope, axis_h, 0.0, b.t0, b.t1, r, b.n, b.resid_sd,
                      b.idx, group, level, arc_deg=float("nan"), axis_se_mm=se)
@@ -621,7 +633,7 @@ def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, m
     elif datum.found and float(datum.plane.normal @ normal) < 0:
         datum = Datum(G.Plane(normal, 0.0), False, None, datum.share,
                       "the only plane found lies above the mesh (for the up given): no formwork in the scan")
-    plane, q, split = _frame(pts, normal, datum, rng)
+    plane, q, split = _frame(pts, normal, datum)
     result_bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
     if not datum.found and up is None:
         # nothing else settles the sign: a scanner looks down on the mesh, so where two bars
@@ -639,7 +651,7 @@ def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, m
                       f"where the bar on top hides the one beneath (heights {abs(lift):.1f} mm higher there): right "
                       "in every synthetic scan at noise σ 5 mm, not at σ 15 mm: give up= (--up)")
         if flip:
-            plane, q, split = _frame(pts, -normal, datum, rng)
+            plane, q, split = _frame(pts, -normal, datum)
             result_bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
     notes.append(f"up: {up_how}")
     sig = float(np.median([v[0] for v in noise.values()]))
@@ -715,7 +727,7 @@ def _cross_axes(b: G.BarAxis, x: G.BarAxis) -> float:
     return float(p @ b.direction)
 
 
-def _frame(pts, normal, datum: Datum, rng):
+def _frame(pts, normal, datum: Datum):
     """The slab frame (the datum's plane, else heights from the cloud's lowest points along
     ``normal``), the slab-frame points and the split between the lattices."""
     if datum.found:
@@ -783,7 +795,7 @@ def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rn
         if mean_h is None:
             continue
         b.mean_h, b.n, b.idx = mean_h, n, idx[b.idx]
-        axes.append(_to_axis(b, layer, lv, g, radii[lv], 0.0))
+        axes.append(_to_axis(b, layer, lv, g, radii[lv]))
     return _drop_off_level(axes, sig_h), (sig_plan, sig_h)
 
 
