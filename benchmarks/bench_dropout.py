@@ -9,7 +9,9 @@ Each example capture of ``examples/paper_slab`` loses a fraction of its depth pi
 inspected (diameters off). A measured height (cover, layer distance, top of the upper lattice)
 counts as *off* when it is further from the truth than K_SIGMA times its stated uncertainty plus
 SLACK_MM. The table gives, per fraction and patch size: runs, how many of each height were
-measured, and how many measured heights were off (the target is 0).
+measured, how many measured heights were off (the target is 0), and the range of the layer
+split's height over the runs that found one (it must lie between the lattices: above the lower
+lattice's top, about 50 mm, and below the upper lattice's underside, about 105 mm).
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ HEIGHTS = ("cover", "layer_distance", "upper_top")
 
 
 def run_one(cap, design, fraction: float, patch_px: float, seed: int, method: str) -> dict:
-    """Inspect ``cap`` with ``fraction`` of its depth dropped; per height: "off", "ok" or "nm"."""
+    """Inspect ``cap`` with ``fraction`` of its depth dropped; per height: "off", "ok" or "nm",
+    and ``"split"``: the layer split's height (None when none was found)."""
     from rebarlib import RebarInputError, inspect
     from rebarlib.synth import dropout_mask
 
@@ -34,8 +37,8 @@ def run_one(cap, design, fraction: float, patch_px: float, seed: int, method: st
     try:
         res = inspect(dataclasses.replace(cap, depth_mm=depth), design, method=method, diameters=False, rng=seed)
     except RebarInputError:
-        return {h: "nm" for h in HEIGHTS}
-    out = {}
+        return {**{h: "nm" for h in HEIGHTS}, "split": None}
+    out = {"split": res.extras.get("layer_split_mm")}
     for h in HEIGHTS:
         m, truth = getattr(res, h), cap.truth[f"{h}_mm"]
         if not m.ok:
@@ -63,7 +66,7 @@ def main(argv=None) -> int:
     design = load_design(slab / "design.toml")
     caps = [load_capture(slab / n) for n in args.captures.split(",")]
     print(f"method {args.method}; off = further than {K_SIGMA:g} sigma + {SLACK_MM} mm from the truth")
-    print(f"{'dropout':>8} {'patch':>5} {'runs':>4} | {'cover':>5} {'layer':>5} {'top':>5} measured | off")
+    print(f"{'dropout':>8} {'patch':>5} {'runs':>4} | {'cover':>5} {'layer':>5} {'top':>5} measured | off | split mm")
     total_off = 0
     for fraction in (float(x) for x in args.fractions.split(",")):
         for patch in (float(x) for x in args.patches.split(",")):
@@ -71,8 +74,10 @@ def main(argv=None) -> int:
             measured = [sum(r[h] != "nm" for r in rows) for h in HEIGHTS]
             off = sum(r[h] == "off" for r in rows for h in HEIGHTS)
             total_off += off
+            splits = [r["split"] for r in rows if r["split"] is not None]
+            span = f"{min(splits):.0f}-{max(splits):.0f} ({len(splits)} found)" if splits else "none found"
             print(f"{fraction:>8.0%} {patch:>5.0f} {len(rows):>4} | {measured[0]:>5} {measured[1]:>5} "
-                  f"{measured[2]:>5}          | {off}", flush=True)
+                  f"{measured[2]:>5}          | {off:>3} | {span}", flush=True)
     print(f"measured heights off: {total_off}")
     return 0
 
