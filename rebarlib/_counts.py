@@ -272,9 +272,9 @@ def _runs(flags: np.ndarray) -> list:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, mask, noise, prm):
-    """The evidence at plan offset ``p`` of ``row``: a dict of lengths (mm) and the mask's
-    centre line. ``mask``: a callable returning the (H, W) bool rebar mask, or None."""
+def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm):
+    """The depth's evidence at plan offset ``p`` of ``row``: a dict of lengths (mm) and the
+    per-slice states (:func:`_add_mask` adds the colour mask's)."""
     s, r = row.spacing, row.radius
     t = np.arange(t_range[0], t_range[1] + 1e-9, prm.step_mm)
     c = np.arange(-s / 2, s / 2 + 1e-9, prm.sample_mm)
@@ -326,12 +326,16 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
           "hidden_mm": float((in_view & cause_hid).sum() * L), "mask_mm": 0.0, "mask_empty_share": math.nan,
           "mask_nodepth_share": math.nan, "mask_occupied_share": math.nan, "centre": math.nan,
           "centre_sigma": math.nan, "t_mask": None}
-    ev["_state"], ev["_nd"], ev["_t"] = state, in_view & cause_nd, t
-    if mask is None:
-        return ev
-    m = mask()
-    if m is None:
-        return ev
+    ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = state, in_view & cause_nd, t, c, in_view
+    return ev
+
+
+def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> dict:
+    """The colour mask's evidence over the slices of ``ev`` (:func:`_examine`): how much of the
+    row's length shows a bar, the share of the empty / no-depth / occupied slices that do, and
+    the centre line of each showing slice. Called only when a verdict needs it."""
+    t, c, state, in_view = ev["_t"], ev["_c"], ev["_state"], ev["_in_view"]
+    step, r, L = prm.sample_mm, row.radius, prm.step_mm
     # the mask at the axis height: its centre line is the axis's projection
     uv2, inside2 = _samples(row, p, t, c, row.height, plane, intr)
     u2 = np.clip(uv2[..., 0], 0, intr.width - 1)
@@ -347,7 +351,7 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
             shows[k] = True
             centre[k] = 0.5 * (c[a] + c[b - 1])
     ev["mask_mm"] = float(shows.sum() * L)
-    for key, sel in (("mask_empty_share", state == 1), ("mask_nodepth_share", in_view & cause_nd),
+    for key, sel in (("mask_empty_share", state == 1), ("mask_nodepth_share", ev["_nd"]),
                      ("mask_occupied_share", state == 2)):
         if sel.sum():
             ev[key] = float(shows[sel].mean())
@@ -556,14 +560,19 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
                 + (" (the mesh's edge is in view)" if edge else " (where they leave the view or are hidden)"))}
     row_ids = [i + 1 for i in row.index]
     ev = _examine(row, p, _t_range(nb), plane=plane, depth=depth, intr=intr, foot=foot, row_ids=row_ids,
-                  higher=higher, mask=mask, noise=noise, prm=prm)
+                  higher=higher, noise=noise, prm=prm)
+    E = prm.min_evidence_mm
+    seen = ev["empty_mm"] + ev["occupied_mm"]
+    # the colour mask is read only where the depth leaves a verdict that needs it
+    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E)
+    m = mask() if (mask is not None and needs) else None
+    if m is not None:
+        ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
     rec = {**base, **{k: round(ev[k], 1) for k in ("in_view_mm", "empty_mm", "occupied_mm", "no_depth_mm",
                                                     "hidden_mm", "mask_mm")}}
-    E = prm.min_evidence_mm
     if ev["in_view_mm"] < E:
         return {**rec, "status": NOT_IN_VIEW, "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})"}
-    has_mask = mask is not None and "_shows" in ev
-    seen = ev["empty_mm"] + ev["occupied_mm"]
+    has_mask = "_shows" in ev
     if ev["occupied_mm"] >= E and ev["occupied_mm"] >= 0.5 * seen:
         share = ev["mask_occupied_share"]
         if has_mask and share >= prm.min_share:
