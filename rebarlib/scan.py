@@ -180,13 +180,24 @@ def _smoothed_hist(x, bin_mm: float, sd_mm: float, lo=None, hi=None):
     return 0.5 * (edges[:-1] + edges[1:]), s, c
 
 
+def _far_side_sigma(s, i: int, *, bin_mm: float, kernel_mm: float) -> float:
+    """σ of a histogram peak at bin ``i`` from its half width at half maximum on its low side
+    (nothing but the plane lies there), less the smoothing kernel: sparse outliers far off do
+    not widen it, as they would a spread of the residuals."""
+    j = i
+    while j > 0 and s[j] > 0.5 * s[i]:
+        j -= 1
+    hwhm = (i - j) * bin_mm
+    return float(math.sqrt(max((hwhm / 1.1774) ** 2 - kernel_mm ** 2, 0.25)))
+
+
 def find_datum(points, normal, *, rng=None) -> Datum:
     """The formwork or ground plane under the mesh: a plane holding at least 15 % of the points
     at the low end of their heights along ``normal`` (either sign), with the range noise measured
     on its far side (away from the bars, where nothing else lies).
 
     The plane's height is the mode of the residuals (not their mean: the lowest bars lie within
-    a few noise σ above it) and its noise the robust spread of the residuals below the mode.
+    a few noise σ above it) and its noise the half width of that mode on its far side.
     """
     rng = np.random.default_rng(rng)
     n = np.asarray(normal, float)
@@ -200,8 +211,7 @@ def find_datum(points, normal, *, rng=None) -> Datum:
         # the lowest strong peak
         i = int(np.argmax(s[: max(1, len(s) // 2)]))
         mode = x[i]
-        below = hs[hs < mode]
-        sigma = 1.4826 * float(np.median(mode - below)) if len(below) > 20 else 1.0
+        sigma = _far_side_sigma(s, i, bin_mm=1.0, kernel_mm=3.0)
         share = float(np.mean(np.abs(hs - mode) < max(2.5 * sigma, 2.0)))
         if best is None or share > best[2]:
             best = (sign, mode, share, sigma)
