@@ -295,8 +295,7 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
     nodepth = inside & ~own_row & ~other & (z <= 0)
     seen = inside & ~own_row & ~other & (z > 0)
     above = seen & (h > band_hi)
-    band = seen & (h >= band_lo) & (h <= band_hi)
-    through = seen & (h < band_lo)
+    band = seen & (h >= band_lo) & (h <= band_hi)  # below band_lo: the support, seen through
     hidden = other | above
 
     step = prm.sample_mm
@@ -690,7 +689,8 @@ def count_table(bars: list, positions: pd.DataFrame, design_spacing: dict) -> pd
         for level in LEVELS:
             found = sum(1 for b in bars if b.layer == layer and b.level == level)
             s = design_spacing.get((layer, level))
-            pos = positions[(positions["layer"] == layer) & (positions["level"] == level)] if len(positions) else positions
+            pos = (positions[(positions["layer"] == layer) & (positions["level"] == level)]
+                   if len(positions) else positions)
             st = pos["status"].value_counts().to_dict() if len(pos) else {}
             if not found or s is None:
                 rows.append({"layer": layer, "level": level, "found": found, "expected": None, "missing": None,

@@ -118,9 +118,11 @@ def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | No
 
 def _check(capture, design, method):
     if not isinstance(capture, Capture):
-        raise RebarInputError(f"capture: expected a rebarlib.Capture (use rebarlib.load_capture), got {type(capture).__name__}")
+        raise RebarInputError("capture: expected a rebarlib.Capture (use rebarlib.load_capture), "
+                              f"got {type(capture).__name__}")
     if not isinstance(design, Design):
-        raise RebarInputError(f"design: expected a rebarlib.Design (use rebarlib.load_design), got {type(design).__name__}")
+        raise RebarInputError("design: expected a rebarlib.Design (use rebarlib.load_design), "
+                              f"got {type(design).__name__}")
     if method not in METHODS:
         raise RebarInputError(f"method: expected one of {METHODS}, got {method!r}")
     if not np.any(capture.depth_mm > 0):
@@ -648,7 +650,9 @@ def _inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | N
     def undersides(layer, level):
         return [b.underside_mm for b in bars if b.layer == layer and b.level == level and b.status == "measured"]
 
-    npts = lambda layer, level: sum(b.n_points for b in bars if b.layer == layer and b.level == level)
+    def npts(layer, level):
+        return sum(b.n_points for b in bars if b.layer == layer and b.level == level)
+
     plane_var = (sigma / math.sqrt(max(plane.n_inliers, 1))) ** 2 if has_formwork else 0.0
     unclear = {la: _levels_unclear(bars, la) for la in G.LAYERS}
     lower_u = undersides("lower", "bottom")
@@ -820,7 +824,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     t = time.perf_counter()
     pts_by_layer = {"lower": q[lower], "upper": q[~lower]}
     spacings = G.paper_spacings(bars, pts_by_layer, design_spacing=_design_spacing(design), rng=rng)
-    counts = G.count_bars(bars, design_spacing=_design_spacing(design), plane=None)
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design))
     T["spacing"] = time.perf_counter() - t
 
     res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
@@ -828,6 +832,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
                            bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
                            formwork={**plane.to_dict(), "found": bool(has_formwork)},
                            camera=_camera_pose(plane) if has_formwork else {},
-                           timings_s=T, notes=notes, extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
+                           timings_s=T, notes=notes,
+                           extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
     res.bar_points = {i: c for i, c in enumerate(clouds)}
     return res

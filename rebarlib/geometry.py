@@ -53,7 +53,7 @@ __all__ = [
     "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
     "level_heights", "stack_heights", "top_heights", "count_bars", "envelope_mm", "direction_sharpness",
-    "flag_hidden_gaps", "flag_border_cut",
+    "flag_border_cut",
 ]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
@@ -1261,17 +1261,13 @@ def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | 
     return _spacing_frame(rows)
 
 
-def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None,
-               depth_mm=None, intrinsics: Intrinsics | None = None, heights: dict | None = None,
-               min_length_mm: float = 50.0) -> pd.DataFrame:
-    """Found, expected, missing and extra bars per layer and level over the visible area.
+def count_bars(bars: list, *, design_spacing: dict) -> pd.DataFrame:
+    """Found, expected, missing and extra bars per layer and level, from the gaps alone.
 
-    Expected positions continue the found bars' row at the design spacing. A position counts as
-    expected (and, with no bar near it, missing) only if a bar there would be seen: its axis,
-    projected into the image, has at least ``min_length_mm`` of pixels whose depth shows the
-    formwork or nothing in front of the bar's height. Positions hidden by upper bars or outside
-    the image are not expected. Adjacent found bars closer than half the design spacing count as
-    one extra bar.
+    The paper's method has no evidence for an empty position: a gap of ``k`` design spacings
+    (rounded) between two found bars holds ``k - 1`` missing bars, and adjacent bars closer than
+    half a spacing make one extra bar. The refined method counts on evidence instead
+    (``rebarlib._counts``, docs/verdicts.md).
     """
     rows = []
     for layer in LAYERS:
@@ -1283,71 +1279,14 @@ def count_bars(bars: list, *, design_spacing: dict, plane: Plane | None,
                 rows.append({"layer": layer, "level": level, "found": found, "expected": None,
                              "missing": None, "extra": None})
                 continue
-            ref = grp[0]
-            n2 = np.array([-ref.direction[1], ref.direction[0]])
+            n2 = np.array([-grp[0].direction[1], grp[0].direction[0]])
             offs = np.array([float(b.plan_point(b.t_mid) @ n2) for b in grp])
-            extra = int(np.sum(np.diff(offs) < 0.5 * s))
-            missing_inside = int(sum(max(0, int(round(g / s)) - 1) for g in np.diff(offs) if g > 1.5 * s))
-            candidates = []
-            # candidate empty positions: inside gaps and beyond both ends
-            for a_off, b_off in zip(offs[:-1], offs[1:]):
-                k = int(round((b_off - a_off) / s)) - 1
-                for j in range(1, k + 1):
-                    candidates.append(a_off + j * (b_off - a_off) / (k + 1))
-            seen_missing = 0
-            if depth_mm is not None and intrinsics is not None and plane is not None and heights is not None:
-                h_axis = heights.get((layer, level))
-                if h_axis is not None:
-                    for off in candidates:
-                        if _position_visible(ref, off, h_axis, ref.radius_mm, plane, depth_mm, intrinsics,
-                                             min_length_mm):
-                            seen_missing += 1
-                    # beyond the outermost bars, outwards until a position leaves the image
-                    for start, sign in ((offs[0], -1), (offs[-1], 1)):
-                        for j in range(1, 200):
-                            off = start + sign * j * s
-                            if not _position_in_image(ref, off, h_axis, plane, intrinsics, min_length_mm):
-                                break
-                            if _position_visible(ref, off, h_axis, ref.radius_mm, plane, depth_mm, intrinsics,
-                                                 min_length_mm):
-                                seen_missing += 1
-                expected = found - extra + seen_missing
-                missing = seen_missing
-            else:
-                expected = found - extra + missing_inside
-                missing = missing_inside
-            rows.append({"layer": layer, "level": level, "found": found, "expected": int(expected),
-                         "missing": int(missing), "extra": extra})
+            gaps = np.diff(offs)
+            extra = int(np.sum(gaps < 0.5 * s))
+            missing = int(sum(max(0, int(round(g / s)) - 1) for g in gaps if g > 1.5 * s))
+            rows.append({"layer": layer, "level": level, "found": found, "expected": found - extra + missing,
+                         "missing": missing, "extra": extra})
     return pd.DataFrame(rows, columns=["layer", "level", "found", "expected", "missing", "extra"])
-
-
-def flag_hidden_gaps(spacings: pd.DataFrame, bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
-                     min_length_mm: float = 50.0) -> pd.DataFrame:
-    """Spacings that span more than 1.5 design spacings: if a bar between the two could be
-    hidden (under an upper bar, in a depth hole), the gap is not one spacing and the row becomes
-    "not measured"; if the formwork is seen all along the empty positions, the bar is missing and
-    the wide spacing stays measured (it is a real defect, and ``counts`` reports the missing bar).
-    """
-    out = spacings.copy()
-    for i, s in out.iterrows():
-        ds = s["design_spacing_mm"]
-        if s["status"] != "measured" or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
-            continue
-        a, b = bars[int(s["bar_a"])], bars[int(s["bar_b"])]
-        n2 = a.normal2d
-        oa = float(a.plan_point(a.t_mid) @ n2)
-        ob = float(b.plan_point(b.t_mid) @ n2)
-        k = int(round(abs(ob - oa) / ds))
-        h_axis = 0.5 * (a.axis_height_mm + b.axis_height_mm)
-        hidden = [j for j in range(1, k) if not _position_visible(a, oa + j * (ob - oa) / k, h_axis, a.radius_mm,
-                                                                  plane, depth_mm, intrinsics, min_length_mm)]
-        if hidden:
-            out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
-            out.loc[i, "status"] = "not measured"
-            out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap: {len(hidden)} bar position(s) between "
-                                    "these bars cannot be seen (hidden under an upper bar or without depth), "
-                                    "so it is not one spacing")
-    return out
 
 
 def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics, min_whole_fraction: float = 0.5,
@@ -1622,29 +1561,6 @@ def _surface_in_image(ref: BarAxis, off: float, h_axis: float, radius: float, pl
 
 def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:
     return (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
-
-
-def _position_in_image(ref: BarAxis, off: float, h_axis: float, plane: Plane, intr: Intrinsics,
-                       min_length_mm: float) -> bool:
-    cam, uv = _position_axis(ref, off, h_axis, plane, intr)
-    return _in_image(uv, cam, intr).sum() * _POSITION_STEP_MM >= min_length_mm
-
-
-def _position_visible(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane, depth_mm,
-                      intr: Intrinsics, min_length_mm: float) -> bool:
-    """Would a bar at plan offset ``off`` (parallel to ``ref``) be seen? True when at least
-    ``min_length_mm`` of its axis projects into the image onto pixels whose depth is not in front
-    of the bar's top (nothing hides it) and not missing."""
-    cam, uv = _position_axis(ref, off, h_axis + radius, plane, intr)
-    uv = np.round(uv)
-    inside = _in_image(uv, cam, intr)
-    if inside.sum() * _POSITION_STEP_MM < min_length_mm:
-        return False
-    u, v = uv[inside, 0].astype(int), uv[inside, 1].astype(int)
-    z_meas = np.asarray(depth_mm)[v, u]
-    # seen: measured depth is at or behind the bar's top (formwork / empty), not in front of it
-    ok = (z_meas > 0) & (z_meas > cam[inside, 2] - 3.0)
-    return ok.sum() * _POSITION_STEP_MM >= min_length_mm
 
 
 # ----------------------------------------------------------------------------------------------
