@@ -108,7 +108,9 @@ def _t(name, u, unit, c, kind="systematic") -> Term:
 
 def height_terms(h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
                  envelope_mm=0.0, rib_mm=0.0) -> list:
-    """Budget of a height above the formwork (or a difference of two), ``h_mm`` long.
+    """Budget of a height above the formwork (or a difference of two) whose seen part, the
+    depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
+    value plus the assumed envelope, which :func:`apply_budget` passes).
 
     A height is a depth difference: a depth scale error s changes it by ``s h``, the stereo
     error ``k z²`` by ``2 k z h`` (its slope at the working depth ``depth_mm``), an offset not
@@ -232,6 +234,10 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
     def env(layer):  # a plain bar has no rib envelope to spread
         return ENVELOPE_SIGMA_MM if deformed(layer) else 0.0
 
+    def envelope(layer):  # the width a camera sees of the layer's bottom bars
+        d = design.lattice(layer).bottom.diameter_mm
+        return float(observed_width_mm(d, system=system, deformed=deformed(layer)))
+
     def rib(layer):
         if not deformed(layer):
             return 0.0
@@ -245,11 +251,14 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
              "layer_distance": dict(envelope_mm=math.hypot(env("lower"), env("upper")),
                                     rib_mm=math.hypot(rib("lower"), rib("upper"))),
              "upper_top": {}}
+    # what the camera sees of an underside is the bar's top: the depth errors act on the height
+    # of that top, the assumed envelope is subtracted after (upper top: seen as it is)
+    seen = {"cover": envelope("lower"), "layer_distance": envelope("upper") - envelope("lower"), "upper_top": 0.0}
     for key, extra in specs.items():
         m = getattr(res, key)
         if not m.ok:
             continue
-        terms = height_terms(m.value_mm, m.uncertainty_mm or 0.0, inp, **geo, **extra)
+        terms = height_terms(m.value_mm + seen[key], m.uncertainty_mm or 0.0, inp, **geo, **extra)
         out["measurements"][key] = _budget_dict(terms, m.value_mm)
         setattr(res, key, _with_u(m, combine(terms)))
     if res.top_cover.ok and res.upper_top.ok:

@@ -175,10 +175,11 @@ def test_apply_budget_keeps_every_value_and_records_every_term(paper_design):
                                                     "rib envelope (spread between mills)", "assumed bar shape"}
     assert res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4) and res.cover.uncertainty_mm > 0.05
     assert cover["U_mm"] == pytest.approx(2 * cover["u_mm"], abs=2e-4)
-    # the layer distance is longer than the cover: its scale term is larger
+    # the depth errors act on what the camera sees: a lower bar's top (cover + its envelope,
+    # Φ14: 16.2 mm), the upper bars' tops over the lower bars' (layer distance + 13.9 - 16.2)
     ld = {t["term"]: t["contribution_mm"] for t in ub["measurements"]["layer_distance"]["terms"]}
     cv = {t["term"]: t["contribution_mm"] for t in cover["terms"]}
-    assert ld["depth scale"] == pytest.approx(cv["depth scale"] * 85.3 / 20.4, rel=1e-3)
+    assert ld["depth scale"] == pytest.approx(cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3)
     # spacings: random from the two axes, plus the systematic terms
     u_sp = res.spacings["uncertainty_mm"].to_numpy()
     assert np.all(u_sp > math.hypot(0.1, 0.2))
