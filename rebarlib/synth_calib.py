@@ -109,16 +109,31 @@ def render_board(pose: CameraPose, *, board: Checkerboard = Checkerboard(), intr
 
 
 def board_poses(n: int = 6, *, distances_mm=(450.0, 900.0), tilt_deg: float = 30.0) -> list:
-    """``n`` camera poses over the board for a calibration: distances spread over
-    ``distances_mm`` and the view tilted by up to ``tilt_deg`` about axes turning round the
-    board (a focal length is only seen apart from the distance in tilted views)."""
+    """``n`` camera poses over the board for a calibration: distances (along the optical axis)
+    spread over ``distances_mm`` and the view tilted by 60-100 % of ``tilt_deg`` about axes
+    turning round the image (a focal length is only seen apart from the distance in tilted
+    views, and fy apart from cy only in views tilted about the image's x axis too)."""
     if n < 3:
         raise RebarInputError(f"n: a calibration needs at least 3 board captures, got {n}")
     out = []
     for i, h in enumerate(np.linspace(distances_mm[0], distances_mm[1], n)):
-        tilt = tilt_deg * (0.5 + 0.5 * (i % 2))
-        out.append(CameraPose.looking_down(float(h), tilt_deg=tilt, yaw_deg=360.0 * i / n))
+        tilt = tilt_deg * (0.6 + 0.4 * (i % 2))
+        out.append(_tilted_pose(float(h), tilt, 360.0 * i / n + 25.0 * i))
     return out
+
+
+def _tilted_pose(distance_mm: float, tilt_deg: float, axis_deg: float) -> CameraPose:
+    """Camera ``distance_mm`` from the board's centre along its optical axis, which meets the
+    centre; the view tilted by ``tilt_deg`` about the camera-frame axis at ``axis_deg`` in the
+    image plane (tilts about one camera axis only leave fy and cy undetermined)."""
+    import cv2
+
+    down = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # straight down, image x = world x
+    a = np.radians(axis_deg)
+    tilt, _ = cv2.Rodrigues(np.array([np.cos(a), np.sin(a), 0.0]) * np.radians(tilt_deg))
+    rotation = tilt @ down
+    axis_world = rotation.T @ np.array([0, 0, 1.0])
+    return CameraPose(rotation, -axis_world * distance_mm)
 
 
 def board_captures(sensor: SensorModel, *, n: int = 6, board: Checkerboard = Checkerboard(),
