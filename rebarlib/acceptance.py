@@ -224,7 +224,8 @@ class Tolerances:
             base = items.get(item) or self.item(item)
             if field_ == "lot_rule":
                 if value not in rules:
-                    raise RebarInputError(f"{where}: lot rule {value!r} is not defined; expected one of {sorted(rules)}")
+                    raise RebarInputError(f"{where}: lot rule {value!r} is not defined; "
+                                          f"expected one of {sorted(rules)}")
                 items[item] = replace(base, lot_rule=value, clause=f"{base.clause} — lot rule {value!r} set in "
                                       f"{Path(source).name}")
                 continue

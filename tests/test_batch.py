@@ -339,7 +339,8 @@ def test_summary_table_is_the_summary_csv_of_the_outcomes(tmp_path):
     assert list(table.columns) == list(SUMMARY_COLUMNS) and list(table["capture"]) == ["D_500", "broken"]
     assert list(table["status"]) == ["ok", "failed"]
     data = outcomes[0].result.to_dict()
-    assert table.loc[0, "cover_mm"] == data["cover_mm"] and table.loc[0, "layer_distance_mm"] == data["layer_distance_mm"]
+    assert table.loc[0, "cover_mm"] == data["cover_mm"]
+    assert table.loc[0, "layer_distance_mm"] == data["layer_distance_mm"]
     assert pd.isna(table.loc[1, "cover_mm"]) and "no color.png" in table.loc[1, "reason"]
 
 
