@@ -316,9 +316,12 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
         if not long:
             state[k] = 1
         else:
-            nd = sum(nodepth[k, a:b].sum() for a, b in long)
-            hd = sum(hidden[k, a:b].sum() for a, b in long)
-            cause_nd[k], cause_hid[k] = nd >= hd, hd > nd
+            # a slice can lack depth where a bar would be and be partly hidden too: each cause
+            # that covers a radius of the unseen stretches counts (a bar without depth beside
+            # the bar over it is still placed from the colour, where the colour shows it)
+            nd = sum(nodepth[k, a:b].sum() for a, b in long) * step
+            hd = sum(hidden[k, a:b].sum() for a, b in long) * step
+            cause_nd[k], cause_hid[k] = nd >= r, hd >= r
     L = prm.step_mm
     ev = {"in_view_mm": float(in_view.sum() * L), "empty_mm": float((state == 1).sum() * L),
           "occupied_mm": float((state == 2).sum() * L), "no_depth_mm": float((in_view & cause_nd).sum() * L),
@@ -358,7 +361,8 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
     return ev
 
 
-def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, prm) -> tuple:
+def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, intr: Intrinsics,
+                     prm) -> tuple:
     """Centre line of the mask over the slices ``sel``: (plan offset, its standard uncertainty,
     t0, t1)."""
     cen = ev["_centre"][sel]
@@ -375,7 +379,11 @@ def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plan
     ray = to_slab_frame(np.vstack((np.zeros(3), cam)), plane)
     d = ray[1] - ray[0]
     slope = abs(float(d[:2] @ row.normal)) / max(abs(float(d[2])), 1e-6)
-    sd = math.hypot(sd_centre, row.height_sd * slope)
+    # the mask's centre line itself: its two edges (the model's, on either flank) and its
+    # registration to the depth image hold to about half a pixel, here in mm across
+    f = 0.5 * (intr.fx + intr.fy)
+    sd_mask = 0.5 * float(cam[2]) / f
+    sd = math.sqrt(sd_centre ** 2 + (row.height_sd * slope) ** 2 + sd_mask ** 2)
     return p + med, sd, float(t.min()), float(t.max())
 
 
@@ -575,7 +583,7 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
     if ev["occupied_mm"] >= E and ev["occupied_mm"] >= 0.5 * seen:
         share = ev["mask_occupied_share"]
         if has_mask and share >= prm.min_share:
-            return _present(row, p, ev, ev["_state"] == 2, plane, prm, rec, PRESENT,
+            return _present(row, p, ev, ev["_state"] == 2, plane, intr, prm, rec, PRESENT,
                             f"points at the bar's height along {ev['occupied_mm']:.0f} mm and the colour mask "
                             "along it: a bar the fit did not take")
         return {**rec, "status": NOT_MEASURED, "reason": (
@@ -595,11 +603,13 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
         return {**rec, "status": NOT_MEASURED, "reason": (
             f"the depth shows the corridor empty along {ev['empty_mm']:.0f} mm, but the colour mask shows a bar "
             f"on {share:.0%} of it")}
+    if ev["no_depth_mm"] >= E:
+        share = ev["mask_nodepth_share"]
+        sel = ev["_nd"] & ev["_shows"] if has_mask else None
+        if has_mask and share >= prm.min_share and sel.sum() * prm.step_mm >= E:
+            return _present(row, p, ev, sel, plane, intr, prm, rec, PRESENT_NO_DEPTH, "")
     if ev["no_depth_mm"] >= E and ev["no_depth_mm"] >= ev["hidden_mm"]:
         share = ev["mask_nodepth_share"]
-        if has_mask and share >= prm.min_share and ev["mask_mm"] >= E:
-            sel = ev["_nd"] & ev["_shows"]
-            return _present(row, p, ev, sel, plane, prm, rec, PRESENT_NO_DEPTH, "")
         return {**rec, "status": NOT_MEASURED, "reason": (
             f"no depth along {ev['no_depth_mm']:.0f} mm of it"
             + (f", and the colour mask shows a bar on only {share:.0%} of that" if has_mask and math.isfinite(share)
@@ -612,8 +622,9 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
         f"{ev['no_depth_mm']:.0f} mm without depth (needs {E:.0f} mm of one)")}
 
 
-def _present(row: _Row, p: float, ev: dict, sel: np.ndarray, plane, prm, rec: dict, status: str, why: str) -> dict:
-    off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, prm)
+def _present(row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str,
+             why: str) -> dict:
+    off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
     ok = sd <= prm.max_position_sigma_mm
     how = (f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
            + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured") + ")")
@@ -745,9 +756,9 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
                 out.loc[i, "spacing_mm"] = val
                 out.loc[i, "deviation_mm"] = val - ds if np.isfinite(ds) else np.nan
                 out.loc[i, "status"] = "measured"
-                out.loc[i, "reason"] = (f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from the "
-                                        f"colour mask (± {max(sig):.1f} mm across)")
-            continue
+                out.loc[i, "reason"] = (f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from "
+                                        f"the colour mask (± {max(sig):.1f} mm across)")
+                s = out.loc[i]
         if s["status"] != "measured" or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
             continue
         pos = positions[(positions["layer"] == s["layer"]) & (positions["level"] == s["level"])
