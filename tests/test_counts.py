@@ -118,3 +118,17 @@ def test_extra_bar_needs_and_gets_its_own_evidence():
     assert int(c.loc[(extra.layer, extra.level), "extra"]) == 1
     assert int(c["extra"].fillna(0).sum()) == 1
     assert (c["missing"].fillna(0) == 0).all()
+
+
+@pytest.mark.slow
+def test_edge_form_in_view_leaves_the_lattices_and_counts_whole():
+    # a board standing at the slab's edge fills the band between the lattices with points and
+    # stands above the mesh: the split is found on the upward-facing points, the board is not rebar
+    dev = S.Deviations(end_overhang_mm=50, edge_form=True)
+    cap, res = _inspect(dev, target=(700, 500), seed=3, height=550, tilt=12, yaw=20)
+    t = cap.truth
+    assert res.layer_distance.ok and abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= 1.5
+    assert res.cover.ok and abs(res.cover.value_mm - t["cover_mm"]) <= 1.5
+    c = _counts(res)
+    assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
+    assert any("left out as not rebar" in n for n in res.notes)
