@@ -784,6 +784,7 @@ def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rn
                          min_length_mm=min_length_mm, rng=rng)
     if not found:
         return [], (sig_plan, guess)
+    found = _refit_off_crossings(qs, found, r, sig_plan)
     sig_plan = _noise_across(found, r)
     sig_h = datum.noise_mm if datum.found else float(np.median(
         [math.sqrt(max(b.h_sd ** 2 - 0.05 * r ** 2, 0.25)) for _, b in found]))
@@ -807,6 +808,25 @@ def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rn
         b.mean_h, b.n, b.idx = mean_h, n, idx[b.idx]
         axes.append(_to_axis(b, layer, lv, g, radii[lv]))
     return _drop_off_level(axes, sig_h), (sig_plan, sig_h)
+
+
+def _refit_off_crossings(qs, found: list, r: float, sig_plan: float) -> list:
+    """Each bar's offset again from its band's points away from the bars crossing it (its drift
+    kept): there the band holds only this bar and what lies beside it."""
+    plan = qs[:, :2]
+    half = r + 2.5 * sig_plan + 2.0
+    for g, b in found:
+        cross = [c for c in (_crossing_along(b, x) for gg, x in found if gg != g) if np.isfinite(c)]
+        if not cross:
+            continue
+        t = _dot(plan, b.direction)
+        resid = _dot(plan, b.normal2d) - (b.centre + b.slope * t)
+        sel = (np.abs(resid) < half) & (t >= b.t0) & (t <= b.t1)
+        sel[sel] = _crossing_free(t[sel], cross, r + 2.0 * sig_plan + 2.0)
+        if sel.sum() < 50:
+            continue
+        b.centre += _robust_line(np.zeros(int(sel.sum())), resid[sel])[0]
+    return found
 
 
 def _noise_across(found: list, r: float) -> float:
