@@ -121,6 +121,25 @@ class ScanTruth:
     def cover_mm(self) -> float:
         return self.underside_mm("lower")
 
+    def to_dict(self) -> dict:
+        """The truth in the file's frame (mm, after :func:`export_scan`): every bar's axis ends,
+        set, sizes and scanned length; the spacings, layer distance and cover."""
+        bars = []
+        for b in self.scene.bars:
+            ends = np.asarray(b.axis)[[0, -1]] @ self.rotation.T + self.origin_mm
+            bars.append({"id": int(b.id), "layer": b.layer, "level": b.level, "index": int(b.index),
+                         "start_mm": [round(float(v), 3) for v in ends[0]],
+                         "end_mm": [round(float(v), 3) for v in ends[1]],
+                         "nominal_mm": float(b.nominal_mm), "envelope_mm": float(b.envelope_mm),
+                         "scanned_mm": float(self.scanned_mm.get(b.id, 0.0))})
+        sets = [(la, lv) for la in ("lower", "upper") for lv in ("bottom", "top")]
+        return {"bars": bars,
+                "spacings_mm": {f"{la}/{lv}": [round(float(v), 3) for v in self.spacings(la, lv)] for la, lv in sets},
+                "layer_distance_mm": round(self.layer_distance_mm, 3),
+                "cover_mm": round(self.cover_mm, 3) if self.formwork else None,
+                "formwork_in_scan": bool(self.formwork), "region_mm": list(self.region),
+                "rotation": self.rotation.round(12).tolist(), "origin_mm": self.origin_mm.tolist()}
+
     def to_world(self, p) -> np.ndarray:
         """File-frame points (mm, before re-centring) back to the world frame."""
         return (np.asarray(p, float) - self.origin_mm) @ self.rotation
@@ -277,10 +296,12 @@ def frame_rotation(up: str) -> np.ndarray:
 
 
 def export_scan(path, points, truth: ScanTruth, fields: dict | None = None, *, units: str = "m",
-                up: str = "+z", origin_mm=(0.0, 0.0, 0.0)) -> ScanTruth:
+                up: str = "+z", origin_mm=(0.0, 0.0, 0.0), truth_json: bool = False) -> ScanTruth:
     """Write a synthetic scan to ``path`` (format by suffix) in ``units``, with the file's up axis
     ``up`` and its origin moved so that the world origin lands at ``origin_mm`` (e.g. 20 m to one
-    side, or georeferenced offsets). Returns the truth with the frame change recorded."""
+    side, or georeferenced offsets). Returns the truth with the frame change recorded; with
+    ``truth_json`` it is also written beside the cloud as ``<path>.truth.json`` (mm, the file's
+    frame: :meth:`ScanTruth.to_dict`)."""
     R = frame_rotation(up)
     origin = np.asarray(origin_mm, float)
     file_pts = np.asarray(points, float) @ R.T + origin
@@ -289,6 +310,11 @@ def export_scan(path, points, truth: ScanTruth, fields: dict | None = None, *, u
         fields["normals"] = np.asarray(fields["normals"], float) @ R.T
     write_cloud(path, ScanCloud(file_pts, np.zeros(3), fields), units=units)
     truth.rotation, truth.origin_mm = R, origin
+    if truth_json:
+        import json
+        from pathlib import Path
+
+        Path(f"{path}.truth.json").write_text(json.dumps(truth.to_dict(), indent=1) + "\n", encoding="utf-8")
     return truth
 
 

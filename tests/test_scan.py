@@ -76,8 +76,14 @@ def test_scan_with_formwork_finds_every_bar_and_measures_to_tolerance(design):
 @pytest.mark.slow
 def test_scan_without_formwork_y_up_far_origin_in_metres(design, tmp_path):
     pts, truth, fields = _scan(design, 10.0, formwork=False, seed=5)
-    export_scan(tmp_path / "site.laz", pts, truth, fields, units="m", up="+y", origin_mm=(20000.0, 5000.0, -3000.0))
+    export_scan(tmp_path / "site.laz", pts, truth, fields, units="m", up="+y", origin_mm=(20000.0, 5000.0, -3000.0),
+                truth_json=True)
     res = inspect_cloud(tmp_path / "site.laz", design, units="m", up="+y")
+    told = json.loads((tmp_path / "site.laz.truth.json").read_text())
+    assert len(told["bars"]) == 40 and told["cover_mm"] is None
+    assert abs(told["layer_distance_mm"] - truth.layer_distance_mm) < 1e-3
+    # the truth's bar ends are in the file's frame: y is up there
+    assert all(abs(b["start_mm"][1] - 5000.0) < 200 for b in told["bars"])
     s = score_scan(res, truth)
     assert s["missed"] == 0 and s["phantoms"] == 0, s
     assert s["spacing_max_abs_err_mm"] <= 8.0
