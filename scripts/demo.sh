@@ -9,6 +9,6 @@ for slab in examples/*/; do
   name=$(basename "$slab")
   captures=$(find "$slab" -mindepth 1 -maxdepth 1 -type d | sort)
   .venv/bin/rebar inspect $captures --design "$slab/design.toml" --out "out/$name"
-  .venv/bin/rebar report "$slab" --results "out/$name" --out "out/$name.pdf"
+  .venv/bin/rebar report "$slab" --results "out/$name" --out "out/$name.pdf" --force  # a re-run replaces it
 done
 echo "Reports: $(ls out/*.pdf | tr '\n' ' ')"
