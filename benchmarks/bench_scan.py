@@ -71,7 +71,7 @@ def diameters(design, sigmas=(0.3, 1.0)) -> pd.DataFrame:
         bars = inspect_cloud(pts, design).bars
         sized = bars[bars["diameter_status"] == "measured"]
         right = sized["nominal_mm"] == sized["layer"].map(want)
-        wrong_conf = sized.loc[~right, "diameter_confidence"]
+        wrong_conf = sized.loc[~right, "confidence"]
         rows.append({"sigma_mm": sg, "bars": len(bars), "sized": len(sized), "right": int(right.sum()),
                      "wrong": int((~right).sum()),
                      "wrong_max_confidence": float(wrong_conf.max()) if len(wrong_conf) else None})

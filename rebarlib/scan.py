@@ -991,7 +991,9 @@ def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
 def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) -> pd.DataFrame:
     """Bar sizes where :func:`diameter_resolvable` allows: a free-radius circle through the bar's
     cross-section points (offset across its axis, height), its width snapped to the design's
-    bar system; else "not measured" with the criterion that failed."""
+    bar system; else "not measured" with the criterion that failed. Columns as the camera's
+    diameter stage names them: ``nominal_mm, width_mm, width_sigma_mm, confidence,
+    budget_confidence, design_diameter_mm, diameter_status, diameter_reason``."""
     from ._barsizes import bar_system, size_half_gaps_mm, snap_diameter
 
     system = design.bar_system
@@ -1006,25 +1008,29 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
                  if np.isfinite(c)]
         fit = _cross_section_width(b, q, noise, cross)
         if fit is not None and not 0.7 < fit[0] / (2 * b.radius_mm) < 1.4:
-            rows.append((None, None, None, "not measured",
+            rows.append((None, None, None, None, "not measured",
                          f"the circle through its cross-section is {fit[0]:.1f} mm wide against the set's "
                          f"{2 * b.radius_mm:.1f} mm: something else lies in its cross-section"))
             continue
         if fit is None:
-            rows.append((None, None, None, "not measured", "its cross-section points do not fix a circle"))
+            rows.append((None, None, None, None, "not measured", "its cross-section points do not fix a circle"))
             continue
         w, sd, sigma, n = fit
         ok, why = diameter_resolvable(sigma, b.radius_mm, gap, n)
         if not ok:
-            rows.append((None, None, None, "not measured", why))
+            rows.append((None, None, None, None, "not measured", why))
             continue
         nominal, conf = snap_diameter(w, system=system, deformed=deformed, sigma_mm=sd)
-        rows.append((nominal, w, conf, "measured", ""))
+        rows.append((nominal, w, sd, conf, "measured", ""))
     table = table.copy()
-    for k, col in enumerate(("nominal_mm", "width_mm", "diameter_confidence")):
+    for k, col in enumerate(("nominal_mm", "width_mm", "width_sigma_mm", "confidence")):
         table[col] = pd.to_numeric(pd.Series([r[k] for r in rows], dtype=object), errors="coerce")
-    table["diameter_status"] = [r[3] for r in rows]
-    table["diameter_reason"] = [r[4] for r in rows]
+    # the acceptance's decision rule reads the size's confidence here; for a cloud the width's
+    # whole uncertainty is the circle fit's standard error
+    table["budget_confidence"] = table["confidence"]
+    table["design_diameter_mm"] = [design.lattice(b.layer).level(b.level).diameter_mm for b in bars]
+    table["diameter_status"] = [r[4] for r in rows]
+    table["diameter_reason"] = [r[5] for r in rows]
     return table
 
 

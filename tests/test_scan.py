@@ -161,7 +161,7 @@ def test_diameters_where_the_noise_allows(design):
     bars = inspect_cloud(pts, design).bars
     sized = bars[bars["diameter_status"] == "measured"]
     assert len(sized) >= 0.6 * len(bars)
-    sure = sized[sized["diameter_confidence"] >= 0.9]
+    sure = sized[sized["confidence"] >= 0.9]
     want = sure["layer"].map({"lower": 14.0, "upper": 12.0})
     assert len(sure) >= 0.5 * len(bars) and (sure["nominal_mm"] == want).all()
     # at sigma 10 mm nothing is sized, and each bar says why
