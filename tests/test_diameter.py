@@ -133,7 +133,7 @@ def test_snap_diameter_per_system():
     assert conf < 0.6
     assert math.isnan(snap_diameter(200.0)[0]) and snap_diameter(200.0)[1] == 0.0
     with pytest.raises(RebarInputError, match="system"):
-        bar_system("JIS")
+        bar_system("JIS G 9999")  # no such table (JIS G 3112 is one now)
 
 
 def test_snap_confidence_is_the_size_s_posterior():
