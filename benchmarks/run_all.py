@@ -23,7 +23,12 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 #: Arguments that make a script without ``--quick`` short.
-QUICK_ARGS = {"synth": ["--repeats", "1"]}
+QUICK_ARGS = {
+    "synth": ["--repeats", "1"],
+    "batch": ["--n", "4", "--repeats", "1", "--jobs", "1"],
+    "scan": ["--seeds", "1", "--sigmas", "10", "--no-speed"],
+    "verdicts": ["--slabs", "2", "--jobs", "1"],
+}
 
 
 def discover() -> dict[str, Path]:
