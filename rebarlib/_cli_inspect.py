@@ -47,15 +47,18 @@ def add_parser(sub):
                         "applied, and its uncertainties replace the device profile's (docs/uncertainty.md)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=int, default=None, metavar="N",
-                       help="local worker processes (default: all cores; 1: one capture at a time here)")
+                       help="local worker processes (default: all cores; 1: one capture at a "
+                            "time here)")
     where.add_argument("--dask", metavar="ADDRESS", default=None,
                        help="run on the dask.distributed cluster whose scheduler is at ADDRESS "
-                            "(e.g. tcp://10.0.0.5:8786); its workers must see the capture folders at the same paths")
+                            "(e.g. tcp://10.0.0.5:8786); its workers must see the capture "
+                            "folders at the same paths")
     p.add_argument("--resume", action="store_true",
-                   help="skip captures whose results in OUT are whole and were made from the same capture "
-                        "files, design, method, options and rebarlib version")
+                   help="skip captures whose results in OUT are whole and were made from the "
+                        "same capture files, design, method, options and rebarlib version")
     p.add_argument("--quiet", action="store_true",
-                   help="no progress bar and no line per capture (errors and the last line still show)")
+                   help="no progress bar and no line per capture (errors and the last line "
+                        "still show)")
     return p
 
 
@@ -98,10 +101,12 @@ def _check_paths(captures, out: Path) -> list:
         raise RebarInputError(f"CAPTURE: several captures named {dup}; their results would overwrite each other "
                               "in --out (rename the folders or inspect them into different --out folders)")
     if SUMMARY_NAME in names:
-        raise RebarInputError(f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide with the batch summary")
+        raise RebarInputError(f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide "
+                              "with the batch summary")
     check_out_folder(out, names)
     if (out / SUMMARY_NAME).is_dir():
-        raise RebarInputError(f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary is written there")
+        raise RebarInputError(f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary "
+                              "is written there")
     inputs = {c.resolve() for c in captures}
     targets = [out / n for n in names]
     for c, tgt in zip(captures, targets):
@@ -148,7 +153,8 @@ def result_files(res, data: dict) -> dict:
     """The files of one capture's result folder, as file name -> text (``data``: the result's
     ``to_dict()`` with its ``"manifest"``)."""
     files = {"result.json": json.dumps(data, indent=1) + "\n",
-             "bars.csv": res.bars.to_csv(index=False), "spacings.csv": res.spacings.to_csv(index=False)}
+             "bars.csv": res.bars.to_csv(index=False),
+             "spacings.csv": res.spacings.to_csv(index=False)}
     if res.counts is not None:
         files["counts.csv"] = res.counts.to_csv(index=False)
     return files
@@ -172,7 +178,8 @@ def progress_bar(total: int, *, quiet: bool, unit: str = "capture"):
     from tqdm import tqdm
 
     disable = quiet or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
-    return tqdm(total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True, smoothing=0.1)
+    return tqdm(total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True,
+                smoothing=0.1)
 
 
 def _say(bar, text: str, *, err: bool = False) -> None:
@@ -223,7 +230,8 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
     bar = progress_bar(len(todo), quiet=args.quiet)
     try:
         if len(rows) and not args.quiet:
-            _say(bar, f"{len(rows)} of {len(captures)} captures resumed: their results in {out} are up to date")
+            _say(bar, f"{len(rows)} of {len(captures)} captures resumed: their results in {out} "
+                      "are up to date")
         client = args.dask
         jobs = None if client else (args.jobs or None)
         outcomes = inspect_many([captures[i] for i in todo], design, client=client, jobs=jobs,
@@ -240,7 +248,8 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
                 bar.update(1)
                 continue
             data = o.result.to_dict()
-            data["manifest"] = make_manifest(captures[i], design_path, method=args.method, options=options)
+            data["manifest"] = make_manifest(captures[i], design_path, method=args.method,
+                                             options=options)
             write_folder_atomically(out, name, result_files(o.result, data))
             rows[i] = summary_row(name, "ok", data, o.seconds)
             if not args.quiet:
@@ -252,6 +261,7 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
     n_ok = sum(r["status"] == "ok" for r in rows.values())
     from ._terminal import clean
 
-    print(clean(f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, "
-                f"{failed} failed; summary: {out / SUMMARY_NAME}"), file=sys.stderr if failed else sys.stdout)
+    line = (f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, "
+            f"{failed} failed; summary: {out / SUMMARY_NAME}")
+    print(clean(line), file=sys.stderr if failed else sys.stdout)
     return 1 if failed else 0

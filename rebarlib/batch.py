@@ -21,8 +21,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "summary_row", "summary_table",
-           "SUMMARY_COLUMNS", "default_jobs", "WORKER_THREADS"]
+__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "summary_row",
+           "summary_table", "SUMMARY_COLUMNS", "default_jobs", "WORKER_THREADS"]
 
 #: Threads of the segmentation model (onnxruntime) and of OpenCV in a batch worker: one task,
 #: one core. The results do not depend on it (``benchmarks/bench_batch.py --check``).
@@ -61,8 +61,8 @@ class Outcome:
 
 
 #: Columns of a batch's summary (``OUT/summary.csv``, :func:`summary_table`).
-SUMMARY_COLUMNS = ("capture", "status", "cover_mm", "layer_distance_mm", "worst_spacing_deviation_mm",
-                   "seconds", "reason")
+SUMMARY_COLUMNS = ("capture", "status", "cover_mm", "layer_distance_mm",
+                   "worst_spacing_deviation_mm", "seconds", "reason")
 
 
 def _worst_deviation(spacings):
@@ -71,7 +71,8 @@ def _worst_deviation(spacings):
     return max(devs, key=abs) if devs else None
 
 
-def summary_row(name: str, status: str, data: dict | None = None, seconds=None, reason: str = "") -> dict:
+def summary_row(name: str, status: str, data: dict | None = None, seconds=None,
+                reason: str = "") -> dict:
     """One row of a batch summary from a result dict (``InspectionResult.to_dict()`` or a
     ``result.json``): cover, layer distance, the spacing deviation largest in size (signed),
     mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed)."""
@@ -79,7 +80,8 @@ def summary_row(name: str, status: str, data: dict | None = None, seconds=None, 
     sec = "" if seconds is None else f"{seconds:.2f}"
     return {"capture": name, "status": status, "cover_mm": data.get("cover_mm"),
             "layer_distance_mm": data.get("layer_distance_mm"),
-            "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")), "seconds": sec, "reason": reason}
+            "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")),
+            "seconds": sec, "reason": reason}
 
 
 def summary_table(outcomes):
@@ -139,7 +141,8 @@ def _configure_threads(threads) -> None:
     _configured_threads = threads
 
 
-def inspect_one(index: int, capture, design, inspect_kw: dict | None = None, *, threads=None) -> Outcome:
+def inspect_one(index: int, capture, design, inspect_kw: dict | None = None, *,
+                threads=None) -> Outcome:
     """Load and inspect one capture; never raises for a failure of that capture.
 
     Parameters
@@ -177,15 +180,17 @@ def _check_args(design, jobs, client, inspect_kw):
     if isinstance(design, (str, os.PathLike)):
         design = load_design(design)
     if not isinstance(design, Design):
-        raise RebarInputError(f"design: expected a rebarlib.Design or a design.toml path, got {type(design).__name__}")
+        raise RebarInputError("design: expected a rebarlib.Design or a design.toml path, "
+                              f"got {type(design).__name__}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise RebarInputError(f"jobs: expected a whole number of processes >= 1, got {jobs!r}")
     if jobs is not None and client is not None:
-        raise RebarInputError("jobs: give either jobs (local processes) or client (a dask cluster), not both")
+        raise RebarInputError("jobs: give either jobs (local processes) or client (a dask "
+                              "cluster), not both")
     rng = inspect_kw.get("rng")
     if rng is not None and (isinstance(rng, bool) or not isinstance(rng, int)):
-        raise RebarInputError("rng: a batch inspects every capture with the same whole-number seed, "
-                              f"got {type(rng).__name__}")
+        raise RebarInputError("rng: a batch inspects every capture with the same whole-number "
+                              f"seed, got {type(rng).__name__}")
     return design
 
 
@@ -229,7 +234,8 @@ def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = Fa
     return _drive([(c, design) for c in captures], client, jobs, ordered, progress, inspect_kw)
 
 
-def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw):
+def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None,
+                  **inspect_kw):
     """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once."""
     pairs = [(c, _check_args(d, jobs, client, inspect_kw)) for c, d in pairs]
     return _drive(pairs, client, jobs, ordered, progress, inspect_kw)
@@ -278,7 +284,7 @@ def _init_worker(threads):
 
 
 def _in_processes(items, jobs, inspect_kw):
-    """Outcomes from ``jobs`` local processes, at most ``IN_FLIGHT_PER_WORKER`` tasks each in flight."""
+    """Outcomes from ``jobs`` local processes, ``IN_FLIGHT_PER_WORKER`` tasks each in flight."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -290,8 +296,12 @@ def _in_processes(items, jobs, inspect_kw):
     with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
                              initargs=(WORKER_THREADS,)) as pool:
         try:
-            for i, c, d in _take(todo, jobs * IN_FLIGHT_PER_WORKER):
-                running[pool.submit(inspect_one, i, c, d, inspect_kw, threads=WORKER_THREADS)] = (i, c)
+            def submit(i, c, d):
+                fut = pool.submit(inspect_one, i, c, d, inspect_kw, threads=WORKER_THREADS)
+                running[fut] = (i, c)
+
+            for item in _take(todo, jobs * IN_FLIGHT_PER_WORKER):
+                submit(*item)
             while running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done:
@@ -301,8 +311,8 @@ def _in_processes(items, jobs, inspect_kw):
                     except Exception as exc:  # the worker died, or the result could not come back
                         outcome = _failed(i, c, exc)
                     del fut
-                    for j, c2, d in _take(todo, 1):
-                        running[pool.submit(inspect_one, j, c2, d, inspect_kw, threads=WORKER_THREADS)] = (j, c2)
+                    for item in _take(todo, 1):
+                        submit(*item)
                     yield outcome
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -327,7 +337,8 @@ def _on_dask(items, client, inspect_kw):
         client = Client(str(client), set_as_default=False)
     try:
         # folders go as absolute paths: the workers' working folder is not the caller's
-        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d) for i, c, d in items]
+        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d)
+                 for i, c, d in items]
         width = max(2, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
         todo = iter(items)
         designs = {}  # each design sent to the workers once
@@ -336,7 +347,8 @@ def _on_dask(items, client, inspect_kw):
         def submit(i, c, d):
             if id(d) not in designs:
                 designs[id(d)] = client.scatter(d, broadcast=True)
-            fut = client.submit(inspect_one, i, c, designs[id(d)], inspect_kw, threads=WORKER_THREADS, pure=False)
+            fut = client.submit(inspect_one, i, c, designs[id(d)], inspect_kw,
+                                threads=WORKER_THREADS, pure=False)
             running[fut.key] = (i, c)
             return fut
 
