@@ -57,8 +57,11 @@ def test_inspect_many_reports_a_failure_and_goes_on(tmp_path):
     bad = _broken_capture(tmp_path)
     a, b = example_capture("paper_slab", "A_400"), example_capture("paper_slab", "B_500")
     seen = []
-    outcomes = list(inspect_many([a, bad, b], PAPER_DESIGN, jobs=1, ordered=True, diameters=False, rng=0,
-                                 progress=lambda o, done, total: seen.append((o.capture, done, total))))
+    def progress(outcome, done, total):
+        seen.append((outcome.capture, done, total))
+
+    outcomes = list(inspect_many([a, bad, b], PAPER_DESIGN, jobs=1, ordered=True, diameters=False,
+                                 rng=0, progress=progress))
     assert [o.capture for o in outcomes] == ["A_400", "broken", "B_500"]
     assert [o.index for o in outcomes] == [0, 1, 2]
     assert [o.ok for o in outcomes] == [True, False, True]
@@ -103,7 +106,8 @@ def test_inspect_many_reports_an_unexpected_exception_in_one_line(monkeypatch):
 
 @pytest.mark.slow
 def test_inspect_many_in_processes_gives_the_results_of_one_process(tmp_path):
-    caps = [example_capture("paper_slab", n) for n in ("A_400", "B_500", "C_600")] + [_broken_capture(tmp_path)]
+    caps = [example_capture("paper_slab", n) for n in ("A_400", "B_500", "C_600")]
+    caps.append(_broken_capture(tmp_path))
     one = {o.capture: o for o in inspect_many(caps, PAPER_DESIGN, jobs=1, rng=0)}
     two = list(inspect_many(caps, PAPER_DESIGN, jobs=2, ordered=True, rng=0))
     assert [o.index for o in two] == [0, 1, 2, 3]
@@ -124,7 +128,8 @@ def _inspect(caps, out, *extra):
 
 
 def test_cli_batch_summary_manifest_and_a_failed_capture(tmp_path, capsys):
-    caps = [example_capture("paper_slab", "A_400"), _broken_capture(tmp_path), example_capture("paper_slab", "D_500")]
+    caps = [example_capture("paper_slab", "A_400"), _broken_capture(tmp_path),
+            example_capture("paper_slab", "D_500")]
     out = tmp_path / "out"
     assert _inspect(caps, out) == 1  # one capture failed: status 1, the others written
     captured = capsys.readouterr()
@@ -141,10 +146,12 @@ def test_cli_batch_summary_manifest_and_a_failed_capture(tmp_path, capsys):
         assert float(r["worst_spacing_deviation_mm"]) == max(devs, key=abs)
         assert float(r["seconds"]) > 0
         m = data["manifest"]
-        assert m["method"] == "refined" and m["options"] == {"diameters": False, "mask_source": None, "seed": 0}
+        assert m["method"] == "refined"
+        assert m["options"] == {"diameters": False, "mask_source": None, "seed": 0}
         assert m["capture_folder"] == str(example_capture("paper_slab", r["capture"]).resolve())
     assert not (out / "broken").exists()
-    assert sorted(p.name for p in out.iterdir()) == ["A_400", "D_500", "summary.csv"]  # no lock, no temp left
+    # no lock, no temporary folder left
+    assert sorted(p.name for p in out.iterdir()) == ["A_400", "D_500", "summary.csv"]
 
 
 @pytest.mark.slow
@@ -158,15 +165,17 @@ def test_cli_resume_keeps_only_results_of_the_same_inputs(tmp_path, capsys):
     assert [r["seconds"] for r in _summary(out)] == ["", ""]
     assert {n: (out / n / "result.json").read_bytes() for n in before} == before
     # a changed capture file, another seed, another design file: computed again
-    (b / "camera.json").write_text((b / "camera.json").read_text(encoding="utf-8") + " ", encoding="utf-8")
+    camera = (b / "camera.json").read_text(encoding="utf-8")
+    (b / "camera.json").write_text(camera + " ", encoding="utf-8")
     assert _inspect([a, b], out, "--resume") == 0
     assert [r["status"] for r in _summary(out)] == ["resumed", "ok"]
     assert _inspect([a, b], out, "--resume", "--seed", "1") == 0
     assert [r["status"] for r in _summary(out)] == ["ok", "ok"]
     other = tmp_path / "design.toml"
-    other.write_text(DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n", encoding="utf-8")
-    assert main(["inspect", str(a), "--design", str(other), "--out", str(out), "--no-diameters", "--seed", "1",
-                 "--resume"]) == 0
+    other.write_text(DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n",
+                     encoding="utf-8")
+    assert main(["inspect", str(a), "--design", str(other), "--out", str(out), "--no-diameters",
+                 "--seed", "1", "--resume"]) == 0
     assert [r["status"] for r in _summary(out)] == ["ok"]
     # a result without a manifest (an older rebarlib) or with a missing table is not resumed
     data = json.loads((out / "A_400" / "result.json").read_text(encoding="utf-8"))
@@ -213,7 +222,8 @@ def test_cli_refuses_a_second_run_into_the_same_folder(tmp_path, capsys, no_comp
     with locked(out):
         assert _inspect([example_capture("paper_slab", "A_400")], out) == 2
         err = capsys.readouterr().err
-        assert "another rebar run is writing into this folder" in err and f"pid {os.getpid()}" in err
+        assert "another rebar run is writing into this folder" in err
+        assert f"pid {os.getpid()}" in err
     assert not (out / LOCK_NAME).exists()  # released and removed at the end of the first run
 
 
@@ -254,18 +264,22 @@ def test_tidy_puts_back_a_result_moved_aside_by_a_killed_run(tmp_path):
 def test_dask_cluster_gives_the_local_results(tmp_path, capsys):
     distributed = pytest.importorskip("distributed")
 
-    caps = [example_capture("paper_slab", n) for n in ("A_400", "C_600")] + [_broken_capture(tmp_path)]
+    caps = [example_capture("paper_slab", n) for n in ("A_400", "C_600")]
+    caps.append(_broken_capture(tmp_path))
     local, remote = tmp_path / "local", tmp_path / "dask"
     assert _inspect(caps, local) == 1
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                  host="127.0.0.1") as cluster:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, host="127.0.0.1") as cluster:
         assert len(cluster.workers) == 2
         rc = main(["inspect", *map(str, caps), "--design", str(DESIGN_TOML), "--out", str(remote),
                    "--no-diameters", "--dask", cluster.scheduler_address])
         with distributed.Client(cluster.scheduler_address) as client:
             ran_on = client.run(lambda: os.getpid())
     assert rc == 1 and len(set(ran_on.values()) - {os.getpid()}) == 2
-    without_seconds = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
+
+    def without_seconds(rows):
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+
     assert without_seconds(_summary(remote)) == without_seconds(_summary(local))
     for name in ("A_400", "C_600"):
         for f in ("bars.csv", "spacings.csv", "counts.csv"):
@@ -294,21 +308,26 @@ def floor(tmp_path):
 
 def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys):
     res = tmp_path / "res"
-    assert main(["inspect", str(floor / "S1" / "A_400"), "--design", str(DESIGN_TOML), "--out", str(res / "S1"),
-                 "--no-diameters", "--quiet"]) == 0
+    assert main(["inspect", str(floor / "S1" / "A_400"), "--design", str(DESIGN_TOML),
+                 "--out", str(res / "S1"), "--no-diameters", "--quiet"]) == 0
     out = tmp_path / "reports"
-    rc = main(["report", str(floor), "--results", str(res), "--out", str(out), "--format", "html", "--quiet"])
+    rc = main(["report", str(floor), "--results", str(res), "--out", str(out), "--format", "html",
+               "--quiet"])
     assert rc == 1  # S2 could not be reported; S1 was
     rows = {r["slab"]: r for r in _summary_of(out / "floor_summary.csv")}
     assert list(rows) == ["S1", "S2"]
     s1 = rows["S1"]
     saved = json.loads((out / "S1_acceptance.json").read_text(encoding="utf-8"))
     assert s1["verdict"] == saved["verdict"] == "incomplete" and s1["slab_id"] == "S-101"
-    assert s1["report"] == "S1.html" and (out / "S1.html").is_file() and (out / "S1_checkpoints.csv").is_file()
-    assert s1["captures"] == "4" and s1["captures_without_result"] == "3"  # only A_400 was inspected
+    assert s1["report"] == "S1.html" and (out / "S1.html").is_file()
+    assert (out / "S1_checkpoints.csv").is_file()
+    # only A_400 was inspected
+    assert s1["captures"] == "4" and s1["captures_without_result"] == "3"
     failed = [i["item"] for i in saved["items"] if i["verdict"] == "fail"]
-    still_open = [i["item"] for i in saved["items"] if i["verdict"] in ("not measured", "incomplete")]
-    assert s1["failed_items"].split(";") == (failed or [""]) and s1["open_items"].split(";") == (still_open or [""])
+    still_open = [i["item"] for i in saved["items"]
+                  if i["verdict"] in ("not measured", "incomplete")]
+    assert s1["failed_items"].split(";") == (failed or [""])
+    assert s1["open_items"].split(";") == (still_open or [""])
     assert rows["S2"]["verdict"] == "not reported" and "S2/design.toml" in rows["S2"]["reason"]
     assert not (out / "S2.html").exists()
     assert "1 not reported" in capsys.readouterr().err
@@ -336,7 +355,8 @@ def test_summary_table_is_the_summary_csv_of_the_outcomes(tmp_path):
     caps = [example_capture("paper_slab", "D_500"), _broken_capture(tmp_path)]
     outcomes = list(inspect_many(caps, PAPER_DESIGN, jobs=1, diameters=False, rng=0))
     table = summary_table(outcomes[::-1])  # back in the captures' order
-    assert list(table.columns) == list(SUMMARY_COLUMNS) and list(table["capture"]) == ["D_500", "broken"]
+    assert list(table.columns) == list(SUMMARY_COLUMNS)
+    assert list(table["capture"]) == ["D_500", "broken"]
     assert list(table["status"]) == ["ok", "failed"]
     data = outcomes[0].result.to_dict()
     assert table.loc[0, "cover_mm"] == data["cover_mm"]
@@ -357,7 +377,8 @@ def test_prefetched_probability_is_the_one_computed_and_is_claimed_once():
     img = load_capture(example_capture("paper_slab", "A_400")).color[:400, :640].copy()
     direct = model.predict_proba(img)
     model.prefetch_proba(img)
-    assert model.predict_proba(img, flips=False) is not None  # other arguments: computed, not claimed
+    # other arguments: computed, not claimed
+    assert model.predict_proba(img, flips=False) is not None
     assert model._prefetched is not None
     got = model.predict_proba(img)
     assert model._prefetched is None and np.array_equal(got, direct)
@@ -389,4 +410,5 @@ def test_cli_prints_a_capture_name_with_control_characters_escaped(tmp_path, cap
     out = capsys.readouterr().out
     assert "\x1b" not in out and "\\x1b" in out and "A\\nfake" in out
     assert not any(line.startswith("fake") for line in out.splitlines())
-    assert [r["capture"] for r in _summary(tmp_path / "out")] == [cap.name]  # the file keeps the real name
+    # the file keeps the real name
+    assert [r["capture"] for r in _summary(tmp_path / "out")] == [cap.name]
