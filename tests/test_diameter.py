@@ -227,7 +227,7 @@ def test_bars_from_truth_and_input_checks():
     with pytest.raises(RebarInputError, match="bars"):
         measure_diameters(cap, bars.drop(columns=["end_z_mm"]), cap.labels > 0)
     with pytest.raises(RebarInputError, match="system"):
-        measure_diameters(cap, bars, cap.labels > 0, system="JIS")
+        measure_diameters(cap, bars, cap.labels > 0, system="JIS G 9999")
 
 
 # --------------------------------------------------------------------------------------------
