@@ -765,7 +765,11 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
                         & (positions["kind"] == "gap")] if len(positions) else positions
         n2 = next(x.normal2d for x in bars if x.layer == s["layer"] and x.level == s["level"])
         lo, hi = sorted((_offset(bars[a], n2), _offset(bars[b], n2)))
-        inner = pos[(pos["offset_mm"] > lo) & (pos["offset_mm"] < hi)] if len(pos) else pos
+        # the empty positions between the two (a bar placed there is one of the two, or splits
+        # the gap: it is no empty position)
+        q = 0.25 * ds
+        inner = (pos[(pos["offset_mm"] > lo + q) & (pos["offset_mm"] < hi - q)
+                     & ~pos["status"].isin([PRESENT, PRESENT_NO_DEPTH])] if len(pos) else pos)
         if len(inner) and (inner["status"] == MISSING).all():
             continue
         why = "; ".join(str(x) for x in inner["reason"]) if len(inner) else "its positions were not examined"
