@@ -200,10 +200,6 @@ def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 
     return Measurement(float(v.mean()), unc, int(n_points))
 
 
-#: Refined method with diameters: run the colour model on the tiles while the geometry is
-#: fitted (``_prefetch_tiles``): one capture's wall time drops where a core is idle. A batch's
-#: workers, one per core, turn it off (``rebarlib.batch``): there no core is idle.
-PREFETCH = True
 #: Threads of the shipped segmentation model's session (None: onnxruntime's default, every
 #: core). A batch's workers set 1 (``rebarlib.batch``): N workers, N cores.
 MODEL_THREADS = None
@@ -400,8 +396,6 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
             _add_diameters(res, capture, design, method=method, mask=mask,
                            mask_source=mask_source or "model", register=False, rng=rng)
         return _budget(_note_inputs(res, capture), capture, design, cal)
-    if diameters and mask is None and (mask_source or "fused") != "depth" and PREFETCH:
-        _prefetch_tiles(capture, design)
     # the geometry may be fitted again on a trimmed depth: it then draws the same random numbers
     rng_again = copy.deepcopy(rng)
     trim = edge_trim_px or 0
@@ -427,14 +421,6 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
         res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
                          "occluding edge of the depth image left out before the bars were fitted")
     return _budget(_note_inputs(res, capture), capture, design, cal)
-
-
-def _prefetch_tiles(capture: Capture, design: Design) -> None:
-    """Start the colour model on the capture's full-resolution tiles (the diameter stage's mask,
-    ``_add_diameters``) in a background thread, so that it runs while the geometry is fitted.
-    Only the colour image and the widest bar's width go into it, so it needs nothing the
-    geometry finds; the diameter stage then takes the same probabilities it would compute."""
-    _default_model().prefetch_proba(capture.color, tiled=True, bar_width_px=widest_bar_px(capture, design))
 
 
 def _calibrated(capture: Capture, calibration):

@@ -137,7 +137,6 @@ def _configure_threads(threads) -> None:
     if _inspect.MODEL_THREADS != threads:
         _inspect.MODEL_THREADS = int(threads)
         _inspect._default_model.cache_clear()
-    _inspect.PREFETCH = False  # one task per core: no core is idle for the model to use
     _configured_threads = threads
 
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -247,8 +246,6 @@ class SegmentationModel:
         spec = _read_sidecar(self.sidecar_path)
         self.spec = spec
         self._inp, self._out = spec["input"], spec["output"]
-        self._prefetched = None  # (image, arguments, Future) from prefetch_proba
-        self._prefetch_lock = threading.Lock()
 
         import onnxruntime as ort
 
@@ -531,50 +528,11 @@ class SegmentationModel:
         image or tile instead of once per flip and once more (the shipped model: 4 runs; faster,
         a less exact mask: docs/benchmarks.md, "Full-resolution tiles").
         """
-        ready = self._take_prefetched(color, tiled=tiled, bar_width_px=bar_width_px, flips=flips)
-        if ready is not None:
-            return ready.result()
-        return self._proba(color, tiled=tiled, bar_width_px=bar_width_px, flips=flips)
-
-    def _proba(self, color, *, tiled, bar_width_px, flips) -> np.ndarray:
         score, _, is_logit = (self._score_tiled(color, bar_width_px, flips) if tiled
                               else self._score(color, flips))
         if is_logit:
             return (1.0 / (1.0 + np.exp(-score))).astype(np.float32)
         return np.clip(score, 0, 1).astype(np.float32)
-
-    def prefetch_proba(self, color, *, tiled: bool = False, bar_width_px=None, flips: bool = True) -> None:
-        """Start :meth:`predict_proba` of ``color`` in a background thread.
-
-        The next :meth:`predict_proba` of the same image object with the same arguments returns
-        that result (waiting for it if need be) instead of computing it again; a call with other
-        arguments computes its own. ``inspect`` starts the network on the tiles of a capture
-        this way while the geometry is fitted (onnxruntime releases the GIL), so the two share
-        the cores; the probabilities are the same numbers either way. One image is held at a
-        time: a later prefetch replaces an unclaimed one. The image must not be changed until
-        its probability has been taken.
-        """
-        from concurrent.futures import Future
-
-        fut = Future()
-
-        def work():
-            try:
-                fut.set_result(self._proba(color, tiled=tiled, bar_width_px=bar_width_px, flips=flips))
-            except BaseException as exc:  # handed to the caller of predict_proba
-                fut.set_exception(exc)
-
-        with self._prefetch_lock:
-            self._prefetched = (color, (tiled, bar_width_px, flips), fut)
-        threading.Thread(target=work, name="rebarlib-prefetch", daemon=True).start()
-
-    def _take_prefetched(self, color, *, tiled, bar_width_px, flips):
-        with self._prefetch_lock:
-            held = self._prefetched
-            if held is None or held[0] is not color or held[1] != (tiled, bar_width_px, flips):
-                return None
-            self._prefetched = None
-            return held[2]
 
     def predict_mask(self, color) -> np.ndarray:
         """Binary rebar mask, (H, W) bool at the resolution of ``color`` ((H, W, 3) uint8 RGB)."""

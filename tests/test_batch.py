@@ -364,45 +364,6 @@ def test_summary_table_is_the_summary_csv_of_the_outcomes(tmp_path):
     assert pd.isna(table.loc[1, "cover_mm"]) and "no color.png" in table.loc[1, "reason"]
 
 
-# ------------------------------------------------------------------------------------------------
-# speed: the colour model started ahead, in a background thread
-# ------------------------------------------------------------------------------------------------
-
-def test_prefetched_probability_is_the_one_computed_and_is_claimed_once():
-    import numpy as np
-
-    from rebarlib.segmentation import SegmentationModel
-
-    model = SegmentationModel.default()
-    img = load_capture(example_capture("paper_slab", "A_400")).color[:400, :640].copy()
-    direct = model.predict_proba(img)
-    model.prefetch_proba(img)
-    # other arguments: computed, not claimed
-    assert model.predict_proba(img, flips=False) is not None
-    assert model._prefetched is not None
-    got = model.predict_proba(img)
-    assert model._prefetched is None and np.array_equal(got, direct)
-    model.prefetch_proba(img)
-    assert np.array_equal(model.predict_proba(img.copy()), direct)  # another image object: its own
-    model.prefetch_proba(np.zeros((4, 4), np.uint8))  # a failure reaches the caller that claims it
-    with pytest.raises(RebarInputError, match="color"):
-        model.predict_proba(model._prefetched[0])
-
-
-@pytest.mark.slow
-def test_inspect_with_the_model_started_ahead_gives_the_same_result(monkeypatch):
-    import rebarlib._inspect as stage
-
-    cap = load_capture(example_capture("paper_slab", "D_500"))
-    monkeypatch.setattr(stage, "PREFETCH", False)
-    plain = inspect(cap, PAPER_DESIGN, rng=0).to_dict()
-    monkeypatch.setattr(stage, "PREFETCH", True)
-    ahead = inspect(cap, PAPER_DESIGN, rng=0).to_dict()
-    for d in (plain, ahead):
-        d.pop("timings_s")
-    assert ahead == plain
-
-
 def test_cli_prints_a_capture_name_with_control_characters_escaped(tmp_path, capsys):
     cap = tmp_path / "caps" / "A\nfake: cover 20.0 mm\x1b[2J"
     shutil.copytree(example_capture("paper_slab", "A_400"), cap)
