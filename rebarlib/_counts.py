@@ -69,8 +69,13 @@ class CountParams:
     sample_mm : sample spacing across the corridor
     min_evidence_mm : length of slices a verdict needs (empty, no-depth or occupied ones)
     core_fraction : the core, ± this × spacing (+ radius), must be in the image
-    inside_fraction : beyond the outermost bar, the crossing bars must reach within this ×
-        spacing of the position for it to be inside the mesh
+    inside_mm : beyond the outermost bar, the crossing bars must reach to within this of the
+        position for it to be inside the mesh. Where a bar is missing at a row's end, its
+        crossing bars still run on past its place by their overhang; where the mesh ends, they
+        stop one spacing less their overhang short of the next position. The position itself is
+        the last bar plus a spacing, good to the bars' placing tolerance on site (about 10-15
+        mm), which is what this margin allows; a mesh whose crossing bars overhang its last bar
+        by more than a spacing less twice this cannot be told from one missing its end bars
     max_share : at most this share of the seen slices occupied (missing), or of the empty
         slices showing a bar in the mask
     min_share : a mask that shows a bar on at least this share of the slices places it
@@ -84,7 +89,7 @@ class CountParams:
     sample_mm: float = 2.0
     min_evidence_mm: float = 150.0
     core_fraction: float = 0.25
-    inside_fraction: float = 0.25
+    inside_mm: float = 15.0
     max_share: float = 0.1
     min_share: float = 0.5
     max_position_sigma_mm: float = 1.5
@@ -560,7 +565,7 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
                     "told, so this position beyond the outermost bar is not judged"}
         r_edge = reach[f"reach_{side}_mm"]
         beyond = (p - r_edge) if side == "plus" else (r_edge - p)
-        if beyond > prm.inside_fraction * s:
+        if beyond > prm.inside_mm:
             edge = reach[f"edge_{side}"]
             return {**base, "status": OUTSIDE, "reason": (
                 f"the crossing bars end {beyond:.0f} mm before it"

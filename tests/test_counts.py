@@ -132,3 +132,21 @@ def test_edge_form_in_view_leaves_the_lattices_and_counts_whole():
     c = _counts(res)
     assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
     assert any("left out as not rebar" in n for n in res.notes)
+
+
+@pytest.mark.slow
+def test_a_tight_mesh_with_long_overhangs_ends_where_its_crossing_bars_end():
+    # 100 mm spacing, bars placed exactly, crossing bars running 80 mm past the last bar they
+    # carry: the next position is 20 mm beyond their ends, within a quarter spacing (a 25 mm
+    # margin would call it missing) but beyond the 15 mm margin (docs/verdicts.md)
+    tight = R.design_from_dict({"slab": {"id": "T2"}, "design": {
+        "cover_mm": 20, "layer_distance_mm": 60,
+        "lower": {"diameter_mm": 10, "spacing_mm": 100}, "upper": {"diameter_mm": 10, "spacing_mm": 100}}})
+    dev = S.Deviations(end_overhang_mm=80, slab_size_mm=1200, position_sigma_mm=0.0)
+    cap = S.synth_capture(tight, height_mm=500, tilt_deg=5, yaw_deg=10, target_mm=(450, 450), seed=2,
+                          deviations=dev)
+    res = R.inspect(cap, tight, diameters=False, rng=0)
+    c = _counts(res)
+    assert cap.truth["missing"] == []
+    assert (c["missing"].fillna(0) == 0).all()
+    assert (res.positions["status"] == C.OUTSIDE).sum() >= 1
