@@ -39,6 +39,7 @@ import pandas as pd
 
 from . import geometry as G
 from ._checks import RebarInputError
+from ._inspect import _top_cover
 from ._design import Design
 from ._results import InspectionResult, Measurement
 from .cloud_io import ScanCloud, read_cloud
@@ -978,14 +979,6 @@ def _assemble(sc: ScanCloud, design: Design, plane, datum: Datum, bars: list, no
                           "up_how": up_how, "noise_mm": round(float(noise), 3), "formwork": bool(datum.found),
                           "frame": "the cloud's frame re-centred: add offset_mm for the file's frame (mm)"}})
     return res
-
-
-def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
-    if design.thickness_mm is None:
-        return Measurement.not_measured("the design gives no slab thickness")
-    if not upper_top.ok:
-        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
-    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)
 
 
 def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) -> pd.DataFrame:
