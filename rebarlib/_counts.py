@@ -219,6 +219,8 @@ def _edge(ends: list, reach: float, pick) -> bool:
 
 
 def _corners(info: dict, groups: dict, plane: Plane):
+    """(4, 3) camera-frame corners of a lattice's outline at its lowest bars' height, from the
+    reach of each direction's crossing bars; None unless both directions have it."""
     a, b = info.get("bottom"), info.get("top")
     if not a or not b:
         return None
@@ -556,6 +558,9 @@ def _t_range(nb) -> tuple:
 
 def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise,
            prm) -> dict:
+    """The verdict on one empty position (a ``positions`` row, with ``_bar``/``_new`` when a bar
+    is placed there): outside the mesh, not in view, present (no depth), present, missing or not
+    measured, in that order of tests (module docstring)."""
     s = row.spacing
     base = {"kind": kind, "offset_mm": round(p, 1), "bar_id": None, "position_sigma_mm": math.nan}
     if kind == "end":
@@ -629,6 +634,8 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
 
 def _present(row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str,
              why: str) -> dict:
+    """A position found holding a bar: the bar placed on the mask's centre line over the slices
+    ``sel`` at its level's height, status "not measured" (its axis is not fitted to points)."""
     off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
     ok = sd <= prm.max_position_sigma_mm
     how = (f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
