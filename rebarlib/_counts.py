@@ -47,8 +47,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from ._camera import Intrinsics, project
-from .geometry import LAYERS, LEVELS, BarAxis, Plane, from_slab_frame, to_slab_frame
+from ._camera import Intrinsics, backproject, project
+from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
 
 __all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings",
            "POSITION_COLUMNS"]
@@ -162,8 +162,8 @@ def _end_seen(b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: 
 
 
 def _heights(u, v, z, plane: Plane, intr: Intrinsics) -> np.ndarray:
-    pts = np.column_stack(((u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z))
-    return plane.height(pts)
+    """Heights above ``plane`` of pixels (u, v) with depth z."""
+    return plane.height(backproject(np.column_stack((u, v)), z, intr))
 
 
 def mesh_boundary(bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
@@ -267,7 +267,7 @@ def _samples(row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane:
     pts = np.concatenate([plan, np.full(plan.shape[:2] + (1,), h)], axis=2).reshape(-1, 3)
     cam = from_slab_frame(pts, plane)
     uv = np.round(project(cam, intr)).astype(int)
-    ok = (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
+    ok = _in_image(uv, cam, intr)
     shape = (len(t), len(c))
     return uv.reshape(shape + (2,)), ok.reshape(shape)
 
@@ -414,7 +414,7 @@ def _mask_along(b: BarAxis, plane: Plane, intr: Intrinsics, foot, own: int, mask
         return math.nan
     cam = from_slab_frame(b.axis_points(t), plane)
     uv = np.round(project(cam, intr)).astype(int)
-    ok = (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
+    ok = _in_image(uv, cam, intr)
     u, v = uv[ok, 0], uv[ok, 1]
     free = np.isin(foot[v, u], (0, own))
     if free.sum() < 4:

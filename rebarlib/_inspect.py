@@ -16,7 +16,7 @@ import numpy as np
 
 from . import _counts as C
 from . import geometry as G
-from ._camera import Cloud, depth_to_points
+from ._camera import Cloud, backproject, depth_to_points
 from ._capture import Capture
 from ._checks import RebarInputError
 from ._design import Design
@@ -82,7 +82,7 @@ def facing_up(capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2,
     def point(uu, vv):
         uu, vv = np.clip(uu, 0, W - 1), np.clip(vv, 0, H - 1)
         z = depth[vv, uu]
-        return np.column_stack(((uu - K.cx) * z / K.fx, (vv - K.cy) * z / K.fy, z)), z > 0
+        return backproject(np.column_stack((uu, vv)), z, K), z > 0
 
     (pu, ok1), (pl, ok2) = point(u + step_px, v), point(u - step_px, v)
     (pd, ok3), (pt, ok4) = point(u, v + step_px), point(u, v - step_px)
