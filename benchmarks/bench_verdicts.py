@@ -60,7 +60,9 @@ def _render_slab(args) -> str:
         return str(folder)
     rng = np.random.default_rng([2026, k])
     defect = None if k % 2 == 0 else DEFECTS[(k // 2) % len(DEFECTS)]
-    design = R.design_from_dict(_toml(design_toml(k, defect)), source=f"slab {k}")
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "design.toml").write_text(design_toml(k, defect), encoding="utf-8")
+    design = R.load_design(folder / "design.toml")
     render = design
     if defect == "cover":
         render = _with(design, cover_mm=design.cover_mm + 5)
@@ -72,13 +74,12 @@ def _render_slab(args) -> str:
                        missing_at_end=1 if defect == "missing_end" else 0,
                        wrong_size=1 if defect == "wrong_size" else 0)
     scene = S.make_scene(render, dev, rng=np.random.default_rng([2026, k, 1]))
+    gap = None
     if defect == "spacing":
-        scene = _open_one_gap(scene, rng, 25.0)
+        scene, gap = _open_one_gap(scene, rng, 25.0)
     n_cap = int(rng.integers(2, 5)) if k % 5 == 0 else 2
     edge_view = k % 3 == 0
-    targets = _targets(scene, defect, n_cap, edge_view, rng)
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "design.toml").write_text(design_toml(k, defect), encoding="utf-8")
+    targets = _targets(scene, defect, gap, n_cap, edge_view, rng)
     caps = []
     for j, target in enumerate(targets):
         h = float(rng.uniform(400, 700))
@@ -98,14 +99,6 @@ def _render_slab(args) -> str:
     return str(folder)
 
 
-def _toml(text: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python < 3.11
-        import tomli as tomllib
-    return tomllib.loads(text)
-
-
 def _with(design, **kw):
     import dataclasses
 
@@ -113,7 +106,8 @@ def _with(design, **kw):
 
 
 def _open_one_gap(scene, rng, by_mm: float):
-    """Move every bar beyond one inner gap of one upper set by ``by_mm`` (that gap opens by it)."""
+    """Move every bar beyond one inner gap of one upper set by ``by_mm`` (that gap opens by it);
+    returns the scene and the ids of the two bars on either side of the gap."""
     import dataclasses
 
     sets = {}
@@ -128,9 +122,7 @@ def _open_one_gap(scene, rng, by_mm: float):
         if b.id in moved:
             b = dataclasses.replace(b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b))
         bars.append(b)
-    out = dataclasses.replace(scene, bars=tuple(bars))
-    object.__setattr__(out, "_opened_gap", (layer_level, row[cut - 1].id, row[cut].id))
-    return out
+    return dataclasses.replace(scene, bars=tuple(bars)), (row[cut - 1].id, row[cut].id)
 
 
 def _across(scene, b) -> np.ndarray:
@@ -141,7 +133,7 @@ def _across(scene, b) -> np.ndarray:
     return ey if b.level == "bottom" else ex
 
 
-def _targets(scene, defect, n: int, edge_view: bool, rng) -> list:
+def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     """Where each capture looks (world x, y mm): the first at the defect, one at the mesh's edge
     where asked, the others inside the mesh."""
     # the mesh's extent in its own frame (x along the bottom bars, y along the top bars)
@@ -167,7 +159,7 @@ def _targets(scene, defect, n: int, edge_view: bool, rng) -> list:
         b = next(b for b in scene.bars if b.nominal_mm != b.design_mm)
         focus = b.axis[0, :2] + rng.uniform(0.35, 0.65) * (b.axis[-1, :2] - b.axis[0, :2])
     elif defect == "spacing":
-        _, ia, ib = scene._opened_gap
+        ia, ib = gap
         a, b = scene.bars[ia], scene.bars[ib]
         focus = 0.5 * (a.axis.mean(0)[:2] + b.axis.mean(0)[:2])
     if focus is not None:
