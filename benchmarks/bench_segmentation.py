@@ -39,8 +39,9 @@ import numpy as np
 
 from rebarlib import GEMINI2
 from rebarlib.segmentation import (
-    DATASET_SEED, DATASET_SIZE, SegmentationModel, confusion_counts, dice, fuse_masks, iou,
-    mask_from_depth, pixel_accuracy, split_indices, synth_eval_regions, synth_segmentation_capture)
+    SegmentationModel, confusion_counts, dice, fuse_masks, iou, mask_from_depth, pixel_accuracy)
+from rebarlib.synth_segmentation import (
+    DATASET_SEED, DATASET_SIZE, split_indices, synth_eval_regions, synth_segmentation_capture)
 
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = ("TP", "FP", "FN", "TN")

@@ -15,8 +15,9 @@ import numpy as np
 
 from bench_segmentation import _add, _zero
 from rebarlib import GEMINI2
-from rebarlib.segmentation import (DATASET_SEED, DATASET_SIZE, confusion_counts, iou, split_indices,
-                                   synth_eval_regions, synth_segmentation_capture)
+from rebarlib.segmentation import confusion_counts, iou
+from rebarlib.synth_segmentation import (DATASET_SEED, DATASET_SIZE, split_indices,
+                                         synth_eval_regions, synth_segmentation_capture)
 
 SUBSETS = ("all", "shadow", "rust", "unlit")
 N_CAPTURES = 20

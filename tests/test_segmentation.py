@@ -12,10 +12,11 @@ from rebarlib import GEMINI2, RebarInputError
 from rebarlib._inspect import registered_mask
 from rebarlib.synth import SensorModel, misregister, synth_capture
 from rebarlib.segmentation import (
-    DATASET_SEED, SegmentationModel, confusion_counts, depth_overreach_px, dice,
-    estimate_registration, fit_formwork_plane, fuse_masks, iou, mask_from_depth, pixel_accuracy,
-    shift_image, soft_mask, split_indices, synth_eval_regions, synth_segmentation_capture,
+    SegmentationModel, confusion_counts, depth_overreach_px, dice, estimate_registration,
+    fit_formwork_plane, fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, soft_mask,
     trim_depth_overreach)
+from rebarlib.synth_segmentation import (
+    DATASET_SEED, split_indices, synth_eval_regions, synth_segmentation_capture)
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402

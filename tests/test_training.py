@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
+from rebarlib.synth_segmentation import DATASET_SEED, synth_segmentation_capture
 
 ROOT = Path(__file__).resolve().parents[1]
 INDEX = 301  # a training-only index (300 and up are never validation or test captures)

@@ -7,9 +7,9 @@ Steps (each resumable, outputs under ``--work``):
     python training/train_segmentation.py train  --work /tmp/seg --arch deeplab --minutes 18
     python training/train_segmentation.py export --work /tmp/seg --arch unet --out rebarlib/models
 
-The data set is ``rebarlib.segmentation.synth_segmentation_capture(i)`` for
+The data set is ``rebarlib.synth_segmentation.synth_segmentation_capture(i)`` for
 ``i < DATASET_SIZE``, rendered at 640 x 400 (``GEMINI2.scaled(0.5)``); the split is
-``rebarlib.segmentation.split_indices()`` (by capture, seeded). The models see the colour image
+``rebarlib.synth_segmentation.split_indices()`` (by capture, seeded). The models see the colour image
 resized to 640 x 400 and return one rebar logit per pixel at that size; at run time the logit
 map is resized bilinearly to the capture's full resolution and thresholded at 0 (p = 0.5).
 
@@ -53,7 +53,7 @@ def _stem(key) -> str:
 def _render_one(job):
     import cv2
 
-    from rebarlib.segmentation import DATASET_SEED, synth_segmentation_capture
+    from rebarlib.synth_segmentation import DATASET_SEED, synth_segmentation_capture
 
     key, folder, quality, relief_label, keep_full, full_quality = job
     f_img, f_mask = folder / f"{_stem(key)}.jpg", folder / f"{_stem(key)}.png"
@@ -122,7 +122,7 @@ def cmd_data(args):
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    from rebarlib.segmentation import DATASET_SEED, split_indices
+    from rebarlib.synth_segmentation import DATASET_SEED, split_indices
 
     work = Path(args.work)
     (work / "data").mkdir(parents=True, exist_ok=True)
@@ -748,7 +748,7 @@ def main(argv=None):
     a.add_argument("models", nargs="+", help="ONNX files exported by this script, or runs' state dicts (.pt)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
-        from rebarlib.segmentation import DATASET_SIZE
+        from rebarlib.synth_segmentation import DATASET_SIZE
         args.n = DATASET_SIZE
     {"data": cmd_data, "train": cmd_train, "eval": cmd_eval, "export": cmd_export}[args.cmd](args)
 
