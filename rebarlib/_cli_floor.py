@@ -21,9 +21,11 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ._status import FAIL, INCOMPLETE, NOT_MEASURED
+
 FLOOR_SUMMARY = "floor_summary.csv"
 #: Item verdicts listed as open (neither passed nor failed) in the floor summary.
-OPEN = ("not measured", "incomplete")
+OPEN = (NOT_MEASURED, INCOMPLETE)
 FLOOR_COLUMNS = ("slab", "slab_id", "verdict", "failed_items", "open_items", "captures",
                  "captures_without_result", "report", "reason")
 #: Seed of the inspections made here (``rebar inspect``'s default), so a report can be made again.
@@ -164,7 +166,7 @@ def _judge_and_write(s: _Slab, out: Path, fmt: str, *, exports: bool, standard) 
                         format=fmt, exports=exports)
     items = acc.items
     s.row = {"slab_id": s.design.slab_id, "verdict": acc.verdict,
-             "failed_items": ";".join(items.loc[items["verdict"] == "fail", "item"]),
+             "failed_items": ";".join(items.loc[items["verdict"] == FAIL, "item"]),
              "open_items": ";".join(items.loc[items["verdict"].isin(OPEN), "item"]),
              "captures_without_result": len(s.missing), "report": path.name, "reason": ""}
 

@@ -23,6 +23,8 @@ import json
 import sys
 from pathlib import Path
 
+from ._status import MEASURED, NOT_MEASURED
+
 OUTPUT_FILES = ("result.json", "bars.csv", "spacings.csv", "counts.csv")
 SUMMARY_NAME = "summary.csv"
 
@@ -64,7 +66,7 @@ def add_parser(sub):
 
 def _fmt(m) -> str:
     if not m.ok:
-        return "not measured"
+        return NOT_MEASURED
     unc = f" ± {m.uncertainty_mm:.1f}" if m.uncertainty_mm is not None else ""
     return f"{m.value_mm:.1f}{unc} mm"
 
@@ -72,7 +74,7 @@ def _fmt(m) -> str:
 def summary_line(res) -> str:
     """One line: cover, layer distance, bars found and the worst spacing deviation."""
     bars = res.bars
-    n_meas = int((bars["status"] == "measured").sum()) if len(bars) else 0
+    n_meas = int((bars["status"] == MEASURED).sum()) if len(bars) else 0
     sp = res.spacings
     worst = ""
     if sp is not None and len(sp) and "deviation_mm" in sp and sp["deviation_mm"].notna().any():

@@ -14,7 +14,12 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict", "DESIGN_KEYS"]
+__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict", "DESIGN_KEYS",
+           "DEFAULT_BAR_SYSTEM"]
+
+#: Bar-size standard of a design that names none (``bar_system``), and of every function that
+#: takes a ``system``: GB 1499.2, the Chinese standard the method was developed under.
+DEFAULT_BAR_SYSTEM = "GB1499.2"
 
 #: Direction groups of a lattice: its bottom bars and the bars resting on them.
 LEVELS = ("bottom", "top")
@@ -112,7 +117,7 @@ class Design:
     element: str = "slab"
     location: str = ""
     standard: str = "GB50204-2015"
-    bar_system: str = "GB1499.2"
+    bar_system: str = DEFAULT_BAR_SYSTEM
     slab: dict = field(default_factory=dict, compare=False)
     tolerances: dict = field(default_factory=dict, compare=False)
     source: str = ""
@@ -215,7 +220,7 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     for key in ("project", "drawing", "contractor", "record", "lot"):
         _text(slab, key, sw, "")
     bar_sys = (_text(des, "bar_system", where, "") if "bar_system" in des
-               else _text(slab, "bar_system", sw, "GB1499.2"))
+               else _text(slab, "bar_system", sw, DEFAULT_BAR_SYSTEM))
     return Design(
         slab_id=sid, cover_mm=cover, layer_distance_mm=layer_distance, lower=lower, upper=upper,
         thickness_mm=thickness, element=_text(slab, "element", sw, "slab"),

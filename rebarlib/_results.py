@@ -9,9 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Measurement", "InspectionResult", "MEASURED", "NOT_MEASURED"]
+from ._status import MEASURED, NOT_MEASURED
 
-MEASURED, NOT_MEASURED = "measured", "not measured"
+__all__ = ["Measurement", "InspectionResult", "MEASURED", "NOT_MEASURED", "table_records"]
 
 
 @dataclass(frozen=True)
@@ -41,32 +41,50 @@ class Measurement:
                 "n_points": int(self.n_points), "status": self.status, "reason": self.reason}
 
 
-def _num(x):
+def _num(x, digits: int | None = 3):
+    """``x`` as a Python float rounded to ``digits`` (``None``: not rounded); ``None`` if it is
+    ``None`` or not finite."""
     if x is None:
         return None
     x = float(x)
-    return None if not math.isfinite(x) else round(x, 3)
+    if not math.isfinite(x):
+        return None
+    return x if digits is None else round(x, digits)
 
 
-def _table_records(df) -> list:
+def table_records(df, *, digits: int | None = 3) -> list:
+    """The rows of ``df`` as dicts ready for JSON: NumPy scalars as Python ones, floats rounded to
+    ``digits`` (``None``: kept whole) with NaN and infinities as ``None``, arrays as lists.
+
+    The one conversion every export of a table uses (a result's tables, the acceptance's items and
+    checkpoints, the report's rows). ``None`` or an empty table gives ``[]``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> df = pd.DataFrame({"bar_id": [1, 2], "width_mm": [13.91234, float("nan")]})
+    >>> table_records(df)
+    [{'bar_id': 1, 'width_mm': 13.912}, {'bar_id': 2, 'width_mm': None}]
+    >>> table_records(df, digits=None)[0]["width_mm"]
+    13.91234
+    """
     if df is None:
         return []
-    out = []
-    for rec in df.to_dict(orient="records"):
-        clean = {}
-        for k, v in rec.items():
-            if isinstance(v, (np.floating, float)):
-                clean[k] = _num(v)
-            elif isinstance(v, np.integer):
-                clean[k] = int(v)
-            elif isinstance(v, np.bool_):
-                clean[k] = bool(v)
-            elif isinstance(v, np.ndarray):
-                clean[k] = [_num(t) for t in v.ravel()]
-            else:
-                clean[k] = v
-        out.append(clean)
-    return out
+    return [{k: _plain(v, digits) for k, v in rec.items()} for rec in df.to_dict(orient="records")]
+
+
+def _plain(v, digits: int | None):
+    if isinstance(v, (np.floating, float)):
+        return _num(v, digits)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, np.ndarray):
+        return [_num(t, digits) for t in v.ravel()]
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
 
 
 @dataclass
@@ -113,8 +131,8 @@ class InspectionResult:
             "measurements": {"cover": self.cover.to_dict(), "layer_distance": self.layer_distance.to_dict(),
                              "upper_top": self.upper_top.to_dict(), "top_cover": self.top_cover.to_dict()},
             "formwork": self.formwork, "camera": self.camera,
-            "bars": _table_records(self.bars), "spacings": _table_records(self.spacings),
-            "counts": _table_records(self.counts), "positions": _table_records(self.positions),
+            "bars": table_records(self.bars), "spacings": table_records(self.spacings),
+            "counts": table_records(self.counts), "positions": table_records(self.positions),
             "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
             "notes": list(self.notes), "extras": self.extras,
         }

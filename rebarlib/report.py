@@ -19,15 +19,18 @@ import numpy as np
 from ._camera import project
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
-from ._design import Design
+from ._design import DEFAULT_BAR_SYSTEM, Design
+from ._results import table_records
+from ._status import (EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MISSING, NOT_CHECKED, NOT_MEASURED,
+                      PASS)
 from .acceptance import COVERAGE_K, Acceptance, is_true
 
 __all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
            "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
 
 #: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
-BAR_COLOURS = {"pass": "#1b9e77", "fail": "#d62728", "incomplete": "#e7c21f", "not checked": "#f0a30a",
-               "hidden": "#7f3fbf"}
+BAR_COLOURS = {PASS: "#1b9e77", FAIL: "#d62728", INCOMPLETE: "#e7c21f", NOT_CHECKED: "#f0a30a",
+               HIDDEN: "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
              "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status",
@@ -194,8 +197,8 @@ def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
         if seg is None:
             continue
         (x0, y0), (x1, y1) = seg
-        v = verdicts.get(str(rec.get("bar_id")), "not checked")
-        hidden = v == "hidden" or is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
+        v = verdicts.get(str(rec.get("bar_id")), NOT_CHECKED)
+        hidden = v == HIDDEN or is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN
         # Labels of the bottom level at 12 % along the bar, of the top level at 88 %, so that the
         # ids of crossing bars do not sit on each other.
         t = 0.12 if rec.get("level") == "bottom" else 0.88
@@ -206,8 +209,8 @@ def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
         lx = float(np.clip(x0 + t * (x1 - x0), 0.9 * m, intrinsics.width - 0.9 * m))
         ly = float(np.clip(y0 + t * (y1 - y0), 0.62 * m, intrinsics.height - 0.62 * m))
         out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": lx, "ly": ly,
-                    "id": str(rec.get("bar_id")), "colour": BAR_COLOURS["hidden" if hidden else v],
-                    "hidden": hidden, "verdict": "hidden" if hidden else v})
+                    "id": str(rec.get("bar_id")), "colour": BAR_COLOURS[HIDDEN if hidden else v],
+                    "hidden": hidden, "verdict": HIDDEN if hidden else v})
     return out
 
 
@@ -253,18 +256,18 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
                      "lx": lab[0], "ly": lab[1],
                      "layer": layer, "level": level, "width": width,
                      "colour": LAYER_COLOURS.get(layer, "#555"),
-                     "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"})
+                     "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN})
     if not segs:
         return None
     marks = []
     for rec in positions or []:
         ax = _axis(rec)
         status = rec.get("status")
-        if ax is None or status not in ("missing", "not measured"):
+        if ax is None or status not in (MISSING, NOT_MEASURED):
             continue
         a, b = (np.array([p @ e1, p @ e2]) for p in ax)
-        marks.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "missing": status == "missing",
-                      "text": "missing" if status == "missing" else "?", "lx": (a[0] + b[0]) / 2,
+        marks.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "missing": status == MISSING,
+                      "text": "missing" if status == MISSING else "?", "lx": (a[0] + b[0]) / 2,
                       "ly": (a[1] + b[1]) / 2})
     outlines = []
     for layer, info in (boundary or {}).items():
@@ -335,13 +338,6 @@ def _signed(v, nd: int = 1) -> str:
 
 def _pct(v) -> str:
     return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{100 * float(v):.0f} %"
-
-
-def _records(df) -> list:
-    if df is None or not len(df):
-        return []
-    return [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
-            for r in df.to_dict(orient="records")]
 
 
 def _no_image_text(result: dict, has_folder: bool) -> str:
@@ -437,7 +433,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                      "bars": _image_overlay(bars, verdicts, K), "font": K.width / 60,
                      "stroke": K.width / 320}
         for b in bars:
-            b["verdict"] = verdicts.get(str(b.get("bar_id")), "not checked")
+            b["verdict"] = verdicts.get(str(b.get("bar_id")), NOT_CHECKED)
             for key in _BAR_KEYS:  # the template prints every column; absent = not in the result
                 b.setdefault(key, None)
         meas = r.get("measurements") or {}
@@ -447,7 +443,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             m = meas.get(key) or {}
             mrows.append({"label": label, "value": _fmt(m.get("value_mm"), 1, "mm"),
                           "u": _fmt(m.get("uncertainty_mm"), 1, "mm"), "n": m.get("n_points", ""),
-                          "status": m.get("status", "not measured"), "reason": m.get("reason", "")})
+                          "status": m.get("status", NOT_MEASURED), "reason": m.get("reason", "")})
         cam = r.get("camera") or {}
         captures.append({
             "name": name, "method": r.get("method", ""), "image": image,
@@ -463,7 +459,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
             "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
         })
 
-    items = _records(acceptance.items)
+    items = table_records(acceptance.items, digits=None)
     rules = []
     for it in items:
         key = (it["rule"], it["clause"])
@@ -479,7 +475,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                                  f"+{it['excluded']} hidden" if it["excluded"] else "",
                                                  f"{it['not_proven']} not proven" if it.get("not_proven") else "")
                                      if t)
-    checkpoints = _records(cp)
+    checkpoints = table_records(cp, digits=None)
     for c in checkpoints:
         nd = 0 if c["unit"] == "bars" else 1
         c["design_text"] = _fmt(c["design_value"], nd)
@@ -508,7 +504,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                             "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
                                     f"(median over {len(u_bar)} bars)"})
     not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
-                    for c in checkpoints if c["status"] == "not measured"]
+                    for c in checkpoints if c["status"] == NOT_MEASURED]
     # Collapse repeated (item, reason) pairs so the section stays readable on a large slab.
     nm_grouped = {}
     for c in not_measured:
@@ -558,9 +554,9 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
         for cap in dict.fromkeys(c["capture"] for c in cps):
             vals = []
             for c in (c for c in cps if c["capture"] == cap):
-                if c["status"] == "excluded":
+                if c["status"] == EXCLUDED:
                     v = "hidden"
-                elif c["status"] == "not measured":
+                elif c["status"] == NOT_MEASURED:
                     v = "n/m"
                 elif it["item"].startswith("bar_size"):
                     v = _size(c["measured_value"], bar_system)
@@ -569,7 +565,7 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
                 else:
                     v = c["deviation_text"]
                 vals.append({"text": v, "flag": c["flag"], "bad": bool(c["flag"]),
-                             "open": c["status"] in ("not measured", "excluded")})
+                             "open": c["status"] in (NOT_MEASURED, EXCLUDED)})
             caps.append({"capture": cap, "vals": vals})
         rows.append({"label": it["label"], "tolerance": it["tolerance"], "caps": caps,
                      "kind": ("measured size" if it["item"].startswith("bar_size") else
@@ -586,7 +582,7 @@ def _css_class(v) -> str:
     return "".join(ch if ch.isalnum() else "-" for ch in str(v or "none").lower())
 
 
-def _size(v, system="GB1499.2") -> str:
+def _size(v, system=DEFAULT_BAR_SYSTEM) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
     return f"Φ{float(v):g}" if str(system).upper().startswith("GB") else f"{float(v):g} mm"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._camera import Intrinsics, project
+from ._status import MEASURED
 
 __all__ = ["cloud_figure", "image_figure", "overlay_mask", "draw_axes", "decimate",
            "LAYER_COLORS", "plane_mesh_trace", "axis_traces", "table_axes", "draw_bar_table", "plan_figure",
@@ -171,7 +172,7 @@ def draw_bar_table(rgb, bars, intrinsics: Intrinsics, *, color_by: str = "layer"
     starts, ends = table_axes(bars)
     colors = []
     for rec in bars.itertuples():
-        if getattr(rec, "status", "measured") != "measured":
+        if getattr(rec, "status", MEASURED) != MEASURED:
             colors.append((160, 160, 160))
         else:
             colors.append(hex_rgb(LAYER_COLORS.get(getattr(rec, color_by), "#000000")))
@@ -190,7 +191,7 @@ def plan_figure(bars, spacings=None, *, title: str = "plan view"):
         fig.add_trace(go.Scatter(x=[a[0], b[0]], y=[a[1], b[1]], mode="lines",
                                  line=dict(color=LAYER_COLORS.get(rec.layer, "black"),
                                            width=4 if rec.layer == "upper" else 3,
-                                           dash="solid" if getattr(rec, "status", "measured") == "measured" else "dot"),
+                                           dash="solid" if getattr(rec, "status", MEASURED) == MEASURED else "dot"),
                                  name=f"bar {rec.bar_id} ({rec.layer} {rec.level})", showlegend=False))
         mids[rec.bar_id] = (a + b) / 2
     if spacings is not None:
