@@ -213,7 +213,7 @@ def test_ribs_in_relief_reach_the_envelope_only_at_their_crests():
     ribs form its silhouette. Hand-computed: the top is the longitudinal rib, r1 + h above the
     axis, facing up; beside the axis a ray at r1 + h/2 meets the bar at a rib's middle and
     misses it half-way between two ribs; a ray just inside the core meets it anywhere."""
-    from rebarlib.synth import _ray_relief, _relief_params
+    from rebarlib.synth.raycast import _ray_relief, _relief_params
 
     r1, h, pitch = _relief_params(12)
     assert (2 * r1, h, pitch) == pytest.approx((11.5, 1.2, 8.0))
