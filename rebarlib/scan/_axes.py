@@ -1,0 +1,268 @@
+"""Stage 5 of a scanned cloud: the slab frame, each lattice's bar axes and their heights, and
+the sign of up from the crossings where nothing else settles it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import geometry as G
+from .._checks import RebarInputError
+from .._design import Design
+from ._bars import _Bar, _crossing_along, _crossing_free, _robust_line, lattice_bars
+from ._datum import Datum, split_lattices
+from ._util import _dot, _slab_frame
+
+
+_SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar's upper half, x radius
+
+
+def _envelope(design: Design, layer: str, level: str) -> float:
+    """Width over the ribs (or a plain bar's diameter) of a lattice level's bars, mm."""
+    from .._barsizes import barset_width_mm
+
+    return barset_width_mm(design.lattice(layer).level(level), design.bar_system)
+
+
+def _to_axis(b: _Bar, layer: str, level: str, group: int, r: float) -> G.BarAxis:
+    """A bar as a :class:`~rebarlib.geometry.BarAxis` (slab frame): its axis lies 2r/π under the
+    mean height of its points."""
+    axis_h = b.mean_h - _SURFACE_MEAN * r
+    se = b.resid_sd / math.sqrt(max(b.n, 1))
+    return G.BarAxis(layer, b.direction, b.centre, b.slope, axis_h, 0.0, b.t0, b.t1, r, b.n, b.resid_sd,
+                     b.idx, group, level, arc_deg=float("nan"), axis_se_mm=se)
+
+
+def _all_axes(q, split, design, datum, min_length_mm, rng):
+    """Every lattice's bar axes, and per lattice the noise (plan, height) measured on them."""
+    bars, noise = [], {}
+    for layer in G.LAYERS:
+        axes, noise[layer] = _layer_axes(q, split, layer, design, datum, min_length_mm, rng)
+        bars += axes
+    return bars, noise
+
+
+def crossing_lift(q, bars: list, noise: dict) -> float:
+    """Mean height (mm) of the points along the bars at their crossings less that away from them,
+    over every bar (weighted by points): positive when the slab frame's up is the scanner's side.
+
+    Seen from above, a bar beneath a crossing bar is hidden there, and the band along it holds
+    the crossing bar's points, a bar radius or two higher; the bar on top shows its own surface
+    either way. Seen from below (up taken upside down) the hidden bar's band holds points lower
+    than its own."""
+    total, weight = 0.0, 0
+    plan, h = q[:, :2], q[:, 2]
+    for layer in G.LAYERS:
+        sig = noise.get(layer, (10.0, 10.0))[0]
+        mine = [b for b in bars if b.layer == layer]
+        for b in mine:
+            n2 = b.normal2d
+            t = _dot(plan, b.direction)
+            across = np.abs(_dot(plan, n2) - (b.offset_mm + b.slope * t))
+            band = (across < b.radius_mm + sig) & (t >= b.t0_mm) & (t <= b.t1_mm)
+            band &= np.abs(h - b.axis_height_mm) < 4 * b.radius_mm + 3 * sig
+            idx = np.flatnonzero(band)
+            cross = [_cross_axes(b, x) for x in mine if x.level != b.level]
+            cross = np.array([c for c in cross if np.isfinite(c)])
+            if len(idx) < 20 or len(cross) == 0:
+                continue
+            dist = np.min(np.abs(t[idx][:, None] - cross[None, :]), axis=1)
+            at = dist < b.radius_mm
+            away = dist > 3 * b.radius_mm + 2 * sig
+            if at.sum() < 5 or away.sum() < 5:
+                continue
+            total += (float(h[idx][at].mean()) - float(h[idx][away].mean())) * len(idx)
+            weight += len(idx)
+    return total / weight if weight else 0.0
+
+
+def _cross_axes(b: G.BarAxis, x: G.BarAxis) -> float:
+    """Where axis ``x`` crosses axis ``b`` in plan, as a position along ``b``."""
+    A = np.vstack([b.normal2d, x.normal2d])
+    if abs(np.linalg.det(A)) < 1e-6:
+        return float("nan")
+    p = np.linalg.solve(A, [b.offset_mm, x.offset_mm])
+    return float(p @ b.direction)
+
+
+def _frame(pts, normal, datum: Datum):
+    """The slab frame (the datum's plane, else heights from the cloud's lowest points along
+    ``normal``), the slab-frame points and the split between the lattices."""
+    if datum.found:
+        plane = datum.plane
+    else:
+        plane = G.Plane(normal, -float(np.percentile(_dot(pts, normal), 0.5)))
+    q = _slab_frame(pts, plane)
+    h = q[:, 2]
+    above = h > (3 * datum.noise_mm + 2 if datum.found else -np.inf)
+    split = split_lattices(h[above], noise_mm=datum.noise_mm if datum.found else 10.0)
+    if split is None:
+        raise RebarInputError("cloud: no gap between two lattices in the heights above the mesh's plane; "
+                              "is this a two-lattice mesh (or is up wrong)?")
+    return plane, q, split
+
+
+def _layer_points(q, split, layer, datum: Datum) -> np.ndarray:
+    """Indices of a lattice's points: above the split, or between the formwork's noise and it."""
+    h = q[:, 2]
+    if layer == "upper":
+        return np.flatnonzero(h >= split)
+    floor = 3 * datum.noise_mm + 2 if datum.found else -np.inf
+    return np.flatnonzero((h > floor) & (h < split))
+
+
+def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rng) -> tuple[list, tuple]:
+    """The bar axes of one lattice, and the noise (plan, height) measured on its bars.
+
+    Two passes: the first with the formwork's noise (or 10 mm) finds the bars; their spread
+    across gives the noise in plan, with which the second finds them again."""
+    lat = design.lattice(layer)
+    radii = {lv: _envelope(design, layer, lv) / 2 for lv in G.LEVELS}
+    r = max(radii.values())
+    idx = _layer_points(q, split, layer, datum)
+    qs = q[idx]
+    spacing = min(lat.bottom.spacing_mm, lat.top.spacing_mm)
+    guess = max(datum.noise_mm or 10.0, 3.0)
+    found = lattice_bars(qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=guess,
+                         min_length_mm=min_length_mm, rng=rng)
+    if not found:
+        return [], (guess, guess)
+    sig_plan = _noise_across(found, r)
+    found = lattice_bars(qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=sig_plan,
+                         min_length_mm=min_length_mm, rng=rng)
+    if not found:
+        return [], (sig_plan, guess)
+    found = _refit_off_crossings(qs, found, r, sig_plan)
+    sig_plan = _noise_across(found, r)
+    sig_h = datum.noise_mm if datum.found else float(np.median(
+        [math.sqrt(max(b.h_sd ** 2 - 0.05 * r ** 2, 0.25)) for _, b in found]))
+    level_of = _levels(found)
+    axes = []
+    band_floor = -np.inf if (layer == "lower") else split
+    band_ceiling = split if layer == "lower" else np.inf
+    sel = np.flatnonzero((q[:, 2] >= band_floor) & (q[:, 2] < band_ceiling))
+    qb = q[sel]
+    proj = {}  # direction index -> offsets across and positions along it of qb's points
+    for g, b in found:
+        lv = level_of[g]
+        other = [x for gg, x in found if gg != g]
+        half_cross = radii["top" if lv == "bottom" else "bottom"] + 2 * sig_plan + 2
+        if g not in proj:
+            proj[g] = (_dot(qb[:, :2], b.normal2d), _dot(qb[:, :2], b.direction))
+        mean_h, n = _bar_height(qb, proj[g], b, other, half_cross, r + 2 * sig_plan + 2, sig_h,
+                                formwork=datum.found and layer == "lower", radius_mm=radii[lv])
+        if mean_h is None:
+            continue
+        b.mean_h, b.n, b.idx = mean_h, n, idx[b.idx]
+        axes.append(_to_axis(b, layer, lv, g, radii[lv]))
+    return _drop_off_level(axes, sig_h), (sig_plan, sig_h)
+
+
+def _refit_off_crossings(qs, found: list, r: float, sig_plan: float) -> list:
+    """Each bar's offset again from its band's points away from the bars crossing it (its drift
+    kept): there the band holds only this bar and what lies beside it."""
+    plan = qs[:, :2]
+    half = r + 2.5 * sig_plan + 2.0
+    for g, b in found:
+        cross = [c for c in (_crossing_along(b, x) for gg, x in found if gg != g) if np.isfinite(c)]
+        if not cross:
+            continue
+        t = _dot(plan, b.direction)
+        resid = _dot(plan, b.normal2d) - (b.centre + b.slope * t)
+        sel = (np.abs(resid) < half) & (t >= b.t0) & (t <= b.t1)
+        sel[sel] = _crossing_free(t[sel], cross, r + 2.0 * sig_plan + 2.0)
+        if sel.sum() < 50:
+            continue
+        b.centre += _robust_line(np.zeros(int(sel.sum())), resid[sel])[0]
+    return found
+
+
+def _noise_across(found: list, r: float) -> float:
+    """Noise in plan: the bars' spread across less what a bar's own width spreads its points."""
+    sd = float(np.median([b.resid_sd for _, b in found]))
+    return float(math.sqrt(max(sd ** 2 - r ** 2 / 3, 1.0)))
+
+
+def _levels(found: list) -> dict:
+    """Direction index -> level: the direction whose bars lie lower is the bottom one."""
+    groups = sorted({g for g, _ in found})
+    mean_h = {g: float(np.median([b.mean_h for gg, b in found if gg == g])) for g in groups}
+    order = sorted(groups, key=lambda g: mean_h[g])
+    return {g: G.LEVELS[min(k, 1)] for k, g in enumerate(order)}
+
+
+def _bar_height(qb, proj, b: _Bar, other: list, half_cross, half, sig_h, *, formwork: bool, radius_mm: float):
+    """Mean height of a bar's surface points away from the crossing bars, and their number.
+
+    Over a formwork the band beside a low bar also holds formwork points: the heights are then
+    a mixture of the formwork's (mean 0, σ the formwork's noise) and the bar's, and the bar's
+    mean is its component's (a few EM steps)."""
+    off, t = proj
+    inb = (np.abs(off - (b.centre + b.slope * t)) < half) & (t >= b.t0) & (t <= b.t1)
+    cross = [_crossing_along(b, x) for x in other]
+    pick = np.flatnonzero(inb)
+    free = _crossing_free(t[pick], [c for c in cross if np.isfinite(c)], half_cross)
+    if free.sum() >= 10:
+        pick = pick[free]
+    hh = qb[pick, 2]
+    if len(hh) < 10:
+        return None, 0
+    if not formwork:
+        return _trimmed_mean(hh), len(hh)
+    return _mixture_mean(hh, sig_h, radius_mm)
+
+
+def _trimmed_mean(x, k: float = 3.0) -> float:
+    """Mean of ``x`` within ``k`` robust σ of its median."""
+    m = float(np.median(x))
+    sd = 1.4826 * float(np.median(np.abs(x - m))) + 1e-6
+    return float(np.mean(x[np.abs(x - m) < k * sd]))
+
+
+def _mixture_mean(h, sig0, radius_mm: float, iters: int = 30):
+    """Mean of the bar component of heights mixed with formwork points N(0, sig0).
+
+    The bar's component has the formwork's noise widened by the spread of a bar's upper half
+    (0.3 r): left free, its width swallowed the formwork's tail where formwork points outnumber
+    the bar's tenfold (sparse synthetic scans: bar heights 12 mm low)."""
+    hi = h[h > 2 * sig0]
+    mu = float(np.median(hi)) if len(hi) else float(np.median(h))
+    s1 = math.sqrt(sig0 ** 2 + (0.3 * radius_mm) ** 2)
+    pi1 = 0.5
+    for _ in range(iters):
+        p0 = (1 - pi1) * np.exp(-0.5 * (h / sig0) ** 2) / sig0
+        p1 = pi1 * np.exp(-0.5 * ((h - mu) / s1) ** 2) / s1
+        w = p1 / np.maximum(p0 + p1, 1e-300)
+        sw = float(w.sum())
+        if sw < 5:
+            return None, 0
+        mu = float((w * h).sum() / sw)
+        pi1 = sw / len(h)
+    return mu, int(round(sw))
+
+
+def _drop_off_level(axes: list, sig_h: float) -> list:
+    """A "bar" lying far from the other bars of its direction is a chair, a spacer, a tie: not a
+    bar of this level. Far: beyond four times the noise of its mean height, more than its diameter
+    off, or more than its radius off with under a quarter of its set's typical points per mm
+    (bars of a real cage lie a radius or so off their level's median; a few stray points do not
+    make a bar)."""
+    out = []
+    for lv in G.LEVELS:
+        group = [a for a in axes if a.level == lv]
+        if len(group) < 3:
+            out += group
+            continue
+        med = float(np.median([a.axis_height_mm for a in group]))
+        dens = float(np.median([_per_mm(a) for a in group]))
+        for a in group:
+            off = abs(a.axis_height_mm - med) - 4 * sig_h / math.sqrt(max(a.n_points, 1))
+            if off <= a.radius_mm or (off <= 2 * a.radius_mm and _per_mm(a) >= 0.25 * dens):
+                out.append(a)
+    return out
+
+
+def _per_mm(a: G.BarAxis) -> float:
+    """A bar's points per mm along it."""
+    return a.n_points / max(a.t1_mm - a.t0_mm, 1.0)

@@ -1,0 +1,279 @@
+"""Stage 4 of a scanned cloud: the bars of a lattice, as peaks of the plan offsets across each
+of its two directions, and a robust line through each."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import geometry as G
+from ._util import _dot, _mad, _sample, _smoothed_hist
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    """A peak of the offset histogram: a would-be bar."""
+
+    centre: float
+    excess: float  # counts above the background at the peak (smoothed)
+    z: float  # excess over its counting noise
+
+
+def _offset_peaks(off, *, kernel_mm: float, min_sep_mm: float, background_mm: float, z_min: float) -> list:
+    """Peaks of the smoothed offset histogram standing out of a running background (the lower
+    envelope over ``background_mm``) by ``z_min`` times its counting noise."""
+    if len(off) < 20:
+        return []
+    lo, hi = float(off.min()) - 3 * kernel_mm, float(off.max()) + 3 * kernel_mm
+    x, s, c = _smoothed_hist(off, 1.0, kernel_mm, lo, hi)
+    w = max(3, int(background_mm))
+    bg = _running_mean(_running_min(s, w), w)
+    # counting noise of the smoothed count: a Gaussian kernel of sd k averages ~2√π k bins
+    eff = 2 * math.sqrt(math.pi) * max(kernel_mm, 0.5)
+    noise = np.sqrt(np.maximum(bg, 1.0 / eff) / eff)
+    z = (s - bg) / noise
+    cand = [i for i in range(1, len(s) - 1) if s[i] >= s[i - 1] and s[i] > s[i + 1] and z[i] >= z_min]
+    cand.sort(key=lambda i: -(s[i] - bg[i]))
+    kept = []
+    for i in cand:
+        if all(abs(x[i] - x[j]) >= min_sep_mm for j in kept):
+            kept.append(i)
+    return sorted((_Candidate(float(x[i]), float(s[i] - bg[i]), float(z[i])) for i in kept),
+                  key=lambda cnd: cnd.centre)
+
+
+def _running_min(x, w: int) -> np.ndarray:
+    """Minimum over a centred window of ``w`` bins (edges padded with the end values)."""
+    pad = np.pad(x, (w // 2, w - 1 - w // 2), mode="edge")
+    return np.lib.stride_tricks.sliding_window_view(pad, w).min(axis=1)
+
+
+def _running_mean(x, w: int) -> np.ndarray:
+    """Mean over a centred window of ``w`` bins (edges padded with the end values)."""
+    pad = np.pad(x, (w // 2, w - 1 - w // 2), mode="edge")
+    c = np.concatenate([[0.0], np.cumsum(pad)])
+    return (c[w:] - c[:-w]) / w
+
+
+def _direction_scan(plan, rng, *, exclude_deg=None, bin_mm: float = 6.0) -> float | None:
+    """Plan angle (deg) at which the offsets are sharpest; with ``exclude_deg``, only angles at
+    least 30° from it."""
+    sub = plan[_sample(len(plan), 20_000, rng)]
+    if len(sub) < 50:
+        return None
+    coarse = np.arange(0.0, 180.0, 1.0)
+    if exclude_deg is not None:
+        coarse = coarse[np.abs(((coarse - exclude_deg) + 90) % 180 - 90) >= 30]
+    s = G.direction_sharpness(sub, np.radians(coarse), bin_mm)
+    best = float(coarse[int(np.argmax(s))])
+    fine = best + np.arange(-1.5, 1.5001, 0.05)
+    f = G.direction_sharpness(sub, np.radians(fine), max(bin_mm / 3, 1.0))
+    return float(fine[int(np.argmax(f))] % 180.0)
+
+
+def _longest_extent(t, *, cell_mm: float, max_gap_mm: float) -> tuple[float, float]:
+    """The longest stretch of occupied cells along a bar (gaps up to ``max_gap_mm`` closed)."""
+    if len(t) == 0:
+        return 0.0, 0.0
+    cells = np.unique(np.floor(t / cell_mm).astype(np.int64))
+    gaps = np.diff(cells) * cell_mm > max_gap_mm + cell_mm
+    starts = np.r_[0, np.flatnonzero(gaps) + 1]
+    ends = np.r_[np.flatnonzero(gaps), len(cells) - 1]
+    k = int(np.argmax(cells[ends] - cells[starts]))
+    return float(cells[starts[k]] * cell_mm), float((cells[ends[k]] + 1) * cell_mm)
+
+
+@dataclass
+class _Bar:
+    """A bar found in a lattice (slab frame): its line across, extent along, points and spreads."""
+
+    direction: np.ndarray
+    centre: float
+    slope: float
+    t0: float
+    t1: float
+    mean_h: float
+    n: int
+    resid_sd: float  # spread of the points' offsets about the axis
+    h_sd: float
+    idx: np.ndarray
+    z: float
+
+    @property
+    def normal2d(self) -> np.ndarray:
+        return np.array([-self.direction[1], self.direction[0]])
+
+
+def _bar_points(off, along, centre, slope, half_width, keep):
+    """Indices of the ``keep`` points within ``half_width`` of the line ``centre + slope * along``."""
+    return np.flatnonzero(keep & (np.abs(off - (centre + slope * along)) < half_width))
+
+
+_MAX_SLOPE = 0.05  # a bar's drift across per mm along: the bars of a mesh run parallel
+
+
+def _fit_line(off, along, centre, half_width, keep, iters: int = 3):
+    """Robust line ``off = c + slope * along`` through a bar's points (re-selected each pass;
+    Tukey-weighted least squares, the scale a robust σ of the residuals)."""
+    reach = half_width + _MAX_SLOPE * float(np.max(np.abs(along))) + 20.0
+    cand = np.flatnonzero(keep & (np.abs(off - centre) < reach))
+    o_all, t_all = off[cand], along[cand]
+    c, slope = centre, 0.0
+    sel = np.abs(o_all - c) < half_width
+    for _ in range(iters):
+        if sel.sum() < 10:
+            break
+        t, o = t_all[sel], o_all[sel]
+        tm = float(np.median(t))
+        b0, b1 = _robust_line(t - tm, o)
+        slope = float(np.clip(b1, -_MAX_SLOPE, _MAX_SLOPE))
+        c = float(b0 - slope * tm)
+        sel = np.abs(o_all - (c + slope * t_all)) < half_width
+    return c, slope, cand[sel]
+
+
+def _robust_line(x, y, iters: int = 3) -> tuple[float, float]:
+    """Intercept and slope of ``y`` on ``x``, Tukey-weighted (4.685 robust σ)."""
+    w = np.ones(len(x))
+    b0 = b1 = 0.0
+    for _ in range(iters):
+        sw = float(w.sum())
+        if sw <= 0:
+            break
+        mx, my = float((w * x).sum()) / sw, float((w * y).sum()) / sw
+        sxx = float((w * (x - mx) ** 2).sum())
+        b1 = float((w * (x - mx) * (y - my)).sum()) / sxx if sxx > 0 else 0.0
+        b0 = my - b1 * mx
+        r = y - (b0 + b1 * x)
+        sd = _mad(r[:: max(1, len(r) // 4000)]) + 1e-6
+        w = np.clip(1 - (r / (4.685 * sd)) ** 2, 0, None) ** 2
+    return b0, b1
+
+
+def _crossing_free(along, crossings, half_width):
+    """Points along a bar away from the bands of the crossing bars."""
+    if len(crossings) == 0:
+        return np.ones(len(along), bool)
+    cr = np.sort(np.asarray(crossings))
+    j = np.clip(np.searchsorted(cr, along), 1, len(cr) - 1) if len(cr) > 1 else np.zeros(len(along), int)
+    d = np.abs(along - cr[j])
+    if len(cr) > 1:
+        d = np.minimum(d, np.abs(along - cr[j - 1]))
+    return d > half_width
+
+
+def lattice_bars(q, *, radius_mm: dict, spacing_mm: float, noise_mm: float, min_length_mm: float = 100.0,
+                 rng=None) -> list:
+    """The bars of one lattice: ``[(direction index, _Bar), ...]`` from its slab-frame points.
+
+    Directions: the sharpest plan angle, then the sharpest at least 30° from it once the first
+    direction's bars are taken out. Bars: offset peaks standing 5 counting-noise σ over their
+    local background, the histogram smoothed by the bar's own spread (noise and radius), at
+    least 0.45 design spacing (and three spreads) apart, running ``min_length_mm`` or more
+    (cells sized by the density along). Phantoms made of crossing bars' points are dropped.
+
+    Parameters
+    ----------
+    q : (N, 3) slab-frame points of the lattice, mm
+    radius_mm : ``{direction index: radius}`` of the bars (0 and 1)
+    spacing_mm : the design spacing of the lattice (the smaller of its two levels')
+    noise_mm : noise of the points across the bars, mm (sets the bands and the smoothing)
+    min_length_mm : a bar runs at least this far
+    rng : seed or Generator of the sampling in the angular scan
+    """
+    rng = np.random.default_rng(rng)
+    plan, h = q[:, :2], q[:, 2]
+    out = _find_lattice(plan, h, radius_mm, spacing_mm, noise_mm, min_length_mm, rng)
+    return _drop_phantoms(plan, out)
+
+
+def _band(plan, b: "_Bar", half: float) -> np.ndarray:
+    """Mask of the plan points within ``half`` of bar ``b``'s line."""
+    d = b.direction
+    n2 = np.array([-d[1], d[0]])
+    return np.abs(_dot(plan, n2) - (b.centre + b.slope * _dot(plan, d))) < half
+
+
+def _drop_phantoms(plan, found: list) -> list:
+    """Drop a "bar" whose points lie almost all (80 %) where bars of the other direction cross it:
+    the crossing bars' points, gathered between their shadows, not a bar."""
+    out = []
+    for g, b in found:
+        other = [x for gg, x in found if gg != g]
+        if not other:
+            out.append((g, b))
+            continue
+        t = _dot(plan[b.idx], b.direction)
+        cross = [c for c in (_crossing_along(b, x) for x in other) if np.isfinite(c)]
+        half = 2 * float(np.median([x.resid_sd for x in other])) + 2.0
+        inside = ~_crossing_free(t, cross, half)
+        if inside.mean() < 0.8:
+            out.append((g, b))
+    return out
+
+
+def _find_lattice(plan, h, radius_mm, spacing_mm, noise_mm, min_length_mm, rng) -> list:
+    """The bars of both directions of a lattice, the second found once the first's are taken out."""
+    out = []
+    keep = np.ones(len(plan), bool)
+    first = None
+    for g in (0, 1):
+        ang = _direction_scan(plan[keep], rng, exclude_deg=first, bin_mm=max(4.0, noise_mm / 2))
+        if ang is None:
+            break
+        first = ang if first is None else first
+        bars, off, along = _bars_along(plan, h, ang, keep, radius_mm=radius_mm.get(g, max(radius_mm.values())),
+                                       spacing_mm=spacing_mm, noise_mm=noise_mm, min_length_mm=min_length_mm)
+        out += [(g, b) for b in bars]
+        for b in bars:
+            keep[b.idx] = False
+            # the whole band, not only the fitted points
+            keep &= np.abs(off - (b.centre + b.slope * along)) >= b.resid_sd * 2 + 2
+    return out
+
+
+def _bars_along(plan, h, ang, keep, *, radius_mm, spacing_mm, noise_mm, min_length_mm):
+    """The bars of one direction (plan angle ``ang``, degrees) among the ``keep`` points, and every
+    point's offset across and position along that direction."""
+    a = math.radians(ang)
+    d = np.array([math.cos(a), math.sin(a)])
+    n2 = np.array([-d[1], d[0]])
+    off, along = _dot(plan, n2), _dot(plan, d)
+    spread = math.sqrt(noise_mm ** 2 + radius_mm ** 2 / 2)
+    half = radius_mm + 2.5 * noise_mm + 2.0
+    peaks = _offset_peaks(off[keep], kernel_mm=spread, min_sep_mm=max(0.45 * spacing_mm, 3 * spread),
+                          background_mm=max(spacing_mm, 6 * spread), z_min=5.0)
+    bars = []
+    for p in peaks:
+        c, slope, idx = _fit_line(off, along, p.centre, half, keep)
+        if len(idx) < 20:
+            continue
+        # the extent from every point of the band: the points taken out with the bars crossing
+        # this one would cut it into short stretches between them
+        t = along[np.abs(off - (c + slope * along)) < half]
+        dens = len(t) / max(float(np.ptp(t)), 1.0)
+        cell = float(np.clip(3.0 / dens, 5.0, 40.0))
+        t0, t1 = _longest_extent(t, cell_mm=cell, max_gap_mm=max(60.0, 2 * cell))
+        if t1 - t0 < min_length_mm - cell:
+            continue
+        idx = idx[(along[idx] >= t0) & (along[idx] <= t1)]
+        if len(idx) < 20:
+            continue
+        r = off[idx] - (c + slope * along[idx])
+        bars.append(_Bar(d, c, slope, t0, t1, float(np.mean(h[idx])), len(idx),
+                         _mad(r), _mad(h[idx] - np.median(h[idx])),
+                         idx, p.z))
+    return bars, off, along
+
+
+def _crossing_along(b: _Bar, x: _Bar) -> float:
+    """Where bar ``x`` crosses bar ``b``, as a position along ``b``."""
+    n_b = np.array([-b.direction[1], b.direction[0]])
+    n_x = np.array([-x.direction[1], x.direction[0]])
+    A = np.vstack([n_b, n_x])
+    if abs(np.linalg.det(A)) < 1e-6:
+        return float("nan")
+    p = np.linalg.solve(A, [b.centre, x.centre])
+    return float(p @ b.direction)

@@ -1,0 +1,66 @@
+"""Input of a scanned cloud: a file, a ScanCloud or an array; the up axis as given; the result
+manifest of a cloud file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import RebarInputError
+from ..cloud_io import ScanCloud, read_cloud
+
+
+METHOD = "cloud"
+
+
+def as_scan_cloud(cloud, *, units: str | None = None) -> ScanCloud:
+    """A :class:`ScanCloud` from a file path (``units`` required), a ScanCloud, or an (N, 3)
+    array in mm (``units`` "mm" or None) or m (``units="m"``)."""
+    if isinstance(cloud, ScanCloud):
+        return cloud
+    if isinstance(cloud, (str, Path)):
+        if units is None:
+            raise RebarInputError(f"units: the unit of {Path(cloud).name} must be given ('mm' or 'm')")
+        return read_cloud(cloud, units=units)
+    pts = np.asarray(cloud, float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+        raise RebarInputError(f"cloud: expected a file, a ScanCloud or a non-empty (N, 3) array, got shape {pts.shape}")
+    scale = {"mm": 1.0, None: 1.0, "m": 1000.0}.get(units)
+    if scale is None:
+        raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
+    pts = pts[np.all(np.isfinite(pts), axis=1)] * scale
+    off = np.median(pts, axis=0)
+    return ScanCloud(pts - off, off, {}, units or "mm", "")
+
+
+def parse_up(up) -> np.ndarray | None:
+    """``"+z"``, ``"-y"``, ... or a 3-vector -> unit vector; None stays None."""
+    if up is None:
+        return None
+    if isinstance(up, str):
+        s = up.strip().lower()
+        if len(s) == 1:
+            s = "+" + s
+        if len(s) != 2 or s[0] not in "+-" or s[1] not in "xyz":
+            raise RebarInputError(f"up: expected one of +x, -x, +y, -y, +z, -z, got {up!r}")
+        v = np.zeros(3)
+        v["xyz".index(s[1])] = 1.0 if s[0] == "+" else -1.0
+        return v
+    v = np.asarray(up, float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
+        raise RebarInputError(f"up: expected an axis name or a non-zero 3-vector, got {up!r}")
+    return v / np.linalg.norm(v)
+
+
+def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: dict | None = None) -> dict:
+    """The result manifest of a cloud file (as :func:`rebarlib._manifest.make_manifest` writes for
+    a capture folder): the cloud's path and SHA-256 digest stand for the capture's."""
+    from .. import __version__
+    from .._manifest import file_digest, make_manifest
+
+    p = Path(cloud_path).resolve()
+    man = make_manifest(p.parent, design_path, method=method, options=options)
+    man.update({"capture_folder": None, "capture_digest": None, "cloud_file": str(p),
+                "cloud_digest": file_digest(p), "rebarlib_version": __version__})
+    return man
