@@ -20,7 +20,7 @@ _SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar'
 
 def _envelope(design: Design, layer: str, level: str) -> float:
     """Width over the ribs (or a plain bar's diameter) of a lattice level's bars, mm."""
-    from .._barsizes import barset_width_mm
+    from ..diameter.barsizes import barset_width_mm
 
     return barset_width_mm(design.lattice(layer).level(level), design.bar_system)
 

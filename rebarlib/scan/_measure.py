@@ -109,7 +109,7 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
     bar system; else "not measured" with the criterion that failed. Columns as the camera's
     diameter stage names them: ``nominal_mm, width_mm, width_sigma_mm, confidence,
     budget_confidence, design_diameter_mm, diameter_status, diameter_reason``."""
-    from .._barsizes import bar_system, size_half_gaps_mm, snap_diameter
+    from ..diameter.barsizes import bar_system, size_half_gaps_mm, snap_diameter
 
     system = design.bar_system
     sysm = bar_system(system)
