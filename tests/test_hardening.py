@@ -85,37 +85,42 @@ def _err(capsys) -> str:
 # Data loss: `rebar report --out`
 # ------------------------------------------------------------------------------------------------
 
-def test_report_refuses_to_write_over_the_design_file(slab, monkeypatch, capsys):
-    _no_inspection(monkeypatch)
-    before = (slab / "design.toml").read_bytes()
-    assert main(["report", str(slab), "--out", str(slab / "design.toml"), "--force"]) == 2
-    assert "input of this report" in _err(capsys)
-    assert (slab / "design.toml").read_bytes() == before
+#: `rebar report --out` pointed at or into one of its inputs, or below a file: (the path, given
+#: with --results, with --force, what the one-line error says)
+REFUSED_OUTPUTS = {
+    "the design file": ("{slab}/design.toml", False, True, "input of this report"),
+    "a capture's file": ("{slab}/B/depth.png", False, True, "inside the input folder"),
+    "a new file in a capture folder": ("{slab}/B/new_report.pdf", False, True,
+                                       "inside the input folder"),
+    "a results file": ("{results}/A/result.json", True, True, "input of this report"),
+    # rebar inspect replaces a capture's results folder whole
+    "a new file among a capture's results": ("{results}/A/r.pdf", True, False,
+                                             "inside the input folder"),
+    "a path below a file": ("{tmp}/afile/r.pdf", False, False, "is a file"),
+}
 
 
-def test_report_refuses_to_write_inside_a_capture_folder(slab, monkeypatch, capsys):
-    _no_inspection(monkeypatch)
-    before = (slab / "B" / "depth.png").read_bytes()
-    for out in (slab / "B" / "depth.png", slab / "B" / "new_report.pdf"):
-        assert main(["report", str(slab), "--out", str(out), "--force"]) == 2
-        assert "inside the input folder" in _err(capsys)
-    assert (slab / "B" / "depth.png").read_bytes() == before
-    assert not (slab / "B" / "new_report.pdf").exists()
-
-
-def test_report_refuses_to_write_over_a_results_file_or_an_existing_export(slab, tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize("case", list(REFUSED_OUTPUTS))
+def test_report_refuses_to_write_over_or_into_its_inputs(case, slab, tmp_path, monkeypatch, capsys):
+    """Refused before anything is computed, with a one-line error; every file stays as it was and
+    no new file appears."""
+    out, with_results, force, message = REFUSED_OUTPUTS[case]
     _no_inspection(monkeypatch)
     results = tmp_path / "res"
     _write_result(results, slab / "A", slab / "design.toml")
-    target = results / "A" / "result.json"
-    before = target.read_bytes()
-    assert main(["report", str(slab), "--results", str(results), "--out", str(target), "--force"]) == 2
-    assert "input of this report" in _err(capsys)
-    assert target.read_bytes() == before
-    # nor a new file among a capture's results (rebar inspect replaces that folder whole)
-    assert main(["report", str(slab), "--results", str(results), "--out", str(results / "A" / "r.pdf")]) == 2
-    assert "inside the input folder" in _err(capsys)
-    # the exports beside the report are checked like the report itself
+    (tmp_path / "afile").write_text("x", encoding="utf-8")
+    target = Path(out.format(slab=slab, results=results, tmp=tmp_path))
+    before = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    args = ["report", str(slab), "--out", str(target)]
+    args += ["--results", str(results)] * with_results + ["--force"] * force
+    assert main(args) == 2
+    assert message in _err(capsys)
+    assert {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()} == before
+
+
+def test_report_refuses_to_write_over_an_existing_export(slab, tmp_path, monkeypatch, capsys):
+    """The exports beside the report are checked like the report itself."""
+    _no_inspection(monkeypatch)
     (tmp_path / "r_checkpoints.csv").write_text("mine\n", encoding="utf-8")
     assert main(["report", str(slab), "--out", str(tmp_path / "r.pdf")]) == 2
     assert "r_checkpoints.csv: exists; pass --force" in _err(capsys)
@@ -143,13 +148,6 @@ def test_report_does_not_replace_an_existing_report_without_force(slab, tmp_path
     assert out.read_text(encoding="utf-8") == "an earlier report"
     assert main(["report", str(slab), "--out", str(out), "--force"]) == 0
     assert "S-101" in out.read_text(encoding="utf-8")
-
-
-def test_report_below_a_file_is_refused_before_computing(slab, tmp_path, monkeypatch, capsys):
-    _no_inspection(monkeypatch)
-    (tmp_path / "afile").write_text("x", encoding="utf-8")
-    assert main(["report", str(slab), "--out", str(tmp_path / "afile" / "r.pdf")]) == 2
-    assert "is a file" in _err(capsys)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -265,17 +263,24 @@ def test_depth_in_the_wrong_unit_says_depth_scale_looks_wrong(scale, distance, m
 # Design files
 # ------------------------------------------------------------------------------------------------
 
-def test_unknown_design_key_is_named_with_the_nearest_known_key():
+def _misspell_thickness(data: dict) -> None:
+    data["design"]["thicknes_mm"] = data["design"].pop("thickness_mm")
+
+
+def _misspell_spacing(data: dict) -> None:
+    data["design"]["lower"]["bottom"] = {"spacing": 150}
+
+
+@pytest.mark.parametrize("misspell, message", [
+    (_misspell_thickness, "design: unknown key 'thicknes_mm'; did you mean 'thickness_mm'"),
+    (_misspell_spacing, r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'"),
+], ids=["thickness_mm", "spacing_mm"])
+def test_unknown_design_key_is_named_with_the_nearest_known_key(misspell, message):
     import copy
 
     data = copy.deepcopy(PAPER_DESIGN)
-    data["design"]["thicknes_mm"] = data["design"].pop("thickness_mm")
-    with pytest.raises(RebarInputError, match="design: unknown key 'thicknes_mm'; did you mean 'thickness_mm'"):
-        design_from_dict(data, source="d.toml")
-    data = copy.deepcopy(PAPER_DESIGN)
-    data["design"]["lower"]["bottom"] = {"spacing": 150}
-    with pytest.raises(RebarInputError,
-                       match=r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'"):
+    misspell(data)
+    with pytest.raises(RebarInputError, match=message):
         design_from_dict(data, source="d.toml")
 
 

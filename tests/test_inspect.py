@@ -234,38 +234,40 @@ def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
 
 
 @pytest.mark.slow
-def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar():
+@pytest.mark.parametrize("seed", [0, 2])
+def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar(seed):
     """Upper bars stacked right above the lower bars, several lower and upper bars left out: the
     flying pixels along the upper bars' edges and the empty positions under them give no bar."""
     design = paper_design(cover_mm=20)
-    for seed in (0, 2):
-        cap = synth_capture(design, height_mm=600, tilt_deg=5, yaw_deg=30.0 * seed,
-                            deviations=Deviations(stacked=True, missing=6, mesh_yaw_deg=17.0 * seed), seed=seed)
-        res = inspect(cap, design, diameters=False, rng=0)
-        s = score_result(res, cap)
-        assert s["phantoms"] == [], f"seed {seed}: phantom bars {s['phantoms']}"
-        assert s["missed"] == []
-        # precondition: an empty lower position in view, right under an upper bar
-        assert _empty_lower_positions_in_view_under_upper_bars(cap) >= 1
-
+    cap = synth_capture(design, height_mm=600, tilt_deg=5, yaw_deg=30.0 * seed,
+                        deviations=Deviations(stacked=True, missing=6, mesh_yaw_deg=17.0 * seed),
+                        seed=seed)
+    res = inspect(cap, design, diameters=False, rng=0)
+    s = score_result(res, cap)
+    assert s["phantoms"] == [], f"seed {seed}: phantom bars {s['phantoms']}"
+    assert s["missed"] == []
+    # precondition: an empty lower position in view, right under an upper bar
+    assert _empty_lower_positions_in_view_under_upper_bars(cap) >= 1
 
 
 @pytest.mark.slow
-def test_second_look_ignores_flying_pixels():
+@pytest.mark.parametrize("k, h, tilt, stacked", [(1, 500, 15, True), (2, 600, 5, False)])
+def test_second_look_ignores_flying_pixels(k, h, tilt, stacked):
     """A sensor with over three times the default flying pixels at depth edges (mixed depths
     between the two surfaces): their chance hits on a would-be bar's cylinder are sparser than a
     bar's stripe of pixels, so the second look places no bar on them. (Without its fill rule it
     placed one in each of these captures.)"""
     design = paper_design(cover_mm=20)
     sensor = SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5)
-    for k, h, tilt, stacked in ((1, 500, 15, True), (2, 600, 5, False)):
-        cap = synth_capture(design, sensor=sensor, height_mm=h, tilt_deg=tilt, yaw_deg=47.0 * k,
-                            deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
-                            seed=500 + k, scene_seed=600 + k)
-        res = inspect(cap, design, diameters=False, rng=0)
-        s = score_result(res, cap)
-        second = set(res.bars.loc[res.bars["reason"].str.startswith("seen only at full resolution"), "bar_id"])
-        assert not second & set(s["phantoms"]), f"capture {k}: second-look phantoms {second & set(s['phantoms'])}"
+    cap = synth_capture(design, sensor=sensor, height_mm=h, tilt_deg=tilt, yaw_deg=47.0 * k,
+                        deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
+                        seed=500 + k, scene_seed=600 + k)
+    res = inspect(cap, design, diameters=False, rng=0)
+    s = score_result(res, cap)
+    seen_later = res.bars["reason"].str.startswith("seen only at full resolution")
+    second = set(res.bars.loc[seen_later, "bar_id"])
+    assert not second & set(s["phantoms"]), f"second-look phantoms {second & set(s['phantoms'])}"
+
 
 def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
     K = cap.intrinsics
@@ -377,17 +379,21 @@ def test_empty_capture_is_an_input_error(hard):
         inspect(_with_depth(cap, np.zeros_like(cap.depth_mm), "empty"), design)
 
 
-def test_wrong_arguments_are_input_errors(hard):
+#: inspect() called wrongly: (the argument changed, the word the error names). "depth" stands
+#: for the capture's depth array given in place of the capture.
+WRONG_ARGUMENTS = [({"method": "fast"}, "method"), ({"design": {"cover_mm": 20}}, "design"),
+                   ({"capture": "depth"}, "capture"),
+                   *[({"edge_trim_px": bad}, "edge_trim_px") for bad in (-1, 1.5, "1", True)]]
+
+
+@pytest.mark.parametrize("change, names", WRONG_ARGUMENTS,
+                         ids=[f"{k}={v!r}" for (c, _) in WRONG_ARGUMENTS for k, v in c.items()])
+def test_wrong_arguments_are_input_errors(hard, change, names):
     cap, design, _ = hard
-    with pytest.raises(RebarInputError, match="method"):
-        inspect(cap, design, method="fast")
-    with pytest.raises(RebarInputError, match="design"):
-        inspect(cap, {"cover_mm": 20})
-    with pytest.raises(RebarInputError, match="capture"):
-        inspect(cap.depth_mm, design)
-    for bad in (-1, 1.5, "1", True):
-        with pytest.raises(RebarInputError, match="edge_trim_px"):
-            inspect(cap, design, edge_trim_px=bad)
+    args = {"design": design, **change}
+    capture = cap.depth_mm if args.pop("capture", None) == "depth" else cap
+    with pytest.raises(RebarInputError, match=names):
+        inspect(capture, args.pop("design"), **args)
 
 
 def test_flat_formwork_only_measures_nothing(hard):
@@ -405,11 +411,10 @@ def test_flat_formwork_only_measures_nothing(hard):
     assert len(res.spacings) == 0 or (res.spacings["status"] != MEASURED).all()
 
 
-def test_absurd_design_values_rejected():
+@pytest.mark.parametrize("absurd", [{"cover_mm": -5}, {"layer_distance_mm": 5}], ids=str)
+def test_absurd_design_values_rejected(absurd):
     with pytest.raises(RebarInputError):
-        paper_design(cover_mm=-5)
-    with pytest.raises(RebarInputError):
-        paper_design(layer_distance_mm=5)
+        paper_design(**absurd)
 
 
 # ------------------------------------------------------------------------------------------------
