@@ -21,8 +21,8 @@ from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import DEFAULT_BAR_SYSTEM, Design
 from ._results import table_records
-from ._status import (EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MISSING, NOT_CHECKED, NOT_MEASURED,
-                      PASS)
+from ._status import (ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MISSING,
+                      NOT_CHECKED, NOT_MEASURED, PASS, REJECTED, SLAB_INCOMPLETE)
 from .acceptance import COVERAGE_K, Acceptance, is_true
 
 __all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
@@ -35,8 +35,8 @@ LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
              "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status",
              "diameter_reason", "one_sided_share")
-VERDICT_TEXT = {"accepted": "ACCEPTED", "rejected": "NOT ACCEPTED (rejected)",
-                "incomplete": "NOT ACCEPTED (incomplete: not everything could be judged)"}
+VERDICT_TEXT = {ACCEPTED: "ACCEPTED", REJECTED: "NOT ACCEPTED (rejected)",
+                SLAB_INCOMPLETE: "NOT ACCEPTED (incomplete: not everything could be judged)"}
 #: Longest text a design file's field (slab id, location, project, ...) is printed with; a longer
 #: one is cut there with an ellipsis (the exports keep it whole). A 14 000-character id once made
 #: the PDF take minutes to lay out; 200 characters fill three lines of the identification table.
@@ -298,7 +298,7 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         status = acc_rows.get(key, "")
         v = rec.get("spacing_mm")
         labels.append({"x": mid[0], "y": mid[1], "x0": pa[0], "y0": pa[1], "x1": pb[0], "y1": pb[1],
-                       "text": "n/m" if v is None else f"{v:.0f}", "bad": status in ("beyond", "beyond max"),
+                       "text": "n/m" if v is None else f"{v:.0f}", "bad": status in (BEYOND, BEYOND_MAX),
                        "layer": rec.get("layer")})
     return {"segments": segs, "labels": labels, "marks": marks, "outlines": outlines,
             "x": lo[0] - pad, "y": lo[1] - pad,
