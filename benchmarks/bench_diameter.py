@@ -53,8 +53,8 @@ import numpy as np
 from _cameras import CAMERAS, SENSORS
 from _visibility import SHOWS_WIDTH_D, shows_width
 from rebarlib import design_from_dict
-from rebarlib._barsizes import ENVELOPE_SIGMA_MM, bar_system
-from rebarlib._diameter import bars_from_truth, imaginary_plane, measure_diameters
+from rebarlib.diameter import bars_from_truth, imaginary_plane, measure_diameters
+from rebarlib.diameter.barsizes import ENVELOPE_SIGMA_MM, bar_system
 from rebarlib.data import paper_design, site_design
 from rebarlib.synth import Appearance, Deviations, misregister, rib_envelope_mm, synth_capture
 

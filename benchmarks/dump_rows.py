@@ -209,9 +209,16 @@ def _diameter_variants():
 
 
 def _barsize_rows(table: Table) -> None:
-    from rebarlib._barsizes import (BAR_SYSTEMS, bar_system, barset_width_mm, bracketing_sizes,
-                                    core_size, observed_width_mm, rib_height_mm, rib_pitch_mm,
-                                    size_half_gaps_mm, snap_diameter)
+    try:  # (the bar sizes' module before and after it moved: one script compares both)
+        from rebarlib.diameter import barsizes as B
+    except ImportError:
+        from rebarlib import _barsizes as B
+    BAR_SYSTEMS, bar_system, barset_width_mm = B.BAR_SYSTEMS, B.bar_system, B.barset_width_mm
+    bracketing_sizes, core_size, observed_width_mm = (B.bracketing_sizes, B.core_size,
+                                                      B.observed_width_mm)
+    rib_height_mm, rib_pitch_mm, size_half_gaps_mm = (B.rib_height_mm, B.rib_pitch_mm,
+                                                      B.size_half_gaps_mm)
+    snap_diameter = B.snap_diameter
 
     for name in sorted(BAR_SYSTEMS):
         s = bar_system(name)
@@ -245,9 +252,12 @@ def _barsize_rows(table: Table) -> None:
 
 
 def dump(out: Path, *, quick: bool = False) -> None:
-    from rebarlib import inspect
-    from rebarlib._diameter import bars_from_truth, measure_diameters
-    from rebarlib._geom_eval import score_result
+    from rebarlib import bars_from_truth, inspect, measure_diameters
+
+    try:  # (before and after the scoring moved)
+        from rebarlib.geometry.scoring import score_result
+    except ImportError:
+        from rebarlib._geom_eval import score_result
 
     out.mkdir(parents=True, exist_ok=True)
     bars, spacings, summary = Table(["case", "method", "bar_id"]), \

@@ -32,8 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_diameter as B  # noqa: E402  (the captures, masks and axes the benchmark uses)
 
-import rebarlib._diameter as D  # noqa: E402
-from rebarlib._barsizes import bar_system, rib_pitch_mm  # noqa: E402
+import rebarlib.diameter.measure as D  # noqa: E402  (its _refined_bar is wrapped below)
+from rebarlib.diameter.barsizes import bar_system, rib_pitch_mm  # noqa: E402
+from rebarlib.diameter.params import _RefinedParams  # noqa: E402
+from rebarlib.diameter.ribs import _rib_periodicity  # noqa: E402
 from rebarlib.synth import Appearance  # noqa: E402
 
 
@@ -51,7 +53,7 @@ def _sides(info, prm):
     out = {"core": float(np.percentile(right, 25) + np.percentile(left, 25)),
            "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left)) / info["px_mm"]}
     for k, e in (("lo", lo), ("hi", hi)):
-        out[k] = D._rib_periodicity(s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width)
+        out[k] = _rib_periodicity(s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width)
     return out
 
 
@@ -64,7 +66,7 @@ def main() -> None:
     ap.add_argument("--cache", default="")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    prm = D._RefinedParams()
+    prm = _RefinedParams()
     gb = bar_system("GB1499.2")
     masks, _ = B._mask_sources()
     axes_src, _ = B._axis_sources()

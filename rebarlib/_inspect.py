@@ -186,7 +186,7 @@ def _design_spacing(design: Design) -> dict:
 
 def _radii(design: Design, layer: str) -> dict:
     lat = design.lattice(layer)
-    from ._barsizes import barset_width_mm  # a plain bar (surface = "plain") is seen at its diameter
+    from .diameter.barsizes import barset_width_mm  # a plain bar (surface = "plain") is seen at its diameter
 
     return {lv: barset_width_mm(lat.level(lv), design.bar_system) / 2 for lv in G.LEVELS}
 
@@ -335,7 +335,7 @@ def widest_bar_px(capture: Capture, design: Design) -> float:
     """Width in the image, in pixels, of the widest bar of the design (its rib envelope) at the
     nearest depth in the capture (1st percentile of the valid depths: the tops of the nearest
     bars, or anything nearer); NaN without valid depth."""
-    from ._barsizes import observed_width_mm
+    from .diameter.barsizes import observed_width_mm
 
     z = capture.depth_mm[capture.depth_mm > 0]
     if z.size == 0:
@@ -462,7 +462,7 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
     """``res`` with the diameter columns; ``refit(px)``: ``res`` fitted again on the depth
     trimmed by ``px`` (:func:`trim_edge_fattening`), called where the mask step measures an
     over-reach of the depth's bars beyond the colour's."""
-    from ._diameter import measure_diameters
+    from .diameter import measure_diameters
 
     t = time.perf_counter()
     reg, given = None, mask is not None

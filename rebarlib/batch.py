@@ -279,7 +279,7 @@ def _init_worker(threads):
     os.environ["OMP_NUM_THREADS"] = str(threads)  # Open3D's OpenMP loops, if not yet started
     _configure_threads(threads)
     # import the stages now, so that a capture's seconds are its own, not the worker's start-up
-    from . import _diameter, _inspect  # noqa: F401
+    from . import _inspect, diameter  # noqa: F401
 
 
 def _in_processes(items, jobs, inspect_kw):

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._barsizes import ENVELOPE_SIGMA_MM, observed_width_mm, rib_height_mm, snap_diameter
+from .diameter.barsizes import ENVELOPE_SIGMA_MM, observed_width_mm, rib_height_mm, snap_diameter
 from ._results import InspectionResult, Measurement
 from .devices import device_for, load_device
 

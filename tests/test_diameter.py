@@ -8,10 +8,10 @@ import pandas as pd
 import pytest
 
 from rebarlib import GEMINI2, Capture, Intrinsics, RebarInputError, design_from_dict
-from rebarlib._barsizes import bar_system, observed_width_mm, snap_diameter
-from rebarlib._diameter import (BAR_COLUMNS, DIAMETER_COLUMNS, bars_from_truth, boundary_pixels,
-                                cross_section_direction, diameter_region, imaginary_plane,
-                                intersect_rays_plane, measure_diameters, pixels_in_region)
+from rebarlib.diameter import (BAR_COLUMNS, DIAMETER_COLUMNS, bars_from_truth, boundary_pixels,
+                               cross_section_direction, diameter_region, imaginary_plane,
+                               intersect_rays_plane, measure_diameters, pixels_in_region)
+from rebarlib.diameter.barsizes import bar_system, observed_width_mm, snap_diameter
 from rebarlib.synth import Appearance, Deviations, SensorModel, synth_capture
 
 GEOM_TOL_MM = 1e-9  # hand-computed geometry is exact up to rounding
@@ -109,7 +109,7 @@ def test_boundary_pixels_of_a_disc():
 
 
 def test_bracketing_sizes_per_system():
-    from rebarlib._barsizes import bracketing_sizes
+    from rebarlib.diameter.barsizes import bracketing_sizes
 
     assert bracketing_sizes(15.4) == ((12.0, 13.9), (14.0, 16.2))
     assert bracketing_sizes(13.9) == ((12.0, 13.9), (14.0, 16.2))  # on a size: it and the next
@@ -140,7 +140,7 @@ def test_snap_confidence_is_the_size_s_posterior():
     # Between Φ12 (13.9) and Φ14 (16.2), 2g = 2.3 mm apart, with a normal error of σ (with the
     # table's 0.15 mm): P(Φ12 | w) = 1 / (1 + exp(-2g (g - d) / σ²)), d = w - 13.9, by hand;
     # the other sizes (Φ10 at 11.6, Φ16 at 18.4) add under 1e-6 here
-    from rebarlib._barsizes import ENVELOPE_SIGMA_MM
+    from rebarlib.diameter.barsizes import ENVELOPE_SIGMA_MM
 
     g = 1.15
     for w, s in ((14.2, 0.3), (14.6, 0.4), (14.9, 0.25)):
@@ -168,8 +168,10 @@ def test_colour_calibration_by_hand():
     # between bars (1.4826 MAD around the median) is 0.14826 mm for the mask widths and
     # 0.51891 mm for the offset-corrected colour widths, so a colour-mask disagreement is blamed
     # on the mask with weight 0.14826^2 / (0.14826^2 + 0.51891^2) = 0.075471.
-    from rebarlib._diameter import (_Bar, _colour_calibration, _mask_between_spread, _refined_decision,
-                                    _RefinedParams)
+    from rebarlib.diameter.bars import _Bar
+    from rebarlib.diameter.calibration import _colour_calibration, _mask_between_spread
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
@@ -400,7 +402,8 @@ def test_axes_placed_with_the_design_radius_never_confirm_another_size_alone():
 
 def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_or_a_circle():
     # Decisions for axes placed with an assumed radius (veto mode), by hand.
-    from rebarlib._diameter import _refined_decision, _RefinedParams
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
@@ -458,7 +461,8 @@ def _veto_bar(**changes) -> dict:
 def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conflict():
     # A top-level bar's top stands one diameter above the bars it rests on (stack_mm): a width
     # that does not depend on where an axis placed with an assumed radius lies. By hand, veto mode.
-    from rebarlib._diameter import _refined_decision, _RefinedParams
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
@@ -545,7 +549,8 @@ def test_circle_calibration_by_hand():
     # of e around it, raised to its upper 90 % bound from k = 6 degrees of freedom:
     # χ²(0.10; 6) ≈ 2.204 (Wilson–Hilferty), σ = √(Σe² / 2.204). An ambiguous mask (15.2 mm)
     # is not learnt from.
-    from rebarlib._diameter import _RefinedParams, _width_calibration
+    from rebarlib.diameter.calibration import _width_calibration
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     masks = [16.2, 16.3, 16.1, 16.2, 16.25, 16.15, 18.4, 15.2]
@@ -577,7 +582,8 @@ def test_level_calibration_by_hand():
     # the spread is pooled around each level's own offset over k = 8 − 2 degrees of freedom,
     # raised to its upper 90 % bound (χ²(0.10; 6) by Wilson–Hilferty), and a bar's σ also holds
     # its level's offset's error: σ √(1 + 1/n).
-    from rebarlib._diameter import _RefinedParams, _width_calibration
+    from rebarlib.diameter.calibration import _width_calibration
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     e_lo, e_up = [0.0, 0.4, -0.3, 0.2, -0.1], [0.3, -0.2, 0.0]
@@ -613,7 +619,8 @@ def test_level_calibration_by_hand():
 def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     # A bar of a level resting on spacers has no bar under it (no stack height), but the bars of
     # one level rest on the same supports: its top less theirs is its width (level_width_mm).
-    from rebarlib._diameter import _refined_decision, _RefinedParams
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import _RefinedParams
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
@@ -638,7 +645,7 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
 
 
 def test_circle_fit_by_hand():
-    from rebarlib._diameter import _circle_fit
+    from rebarlib.diameter.cloud import _circle_fit
 
     # the near half of a circle of radius 7 centred at (0.3, 2): exact without noise
     a = np.linspace(-5.6, 5.6, 200) + 0.3
@@ -871,7 +878,7 @@ def test_rib_periodicity_finds_the_pitch_and_keeps_noise_quiet():
     """Crests every 8 mm (a fifth of the pitch 1.6 mm wider) over sections at irregular spacing,
     with noise: the pitch to 0.1 mm and a vanishing p; pure noise: p below 1 % in at most a few
     of 40 bars (the p-value is calibrated for white noise)."""
-    from rebarlib._diameter import _rib_periodicity
+    from rebarlib.diameter.ribs import _rib_periodicity
 
     rng = np.random.default_rng(5)
     s = np.sort(rng.uniform(0, 600, 180))
@@ -888,7 +895,7 @@ def test_rib_periodicity_finds_the_pitch_and_keeps_noise_quiet():
 def test_periodogram_by_running_product_matches_the_direct_sums():
     """The running product over many frequencies (a long bar's band, more than a long relief
     capture's) stays within 1e-10 of the peak of the direct sines and cosines."""
-    from rebarlib._diameter import _periodogram
+    from rebarlib.diameter.ribs import _periodogram
 
     rng = np.random.default_rng(11)
     s = np.sort(rng.uniform(0, 1500, 500))
@@ -907,7 +914,7 @@ def test_rib_periodicity_does_not_mirror_a_slow_wander_into_ribs():
     no ribs. Crests every 10 mm at the same spacing are found at 10 mm (not at their 8.2 mm
     mirror; the band ends at 1.2 x the 9.1 mm width, so a pitch beyond it, such as 11 mm, is no
     peak inside it); with the spacing beyond half the band's longest pitch nothing is searched."""
-    from rebarlib._diameter import _rib_periodicity
+    from rebarlib.diameter.ribs import _rib_periodicity
 
     rng = np.random.default_rng(3)
     s = np.arange(220) * 4.5
@@ -925,7 +932,7 @@ def test_rib_periodicity_takes_no_edge_of_the_band_for_a_pitch():
     the band rises to its edge, and a plain maximum took that edge for a clear period (p ~ 0; on a
     learnt mask's smooth bars the same edge, so three bars "agreed" on ribs). A period is a local
     peak inside the band: none here. Crests every 7 mm on the same width change are found."""
-    from rebarlib._diameter import _rib_periodicity
+    from rebarlib.diameter.ribs import _rib_periodicity
 
     rng = np.random.default_rng(0)
     s = np.arange(300) * 1.0
@@ -945,7 +952,8 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     """Fisher's combination of the bars' p-values: a dozen bars each at p = 0.001 make a capture
     that shows ribs; one bar however periodic (its p floored) among quiet ones does not; fewer
     than three bars say nothing."""
-    from rebarlib._diameter import _RefinedParams, _ribs_in_view
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _ribs_in_view
 
     prm = _RefinedParams()
 
@@ -967,7 +975,8 @@ def test_ribs_in_view_needs_one_pitch_per_size():
     over 6-16 mm: no ribs; the same at 8.0 ± 0.3 mm: ribs. Two sizes, each at its own pitch (8 and
     11 mm), agree within their size, not taken as one (each 16 % from the median 9.5 mm). Peaks
     that are not clear do not count."""
-    from rebarlib._diameter import _RefinedParams, _ribs_in_view
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _ribs_in_view
 
     prm = _RefinedParams()
 
@@ -985,7 +994,7 @@ def test_ribs_in_view_needs_one_pitch_per_size():
 
 
 def test_core_and_rib_height_tables():
-    from rebarlib._barsizes import core_size, rib_height_mm
+    from rebarlib.diameter.barsizes import core_size, rib_height_mm
 
     gb = bar_system("GB1499.2")
     # docs/acceptance.md: d1 and h of GB 1499.2
@@ -1045,7 +1054,7 @@ def test_ribs_a_mask_smooths_away_are_looked_for_in_the_colour_image_with_axes_o
     assumed radius, as the geometry stage's are: there a bar one size larger than designed, read
     a size down from a mask of its core, would give its design size, which the cloud's echo of
     that radius cannot veto. Where the colour image shows the ribs, the capture resolves them."""
-    import rebarlib._diameter as dm
+    import rebarlib.diameter.measure as dm
     from rebarlib.synth import rib_envelope_mm
 
     design, relief, smooth = relief_scene
@@ -1077,7 +1086,8 @@ def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s
     sized from its crests keeps its size where its core lies between its d1 and its envelope
     (± its σ, 0.5 mm here) and below the next size's d1; else it is "not measured" and names
     the size its core points to. The first case failed before: its core is nearer Φ16's d1."""
-    from rebarlib._diameter import _check_core, _RefinedParams
+    from rebarlib.diameter.decision import _check_core
+    from rebarlib.diameter.params import _RefinedParams
 
     row = {"nominal_mm": crest_size, "diameter_status": "measured", "confidence": 0.95, "width_sigma_mm": 0.5,
            "diameter_reason": ""}
@@ -1095,7 +1105,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
     ``pitches_12`` and Φ14 with ``pitches_14``, all sized by their widths, and a last bar designed
     Φ12 whose widths left it between the sizes ``pair``, with the pitch ``pitch_amb``; each bar
     read over ``length_mm`` (300 mm: a pitch resolution of about 1.5 %)."""
-    from rebarlib._diameter import _RefinedParams
+    from rebarlib.diameter.params import _RefinedParams
 
     rows, results, keys = [], [], []
     for design, p in [(12.0, q) for q in pitches_12] + [(14.0, q) for q in pitches_14] + [(12.0, pitch_amb)]:
@@ -1140,7 +1150,7 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     # is the share of the capture's 11 clear pitches on the spacing of a size their bar may be
     # (its own, 9.02 mm on a bar designed Φ12, is Φ14's, one of the two its widths allow):
     # (11 + 1) / (11 + 2).
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
                                                     9.02)
@@ -1164,7 +1174,7 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     (([8.0, 8.01, 7.99, 8.02, 6.2, 6.5, 11.0], [9.0, 9.01, 8.99, 10.9], 9.02), "pitches often on no size"),
 ])
 def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(case, why):
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case(*case)
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
@@ -1188,7 +1198,7 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
     # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, periodic
     # at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a
     # pitch matches a spacing within 3 x 1.7 %).
-    from rebarlib._diameter import _pitch_veto
+    from rebarlib.diameter.pitch import _pitch_veto
 
     def case(p_value=1e-9, source="mask"):  # bar 1 (Φ14 by its widths) has the pitch tried
         rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
@@ -1226,7 +1236,7 @@ def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
     # the table; their faces can (7 + 3 pitches on Φ12's and Φ14's spacings), and the bar left
     # between Φ12 and Φ14 is sized by its face's 9.02 mm. Faces at a renderer's own spacing
     # (0.6 d) do not follow the table, and nothing is settled.
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     def case(p12, p14):
         rows, results, keys, shadows, prm = _pitch_case(p12, p14, 9.02)
@@ -1252,7 +1262,7 @@ def test_rib_pitch_names_no_size_a_size_between_the_two_shares():
     # A mask and a point cloud that disagree may leave a bar between Φ14 and Φ18 (a Φ16 bar seen
     # so): 10 mm is Φ18's spacing and Φ14's is 9 mm, but Φ16's is 10 mm too, so the pitch names
     # no size. Between Φ14 and Φ16 (the widths rule Φ18 out) it names Φ16.
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     args = ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 10.0)
     rows, results, keys, shadows, prm = _pitch_case(*args, pair=(14.0, 18.0))
@@ -1268,7 +1278,7 @@ def test_rib_pitch_is_matched_after_the_scale_the_capture_s_pitches_share():
     # 0.02 % of the others, over 1 m of bar (a resolution of 0.45 %, so a pitch matches a spacing
     # within 3 x 0.45 % = 1.4 %): against the table itself no pitch is on its size, against the
     # table times the capture's common scale all are, and 9.22 mm is Φ14's 9 mm.
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case(
         [8.200, 8.202, 8.198, 8.201, 8.199], [9.225, 9.226, 9.224], 9.22, length_mm=1000.0)
@@ -1290,7 +1300,8 @@ def test_rib_pitch_band_counts_each_read_s_resolution_like_the_spread():
     # bin, 0.7 % over 400 mm) counts as a standard error too, so all of them match Φ8's 5.5 mm
     # after the capture's scale: (12 + 1) / (12 + 2). With the spread alone as the band, 3 of
     # them would not, and a capture whose bars all follow the table would fail its check.
-    from rebarlib._diameter import _RefinedParams, _pitch_band, _pitch_table
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.pitch import _pitch_band, _pitch_table
 
     pitches = [5.48, 5.48, 5.51, 5.51, 5.52, 5.52, 5.52, 5.52, 5.52, 5.52, 5.55, 5.56]
     clear = {i: (p, p / (2 * 400.0)) for i, p in enumerate(pitches)}
@@ -1315,7 +1326,8 @@ def test_pitch_table_lets_a_design_group_hold_bars_of_another_size(pitches, size
     # Each design group's own spacing must be the one most of its pitches are nearest to (ties
     # count), and the capture's scale is learnt from those pitches only, so bars of another size
     # than designed neither break the check nor pull the scale.
-    from rebarlib._diameter import _RefinedParams, _pitch_table
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.pitch import _pitch_table
 
     clear = {i: (p, p / (2 * 300.0)) for i, p in enumerate(pitches)}
     fit = _pitch_table(clear, sizes, _RefinedParams(), system="GB1499.2")
@@ -1343,7 +1355,8 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     # The two sides' crests set off by half a pitch: the width, their difference, repeats every
     # 4.5 mm, shorter than any pitch a 14 mm bar's ribs may have (0.4-1.2 x its width), so the
     # width shows no pitch; each edge shows 9 mm.
-    from rebarlib._diameter import _RefinedParams, _edge_pitch, _rib_periodicity
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _edge_pitch, _rib_periodicity
 
     prm = _RefinedParams()
     s = np.arange(0, 600, 2.2)
@@ -1365,7 +1378,8 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     (None, None, "no ribs at all"),
 ])
 def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why):
-    from rebarlib._diameter import _RefinedParams, _edge_pitch
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _edge_pitch
 
     assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), _RefinedParams()) is None, why
     # too few sections to read a periodicity from
@@ -1388,7 +1402,7 @@ def _striped_bar(pitch_mm, *, stripes=40.0, noise=3.0, seed=0):
     onto the cylinder, whose luminance there is 120 + ``stripes`` x cos(2π y / ``pitch_mm``), y
     along the bar on its surface (transverse ribs shading the face), plus Gaussian noise; the
     formwork behind it at 200. Returns the bar, its clean sections' edges and the grey image."""
-    from rebarlib._diameter import _prepare
+    from rebarlib.diameter.bars import _prepare
 
     r, z0 = 8.1, 400.0
     a = ((np.arange(K.height) - K.cy) / K.fy)[:, None]  # ray y / z per row (across the bar)
@@ -1413,7 +1427,8 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
     # (9.16 mm for 9 mm). Scaled back by the face's height, the pitch is 9 mm within a
     # periodogram step (a 0.25 bin at 4 x oversampling over 507 mm: 0.04 mm), and 8 mm bars
     # read 8 mm: the two sizes' spacings are told apart.
-    from rebarlib._diameter import _RefinedParams, _face_pitch
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _face_pitch
 
     prm = _RefinedParams()
     for pitch in (9.0, 8.0):
@@ -1428,7 +1443,8 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
     (dict(stripes=40.0, pitch_mm=40.0), "a pitch beyond the band searched (1.2 x the bar's width)"),
 ])
 def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
-    from rebarlib._diameter import _RefinedParams, _face_pitch
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _face_pitch
 
     kw = {"pitch_mm": 9.0, **kw}
     bar, info, gray = _striped_bar(**kw)
@@ -1451,7 +1467,8 @@ def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
     # The same five lines squeezed between the one edge and the axis (at 0.8 to 0.2 of the
     # edge's distance from the axis): their mean height over the axis is 0.83 r, so read there
     # the stripes are 1.7 % long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
-    from rebarlib._diameter import _RefinedParams, _face_pitch
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _face_pitch
 
     prm = _RefinedParams()
     for pitch in (9.0, 8.0):
@@ -1472,7 +1489,9 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
     # and its own ribs shade at 12 mm (painted over its pixels, twice as contrasted): 12.6 mm
     # on the plane the striped bar's positions are measured in. Its footprint (the bar with
     # room for a size larger and a pixel and a half) reaches a further 2.8 mm.
-    from rebarlib._diameter import _footprints, _prepare, _RefinedParams, _face_pitch
+    from rebarlib.diameter.bars import _footprints, _prepare
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.ribs import _face_pitch
 
     prm = _RefinedParams()
     z1, r = 380.0, 8.1
@@ -1501,7 +1520,7 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
 def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_none():
     # The bar left between Φ12 and Φ14 shows no pitch in its width nor along its edges; its face's
     # shading shows 9.02 mm, Φ14's spacing. It is read for that bar only.
-    from rebarlib._diameter import _pitch_settle
+    from rebarlib.diameter.pitch import _pitch_settle
 
     rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
                                                     9.02)
@@ -1529,7 +1548,7 @@ def _colour_case(bars, *, seed=0):
     """Hand-built inputs of ``_colour_ribs``: one bar per (design size, pitch or None) in
     ``bars``, its colour widths over 500 mm (sections 2.2 mm apart) its envelope, 1.2 mm wider
     over 30 % of each pitch, with N(0, 0.3) mm of noise."""
-    from rebarlib._barsizes import observed_width_mm
+    from rebarlib.diameter.barsizes import observed_width_mm
 
     rng = np.random.default_rng(seed)
     s = np.arange(0, 500, 2.2)
@@ -1561,7 +1580,8 @@ def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expec
     # A learnt mask may smooth the ribs away; the colour edges beside it still show them. The
     # capture is taken to resolve ribs only where the colour widths are periodic as the mask
     # widths must be (_ribs_in_view) and at their sizes' spacings (_pitch_table).
-    from rebarlib._diameter import _RefinedParams, _colour_ribs
+    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.pitch import _colour_ribs
 
     results, keys = _colour_case(bars)
     assert _colour_ribs(results, keys, _RefinedParams(), system=system) is expected, why
@@ -1580,7 +1600,7 @@ def relief_pitch_scene():
 
 @pytest.mark.slow
 def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitch(relief_pitch_scene, monkeypatch):
-    import rebarlib._diameter as dm
+    import rebarlib.diameter.measure as dm
 
     design, cap = relief_pitch_scene
     bars = bars_from_truth(cap.truth)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rebarlib import RebarInputError, design_from_dict, load_design, remove_outliers, voxel_downsample
-from rebarlib._barsizes import bar_system, barset_width_mm
+from rebarlib.diameter.barsizes import bar_system, barset_width_mm
 from rebarlib.cloud_io import ScanCloud, read_cloud, write_cloud
 from rebarlib.scan import diameter_resolvable, inspect_cloud
 from rebarlib.synth_scan import ScannerModel, export_scan, score_scan, synth_scan

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._checks import RebarInputError
+from .._checks import RebarInputError
 
 __all__ = ["BAR_SYSTEMS", "BarSystem", "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter"]
 

@@ -1,0 +1,158 @@
+"""What a capture's own bars teach about its widths: bars of one design size have one true
+width, so the spread between them is each width's error per bar, and the bars the mask sizes
+clearly calibrate the widths that do not come from the mask.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+
+import numpy as np
+
+from .barsizes import observed_width_mm, size_half_gaps_mm, snap_diameter
+
+
+def _between_bar_deviations(values: dict, prepared) -> list:
+    """Deviations of per-bar values ``{bar index: value}`` from the median of their design size
+    (sizes with at least 3 bars; bars without a design size are left out). Bars of one size have
+    one true width, so these are the values' errors per bar."""
+    dev = []
+    for size in {prepared[i].design_mm for i in values if math.isfinite(prepared[i].design_mm)}:
+        v = np.array([values[i] for i in values if prepared[i].design_mm == size])
+        if len(v) >= 3:
+            dev.extend(v - np.median(v))
+    return dev
+
+
+def _robust_sigma(dev) -> float:
+    return 1.4826 * float(np.median(np.abs(dev)))
+
+
+def _two_sided(info) -> bool:
+    # whether a bar's width was measured between its two edges only (its info): a width from one
+    # edge and the axis carries the axis's error too, so the capture's calibrations do not learn
+    # from it, and it cannot overturn the radius the axis was placed with
+    return info.get("one_sided_share", 0.0) == 0.0
+
+
+def _mask_width(result) -> float:
+    """A bar's width from its mask: ``mask_width_mm`` where :func:`measure_diameters` set it (the
+    envelope from the rib crests where the capture resolves ribs), else its sections' median."""
+    w = result[3].get("mask_width_mm")
+    return float(w) if w is not None else float(np.median(result[0]))
+
+
+def _mask_between_spread(results, prepared, prm) -> None:
+    """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
+    widths between the capture's bars of the same design size, around each size's median.
+
+    Bars of one size have one true width, so this is the mask's error per bar as this capture
+    shows it: pixel rounding on bars along pixel rows, and a learnt mask's bias per bar that its
+    own spread along the bar does not show (a mask that eats both sides of a bar evenly). Needs
+    ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
+    """
+    dev = _between_bar_deviations({i: _mask_width(r) for i, r in enumerate(results)
+                                   if len(r[0]) >= prm.min_sections and _two_sided(r[3])}, prepared)
+    s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
+    for r in results:
+        r[3]["mask_between_mm"] = s_m
+
+
+def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> None:
+    """Calibrate an independent width of every bar of a capture (``key`` "circle": the point
+    cloud's circle, :func:`_cloud_circle`; "stack": the bar's height above the bars it rests on,
+    ``geometry.stack_heights``; "level": its top above the formwork, ``geometry.top_heights``, per
+    level) against the bars its masks size clearly, and store in every bar's
+    info ``{key}_offset_mm`` (subtracted from ``{key}_width_mm``), ``{key}_between_mm`` and the
+    ``{key}_sigma_mm`` the width is used with.
+
+    A bar whose mask width lies within a quarter of a size step of a size's envelope (robustly
+    one size) has that envelope as its true width; its ``key`` width minus that envelope is the
+    width's error on that bar. The median of those errors is a bias the whole capture shares and
+    is removed (circle: depth quantised in disparity flattens or bulges every bar's arc alike,
+    +1.4 mm, median, on 848 × 480 captures at 400-600 mm; stack: the bars of one level sitting a
+    little apart or pressed into each other); their root-mean-square around it (not a robust
+    spread: the errors have heavy tails, which a robust spread would hide) is the width's error
+    per bar, what a circle's own residuals do not show (quantisation repeating in every section of
+    a bar at one depth, noise correlated over more pixels than assumed) and what a stack height
+    has no other measure of (how well each bar touches those under it). The σ used is the larger
+    of the bar's own (``{key}_sigma_mm``, 0 for a stack height) and that spread. Learning from
+    the mask's sizes, not the design's, keeps a bar of another size than designed from counting
+    its true difference as an error. Needs ``prm.colour_offset_bars`` such bars; else the width is
+    not used (``{key}_between_mm`` NaN).
+
+    ``groups`` (one key per bar, e.g. its layer and level): the offset is learnt per group, from
+    at least 2 of its bars (a group with fewer is not used), and the spread is pooled over the
+    groups around their own offsets (k = n − groups degrees of freedom, at least
+    ``prm.colour_offset_bars`` − 1); each bar's σ then also holds its group's offset's error,
+    spread / √(bars it was learnt from). Without ``groups``, all bars are one group, learnt from
+    at least ``prm.colour_offset_bars`` bars, whose offset's error the spread's bound covers."""
+    per_group = groups is not None
+    groups = list(groups) if per_group else [0] * len(results)
+    dev = defaultdict(list)
+    for r, g in zip(results, groups):
+        cw = r[3][f"{key}_width_mm"]
+        if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r[3]):
+            continue
+        med = _mask_width(r)
+        nominal, _ = snap_diameter(med, system=system, deformed=deformed)
+        if not math.isfinite(nominal):
+            continue
+        env = observed_width_mm(nominal, system=system, deformed=deformed)
+        lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
+        if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
+            dev[g].append(cw - env)
+    if per_group:
+        dev = {g: d for g, d in dev.items() if len(d) >= 2}
+    off = {g: float(np.median(d)) for g, d in dev.items()}
+    res = np.concatenate([np.asarray(d) - off[g] for g, d in dev.items()]) if dev else np.zeros(0)
+    k = len(res) - len(dev)  # degrees of freedom: one offset learnt per group
+    s_c = math.nan
+    if k >= prm.colour_offset_bars - 1:
+        # learnt from a dozen bars or so, the spread may fall short of the errors' tails: the
+        # upper 90 % confidence bound of σ from k degrees of freedom (χ² quantile by the
+        # Wilson-Hilferty approximation)
+        chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
+        s_c = float(np.sqrt(np.sum(np.square(res)) / chi2_10))
+    for r, g in zip(results, groups):
+        learnt = g in off and math.isfinite(s_c)
+        r[3][f"{key}_offset_mm"] = off[g] if learnt else 0.0
+        r[3][f"{key}_width_mm"] -= r[3][f"{key}_offset_mm"]
+        r[3][f"{key}_between_mm"] = s_c if learnt else math.nan
+        s_g = s_c * math.sqrt(1 + 1 / len(dev[g])) if per_group and learnt else s_c
+        r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_g))
+
+
+def _colour_calibration(results, prepared, prm) -> None:
+    """Learn from the capture's own bars how far to trust its colour edges against its mask.
+
+    Stores in every bar's info ``colour_offset_px``, the capture's typical colour-minus-mask
+    width (px: the colour edges of a round bar sit inside its silhouette by an amount set by the
+    light), and ``colour_weight`` in 0..1, the share of a colour-mask disagreement that is blamed
+    on the mask. Bars of the same design size have the same true width, so the spread of their
+    widths between bars (robust, around each size's median) is each estimator's error per bar:
+    s_mask for the mask widths, s_colour for the offset-corrected colour widths. A disagreement
+    r = colour − mask then says the mask is off by about r · s_mask² / (s_mask² + s_colour²)
+    (the part of r that the mask's error explains); the part of r beyond ``prm.veto_k`` times
+    their combined spread hypot(s_mask, s_colour) is more than either explains and counts in
+    full (``colour_spread_mm``), so a mask gone wrong on one bar is still caught. Both need
+    ``prm.colour_offset_bars`` bars with both widths; otherwise offset 0 and weight 1 (the
+    whole disagreement counts).
+    """
+    have = [i for i, r in enumerate(results)
+            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"]) and _two_sided(r[3])]
+    off, weight, spread = 0.0, 1.0, 0.0
+    if len(have) >= prm.colour_offset_bars:
+        med = {i: float(np.median(results[i][0])) for i in have}
+        off = float(np.median([(results[i][3]["colour_width_mm"] - med[i]) / results[i][3]["px_mm"] for i in have]))
+        # without a design size the bars' true widths are unknown: no between-bar spread
+        dm = _between_bar_deviations(med, prepared)
+        dc = _between_bar_deviations({i: results[i][3]["colour_width_mm"] - off * results[i][3]["px_mm"]
+                                      for i in have}, prepared)
+        if len(dm) >= prm.colour_offset_bars:
+            s_m, s_c = _robust_sigma(dm), _robust_sigma(dc)
+            if s_m + s_c > 0:
+                weight, spread = s_m ** 2 / (s_m ** 2 + s_c ** 2), math.hypot(s_m, s_c)
+    for r in results:
+        r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
