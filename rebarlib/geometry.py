@@ -331,7 +331,7 @@ class BarAxis:
 
 def envelope_mm(nominal_mm: float, system: str = "GB1499.2") -> float:
     """Outer diameter over the ribs (what a depth camera sees) of a nominal size."""
-    from ._barsizes import observed_width_mm
+    from .diameter.barsizes import observed_width_mm
 
     return float(observed_width_mm(nominal_mm, system=system, deformed=True))
 
