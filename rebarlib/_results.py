@@ -30,13 +30,16 @@ class Measurement:
 
     @classmethod
     def not_measured(cls, reason: str, n_points: int = 0) -> "Measurement":
+        """A measurement that could not be made, with the reason and the points it had."""
         return cls(None, None, n_points, NOT_MEASURED, reason)
 
     @property
     def ok(self) -> bool:
+        """Whether there is a value."""
         return self.status == MEASURED and self.value_mm is not None
 
     def to_dict(self) -> dict:
+        """The measurement as JSON-ready Python (values rounded to 0.001 mm, NaN as None)."""
         return {"value_mm": _num(self.value_mm), "uncertainty_mm": _num(self.uncertainty_mm),
                 "n_points": int(self.n_points), "status": self.status, "reason": self.reason}
 
@@ -74,6 +77,7 @@ def table_records(df, *, digits: int | None = 3) -> list:
 
 
 def _plain(v, digits: int | None):
+    """One table cell as JSON-ready Python (see :func:`table_records`)."""
     if isinstance(v, (np.floating, float)):
         return _num(v, digits)
     if isinstance(v, np.integer):
@@ -124,6 +128,7 @@ class InspectionResult:
     bar_points: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
+        """The result as written to ``result.json`` (docs/formats.md); ``bar_points`` is left out."""
         return {
             "capture": self.capture, "method": self.method,
             "cover_mm": _num(self.cover.value_mm), "layer_distance_mm": _num(self.layer_distance.value_mm),
@@ -138,4 +143,5 @@ class InspectionResult:
         }
 
     def to_json(self, **kw) -> str:
+        """:meth:`to_dict` as JSON text (``indent=1`` unless given; other keywords to ``json.dumps``)."""
         return json.dumps(self.to_dict(), indent=kw.pop("indent", 1), **kw)

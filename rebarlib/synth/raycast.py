@@ -38,6 +38,7 @@ def _prism(p0, p1, r, n=_N_SIDES):
 
 
 def _box(c, hs, yaw):
+    """Triangles of a box of half-sizes ``hs`` centred on ``c``, turned ``yaw`` rad about z."""
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * hs
     cy, sy = math.cos(yaw), math.sin(yaw)
     R = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1.0]])
@@ -53,6 +54,8 @@ K_FORMWORK, K_BAR, K_SPACER, K_CHAIR, K_TIE = 0, 1, 2, 3, 4
 
 @dataclass
 class _Geometry:
+    """The scene as one triangle mesh, with a table per object (row 0: the formwork plane)."""
+
     verts: np.ndarray
     tris: np.ndarray
     tri_obj: np.ndarray  # object index of each triangle
@@ -95,6 +98,8 @@ def _relief_radius(s, psi, r1, h, pitch, shift):
 
 
 def _build_geometry(scene: SlabScene) -> _Geometry:
+    """The triangles of every object of ``scene``: the formwork plane, each bar's segments as
+    prisms (with their exact cylinders, and ribs where drawn in relief), the boxes and the rods."""
     half = scene.deviations.slab_size_mm * 2
     V = [np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)]
     T = [np.array([[0, 1, 2], [0, 2, 3]])]

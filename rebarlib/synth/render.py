@@ -104,6 +104,7 @@ class CameraPose:
         return e
 
     def to_camera(self, points_world) -> np.ndarray:
+        """World points (N, 3) in the camera frame."""
         return (np.asarray(points_world, float) - self.centre) @ self.rotation.T
 
 
@@ -139,6 +140,8 @@ def _sample(field_img, x, y, extent, cell):
 
 
 def _formwork_albedo(kind, p, rng, extent):
+    """Colour (linear, 0..1) of the formwork at world points ``p``: plywood with grain and sheet
+    seams, dusty black film-faced board, or coloured plastic panels; textures drawn from ``rng``."""
     x, y = p[:, 0], p[:, 1]
     n1 = _sample(_value_noise(rng, (512, 512)), x, y, extent, 2 * extent / 512)
     n2 = _sample(_value_noise(rng, (1024, 1024), 2), x, y, extent, 2 * extent / 1024)
@@ -162,6 +165,8 @@ def _formwork_albedo(kind, p, rng, extent):
 
 
 def _bar_albedo(scene, bar_of_px, p, rust_of_bar, rng):
+    """Colour (linear, 0..1) of bar ``bar_of_px`` at world points ``p``: steel, rust patches
+    on rusty bars, and the ribs' shading where they are drawn as an envelope."""
     axis0 = np.array([b.axis[0] for b in scene.bars])
     dirs = np.array([b.direction for b in scene.bars])
     radius = np.array([b.radius_mm for b in scene.bars])

@@ -101,10 +101,13 @@ class Bar:
 
     @property
     def radius_mm(self) -> float:
+        """Half the envelope."""
         return self.envelope_mm / 2
 
     @property
     def underside_mm(self) -> float:
+        """Height of the bar's underside above the formwork (its axis's mean height less the
+        radius)."""
         return float(self.axis[:, 2].mean() - self.radius_mm)
 
 
@@ -123,6 +126,8 @@ class SlabScene:
 
 
 def _sizes_near(size: float) -> list:
+    """The GB 1499.2 sizes next to ``size`` (one smaller, one larger; 8 mm at least): what a
+    wrong-size bar is drawn from."""
     std = sorted(_GB_RIBS)
     i = std.index(size) if size in std else int(np.argmin([abs(s - size) for s in std]))
     return [std[j] for j in (i - 1, i + 1) if 0 <= j < len(std) and std[j] >= 8]
