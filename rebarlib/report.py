@@ -14,24 +14,18 @@ import datetime as _dt
 import math
 from pathlib import Path
 
-import numpy as np
-
-from ._camera import project
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import DEFAULT_BAR_SYSTEM, Design
+from ._report_figures import (BAR_COLOURS, LAYER_COLOURS, _image_data_uri, _image_overlay,
+                              _plan_view)
 from ._results import table_records
-from ._status import (ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MISSING,
-                      NOT_CHECKED, NOT_MEASURED, PASS, REJECTED, SLAB_INCOMPLETE)
-from .acceptance import COVERAGE_K, Acceptance, is_true
+from ._status import ACCEPTED, EXCLUDED, NOT_CHECKED, NOT_MEASURED, REJECTED, SLAB_INCOMPLETE
+from .acceptance import COVERAGE_K, Acceptance
 
 __all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
            "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
 
-#: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
-BAR_COLOURS = {PASS: "#1b9e77", FAIL: "#d62728", INCOMPLETE: "#e7c21f", NOT_CHECKED: "#f0a30a",
-               HIDDEN: "#7f3fbf"}
-LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
 _BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
              "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status",
              "diameter_reason", "one_sided_share")
@@ -41,7 +35,6 @@ VERDICT_TEXT = {ACCEPTED: "ACCEPTED", REJECTED: "NOT ACCEPTED (rejected)",
 #: one is cut there with an ellipsis (the exports keep it whole). A 14 000-character id once made
 #: the PDF take minutes to lay out; 200 characters fill three lines of the identification table.
 FIELD_MAX_CHARS = 200
-IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
 def templates_dir() -> Path:
@@ -137,182 +130,9 @@ def _capture_info(folder: Path | None) -> dict:
     return info
 
 
-def _image_data_uri(path: Path) -> tuple[str, float]:
-    """The colour image, shrunk to ``IMAGE_WIDTH_PX``, as a JPEG data URI, and the scale used."""
-    import cv2
-
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise RebarInputError(f"{path}: cannot read the colour image")
-    scale = min(1.0, IMAGE_WIDTH_PX / img.shape[1])
-    if scale < 1.0:
-        img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 82])
-    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"), scale
-
-
 # --------------------------------------------------------------------------------------------
 # Drawing geometry (presentation only)
 # --------------------------------------------------------------------------------------------
-
-def _clip_segment(p0, p1, w, h):
-    """Liang-Barsky clip of the segment p0-p1 to the image rectangle; None when outside.
-    (A handful of segments: simpler by hand than pulling in a geometry library.)"""
-    x0, y0 = p0
-    dx, dy = p1[0] - x0, p1[1] - y0
-    t0, t1 = 0.0, 1.0
-    for p, q in ((-dx, x0), (dx, w - 1 - x0), (-dy, y0), (dy, h - 1 - y0)):
-        if p == 0:
-            if q < 0:
-                return None
-            continue
-        t = q / p
-        if p < 0:
-            t0 = max(t0, t)
-        else:
-            t1 = min(t1, t)
-    if t0 > t1:
-        return None
-    return (x0 + t0 * dx, y0 + t0 * dy), (x0 + t1 * dx, y0 + t1 * dy)
-
-
-def _axis(rec: dict):
-    try:
-        a = np.array([rec[f"start_{c}_mm"] for c in "xyz"], dtype=float)
-        b = np.array([rec[f"end_{c}_mm"] for c in "xyz"], dtype=float)
-    except (KeyError, TypeError, ValueError):
-        return None
-    return (a, b) if np.all(np.isfinite(a)) and np.all(np.isfinite(b)) else None
-
-
-def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
-    """Bar segments in pixel coordinates (of the original image) with label positions."""
-    out = []
-    for rec in bars:
-        ax = _axis(rec)
-        if ax is None or ax[0][2] <= 0 or ax[1][2] <= 0:
-            continue
-        uv = project(np.vstack(ax), intrinsics)
-        seg = _clip_segment(uv[0], uv[1], intrinsics.width, intrinsics.height)
-        if seg is None:
-            continue
-        (x0, y0), (x1, y1) = seg
-        v = verdicts.get(str(rec.get("bar_id")), NOT_CHECKED)
-        hidden = v == HIDDEN or is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN
-        # Labels of the bottom level at 12 % along the bar, of the top level at 88 %, so that the
-        # ids of crossing bars do not sit on each other.
-        t = 0.12 if rec.get("level") == "bottom" else 0.88
-        if rec.get("layer") == "upper":
-            t = 1 - t - 0.06 if t > 0.5 else t + 0.06
-        # Keep the label box (about 1.8 x 1.2 label heights, see overlay.svg.j2) inside the image.
-        m = intrinsics.width / 60
-        lx = float(np.clip(x0 + t * (x1 - x0), 0.9 * m, intrinsics.width - 0.9 * m))
-        ly = float(np.clip(y0 + t * (y1 - y0), 0.62 * m, intrinsics.height - 0.62 * m))
-        out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": lx, "ly": ly,
-                    "id": str(rec.get("bar_id")), "colour": BAR_COLOURS[HIDDEN if hidden else v],
-                    "hidden": hidden, "verdict": HIDDEN if hidden else v})
-    return out
-
-
-def _plan_basis(normal):
-    """Two in-plane unit vectors of the formwork: e1 along the camera x axis, e2 along camera y.
-
-    Plan coordinates (p·e1, p·e2) look like the image seen square-on, with no tilt distortion.
-    """
-    n = np.asarray(normal, dtype=float) if normal is not None else np.array([0.0, 0.0, -1.0])
-    if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-        n = np.array([0.0, 0.0, -1.0])
-    n = n / np.linalg.norm(n)
-    e1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    if e2[1] < 0:
-        e2 = -e2
-    return e1, e2
-
-
-def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, design: Design,
-               positions: list | None = None, boundary: dict | None = None) -> dict | None:
-    """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing; with
-    ``positions`` (the result's examined positions) the missing and unjudged positions, with
-    ``boundary`` (``extras["mesh_boundary"]``) each lattice's outline in the view."""
-    e1, e2 = _plan_basis((formwork or {}).get("normal"))
-    segs, by_id = [], {}
-    for rec in bars:
-        ax = _axis(rec)
-        if ax is None:
-            continue
-        a, b = (np.array([p @ e1, p @ e2]) for p in ax)
-        layer, level = rec.get("layer"), rec.get("level")
-        try:
-            width = design.lattice(layer).level(level).diameter_mm
-        except (RebarInputError, AttributeError):
-            width = 10.0
-        by_id[str(rec.get("bar_id"))] = (a, b)
-        # Bar ids at the far end of the bottom level and the near end of the top level, so the
-        # ids of crossing directions sit on different sides of the drawing.
-        lab = b + 0.07 * (b - a) if level == "bottom" else a - 0.07 * (b - a)
-        segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
-                     "lx": lab[0], "ly": lab[1],
-                     "layer": layer, "level": level, "width": width,
-                     "colour": LAYER_COLOURS.get(layer, "#555"),
-                     "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN})
-    if not segs:
-        return None
-    marks = []
-    for rec in positions or []:
-        ax = _axis(rec)
-        status = rec.get("status")
-        if ax is None or status not in (MISSING, NOT_MEASURED):
-            continue
-        a, b = (np.array([p @ e1, p @ e2]) for p in ax)
-        marks.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "missing": status == MISSING,
-                      "text": "missing" if status == MISSING else "?", "lx": (a[0] + b[0]) / 2,
-                      "ly": (a[1] + b[1]) / 2})
-    outlines = []
-    for layer, info in (boundary or {}).items():
-        corners = (info or {}).get("corners_camera_mm") if isinstance(info, dict) else None
-        if corners:
-            pts2 = [(float(np.asarray(c) @ e1), float(np.asarray(c) @ e2)) for c in corners]
-            outlines.append({"points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2),
-                             "colour": LAYER_COLOURS.get(layer, "#555")})
-    pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
-                   + [[s["lx"], s["ly"]] for s in segs])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    span = max(float((hi - lo).max()), 1.0)
-    pad = 0.06 * span
-    labels = []
-    for rec in spacings:
-        a, b = by_id.get(str(rec.get("bar_a"))), by_id.get(str(rec.get("bar_b")))
-        if a is None or b is None:
-            continue
-        # Lower-mesh spacings are written a third of the way along the bars, upper-mesh ones at
-        # two thirds, so the two meshes' numbers do not overlap where their bars run parallel.
-        t = 1 / 3 if rec.get("layer") == "lower" else 2 / 3
-        pa = a[0] + t * (a[1] - a[0])
-        # The foot of pa on bar b: the label sits half way across the gap it describes.
-        d = b[1] - b[0]
-        pb = b[0] + np.clip((pa - b[0]) @ d / max(d @ d, 1e-9), 0, 1) * d
-        mid = (pa + pb) / 2
-        key = (rec.get("capture"), str(rec.get("bar_a")), str(rec.get("bar_b")), rec.get("layer"), rec.get("level"))
-        status = acc_rows.get(key, "")
-        v = rec.get("spacing_mm")
-        labels.append({"x": mid[0], "y": mid[1], "x0": pa[0], "y0": pa[1], "x1": pb[0], "y1": pb[1],
-                       "text": "n/m" if v is None else f"{v:.0f}", "bad": status in (BEYOND, BEYOND_MAX),
-                       "layer": rec.get("layer")})
-    return {"segments": segs, "labels": labels, "marks": marks, "outlines": outlines,
-            "x": lo[0] - pad, "y": lo[1] - pad,
-            # An extra strip at the bottom holds the scale bar, clear of the bar ids.
-            "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 3 * pad, "font": span / 45,
-            "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 2.0}
-
-
-def _scale_bar(span: float) -> float:
-    for s in (50, 100, 200, 250, 500, 1000, 2000):
-        if s >= span / 6:
-            return float(s)
-    return 5000.0
-
 
 # --------------------------------------------------------------------------------------------
 # Context and rendering
@@ -406,59 +226,116 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     slab = dict(design.slab)
     tol = acceptance.tolerances
     cp = acceptance.checkpoints
-    status_of = {}
-    for rec in cp.itertuples():
-        if str(rec.what).startswith("bars "):
-            a, b = str(rec.what)[5:].split("-", 1)
-            status_of[(rec.capture, a, b, rec.layer, rec.level)] = rec.status
-
+    status_of = _spacing_status(cp)
     captures, devices, dates = [], set(), set()
     for r in results:
-        name = str(r["capture"])
-        info = _capture_info(folders.get(name))
+        info = _capture_info(folders.get(str(r["capture"])))
         meta = info.get("meta", {})
         if meta.get("device"):
             devices.add(str(meta["device"]))
         if meta.get("captured_at"):
             dates.add(str(meta["captured_at"]))
-        bars = [dict(b) for b in (r.get("bars") or [])]
-        spacings = [{**s, "capture": name} for s in (r.get("spacings") or [])]
-        bv = acceptance.bars[acceptance.bars["capture"] == name]
-        verdicts = {str(k): v for k, v in zip(bv["bar_id"], bv["verdict"])}
-        image = None
-        if info.get("color") is not None and info.get("intrinsics") is not None:
-            uri, _ = _image_data_uri(info["color"])
-            K = info["intrinsics"]
-            image = {"uri": uri, "width": K.width, "height": K.height,
-                     "bars": _image_overlay(bars, verdicts, K), "font": K.width / 60,
-                     "stroke": K.width / 320}
-        for b in bars:
-            b["verdict"] = verdicts.get(str(b.get("bar_id")), NOT_CHECKED)
-            for key in _BAR_KEYS:  # the template prints every column; absent = not in the result
-                b.setdefault(key, None)
-        meas = r.get("measurements") or {}
-        mrows = []
-        for key, label in (("cover", "Cover"), ("layer_distance", "Layer distance"),
-                           ("upper_top", "Top of upper bars above formwork"), ("top_cover", "Top cover (predicted)")):
-            m = meas.get(key) or {}
-            mrows.append({"label": label, "value": _fmt(m.get("value_mm"), 1, "mm"),
-                          "u": _fmt(m.get("uncertainty_mm"), 1, "mm"), "n": m.get("n_points", ""),
-                          "status": m.get("status", NOT_MEASURED), "reason": m.get("reason", "")})
-        cam = r.get("camera") or {}
-        captures.append({
-            "name": name, "method": r.get("method", ""), "image": image,
-            "image_missing": "" if image else _no_image_text(r, name in folders),
-            "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design,
-                               positions=r.get("positions") or [],
-                               boundary=(r.get("extras") or {}).get("mesh_boundary")),
-            "bars": bars, "measurements": mrows, "notes": list(r.get("notes") or []),
-            "height": _fmt(cam.get("height_mm"), 0, "mm"),
-            "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
-            "device": meta.get("device", "not recorded"), "captured_at": meta.get("captured_at", "not recorded"),
-            "camera_basis": _camera_basis(r),
-            "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
-        })
+        captures.append(_capture_context(r, info, folders, acceptance, status_of, design))
+    items, rules = _item_rows(acceptance)
+    checkpoints = table_records(cp, digits=None)
+    for c in checkpoints:
+        nd = 0 if c["unit"] == "bars" else 1
+        c["design_text"] = _fmt(c["design_value"], nd)
+        c["measured_text"] = _fmt(c["measured_value"], nd)
+        c["deviation_text"] = _signed(c["deviation"], nd)
+    checkpoint_rows = _checkpoint_rows(items, checkpoints, design.bar_system)
+    record = str(slab.get("record", "")) or f"{design.slab_id}-{now:%Y%m%d}"
+    return {
+        "title": f"Rebar inspection record — slab {design.slab_id}",
+        "record": record, "record_generated": not slab.get("record"),
+        "project": slab.get("project", ""), "slab_id": design.slab_id, "element": design.element,
+        "location": design.location, "drawing": slab.get("drawing", ""),
+        "contractor": slab.get("contractor", ""), "lot": str(slab.get("lot", "")),
+        "standard": tol.standard, "edition": tol.edition, "preset": tol.name,
+        "preset_title": tol.title, "overrides": list(tol.overrides), "design_source": design.source,
+        "capture_dates": ", ".join(sorted(dates)) or "not recorded in the capture files",
+        "devices": ", ".join(sorted(devices)) or "not recorded", "software": f"rebarlib {__version__}",
+        "report_date": f"{now:%Y-%m-%d %H:%M}", "n_captures": len(results),
+        "missing_captures": [{"capture": c, "reason": r} for c, r in acceptance.missing_captures],
+        "design": _design_context(design),
+        "verdict": acceptance.verdict,
+        "verdict_text": VERDICT_TEXT.get(acceptance.verdict, acceptance.verdict),
+        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons),
+        "notes": list(acceptance.notes),
+        "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows,
+        "captures": captures, "uncertainty": _uncertainty_rows(cp),
+        "not_measured": _not_measured_rows(checkpoints), "decision": _decision_context(acceptance),
+        "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
+        "colours": BAR_COLOURS, "layer_colours": LAYER_COLOURS,
+    }
 
+
+def _spacing_status(cp) -> dict:
+    """The status of each spacing checkpoint, by (capture, bar a, bar b, layer, level): the plan
+    view marks the spacings beyond tolerance."""
+    status_of = {}
+    for rec in cp.itertuples():
+        if str(rec.what).startswith("bars "):
+            a, b = str(rec.what)[5:].split("-", 1)
+            status_of[(rec.capture, a, b, rec.layer, rec.level)] = rec.status
+    return status_of
+
+
+def _capture_context(r: dict, info: dict, folders: dict, acceptance: Acceptance, status_of: dict,
+                     design: Design) -> dict:
+    """One capture's section: its image with the bars drawn on it, its plan view, its bars with
+    their verdicts, its measurements and how the camera was placed and calibrated."""
+    name = str(r["capture"])
+    meta = info.get("meta", {})
+    bars = [dict(b) for b in (r.get("bars") or [])]
+    spacings = [{**s, "capture": name} for s in (r.get("spacings") or [])]
+    bv = acceptance.bars[acceptance.bars["capture"] == name]
+    verdicts = {str(k): v for k, v in zip(bv["bar_id"], bv["verdict"])}
+    image = None
+    if info.get("color") is not None and info.get("intrinsics") is not None:
+        uri, _ = _image_data_uri(info["color"])
+        K = info["intrinsics"]
+        image = {"uri": uri, "width": K.width, "height": K.height,
+                 "bars": _image_overlay(bars, verdicts, K), "font": K.width / 60,
+                 "stroke": K.width / 320}
+    for b in bars:
+        b["verdict"] = verdicts.get(str(b.get("bar_id")), NOT_CHECKED)
+        for key in _BAR_KEYS:  # the template prints every column; absent = not in the result
+            b.setdefault(key, None)
+    cam = r.get("camera") or {}
+    return {
+        "name": name, "method": r.get("method", ""), "image": image,
+        "image_missing": "" if image else _no_image_text(r, name in folders),
+        "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design,
+                           positions=r.get("positions") or [],
+                           boundary=(r.get("extras") or {}).get("mesh_boundary")),
+        "bars": bars, "measurements": _measurement_rows(r), "notes": list(r.get("notes") or []),
+        "height": _fmt(cam.get("height_mm"), 0, "mm"),
+        "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
+        "device": meta.get("device", "not recorded"),
+        "captured_at": meta.get("captured_at", "not recorded"),
+        "camera_basis": _camera_basis(r),
+        "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
+    }
+
+
+def _measurement_rows(r: dict) -> list:
+    """Cover, layer distance, top of the upper bars and top cover of one result, as printed."""
+    meas = r.get("measurements") or {}
+    rows = []
+    for key, label in (("cover", "Cover"), ("layer_distance", "Layer distance"),
+                       ("upper_top", "Top of upper bars above formwork"),
+                       ("top_cover", "Top cover (predicted)")):
+        m = meas.get(key) or {}
+        rows.append({"label": label, "value": _fmt(m.get("value_mm"), 1, "mm"),
+                     "u": _fmt(m.get("uncertainty_mm"), 1, "mm"), "n": m.get("n_points", ""),
+                     "status": m.get("status", NOT_MEASURED), "reason": m.get("reason", "")})
+    return rows
+
+
+def _item_rows(acceptance: Acceptance) -> tuple[list, list]:
+    """The items as printed (worst deviation, pass ratio, what was not measured or proven) and
+    the numbered lot rules they refer to."""
     items = table_records(acceptance.items, digits=None)
     rules = []
     for it in items:
@@ -475,14 +352,12 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                                  f"+{it['excluded']} hidden" if it["excluded"] else "",
                                                  f"{it['not_proven']} not proven" if it.get("not_proven") else "")
                                      if t)
-    checkpoints = table_records(cp, digits=None)
-    for c in checkpoints:
-        nd = 0 if c["unit"] == "bars" else 1
-        c["design_text"] = _fmt(c["design_value"], nd)
-        c["measured_text"] = _fmt(c["measured_value"], nd)
-        c["deviation_text"] = _signed(c["deviation"], nd)
-    checkpoint_rows = _checkpoint_rows(items, checkpoints, design.bar_system)
-    # Limitations: per item the uncertainty reported by the results, and what was not measured.
+    return items, rules
+
+
+def _uncertainty_rows(cp) -> list:
+    """The limitations section: per item the uncertainty the results reported (median and
+    largest over the checkpoints that have one)."""
     uncertainty = []
     for key in ("cover", "layer_distance", "top_cover"):
         sub = cp[(cp["item"] == key) & cp["uncertainty"].notna()]
@@ -503,42 +378,30 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
                                      "where the method gives none)",
                             "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
                                     f"(median over {len(u_bar)} bars)"})
+    return uncertainty
+
+
+def _not_measured_rows(checkpoints: list) -> list:
+    """What was not measured, one row per (item, reason) with where (so that the section stays
+    readable on a large slab)."""
     not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
                     for c in checkpoints if c["status"] == NOT_MEASURED]
-    # Collapse repeated (item, reason) pairs so the section stays readable on a large slab.
     nm_grouped = {}
     for c in not_measured:
         key = (c["label"], c["reason"])
         nm_grouped.setdefault(key, []).append(f"{c['capture']}: {c['what']}")
-    nm_rows = [{"label": k[0], "reason": k[1],
-                "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
-                "n": len(v)} for k, v in nm_grouped.items()]
-    record = str(slab.get("record", "")) or f"{design.slab_id}-{now:%Y%m%d}"
-    return {
-        "title": f"Rebar inspection record — slab {design.slab_id}",
-        "record": record, "record_generated": not slab.get("record"),
-        "project": slab.get("project", ""), "slab_id": design.slab_id, "element": design.element,
-        "location": design.location, "drawing": slab.get("drawing", ""), "contractor": slab.get("contractor", ""),
-        "lot": str(slab.get("lot", "")),
-        "standard": tol.standard, "edition": tol.edition, "preset": tol.name, "preset_title": tol.title,
-        "overrides": list(tol.overrides), "design_source": design.source,
-        "capture_dates": ", ".join(sorted(dates)) or "not recorded in the capture files",
-        "devices": ", ".join(sorted(devices)) or "not recorded", "software": f"rebarlib {__version__}",
-        "report_date": f"{now:%Y-%m-%d %H:%M}", "n_captures": len(results),
-        "missing_captures": [{"capture": c, "reason": r} for c, r in acceptance.missing_captures],
-        "design": {"cover": design.cover_mm, "layer_distance": design.layer_distance_mm,
-                   "thickness": design.thickness_mm, "bar_system": design.bar_system,
-                   "meshes": [{"layer": la, "level": lv, "d": design.lattice(la).level(lv).diameter_mm,
-                               "s": design.lattice(la).level(lv).spacing_mm}
-                              for la in ("lower", "upper") for lv in ("bottom", "top")]},
-        "verdict": acceptance.verdict, "verdict_text": VERDICT_TEXT.get(acceptance.verdict, acceptance.verdict),
-        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons),
-        "notes": list(acceptance.notes),
-        "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows, "captures": captures,
-        "uncertainty": uncertainty, "not_measured": nm_rows, "decision": _decision_context(acceptance),
-        "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
-        "colours": BAR_COLOURS, "layer_colours": LAYER_COLOURS,
-    }
+    return [{"label": k[0], "reason": k[1],
+             "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
+             "n": len(v)} for k, v in nm_grouped.items()]
+
+
+def _design_context(design: Design) -> dict:
+    """The design values the report's identification table prints."""
+    return {"cover": design.cover_mm, "layer_distance": design.layer_distance_mm,
+            "thickness": design.thickness_mm, "bar_system": design.bar_system,
+            "meshes": [{"layer": la, "level": lv, "d": design.lattice(la).level(lv).diameter_mm,
+                        "s": design.lattice(la).level(lv).spacing_mm}
+                       for la in ("lower", "upper") for lv in ("bottom", "top")]}
 
 
 def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
