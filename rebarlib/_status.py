@@ -14,7 +14,7 @@ from __future__ import annotations
 __all__ = [
     "MEASURED", "NOT_MEASURED", "HIDDEN",
     "MISSING", "PRESENT", "PRESENT_NO_DEPTH", "OUTSIDE", "NOT_IN_VIEW", "EXTRA", "NOT_EXTRA",
-    "WITHIN", "BEYOND", "BEYOND_MAX", "EXCLUDED",
+    "WITHIN", "BEYOND", "BEYOND_MAX", "EXCLUDED", "WITHIN_NOT_PROVEN", "BEYOND_NOT_PROVEN",
     "PASS", "FAIL", "INCOMPLETE", "NOT_CHECKED",
     "ACCEPTED", "REJECTED", "SLAB_INCOMPLETE",
 ]
@@ -30,6 +30,8 @@ EXTRA, NOT_EXTRA = "extra", "not counted"
 
 # A checkpoint: one measured value against its tolerance (acceptance; NOT_MEASURED as above).
 WITHIN, BEYOND, BEYOND_MAX, EXCLUDED = "within", "beyond", "beyond max", "excluded"
+# A checkpoint's decision where its expanded uncertainty reaches over a limit (decision rules).
+WITHIN_NOT_PROVEN, BEYOND_NOT_PROVEN = "within, not proven", "beyond, not proven"
 
 # An item (cover, one lattice's spacing, ...) and a bar drawn in the report.
 PASS, FAIL, INCOMPLETE, NOT_CHECKED = "pass", "fail", "incomplete", "not checked"
