@@ -231,7 +231,7 @@ def test_a_bar_laid_askew_keeps_its_skew():
 
 
 def test_fit_bar_parallel_keeps_the_axis_along_its_direction():
-    from rebarlib.geometry import _fit_bar
+    from rebarlib.geometry.fit import _fit_bar
 
     rng = np.random.default_rng(5)
     t = rng.uniform(0, 60, 800)
@@ -248,7 +248,7 @@ def test_a_flank_seen_alone_is_not_fitted_from_its_far_side():
     # to the left. A fixed-radius circle also fits those points with its centre a diameter away
     # on their far side, where they would face away from the camera; started there, the fit
     # stays there. Knowing the camera, the fit is refitted from the mirrored centre.
-    from rebarlib.geometry import _facing_fit, _facing_share, _fit_bar
+    from rebarlib.geometry.fit import _facing_fit, _facing_share, _fit_bar
 
     rng = np.random.default_rng(3)
     n = 3000
@@ -275,7 +275,7 @@ def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
     # height of the measured bars of its direction: they lie on the same supports), where the
     # arc fixes the offset; the median of the points lies ~7 mm off. The mirror position (the
     # points facing away from the camera) is not taken; points on no such circle give None.
-    from rebarlib.geometry import _approximate_axes, _offset_at_height
+    from rebarlib.geometry.partial import _approximate_axes, _offset_at_height
 
     rng = np.random.default_rng(11)
     n = 1500

@@ -1,7 +1,7 @@
 """inspect() and `rebar inspect` against the synthetic captures' ground truth.
 
 Every capture is rendered once per module (half-resolution Gemini 2 to keep the file fast) and
-scored with rebarlib._geom_eval (bar matching, the "measurable" rule, phantoms, spacing errors).
+scored with rebarlib.geometry.scoring (bar matching, the "measurable" rule, phantoms, spacing errors).
 Tolerances below are for half-resolution captures up to 500 mm; the benchmark holds the
 full-resolution targets (0.5 mm cover / layer distance, 2 mm spacing).
 """
@@ -18,7 +18,7 @@ import pytest
 from rebarlib import GEMINI2, RebarInputError, load_capture
 from rebarlib._camera import project
 from rebarlib._capture import Capture
-from rebarlib._geom_eval import measurable_bars, score_result
+from rebarlib.geometry.scoring import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
 from rebarlib.data import example_capture, example_slab, paper_design
