@@ -480,9 +480,15 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
                        float(np.median([b.radius_mm for b in meas])), bars[idx[0]].direction, n2)
             reach = _reach(boundary, layer, level, row.normal)
             higher = [i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius]
+            # the higher bars along this row (offset across, axis height, radius): where one
+            # hides a position, they say from where it would show
+            over = [(_offset(b, n2), b.axis_height_mm, b.radius_mm) for b in bars
+                    if b.axis_height_mm > row.height + row.radius and abs(float(b.direction @ row.direction)) > 0.95]
             for kind, p, nb in _candidates(row, reach, plane, intr, prm):
                 rec = _judge(row, kind, p, nb, reach, plane=plane, depth=depth, intr=intr, foot=foot,
                              higher=higher, mask=get_mask if mask is not None else None, noise=noise, prm=prm)
+                if rec["status"] == NOT_MEASURED and rec["reason"].startswith("hidden under"):
+                    rec["reason"] += _where_it_shows(row, p, over, plane)
                 if rec.pop("_bar", None) is not None:
                     nb_bar = rec.pop("_new")
                     new_bars.append(nb_bar)
@@ -493,6 +499,38 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
                             for rec in _pairs(row, plane, intr, foot, get_mask if mask is not None else None, prm))
     df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
     return df, new_bars, boundary
+
+
+def _where_it_shows(row: _Row, p: float, over: list, plane: Plane) -> str:
+    """Advice for a position hidden under a higher bar of its direction: how far to move the
+    camera across the row for the bar to show beside that bar ("" where no such bar covers it).
+
+    Seen from the camera's centre, a bar at height ``h`` and offset ``p`` across lies at
+    ``c + (p - c) k`` on the higher bar's level (``c`` the camera's offset across, ``k = (zc -
+    hu) / (zc - h)``); it clears the higher bar (offset ``q``, radius ``ru``) when that point is
+    ``ru + r k`` or more from ``q``. Moving the camera by ``dc`` moves it by ``(1 - k) dc``; tilting
+    the camera moves nothing (only its centre matters)."""
+    cam = to_slab_frame(np.zeros((1, 3)), plane)[0]
+    c, zc = float(cam[:2] @ row.normal), float(cam[2])
+    best = None
+    for q, hu, ru in over:
+        if zc <= hu + 1.0:
+            continue
+        k = (zc - hu) / (zc - row.height)
+        d = (1.0 - k) * c + k * p - q  # the position's place on that bar's level, from the bar
+        if best is None or abs(d) < abs(best[0]):
+            best = (d, k, ru)
+    if best is None:
+        return ""
+    d, k, ru = best
+    need = ru + row.radius * k
+    if abs(d) >= need:
+        return ""
+    # one way it needs (need - |d|) / (1 - k), the other way (need + |d|) / (1 - k): the advice
+    # holds either way
+    move = 10.0 * math.ceil((need + abs(d)) / max(1.0 - k, 1e-6) / 10.0)
+    return (f"; a capture taken with the camera about {move:.0f} mm or more to either side across these bars "
+            "(moved, not tilted) would show it beside that bar")
 
 
 def _reach(boundary: dict, layer: str, level: str, n2) -> dict | None:

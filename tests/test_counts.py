@@ -6,6 +6,8 @@ a bar without depth, spacings jittered by up to ±15 mm), the missing or extra b
 is one.
 """
 
+import re
+
 import numpy as np
 import pytest
 
@@ -150,3 +152,39 @@ def test_a_tight_mesh_with_long_overhangs_ends_where_its_crossing_bars_end():
     assert cap.truth["missing"] == []
     assert (c["missing"].fillna(0) == 0).all()
     assert (res.positions["status"] == C.OUTSIDE).sum() >= 1
+
+
+@pytest.mark.slow
+def test_a_bar_hidden_under_the_bar_above_is_not_measured_and_the_advised_move_shows_it():
+    # upper bars wider than the lower ones, stacked right above them: from straight above, the
+    # lower bar under the camera is wholly hidden (no pixel of it in the truth)
+    design = R.design_from_dict({"slab": {"id": "T"}, "design": {
+        "cover_mm": 25, "layer_distance_mm": 90,
+        "lower": {"diameter_mm": 10, "spacing_mm": 200}, "upper": {"diameter_mm": 16, "spacing_mm": 200}}})
+    dev = S.Deviations(end_overhang_mm=50, stacked=True, position_sigma_mm=0.5)
+    scene = S.make_scene(design, dev, rng=np.random.default_rng(4))
+    bar = min((b for b in scene.bars if b.layer == "lower" and b.level == "bottom"),
+              key=lambda b: abs(b.axis.mean(0)[1]))
+    along = (bar.axis[-1] - bar.axis[0])[:2] / np.linalg.norm((bar.axis[-1] - bar.axis[0])[:2])
+    across = np.array([-along[1], along[0]])
+
+    def look(shift_mm):
+        target = bar.axis.mean(0)[:2] + shift_mm * across
+        pose = S.CameraPose.looking_down(550, tilt_deg=0, yaw_deg=10, target_mm=tuple(target))
+        cap = S.render_capture(scene, pose, rng=np.random.default_rng(1))
+        return cap, R.inspect(cap, design, diameters=False, rng=0)
+
+    cap, res = look(0.0)
+    assert next(t for t in cap.truth["bars"] if t["id"] == bar.id)["visible_pixels"] == 0
+    c = _counts(res)
+    assert (c["missing"].fillna(0) == 0).all()
+    assert int(c.loc[("lower", "bottom"), "not_measured"]) == 1
+    why = res.positions.loc[res.positions["status"] == C.NOT_MEASURED, "reason"].iloc[0]
+    assert why.startswith("hidden under another bar")
+    move = float(re.search(r"camera about (\d+) mm or more to either side", why).group(1))
+    assert 30 <= move <= 200  # the lower bar moves against the upper by ~90/560 of the camera's move
+    for side in (1, -1):  # moved as advised, either way: the bar shows and is found
+        cap, res = look(side * move)
+        assert next(t for t in cap.truth["bars"] if t["id"] == bar.id)["visible_pixels"] > 1000
+        c = _counts(res)
+        assert (c[["missing", "not_measured"]].fillna(0) == 0).all().all()
