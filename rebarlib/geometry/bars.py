@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from .axis import BarAxis, _longest_run
-from .fit import _facing_fit, _fit_bar, _rms_on
+from .fit import _facing_fit, _fit_bar, _refit_along_rays, _rms_on
 from .partial import _approximate_axes
 
 
@@ -274,6 +274,8 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
                     fit = par
             if camera is not None:
                 fit, facing = _facing_fit(fit, t, s_b, h_b, r, camera, c, n2)
+                if facing:  # depth noise lies along the lines of sight: take its bias out
+                    fit = _refit_along_rays(fit, t, s_b, h_b, r, camera, c, d, n2)
             (a0, a1, b0, b1), w, rms, se = fit
             keep = w > 0
             # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
