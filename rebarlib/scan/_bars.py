@@ -94,7 +94,7 @@ class _Bar:
     slope: float
     t0: float
     t1: float
-    mean_h: float
+    mean_h: float  # first the median height of its points (orders the levels), then its surface's
     n: int
     resid_sd: float  # spread of the points' offsets about the axis
     h_sd: float
@@ -262,7 +262,9 @@ def _bars_along(plan, h, ang, keep, *, radius_mm, spacing_mm, noise_mm, min_leng
         if len(idx) < 20:
             continue
         r = off[idx] - (c + slope * along[idx])
-        bars.append(_Bar(d, c, slope, t0, t1, float(np.mean(h[idx])), len(idx),
+        # the median height: outliers scattered along the rays above the mesh pulled a mean
+        # height up by more than a diameter and swapped the levels (5 % outliers)
+        bars.append(_Bar(d, c, slope, t0, t1, float(np.median(h[idx])), len(idx),
                          _mad(r), _mad(h[idx] - np.median(h[idx])),
                          idx, p.z))
     return bars, off, along

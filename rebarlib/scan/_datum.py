@@ -62,6 +62,17 @@ def _far_side_sigma(s, i: int, *, bin_mm: float, kernel_mm: float) -> float:
     return float(math.sqrt(max((hwhm / 1.1774) ** 2 - kernel_mm ** 2, 0.25)))
 
 
+def _is_peak(s, i: int, *, kernel_bins: float, z_min: float = 5.0) -> bool:
+    """Whether bin ``i`` of a smoothed histogram ``s`` stands out of its median level by
+    ``z_min`` times that level's counting noise (as bars do in :func:`lattice_bars`). Outliers
+    scattered along the rays below the mesh fill one side's histogram with a flat floor, whose
+    highest bin has no half width: read as a plane, its "noise" was hundreds of mm and its band
+    held every point (10 % outliers: the plane was taken on the wrong side)."""
+    bg = max(float(np.median(s)), 1e-9)
+    eff = 2 * math.sqrt(math.pi) * kernel_bins
+    return (float(s[i]) - bg) / math.sqrt(bg / eff) >= z_min
+
+
 def find_datum(points, normal, *, rng=None) -> Datum:
     """The formwork or ground plane under the mesh: a plane holding at least 15 % of the points
     at the low end of their heights along ``normal`` (either sign), with the range noise measured
@@ -84,6 +95,8 @@ def find_datum(points, normal, *, rng=None) -> Datum:
         mode = x[i]
         sigma = _far_side_sigma(s, i, bin_mm=1.0, kernel_mm=3.0)
         share = float(np.mean(np.abs(hs - mode) < max(2.5 * sigma, 2.0)))
+        if not _is_peak(s, i, kernel_bins=3.0):
+            share = 0.0  # scattered points only (outliers below the mesh): no plane on this side
         if best is None or share > best[2]:
             best = (sign, mode, share, sigma)
     sign, mode, share, sigma = best
