@@ -252,7 +252,12 @@ def _barsize_rows(table: Table) -> None:
 
 
 def dump(out: Path, *, quick: bool = False) -> None:
-    from rebarlib import bars_from_truth, inspect, measure_diameters
+    from rebarlib import inspect
+
+    try:  # (before and after the top level kept only the workflow)
+        from rebarlib.diameter import bars_from_truth, measure_diameters
+    except ImportError:
+        from rebarlib import bars_from_truth, measure_diameters
 
     try:  # (before and after the scoring moved)
         from rebarlib.geometry.scoring import score_result

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from rebarlib import GEMINI2, Intrinsics, RebarInputError, backproject, depth_to_points, project
+from rebarlib import GEMINI2, Intrinsics, RebarInputError
+from rebarlib.capture import backproject, depth_to_points, project
 from rebarlib._camera import ray_directions
 
 ROUND_TRIP_TOL_MM = 1e-9

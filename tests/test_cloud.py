@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from rebarlib import Cloud, remove_outliers, voxel_downsample
+from rebarlib.capture import Cloud, remove_outliers, voxel_downsample
 
 
 def _plane_cloud(n=4000, seed=0):

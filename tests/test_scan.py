@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rebarlib import RebarInputError, design_from_dict, load_design, remove_outliers, voxel_downsample
+from rebarlib import RebarInputError, design_from_dict, load_design
+from rebarlib.capture import remove_outliers, voxel_downsample
 from rebarlib.diameter.barsizes import bar_system, barset_width_mm
 from rebarlib.cloud_io import ScanCloud, read_cloud, write_cloud
 from rebarlib.scan import diameter_resolvable, inspect_cloud

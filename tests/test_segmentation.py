@@ -398,7 +398,7 @@ def _plane_error(plane, truth_plane):
 
 
 def test_depth_mask_and_plane_against_labels(fresh_captures):
-    from rebarlib import depth_to_points
+    from rebarlib.capture import depth_to_points
 
     cap = fresh_captures[1]
     truth = cap.labels > 0
@@ -416,7 +416,7 @@ def test_the_same_seed_gives_the_same_plane_every_run(fresh_captures):
     # Open3D's RANSAC stops early by default, and which of its threads' planes wins then depends
     # on their timing: with these two seeds, these points gave one of two planes from run to run
     # (4 and 6 of 10 runs each, 2 cores), and a few pixels of the depth mask changed with it
-    from rebarlib import depth_to_points
+    from rebarlib.capture import depth_to_points
 
     cap = fresh_captures[1]
     pts = depth_to_points(cap.depth_mm, cap.intrinsics).points
