@@ -248,8 +248,10 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
     out = {"k": COVERAGE_K, "inputs": inp.to_dict(), "working_depth_mm": round(z, 1), "tilt_deg": round(tilt, 2),
            "measurements": {}}
     specs = {"cover": dict(envelope_mm=env("lower"), rib_mm=rib("lower")),
+             # the assumed shape moves both lattices' undersides the same way, in proportion to
+             # their rib heights: in their difference only the difference of the rib heights is left
              "layer_distance": dict(envelope_mm=math.hypot(env("lower"), env("upper")),
-                                    rib_mm=math.hypot(rib("lower"), rib("upper"))),
+                                    rib_mm=abs(rib("lower") - rib("upper"))),
              "upper_top": {}}
     # what the camera sees of an underside is the bar's top: the depth errors act on the height
     # of that top, the assumed envelope is subtracted after (upper top: seen as it is)

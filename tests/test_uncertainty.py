@@ -180,6 +180,9 @@ def test_apply_budget_keeps_every_value_and_records_every_term(paper_design):
     ld = {t["term"]: t["contribution_mm"] for t in ub["measurements"]["layer_distance"]["terms"]}
     cv = {t["term"]: t["contribution_mm"] for t in cover["terms"]}
     assert ld["depth scale"] == pytest.approx(cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3)
+    # the assumed shape moves both lattices' undersides alike: only the rib heights' difference
+    # (Φ14 against Φ12) is left in the layer distance
+    assert 0 < ld["assumed bar shape"] < 0.25 * cv["assumed bar shape"]
     # spacings: random from the two axes, plus the systematic terms
     u_sp = res.spacings["uncertainty_mm"].to_numpy()
     assert np.all(u_sp > math.hypot(0.1, 0.2))
