@@ -701,6 +701,10 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
                      "decision": decision or (status if status in (WITHIN, BEYOND, BEYOND_MAX) else None),
                      "risk": risk})
 
+    # a bar is checked over at least the length a bar position needs to be judged in view
+    from ._counts import CountParams
+
+    in_view_mm = CountParams.min_evidence_mm
     bar_rows = []
     for r in res:
         cap = str(r["capture"])
@@ -729,6 +733,15 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
                 continue
             nominal = _num(rec.get("nominal_mm"))
             ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
+            seen_mm = _num(rec.get("visible_length_mm"))
+            if has_diam and not ok and seen_mm is not None and seen_mm < in_view_mm:
+                # a bar the capture shows over less than a bar position needs to be judged in view
+                # (docs/verdicts.md): outside what this capture inspects, as such a position is
+                add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
+                    reason=f"not in view: only {seen_mm:.0f} mm of it in the capture (a bar is checked "
+                           f"over at least {in_view_mm:.0f} mm); "
+                           + (rec.get("diameter_reason") or "diameter not measured"))
+                continue
             reason = "" if ok else (rec.get("diameter_reason") or
                                     ("diameter stage not run" if not has_diam else "diameter not measured"))
             # the width's standard uncertainty (refined); the paper's vote has none: its spread
@@ -781,9 +794,14 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
     notes = []
     if thickness is None:
         notes.append("The design gives no slab thickness: the top cover is not checked.")
-    n_hidden = int((cp["status"] == EXCLUDED).sum())
+    excluded = cp[cp["status"] == EXCLUDED]
+    n_view = int(excluded["reason"].astype(str).str.startswith("not in view").sum())
+    n_hidden = len(excluded) - n_view
     if n_hidden:
-        notes.append(f"{n_hidden} bar(s) hidden under crossing bars are excluded from the bar-size check.")
+        notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
+    if n_view:
+        notes.append(f"{n_view} bar(s) with less than {in_view_mm:.0f} mm in view are excluded from the "
+                     "bar-size check (another capture shows them).")
     return Acceptance(checkpoints=cp, items=items, bars=_bar_verdicts(bar_rows, cp), verdict=verdict,
                       reasons=tuple(reasons), tolerances=tol, results=tuple(res),
                       missing_captures=missing, notes=tuple(notes))
@@ -874,7 +892,8 @@ def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):
 
 
 def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
-    """pass / fail / incomplete / not checked / hidden per bar, from the checkpoints that name it.
+    """pass / fail / incomplete / not checked / hidden per bar, from the checkpoints that name it
+    (a bar with too little of it in view for its size to be checked: "not checked").
 
     A bar whose own checkpoint (its size) could not be measured is "incomplete" even where its
     spacings are within tolerance, not "pass": an acceptance sheet must not show a bar as passed
@@ -894,14 +913,19 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
             ids = what[5:].split("-")
         else:
             continue
+        status = rec.status
+        if status == EXCLUDED and str(rec.reason).startswith("not in view"):
+            status = "not in view"
         for b in ids:
-            per_bar.setdefault((rec.capture, b), []).append(rec.status)
+            per_bar.setdefault((rec.capture, b), []).append(status)
     for b in bar_rows:
         st = per_bar.get((b["capture"], str(b["bar_id"])), [])
         if any(s in (BEYOND, BEYOND_MAX) for s in st):
             v = "fail"
         elif EXCLUDED in st:
             v = "hidden"
+        elif "not in view" in st:  # its size is for another capture to check
+            v = "not checked"
         elif WITHIN in st:
             v = INCOMPLETE if (b["capture"], str(b["bar_id"])) in own_open else PASS
         else:

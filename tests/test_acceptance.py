@@ -218,6 +218,31 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert acc.verdict == "rejected"
 
 
+def test_a_bar_barely_in_view_is_left_to_another_capture_not_left_open():
+    # under 150 mm of a bar in view (what a bar position needs to be judged in view) and no size:
+    # excluded ("not checked"); the same with 400 mm in view keeps the item open; a short bar
+    # that was sized is judged as any other
+    def bars(seen_mm, nominal=None):
+        return [{"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
+                 "diameter_status": "measured", "visible_length_mm": 800.0},
+                {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": nominal,
+                 "diameter_status": "measured" if nominal else "not measured", "visible_length_mm": seen_mm,
+                 "diameter_reason": "" if nominal else "too few clean cross-sections (0 of 25; most lost at "
+                                                       "the image border)"}]
+    acc = evaluate([_result(bars=bars(60.0))], _design())
+    row = acc.items.set_index("item").loc["bar_size_lower_bottom"]
+    assert (row["verdict"], row["excluded"], row["measured"]) == ("pass", 1, 1)
+    cp = acc.checkpoints[acc.checkpoints["what"] == "bar 2"].iloc[0]
+    assert cp["reason"].startswith("not in view: only 60 mm of it in the capture")
+    assert acc.bars.set_index("bar_id")["verdict"][2] == "not checked"
+    assert any("less than 150 mm in view" in n for n in acc.notes)
+    assert not any("hidden" in n for n in acc.notes)
+    acc = evaluate([_result(bars=bars(400.0))], _design())
+    assert _verdict(acc, "bar_size_lower_bottom") == "incomplete"
+    acc = evaluate([_result(bars=bars(60.0, nominal=12.0))], _design())
+    assert _verdict(acc, "bar_size_lower_bottom") == "fail"
+
+
 def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
     # bar "lb0" has a spacing within tolerance but its size could not be measured: not "pass"
     bars = [{"bar_id": "lb0", "layer": "lower", "level": "bottom", "nominal_mm": None,
