@@ -42,7 +42,7 @@ from rebarlib.synth import Appearance  # noqa: E402
 def _sides(info, prm):
     """Quantiles of each side's extent about a line through the section centres, and each edge's
     rib periodicity ``(pitch, p)``; None with too few two-edged sections."""
-    s, lo, hi = info["edges"]
+    s, lo, hi = info.edges
     good = np.isfinite(lo) & np.isfinite(hi)
     if good.sum() < prm.rib_min_sections:
         return None
@@ -51,7 +51,7 @@ def _sides(info, prm):
     right, left = hi - line, line - lo
     width = float(np.median(hi - lo))
     out = {"core": float(np.percentile(right, 25) + np.percentile(left, 25)),
-           "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left)) / info["px_mm"]}
+           "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left)) / info.px_mm}
     for k, e in (("lo", lo), ("hi", hi)):
         out[k] = _rib_periodicity(s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width)
     return out
@@ -92,7 +92,7 @@ def main() -> None:
             D._refined_bar = orig
         truth = {b["id"]: b for b in cap.truth["bars"]}
         for j, tid in enumerate(ids):
-            sd = _sides(kept[j][3], prm) if tid >= 0 and j in kept else None
+            sd = _sides(kept[j], prm) if tid >= 0 and j in kept else None
             if sd is None:
                 continue
             true = truth[int(tid)]["diameter_mm"]

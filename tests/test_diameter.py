@@ -2,6 +2,7 @@
 against hand-computed cases."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -12,6 +13,7 @@ from rebarlib.diameter import (BAR_COLUMNS, DIAMETER_COLUMNS, bars_from_truth, b
                                cross_section_direction, diameter_region, imaginary_plane,
                                intersect_rays_plane, measure_diameters, pixels_in_region)
 from rebarlib.diameter.barsizes import bar_system, observed_width_mm, snap_diameter
+from rebarlib.diameter.reading import BarReading
 from rebarlib.synth import Appearance, Deviations, SensorModel, synth_capture
 
 GEOM_TOL_MM = 1e-9  # hand-computed geometry is exact up to rounding
@@ -176,39 +178,40 @@ def test_colour_calibration_by_hand():
     prm = _RefinedParams()
     mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
     e = [0.0, 0.0, 0.2, -0.2, 0.4, -0.4]
-    results = [(np.full(prm.min_sections, m), None, None,
-                {"colour_width_mm": m - 0.5 + ei, "px_mm": 0.5}) for m, ei in zip(mask, e)]
+    results = [BarReading(widths=np.full(prm.min_sections, m),
+                **{"colour_width_mm": m - 0.5 + ei, "px_mm": 0.5}) for m, ei in zip(mask, e)]
     g = imaginary_plane([0.0, 0.0, 500.0], [100.0, 0.0, 500.0])
     prepared = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, 12.0, 13.9) for k in range(6)]
     _colour_calibration(results, prepared, prm)
     s_m, s_c = 1.4826 * 0.1, 1.4826 * 0.35
     for r in results:
-        assert r[3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
-        assert r[3]["colour_weight"] == pytest.approx(s_m ** 2 / (s_m ** 2 + s_c ** 2), abs=1e-9)
-        assert r[3]["colour_spread_mm"] == pytest.approx(math.hypot(s_m, s_c), abs=1e-9)
+        assert r.colour_offset_px == pytest.approx(-1.0, abs=GEOM_TOL_MM)
+        assert r.colour_weight == pytest.approx(s_m ** 2 / (s_m ** 2 + s_c ** 2), abs=1e-9)
+        assert r.colour_spread_mm == pytest.approx(math.hypot(s_m, s_c), abs=1e-9)
     # the mask's error per bar as the capture shows it: the same between-bar spread
     _mask_between_spread(results, prepared, prm)
-    assert results[0][3]["mask_between_mm"] == pytest.approx(s_m, abs=1e-9)
+    assert results[0].mask_between_mm == pytest.approx(s_m, abs=1e-9)
     # without design sizes the bars' true widths are unknown: offset learnt, weight 1
     unsized = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, math.nan, 13.9) for k in range(6)]
     _colour_calibration(results, unsized, prm)
-    assert results[0][3]["colour_offset_px"] == pytest.approx(-1.0, abs=GEOM_TOL_MM)
-    assert results[0][3]["colour_weight"] == 1.0
+    assert results[0].colour_offset_px == pytest.approx(-1.0, abs=GEOM_TOL_MM)
+    assert results[0].colour_weight == 1.0
     # too few bars to learn from: no offset, the whole disagreement counts (weight 1)
     few = results[:prm.colour_offset_bars - 1]
     _colour_calibration(few, prepared, prm)
-    assert few[0][3]["colour_offset_px"] == 0.0 and few[0][3]["colour_weight"] == 1.0
+    assert few[0].colour_offset_px == 0.0 and few[0].colour_weight == 1.0
 
     # a Φ12 bar (envelope 13.9) whose mask reads 14.0 mm: colour edges within the capture's usual
     # disagreement leave it measured; 3 mm beyond it (the mask is off on this bar) make it
     # ambiguous, not measured
-    info = dict(px_mm=0.5, centre_mm=0.0, depth_width_mm=math.nan, depth_spread_mm=math.nan, depth_points=0,
-                z_mm=500.0, colour_offset_px=-1.0, colour_weight=s_m ** 2 / (s_m ** 2 + s_c ** 2),
-                colour_spread_mm=math.hypot(s_m, s_c), mask_between_mm=s_m, phase_sweep_px=0.0)
+    info = BarReading(px_mm=0.5, centre_mm=0.0, depth_width_mm=math.nan, depth_spread_mm=math.nan,
+                      depth_points=0, z_mm=500.0, colour_offset_px=-1.0,
+                      colour_weight=s_m ** 2 / (s_m ** 2 + s_c ** 2),
+                      colour_spread_mm=math.hypot(s_m, s_c), mask_between_mm=s_m, phase_sweep_px=0.0)
     kw = dict(system="GB1499.2", deformed=True, use_cloud=False)
-    ok = _refined_decision(14.0, 0.2, 100, dict(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw)
+    ok = _refined_decision(14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw)
     assert ok["diameter_status"] == "measured" and ok["nominal_mm"] == 12.0 and ok["confidence"] >= 0.9
-    off = _refined_decision(14.0, 0.2, 100, dict(info, colour_width_mm=14.0 - 0.5 - 3.0), False, prm, **kw)
+    off = _refined_decision(14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 - 3.0), False, prm, **kw)
     assert off["diameter_status"] == "not measured" and "ambiguous" in off["diameter_reason"]
 
 
@@ -407,15 +410,15 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
 
     prm = _RefinedParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
-    base = dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
-                mask_between_mm=0.3, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
-                circle_width_mm=math.nan, circle_sigma_mm=math.nan, circle_between_mm=math.nan)
+    base = BarReading(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                      mask_between_mm=0.3, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                      circle_width_mm=math.nan, circle_sigma_mm=math.nan, circle_between_mm=math.nan)
     # A Φ10 bar (envelope 11.6) seen from one side only, its axis placed with the Φ10 radius but
     # off across the bar: the width from its edge to the axis (9.6 mm) and the cloud's echo
     # (10.0 mm) drift together and both read Φ8. Their agreement confirms nothing: the mask
     # gives another size than the one the axis was placed with, so the bar is not measured and
     # the inspector is told which size it may be.
-    one = dict(base, one_sided_share=1.0, depth_width_mm=10.0)
+    one = replace(base, one_sided_share=1.0, depth_width_mm=10.0)
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, **kw)
     assert r["diameter_status"] == "not measured"
     assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
@@ -432,30 +435,30 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, covered=0.3, **kw)
     assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
     # the same bar with the axis where it belongs is measured as Φ10
-    r = _refined_decision(11.5, 0.2, 100, dict(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw)
+    r = _refined_decision(11.5, 0.2, 100, replace(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0
     # A mask width between Φ14 (16.2) and Φ16 (18.4), nearer Φ14, with a large error per bar;
     # the circle fit reads 19.1 ± 1.1 mm. Their weighted mean would snap to Φ16, but the circle's
     # errors have heavy tails: it may settle the mask's nearer size, never overturn it.
-    amb = dict(base, depth_width_mm=16.2, mask_between_mm=1.4, circle_width_mm=19.14, circle_sigma_mm=1.08,
+    amb = replace(base, depth_width_mm=16.2, mask_between_mm=1.4, circle_width_mm=19.14, circle_sigma_mm=1.08,
                circle_between_mm=1.08)
     r = _refined_decision(16.95, 0.3, 150, amb, False, prm, assumed_mm=16.2 / 2, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
     # a circle that agrees with the mask's nearer size settles it (the mask alone, σ 1.0 mm, is
     # still ambiguous: confidence 0.65)
-    r = _refined_decision(16.95, 0.3, 150, dict(amb, circle_width_mm=16.3, mask_between_mm=1.0), False, prm,
+    r = _refined_decision(16.95, 0.3, 150, replace(amb, circle_width_mm=16.3, mask_between_mm=1.0), False, prm,
                           assumed_mm=16.2 / 2, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
-def _veto_bar(**changes) -> dict:
-    """A bar's info for ``_refined_decision`` in veto mode (its axis placed with an assumed
+def _veto_bar(**changes) -> BarReading:
+    """A bar's reading for ``_refined_decision`` in veto mode (its axis placed with an assumed
     radius), 550 mm away, its cloud width echoing Φ14 (16.2), no independent width; ``changes``
     override or add entries."""
-    return dict(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
-                mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
-                depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
-                circle_between_mm=math.nan, **changes)
+    return BarReading(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
+                      mask_between_mm=0.6, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
+                      depth_width_mm=16.2, circle_width_mm=math.nan, circle_sigma_mm=math.nan,
+                      circle_between_mm=math.nan, **changes)
 
 
 def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conflict():
@@ -475,32 +478,32 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     assert r["confidence"] < prm.min_confidence and math.isnan(r.get("nominal_mm", math.nan))
     # the bar's top 16.1 ± 0.6 mm above its supports settles it: the weighted mean of
     # 15.25 (σ 0.6) and 16.1 (σ 0.6) is 15.675 ± 0.42, Φ14
-    stack = dict(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
+    stack = replace(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
     r = _refined_decision(15.25, 0.3, 150, stack, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+stack"
     assert r["width_used_mm"] == pytest.approx(15.675, abs=0.01)
     assert "16.1 ± 0.6 mm above the bars it rests on" in r["diameter_reason"]
     # without its between-bar spread (too few bars to learn it from) it is not used
-    r = _refined_decision(15.25, 0.3, 150, dict(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, replace(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     # A mask width nearer Φ12 (14.9, σ about 0.6: confidence about 0.7) than the Φ14 the axis was placed
     # with: the mask and the assumed size are in conflict, and the stack, which depends on
     # neither, arbitrates alone: 16.4 ± 0.6 mm is Φ14. It is not averaged with the mask (one of
     # the two in conflict is biased).
-    r = _refined_decision(14.9, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(14.9, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
     assert r["width_used_mm"] == pytest.approx(16.4)
     assert "mask width 14.9 mm is nearest Φ12, the axis was fitted with the radius of Φ14" in r["diameter_reason"]
     # ... but it never silences a mask clear about another size than designed (14.2: Φ12 at about
     # 0.97): that is the alert a bar of the wrong size gives, and one width (a bar lifted off
     # its supports by a tie reads a size up) does not overrule it
-    r = _refined_decision(14.2, 0.3, 150, dict(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(14.2, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     assert r["diameter_reason"].startswith("possible wrong size") and "gives Φ12" in r["diameter_reason"]
     # it gives the mask's size where it agrees, also for a bar seen from one edge (whose mask
     # width slides with an axis placed with the assumed radius, so the mask alone never could):
     # a Φ16 bar (envelope 18.4) in a Φ14 design
-    one = dict(stack, one_sided_share=1.0, stack_width_mm=17.9, stack_sigma_mm=0.75, stack_between_mm=0.75)
+    one = replace(stack, one_sided_share=1.0, stack_width_mm=17.9, stack_sigma_mm=0.75, stack_between_mm=0.75)
     r = _refined_decision(18.1, 0.3, 150, one, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 16.0 and r["width_source"] == "stack"
     # but not where the mask only leans to that size (17.5 mm, about 0.65): a size other than
@@ -511,33 +514,33 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     # (σ 1.2 mm, more than the smaller half step from Φ16, 1.05 mm) or one that is not clear
     # (17.3 mm, half-way between Φ14 and Φ16) settles nothing
     for change in (dict(stack_width_mm=20.5), dict(stack_sigma_mm=1.2), dict(stack_width_mm=17.3)):
-        r = _refined_decision(18.1, 0.3, 150, dict(one, **change), False, prm, assumed_mm=8.1, **kw)
+        r = _refined_decision(18.1, 0.3, 150, replace(one, **change), False, prm, assumed_mm=8.1, **kw)
         assert r["diameter_status"] == "not measured", change
     # A bar seen from one edge whose mask gives the assumed size (15.6 mm, nearer Φ14) and whose
     # cloud reads 19.0 mm, beyond twice their σ: the two disagree over where the bar's surface
     # lies, not over its size, and a width from one edge cannot be settled with the mask (it
     # slides with the axis). The stack settles it alone, and the reason says what disagreed.
-    far = dict(one, depth_width_mm=19.0, stack_width_mm=16.3, stack_sigma_mm=0.6, stack_between_mm=0.6)
+    far = replace(one, depth_width_mm=19.0, stack_width_mm=16.3, stack_sigma_mm=0.6, stack_between_mm=0.6)
     r = _refined_decision(15.6, 0.3, 150, far, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
     assert "mask width 15.6 mm and its point cloud, which echoes the radius" in r["diameter_reason"]
     # a circle that settles the mask's size is not enough where the stack contradicts it
-    both = dict(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
+    both = replace(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
     r = _refined_decision(15.25, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    r = _refined_decision(15.25, 0.3, 150, dict(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
+    r = _refined_decision(15.25, 0.3, 150, replace(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["width_source"] == "mask+stack+circle"
     # a stack height that agrees but could not have told Φ14 from Φ12 or Φ16 confirms nothing:
     # σ 1.2 mm is more than the smaller half step from Φ14 (1.10 mm to Φ16's 18.4) ...
-    r = _refined_decision(15.25, 0.3, 150, dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm,
+    r = _refined_decision(15.25, 0.3, 150, replace(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm,
                           assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
     # ... and so is a circle of σ 5 mm beside it (together σ 1.17 mm); a circle of σ 2 mm beside
     # it brings them to 1.03 mm, within the half step: settled
-    weak = dict(stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0)
-    r = _refined_decision(15.25, 0.3, 150, dict(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
+    weak = replace(stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0)
+    r = _refined_decision(15.25, 0.3, 150, replace(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    r = _refined_decision(15.25, 0.3, 150, dict(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm,
+    r = _refined_decision(15.25, 0.3, 150, replace(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm,
                           assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
 
@@ -556,8 +559,8 @@ def test_circle_calibration_by_hand():
     masks = [16.2, 16.3, 16.1, 16.2, 16.25, 16.15, 18.4, 15.2]
     e = [0.0, 0.3, -0.3, 0.1, -0.1, 0.2, 0.0, 5.0]
     env = [16.2] * 6 + [18.4, 16.2]
-    results = [(np.full(prm.min_sections, m), None, None,
-                {"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05})
+    results = [BarReading(widths=np.full(prm.min_sections, m),
+                **{"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05})
                for m, v, ei in zip(masks, env, e)]
     _width_calibration(results, "circle", prm, system="GB1499.2", deformed=True)
     dev = np.array(e[:7])
@@ -565,13 +568,13 @@ def test_circle_calibration_by_hand():
     chi2 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
     sigma = math.sqrt(np.sum((dev - np.median(dev)) ** 2) / chi2)
     for r, v, ei in zip(results, env, e):
-        assert r[3]["circle_offset_mm"] == pytest.approx(1.4 + np.median(dev), abs=1e-9)
-        assert r[3]["circle_width_mm"] == pytest.approx(v + ei - np.median(dev), abs=1e-9)
-        assert r[3]["circle_sigma_mm"] == pytest.approx(sigma, abs=1e-9)
+        assert r.circle_offset_mm == pytest.approx(1.4 + np.median(dev), abs=1e-9)
+        assert r.circle_width_mm == pytest.approx(v + ei - np.median(dev), abs=1e-9)
+        assert r.circle_sigma_mm == pytest.approx(sigma, abs=1e-9)
     # too few bars to learn from: the circle is not used (its spread unknown)
-    few = [(np.full(prm.min_sections, 16.2), None, None, {"circle_width_mm": 17.6, "circle_sigma_mm": 0.05})] * 3
+    few = [BarReading(widths=np.full(prm.min_sections, 16.2), **{"circle_width_mm": 17.6, "circle_sigma_mm": 0.05})] * 3
     _width_calibration(few, "circle", prm, system="GB1499.2", deformed=True)
-    assert math.isnan(few[0][3]["circle_between_mm"])
+    assert math.isnan(few[0].circle_between_mm)
 
 
 def test_level_calibration_by_hand():
@@ -590,7 +593,7 @@ def test_level_calibration_by_hand():
     tops = [25 + 16.2 + e for e in e_lo] + [100 + 13.9 + e for e in e_up] + [60 + 11.6]
     masks = [16.2] * 5 + [13.9] * 3 + [11.6]
     groups = [("lower", "bottom")] * 5 + [("upper", "bottom")] * 3 + [("upper", "top")]
-    results = [(np.full(prm.min_sections, m), None, None, {"level_width_mm": t, "level_sigma_mm": 0.0})
+    results = [BarReading(widths=np.full(prm.min_sections, m), **{"level_width_mm": t, "level_sigma_mm": 0.0})
                for m, t in zip(masks, tops)]
     _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=groups)
     res = np.concatenate([np.array(e_lo) - np.median(e_lo), np.array(e_up) - np.median(e_up)])
@@ -598,22 +601,22 @@ def test_level_calibration_by_hand():
     chi2 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
     sigma = math.sqrt(np.sum(res ** 2) / chi2)
     for r, e in zip(results[:5], e_lo):
-        assert r[3]["level_offset_mm"] == pytest.approx(25 + np.median(e_lo), abs=1e-9)
-        assert r[3]["level_width_mm"] == pytest.approx(16.2 + e - np.median(e_lo), abs=1e-9)
-        assert r[3]["level_between_mm"] == pytest.approx(sigma, abs=1e-9)
-        assert r[3]["level_sigma_mm"] == pytest.approx(sigma * math.sqrt(1 + 1 / 5), abs=1e-9)
+        assert r.level_offset_mm == pytest.approx(25 + np.median(e_lo), abs=1e-9)
+        assert r.level_width_mm == pytest.approx(16.2 + e - np.median(e_lo), abs=1e-9)
+        assert r.level_between_mm == pytest.approx(sigma, abs=1e-9)
+        assert r.level_sigma_mm == pytest.approx(sigma * math.sqrt(1 + 1 / 5), abs=1e-9)
     for r in results[5:8]:
-        assert r[3]["level_offset_mm"] == pytest.approx(100 + np.median(e_up), abs=1e-9)
-        assert r[3]["level_sigma_mm"] == pytest.approx(sigma * math.sqrt(1 + 1 / 3), abs=1e-9)
+        assert r.level_offset_mm == pytest.approx(100 + np.median(e_up), abs=1e-9)
+        assert r.level_sigma_mm == pytest.approx(sigma * math.sqrt(1 + 1 / 3), abs=1e-9)
     # one clear bar is no level to learn from: its width is not used
-    assert math.isnan(results[8][3]["level_between_mm"])
+    assert math.isnan(results[8].level_between_mm)
     # too few bars over all the levels for a spread (5 bars in 2 levels: k = 3, under the 4 that
     # 5 bars give one level): none is used
-    results = [(np.full(prm.min_sections, 16.2), None, None, {"level_width_mm": 41.2 + e, "level_sigma_mm": 0.0})
-               for e in e_lo[:3]] + [(np.full(prm.min_sections, 13.9), None, None,
-                                      {"level_width_mm": 113.9 + e, "level_sigma_mm": 0.0}) for e in e_up[:2]]
+    results = [BarReading(widths=np.full(prm.min_sections, 16.2), **{"level_width_mm": 41.2 + e, "level_sigma_mm": 0.0})
+               for e in e_lo[:3]] + [BarReading(widths=np.full(prm.min_sections, 13.9),
+                                      **{"level_width_mm": 113.9 + e, "level_sigma_mm": 0.0}) for e in e_up[:2]]
     _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=[0] * 3 + [1] * 2)
-    assert all(math.isnan(r[3]["level_between_mm"]) for r in results)
+    assert all(math.isnan(r.level_between_mm) for r in results)
 
 
 def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
@@ -634,13 +637,13 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     # though the axis was placed with the Φ12 radius; its top reads 12.6 ± 0.5. The width from
     # the edge to that axis slides with the axis, which was placed with the assumed radius: it
     # cannot overturn the assumed size, whatever agrees with it. Not measured; the reason names Φ10.
-    one = dict(base, one_sided_share=1.0, depth_width_mm=13.5, level_width_mm=12.6, level_sigma_mm=0.5,
+    one = replace(base, one_sided_share=1.0, depth_width_mm=13.5, level_width_mm=12.6, level_sigma_mm=0.5,
                mask_between_mm=0.3)
     r = _refined_decision(11.8, 0.25, 130, one, False, prm, assumed_mm=6.95, **kw)
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("possible wrong size")
     assert "Φ10" in r["diameter_reason"]
     # between its two edges the same widths overturn it: a bar of another size than designed
-    r = _refined_decision(11.8, 0.25, 130, dict(one, one_sided_share=0.0), False, prm, assumed_mm=6.95, **kw)
+    r = _refined_decision(11.8, 0.25, 130, replace(one, one_sided_share=0.0), False, prm, assumed_mm=6.95, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0 and r["width_source"] == "mask+level"
 
 
@@ -1091,7 +1094,7 @@ def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s
 
     row = {"nominal_mm": crest_size, "diameter_status": "measured", "confidence": 0.95, "width_sigma_mm": 0.5,
            "diameter_reason": ""}
-    _check_core(row, {"core_mm": core_mm, "crest_mm": crest_size + 1.5}, _RefinedParams(), system="GB1499.2")
+    _check_core(row, BarReading(core_mm=core_mm, crest_mm=crest_size + 1.5), _RefinedParams(), system="GB1499.2")
     if expected is None:
         assert row["diameter_status"] == "measured" and row["nominal_mm"] == crest_size
     else:
@@ -1112,7 +1115,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
         rows.append({"diameter_status": "measured", "nominal_mm": design, "design_diameter_mm": design,
                      "diameter_reason": "", "width_used_mm": 13.9, "width_sigma_mm": 0.4, "width_source": "mask",
                      "confidence": 0.95, "matches_design": True})
-        results.append((None, None, None, {"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": length_mm,
+        results.append(BarReading(**{"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": length_mm,
                                            "mask_width_mm": 13.9}))
         keys.append(design)
     rows[-1].update(diameter_status="not measured", nominal_mm=math.nan, confidence=0.6, matches_design=None,
@@ -1203,7 +1206,7 @@ def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smal
     def case(p_value=1e-9, source="mask"):  # bar 1 (Φ14 by its widths) has the pitch tried
         rows, results, _, _, prm = _pitch_case([], [9.0, pitch], 8.0)
         for r in results:
-            r[3]["rib_p"] = p_value  # 10⁻⁹: as clear as a capture needs to show ribs (< 10⁻⁶)
+            r.rib_p = p_value  # 10⁻⁹: as clear as a capture needs to show ribs (< 10⁻⁶)
         rows[-1].update(diameter_status="measured", nominal_mm=12.0)
         rows[-1].pop("_pair")
         rows[1]["width_source"] = source
@@ -1240,9 +1243,9 @@ def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
 
     def case(p12, p14):
         rows, results, keys, shadows, prm = _pitch_case(p12, p14, 9.02)
-        pitches = [r[3]["rib_pitch_mm"] for r in results]
+        pitches = [r.rib_pitch_mm for r in results]
         for r in results:
-            r[3]["rib_p"] = 1.0
+            r.rib_p = 1.0
         return rows, results, keys, shadows, prm, (lambda i: (pitches[i], pitches[i] / 600))
 
     on_table = ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98])
@@ -1338,7 +1341,7 @@ def test_pitch_table_lets_a_design_group_hold_bars_of_another_size(pitches, size
 
 
 def _edges_info(s, pitch_lo, pitch_hi, *, shift=0.5, noise=0.15, seed=0):
-    """A bar's ``info["edges"]``: its two edges at ±7 mm along ``s``, each with rib crests 1 mm
+    """A bar's ``info.edges``: its two edges at ±7 mm along ``s``, each with rib crests 1 mm
     high over 30 % of its own pitch, the high side's set off by ``shift`` of a pitch, and
     N(0, ``noise``) mm on each edge (None for a pitch: no ribs on that side)."""
     rng = np.random.default_rng(seed)
@@ -1348,7 +1351,7 @@ def _edges_info(s, pitch_lo, pitch_hi, *, shift=0.5, noise=0.15, seed=0):
 
     lo = -7.0 - crests(pitch_lo, 0.0) + rng.normal(0, noise, len(s))
     hi = 7.0 + crests(pitch_hi, shift) + rng.normal(0, noise, len(s))
-    return {"edges": (s, lo, hi)}
+    return BarReading(edges=(s, lo, hi))
 
 
 def test_edge_pitch_reads_the_ribs_a_width_hides():
@@ -1361,7 +1364,7 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     prm = _RefinedParams()
     s = np.arange(0, 600, 2.2)
     info = _edges_info(s, 9.0, 9.0)
-    lo, hi = info["edges"][1:]
+    lo, hi = info.edges[1:]
     pitch_w, p_w = _rib_periodicity(s, hi - lo)
     assert not (p_w < prm.rib_bar_p and abs(pitch_w - 9.0) < 0.5)
     pitch, resolution = _edge_pitch(info, prm)
@@ -1369,7 +1372,7 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     # an axis askew across the bar (0.6°) tilts each edge along it by 6 mm over the bar: each
     # edge is read against a line, not a level (against a level, its variance would swamp the ribs)
     tilt = 0.01 * s
-    assert _edge_pitch({"edges": (s, lo + tilt, hi + tilt)}, prm)[0] == pytest.approx(9.0, abs=0.05)
+    assert _edge_pitch(BarReading(edges=(s, lo + tilt, hi + tilt)), prm)[0] == pytest.approx(9.0, abs=0.05)
 
 
 @pytest.mark.parametrize("pitch_lo, pitch_hi, why", [
@@ -1418,7 +1421,7 @@ def _striped_bar(pitch_mm, *, stripes=40.0, noise=3.0, seed=0):
     bar = _prepare(_bars_along_u((0.0, z0)), None, "GB1499.2", True, 2 * r)[0]
     s = np.arange(0.0, 2 * half, 3 * z0 / K.fx)  # sections 3 px apart, both edges at the silhouette
     edge = r * z0 / math.sqrt(z0 * z0 - r * r)
-    return bar, {"edges": (s, np.full(len(s), -edge), np.full(len(s), edge))}, gray
+    return bar, BarReading(edges=(s, np.full(len(s), -edge), np.full(len(s), edge))), gray
 
 
 def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
@@ -1435,7 +1438,7 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
         bar, info, gray = _striped_bar(pitch)
         read, resolution = _face_pitch(bar, info, gray, K, prm)
         assert read == pytest.approx(pitch, abs=0.06), (pitch, read)
-        assert resolution == pytest.approx(read / (2 * np.ptp(info["edges"][0])))
+        assert resolution == pytest.approx(read / (2 * np.ptp(info.edges[0])))
 
 
 @pytest.mark.parametrize("kw, why", [
@@ -1450,17 +1453,17 @@ def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
     bar, info, gray = _striped_bar(**kw)
     assert _face_pitch(bar, info, gray, K, _RefinedParams()) is None, why
     # nor with too few clean sections to read along
-    s, lo, hi = info["edges"]
+    s, lo, hi = info.edges
     bar, info, gray = _striped_bar(9.0)
-    assert _face_pitch(bar, {"edges": (s[:10], lo[:10], hi[:10])}, gray, K, _RefinedParams()) is None
+    assert _face_pitch(bar, BarReading(edges=(s[:10], lo[:10], hi[:10])), gray, K, _RefinedParams()) is None
 
 
 def _one_sided(info):
     """The striped bar seen from its low edge only: no section with both edges, each section's
     one edge (the other side under a bar over it, or beyond the image border)."""
-    s, lo, hi = info["edges"]
+    s, lo, hi = info.edges
     nan = np.full(len(s), np.nan)
-    return {"edges": (s, nan, nan), "one_edges": (s, lo, nan)}
+    return BarReading(edges=(s, nan, nan), one_edges=(s, lo, nan))
 
 
 def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
@@ -1479,8 +1482,9 @@ def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
     bar, info, gray = _striped_bar(9.0, stripes=0.0)
     assert _face_pitch(bar, _one_sided(info), gray, K, prm) is None
     bar, info, gray = _striped_bar(9.0)
-    s, lo, _ = _one_sided(info)["one_edges"]
-    few = {"edges": (s[:10], lo[:10] * np.nan, lo[:10] * np.nan), "one_edges": (s[:10], lo[:10], lo[:10] * np.nan)}
+    s, lo, _ = _one_sided(info).one_edges
+    few = BarReading(edges=(s[:10], lo[:10] * np.nan, lo[:10] * np.nan),
+                     one_edges=(s[:10], lo[:10], lo[:10] * np.nan))
     assert _face_pitch(bar, few, gray, K, prm) is None
 
 
@@ -1524,7 +1528,7 @@ def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_non
 
     rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
                                                     9.02)
-    results[-1][3].update(rib_pitch_mm=math.nan, rib_p=1.0)
+    results[-1].rib_pitch_mm, results[-1].rib_p = math.nan, 1.0
     asked = []
 
     def face(i):
@@ -1539,7 +1543,7 @@ def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_non
     # a face at 8.5 mm, between the two spacings, settles nothing
     rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98],
                                                     9.02)
-    results[-1][3].update(rib_pitch_mm=math.nan, rib_p=1.0)
+    results[-1].rib_pitch_mm, results[-1].rib_p = math.nan, 1.0
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=lambda i: (8.5, 8.5 / 600))
     assert rows[-1]["diameter_status"] == "not measured"
 
@@ -1556,7 +1560,7 @@ def _colour_case(bars, *, seed=0):
     for size, pitch in bars:
         crest = np.zeros(len(s)) if pitch is None else 1.2 * (np.mod(s / pitch, 1.0) < 0.3)
         cw = observed_width_mm(size) - 1.2 + crest + rng.normal(0, 0.3, len(s))
-        results.append((None, None, None, {"colour_widths": (s, cw)}))
+        results.append(BarReading(**{"colour_widths": (s, cw)}))
         keys.append(size)
     return results, keys
 

@@ -33,14 +33,14 @@ def _two_sided(info) -> bool:
     # whether a bar's width was measured between its two edges only (its info): a width from one
     # edge and the axis carries the axis's error too, so the capture's calibrations do not learn
     # from it, and it cannot overturn the radius the axis was placed with
-    return info.get("one_sided_share", 0.0) == 0.0
+    return info.one_sided_share == 0.0
 
 
 def _mask_width(result) -> float:
     """A bar's width from its mask: ``mask_width_mm`` where :func:`measure_diameters` set it (the
     envelope from the rib crests where the capture resolves ribs), else its sections' median."""
-    w = result[3].get("mask_width_mm")
-    return float(w) if w is not None else float(np.median(result[0]))
+    w = result.mask_width_mm
+    return float(w) if w is not None else float(np.median(result.widths))
 
 
 def _mask_between_spread(results, prepared, prm) -> None:
@@ -53,10 +53,10 @@ def _mask_between_spread(results, prepared, prm) -> None:
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
     dev = _between_bar_deviations({i: _mask_width(r) for i, r in enumerate(results)
-                                   if len(r[0]) >= prm.min_sections and _two_sided(r[3])}, prepared)
+                                   if len(r.widths) >= prm.min_sections and _two_sided(r)}, prepared)
     s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
     for r in results:
-        r[3]["mask_between_mm"] = s_m
+        r.mask_between_mm = s_m
 
 
 def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> None:
@@ -92,8 +92,8 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
     groups = list(groups) if per_group else [0] * len(results)
     dev = defaultdict(list)
     for r, g in zip(results, groups):
-        cw = r[3][f"{key}_width_mm"]
-        if len(r[0]) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r[3]):
+        cw = getattr(r, f"{key}_width_mm")
+        if len(r.widths) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
         med = _mask_width(r)
         nominal, _ = snap_diameter(med, system=system, deformed=deformed)
@@ -117,11 +117,12 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
         s_c = float(np.sqrt(np.sum(np.square(res)) / chi2_10))
     for r, g in zip(results, groups):
         learnt = g in off and math.isfinite(s_c)
-        r[3][f"{key}_offset_mm"] = off[g] if learnt else 0.0
-        r[3][f"{key}_width_mm"] -= r[3][f"{key}_offset_mm"]
-        r[3][f"{key}_between_mm"] = s_c if learnt else math.nan
+        offset = off[g] if learnt else 0.0
+        setattr(r, f"{key}_offset_mm", offset)
+        setattr(r, f"{key}_width_mm", getattr(r, f"{key}_width_mm") - offset)
+        setattr(r, f"{key}_between_mm", s_c if learnt else math.nan)
         s_g = s_c * math.sqrt(1 + 1 / len(dev[g])) if per_group and learnt else s_c
-        r[3][f"{key}_sigma_mm"] = float(np.fmax(r[3][f"{key}_sigma_mm"], s_g))
+        setattr(r, f"{key}_sigma_mm", float(np.fmax(getattr(r, f"{key}_sigma_mm"), s_g)))
 
 
 def _colour_calibration(results, prepared, prm) -> None:
@@ -141,18 +142,18 @@ def _colour_calibration(results, prepared, prm) -> None:
     whole disagreement counts).
     """
     have = [i for i, r in enumerate(results)
-            if len(r[0]) >= prm.min_sections and math.isfinite(r[3]["colour_width_mm"]) and _two_sided(r[3])]
+            if len(r.widths) >= prm.min_sections and math.isfinite(r.colour_width_mm) and _two_sided(r)]
     off, weight, spread = 0.0, 1.0, 0.0
     if len(have) >= prm.colour_offset_bars:
-        med = {i: float(np.median(results[i][0])) for i in have}
-        off = float(np.median([(results[i][3]["colour_width_mm"] - med[i]) / results[i][3]["px_mm"] for i in have]))
+        med = {i: float(np.median(results[i].widths)) for i in have}
+        off = float(np.median([(results[i].colour_width_mm - med[i]) / results[i].px_mm for i in have]))
         # without a design size the bars' true widths are unknown: no between-bar spread
         dm = _between_bar_deviations(med, prepared)
-        dc = _between_bar_deviations({i: results[i][3]["colour_width_mm"] - off * results[i][3]["px_mm"]
+        dc = _between_bar_deviations({i: results[i].colour_width_mm - off * results[i].px_mm
                                       for i in have}, prepared)
         if len(dm) >= prm.colour_offset_bars:
             s_m, s_c = _robust_sigma(dm), _robust_sigma(dc)
             if s_m + s_c > 0:
                 weight, spread = s_m ** 2 / (s_m ** 2 + s_c ** 2), math.hypot(s_m, s_c)
     for r in results:
-        r[3]["colour_offset_px"], r[3]["colour_weight"], r[3]["colour_spread_mm"] = off, weight, spread
+        r.colour_offset_px, r.colour_weight, r.colour_spread_mm = off, weight, spread

@@ -54,8 +54,8 @@ def _independent_widths(info) -> list:
     :func:`_width_calibration`)."""
     used = []
     for key in _INDEPENDENT:
-        w, sg = info.get(f"{key}_width_mm", math.nan), info.get(f"{key}_sigma_mm", math.nan)
-        learnt = math.isfinite(info.get(f"{key}_between_mm", math.nan))
+        w, sg = getattr(info, f"{key}_width_mm"), getattr(info, f"{key}_sigma_mm")
+        learnt = math.isfinite(getattr(info, f"{key}_between_mm"))
         if math.isfinite(w) and math.isfinite(sg) and sg > 0 and learnt:
             used.append((key, w, sg))
     return used
@@ -163,7 +163,7 @@ def _sized(out, nominal, conf, width, sigma, source, reason, in_shadow, prm) -> 
 
 def _off_centre(info, med, prm) -> bool:
     """Whether a bar's mask runs are centred this far off its axis: one side of the bar is lost."""
-    return abs(info["centre_mm"]) > prm.max_offcentre_rel * med
+    return abs(info.centre_mm) > prm.max_offcentre_rel * med
 
 
 def _check_core(row: dict, info, prm, *, system) -> None:
@@ -179,7 +179,7 @@ def _check_core(row: dict, info, prm, *, system) -> None:
     not trusted alone to rule the larger size out.
     """
     sysm = bar_system(system)
-    nominal, c = row["nominal_mm"], info["core_mm"]
+    nominal, c = row["nominal_mm"], info.core_mm
     tol = row["width_sigma_mm"] if math.isfinite(row["width_sigma_mm"]) else 0.0
     d1 = sysm.of_size(sysm.core_mm, nominal, math.nan)
     env = sysm.of_size(sysm.envelope_mm, nominal, math.nan)
@@ -193,7 +193,7 @@ def _check_core(row: dict, info, prm, *, system) -> None:
         core = larger[0]
     else:
         return
-    reason = (f"ribs resolved: the rib crests ({info['crest_mm']:.1f} mm) give {sysm.label(nominal)}, "
+    reason = (f"ribs resolved: the rib crests ({info.crest_mm:.1f} mm) give {sysm.label(nominal)}, "
               f"the core between them ({c:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand")
     # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
     row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason,
@@ -227,37 +227,37 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
     capped because it relies on the axis lying at the bar's centre. ``med`` is the mask's
     width (the ribs' envelope read from their crests where the capture resolves them, with
-    ``info["rib_sigma_mm"]`` for how far a crest's reach varies with the bar's roll; the colour
+    ``info.rib_sigma_mm`` for how far a crest's reach varies with the bar's roll; the colour
     edges are then checked against the mask's median, ``mask_median``, the like statistic).
     ``covered``: the share of its cross-sections that lie partly under nearer bars (a bar mostly
     covered is not alerted as of another size, :func:`_alert_other_size`).
     """
-    px_mm, off = info["px_mm"], abs(info["centre_mm"])
+    px_mm, off = info.px_mm, abs(info.centre_mm)
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
     cdiff = 0.0
-    if math.isfinite(info["colour_width_mm"]):
-        r = abs(info["colour_width_mm"] - (med if mask_median is None else mask_median)
-                - info.get("colour_offset_px", 0.0) * px_mm)
-        typical = prm.veto_k * info.get("colour_spread_mm", 0.0)
-        cdiff = info.get("colour_weight", 1.0) * min(r, typical) + max(r - typical, 0.0)
+    if math.isfinite(info.colour_width_mm):
+        r = abs(info.colour_width_mm - (med if mask_median is None else mask_median)
+                - info.colour_offset_px * px_mm)
+        typical = prm.veto_k * info.colour_spread_mm
+        cdiff = info.colour_weight * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
     # sections: part of the spread is kept as a systematic term.
-    quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.get("phase_sweep_px", 0.0)))
+    quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.phase_sweep_px))
     # the mask's error per bar: pixel rounding and the part of its spread that is a bias of the
     # whole bar, or what the capture's bars of one size show between them if that is more
-    per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.get("mask_between_mm", 0.0))
+    per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.mask_between_mm)
     # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
-    one_sided = 2 * prm.axis_sigma_mm * info.get("one_sided_share", 0.0)
+    one_sided = 2 * prm.axis_sigma_mm * info.one_sided_share
     sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.get("rib_sigma_mm", 0.0))
+                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.rib_sigma_mm)
     mask_problem = ""
     if _off_centre(info, med, prm):
         mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
                         f"one side lost to shadow or segmentation")
     elif spread > prm.max_spread_rel * med:
         mask_problem = f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
-    dw, d_spread, d_n = info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"]
+    dw, d_spread, d_n = info.depth_width_mm, info.depth_spread_mm, info.depth_points
     cloud = bool(use_cloud and math.isfinite(dw))
     veto_only = use_cloud == "veto"
     sigma_c = math.inf
@@ -265,11 +265,11 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         # depth noise grows with z²; besides its random part, the cloud of an active stereo
         # camera is off by up to about a millimetre on a bar's diameter at 500-700 mm
         sigma_c = math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
-                             2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info["z_mm"] / 1000) ** 2)
+                             2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info.z_mm / 1000) ** 2)
     out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
-    off_bar = info.get("depth_off_share", math.nan)
+    off_bar = info.depth_off_share
     if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
-        if info.get("depth_off_covered"):
+        if info.depth_off_covered:
             # every section under a nearer bar (a sliver beside it): the band from its one edge to
             # the axis runs under that bar, and too few of the bar's own points are left there
             out["diameter_reason"] = (

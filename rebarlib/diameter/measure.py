@@ -173,15 +173,15 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                             circle=method == "refined" and cloud_mode[i] == "veto")
                for i, bar in enumerate(prepared)]
     for r in results:
-        r[3]["mask_width_mm"] = float(np.median(r[0])) if len(r[0]) else math.nan
-        r[3]["rib_sigma_mm"] = 0.0
+        r.mask_width_mm = float(np.median(r.widths)) if len(r.widths) else math.nan
+        r.rib_sigma_mm = 0.0
     # Ribs resolved (refined, deformed bars): each bar's mask width is the envelope read from its
     # crests, and its point-cloud width (a surface over crests and core alike) is no envelope
     # (the bars' sizes for their rib pitches: the design's, else the size their median width is nearest)
-    sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r[0])
-             else snap_diameter(r[3]["mask_width_mm"], system=system, deformed=deformed)[0]
+    sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r.widths)
+             else snap_diameter(r.mask_width_mm, system=system, deformed=deformed)[0]
              for b, r in zip(prepared, results)]
-    ribs_p = (_ribs_in_view([(r[3]["rib_pitch_mm"], r[3]["rib_p"]) for r in results], prm, sizes)
+    ribs_p = (_ribs_in_view([(r.rib_pitch_mm, r.rib_p) for r in results], prm, sizes)
               if method == "refined" and deformed else 1.0)
     ribs = ribs_p < prm.rib_capture_p
     if method == "refined" and deformed and not ribs and colour_edges:
@@ -192,19 +192,19 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         # than designed: read a size down, it gives the design size, which the cloud echoes
         ribs = _colour_ribs(results, sizes, prm, system=system)
     for r in results:
-        info = r[3]
-        if ribs and math.isfinite(info["crest_mm"]):
-            h = rib_height_mm(info["crest_mm"], system=system)
-            info["mask_width_mm"], info["rib_sigma_mm"] = info["crest_mm"] + prm.rib_reach * h, prm.rib_reach * h
+        info = r
+        if ribs and math.isfinite(info.crest_mm):
+            h = rib_height_mm(info.crest_mm, system=system)
+            info.mask_width_mm, info.rib_sigma_mm = info.crest_mm + prm.rib_reach * h, prm.rib_reach * h
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
     _colour_calibration(results, prepared, prm)
     _mask_between_spread(results, prepared, prm)
     for i, bar in enumerate(prepared):  # only for axes placed with an assumed radius (see _settle)
-        info = results[i][3]
-        info["stack_width_mm"] = bar.stack_mm if cloud_mode[i] == "veto" else math.nan
-        info["level_width_mm"] = bar.top_mm if cloud_mode[i] == "veto" else math.nan
-        info["stack_sigma_mm"] = info["level_sigma_mm"] = 0.0
+        info = results[i]
+        info.stack_width_mm = bar.stack_mm if cloud_mode[i] == "veto" else math.nan
+        info.level_width_mm = bar.top_mm if cloud_mode[i] == "veto" else math.nan
+        info.stack_sigma_mm = info.level_sigma_mm = 0.0
     _width_calibration(results, "circle", prm, system=system, deformed=deformed)
     _width_calibration(results, "stack", prm, system=system, deformed=deformed)
     # the bars of one level rest on the same supports: a bar's top above the formwork less the
@@ -212,27 +212,28 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
     _width_calibration(results, "level", prm, system=system, deformed=deformed,
                        groups=[(b.layer, b.level) for b in prepared])
     for r in results:  # a bar's own top counts once: where it has a stack height, that is its top
-        if math.isfinite(r[3]["stack_width_mm"]) and math.isfinite(r[3]["stack_between_mm"]):
-            r[3]["level_width_mm"] = math.nan
-    lums = np.array([r[3]["lum"] for r in results], float)
+        if math.isfinite(r.stack_width_mm) and math.isfinite(r.stack_between_mm):
+            r.level_width_mm = math.nan
+    lums = np.array([r.lum for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows, shadows = [], []
     for i, bar in enumerate(prepared):
-        w, occluded, in_img, info = results[i]
+        info = results[i]
+        w, occluded, in_img = info.widths, info.occluded, info.in_image
         # a bar in shadow over its whole length: its mask edges are the least reliable there is,
         # so its size is never reported with high confidence
-        in_shadow = bool(np.isfinite(ref_lum) and info["lum"] < prm.shadow_ratio * ref_lum)
+        in_shadow = bool(np.isfinite(ref_lum) and info.lum < prm.shadow_ratio * ref_lum)
         n_in = int(in_img.sum())
         occ_frac = float(occluded.sum() / n_in) if n_in else 0.0
         row = {"bar_id": bar.bar_id, "width_median_mm": math.nan, "width_spread_mm": math.nan,
                "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
                "diameter_status": NOT_MEASURED, "diameter_reason": "", "design_diameter_mm": bar.design_mm,
                "matches_design": None, "hidden": False, "occluded_fraction": round(occ_frac, 3),
-               "one_sided_share": round(info["one_sided_share"], 3) if method == "refined" else 0.0,
+               "one_sided_share": round(info.one_sided_share, 3) if method == "refined" else 0.0,
                "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan, "width_sigma_mm": math.nan,
-               "circle_width_mm": info["circle_width_mm"], "circle_sigma_mm": info["circle_sigma_mm"],
-               "crest_width_mm": info["crest_mm"], "core_width_mm": info["core_mm"],
-               "rib_pitch_mm": info["rib_pitch_mm"] if info["rib_p"] < prm.rib_bar_p else math.nan,
+               "circle_width_mm": info.circle_width_mm, "circle_sigma_mm": info.circle_sigma_mm,
+               "crest_width_mm": info.crest_mm, "core_width_mm": info.core_mm,
+               "rib_pitch_mm": info.rib_pitch_mm if info.rib_p < prm.rib_bar_p else math.nan,
                "ribs_resolved": ribs}
         clean = len(w)  # hidden-bar detection is shared by both methods (the refined analysis)
         if method == "paper":
@@ -247,19 +248,19 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
             row.update(diameter_status=HIDDEN, hidden=True,
                        diameter_reason=(f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly "
                                         "under nearer bars"))
-            if not bar.axis_ok and info["one_edge"] >= prm.min_sections:
+            if not bar.axis_ok and info.one_edge >= prm.min_sections:
                 # a sliver beside the bar over it: what is seen is not nothing, and the inspector
                 # should know why it still gives no size
                 row["diameter_reason"] += (
-                    f"; {info['one_edge']} cross-sections show one edge of it beside them (a sliver): a width "
+                    f"; {info.one_edge} cross-sections show one edge of it beside them (a sliver): a width "
                     "from one edge needs the axis placed to a fraction of a millimetre, which a sliver "
                     "does not give without taking the bar's radius as known")
         elif few:
-            why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: info[k])
+            why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: getattr(info, k))
             text = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",
                     "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths",
                     "holed": "beside a strip without depth, most likely a bar under it peeking out"}
-            row["diameter_reason"] = (f"too few clean cross-sections ({len(w)} of {info['stations']}; "
+            row["diameter_reason"] = (f"too few clean cross-sections ({len(w)} of {info.stations}; "
                                       f"most lost {text[why]})")
         elif method == "paper":
             nominal, share = _paper_vote(w, system)
@@ -268,11 +269,11 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
                            width_source="mask", width_used_mm=float(med))
             else:
                 row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
-        elif ribs and not math.isfinite(info["crest_mm"]):
+        elif ribs and not math.isfinite(info.crest_mm):
             row["diameter_reason"] = (f"ribs resolved in this capture: {len(w)} clean cross-sections are too few to "
                                       f"read the bar's rib crests (at least {prm.rib_min_sections})")
         else:
-            row.update(_refined_decision(info["mask_width_mm"], row["width_spread_mm"], len(w), info, in_shadow,
+            row.update(_refined_decision(info.mask_width_mm, row["width_spread_mm"], len(w), info, in_shadow,
                                          prm, system=system, deformed=deformed, use_cloud=cloud_mode[i],
                                          assumed_mm=bar.axis_radius_mm, mask_median=med,
                                          covered=occ_frac))
@@ -289,7 +290,7 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         shadows.append(in_shadow)
     if method == "refined" and ribs:
         _pitch_settle(rows, results, sizes, shadows, prm, system=system,
-                      face=lambda i: _face_pitch(prepared[i], results[i][3], gray, intr, prm, fp, i))
+                      face=lambda i: _face_pitch(prepared[i], results[i], gray, intr, prm, fp, i))
     if method == "refined" and deformed:
         _pitch_veto(rows, results, prm, system=system)
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))

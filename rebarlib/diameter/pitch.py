@@ -93,7 +93,7 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
         return False
     reads, lengths = [], []
     for r in results:
-        s, cw = r[3].get("colour_widths", (np.zeros(0), np.zeros(0)))
+        s, cw = r.colour_widths
         good = np.isfinite(cw)
         enough = good.sum() >= prm.rib_min_sections
         reads.append(_rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0))
@@ -140,7 +140,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     if not sysm.rib_pitch_mm:
         return
     clear = {i: c for i, r in enumerate(results)  # bar index -> (pitch, relative resolution)
-             if (c := _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)) is not None}
+             if (c := _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm)) is not None}
 
     def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
         row = rows[i]
@@ -167,7 +167,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
             continue
         # a bar whose width shows no clear pitch may show it along each of its edges, or in the
         # shading of its face
-        read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i][3], prm), " (along both edges)")
+        read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
         if read is None:
             read, where = face_read(i), " (in the shading along its face)"
         if read is None:
@@ -190,7 +190,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
         why = row["diameter_reason"].removesuffix(": check it by hand")
         reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
                   f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
-        width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i][3]["mask_width_mm"]
+        width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i].mask_width_mm
         _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
                reason, shadows[i], prm)
         row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
@@ -219,9 +219,9 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
     sizes = list(sysm.sizes_mm)
     for row, r in zip(rows, results):
         if (row["diameter_status"] != MEASURED or "pitch" in (row["width_source"] or "")
-                or not r[3]["rib_p"] < prm.rib_capture_p):  # (stricter than _clear_pitch's p)
+                or not r.rib_p < prm.rib_capture_p):  # (stricter than _clear_pitch's p)
             continue
-        read = _clear_pitch(r[3]["rib_pitch_mm"], r[3]["rib_p"], r[3]["rib_length_mm"], prm)
+        read = _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm)
         j = _nearest(sizes, row["nominal_mm"])
         if read is None or j + 1 >= len(sizes):
             continue

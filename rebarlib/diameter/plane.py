@@ -23,7 +23,7 @@ class BarPlane:
     Attributes
     ----------
     normal : (3,) float, unit vector from the camera centre O towards A
-    offset_mm : float, |OA|, the distance from O to the axis
+    offset_mm : float, the length of OA: the distance from O to the axis
     foot_mm : (3,) float, A, the foot of the perpendicular from O to the axis
     direction : (3,) float, unit axis direction v
     across : (3,) float, unit vector in γ perpendicular to the axis (the cross-section direction)
@@ -50,7 +50,8 @@ def imaginary_plane(start_mm, end_mm) -> BarPlane:
 
     Returns
     -------
-    BarPlane with ``normal · x = offset_mm``, i.e. x_A·x + y_A·y + z_A·z − |A|² = 0 scaled by 1/|A|.
+    BarPlane with ``normal · x = offset_mm``, i.e. ``x_A·x + y_A·y + z_A·z − |A|² = 0``
+    scaled by ``1/|A|``.
 
     Examples
     --------

@@ -121,7 +121,7 @@ def _edge_pitch(info, prm) -> tuple[float, float] | None:
     edge is read against a straight line along the bar (an axis a little askew across the bar
     tilts it). The two edges' noise is independent, so both clear at one pitch is rarer from
     noise than one clear width."""
-    s, lo, hi = info.get("edges", (np.zeros(0),) * 3)
+    s, lo, hi = info.edges
     good = np.isfinite(lo) & np.isfinite(hi)
     if good.sum() < prm.rib_min_sections:
         return None
@@ -152,7 +152,7 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     of the silhouette (a roll at which its width is constant along the bar and says least of its
     size), one side's transverse ribs face the camera full on. The luminance is read along
     ``prm.face_fractions`` of the way from one mask edge to the other, about a pixel apart, over
-    the bar's clean cross-sections with both edges (``info["edges"]``; never under another bar,
+    the bar's clean cross-sections with both edges (``info.edges``; never under another bar,
     at the image border or at a crossing), less its slow changes (light, rust, shadows; a
     Gaussian over three of the longest pitches searched). The lines' periodograms, each
     normalised by its variance, are summed; the peak must lie inside ``prm.rib_band`` x the
@@ -161,7 +161,7 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     number of independent frequencies x exp(-peak / lines).
 
     A bar seen from one side only (too few sections with both edges; the other side under a
-    nearer bar or beyond the image border, ``info["one_edges"]``) is read on its visible half:
+    nearer bar or beyond the image border, ``info.one_edges``) is read on its visible half:
     the same lines squeezed between its one edge and the axis (half the fractions, of the width
     twice the edge's distance from the axis). There a sample is kept only inside the image and
     outside the footprint of every nearer bar (``fp``, this bar's index ``i``): the bar over a
@@ -171,12 +171,12 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     magnified on it by D / (D - h) (D the distance to the axis, h the face's height over it, a
     circle through the edges): the pitch is scaled back by (1 - h / D).
     """
-    s_k, lo, hi = info.get("edges", (np.zeros(0),) * 3)
+    s_k, lo, hi = info.edges
     good = np.isfinite(lo) & np.isfinite(hi)
     fr = np.asarray(prm.face_fractions, float)
     one_side = good.sum() < prm.rib_min_sections
     if one_side:
-        s_k, lo1, hi1 = info.get("one_edges", (np.zeros(0),) * 3)
+        s_k, lo1, hi1 = info.one_edges
         lo = np.where(np.isfinite(lo1), lo1, hi1)  # the visible edge, and its mirror about the axis
         hi = -lo
         good = np.isfinite(lo)

@@ -13,6 +13,7 @@ from .._camera import project
 from .bars import _Bar, _candidates, _hits_footprints, _remap, _stations
 from .cloud import _cloud_circle, _depth_width
 from .params import _RefinedParams
+from .reading import BarReading
 from .ribs import _rib_periodicity
 
 
@@ -132,8 +133,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     v = intr.fy * X[..., 1] / z + intr.cy
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
-    info = {"stations": M, "occluded": 0, "border": int((~in_img).sum()), "crossing": 0,
-            "no_edge": 0, "shadow": 0, "outlier": 0, "colour_edges": 0, "one_edge": 0, "holed": 0}
+    info = BarReading(stations=M, border=int((~in_img).sum()))
     widths = np.full(M, np.nan)
     centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
     colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
@@ -156,7 +156,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         _, nearer = _hits_footprints(P, fp, cand)
         occluded = nearer.any(axis=1).reshape(M, -1).any(axis=1)
     occluded &= in_img
-    info["occluded"] = int(occluded.sum())
+    info.n_occluded = int(occluded.sum())
 
     m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
     b = m >= 0.5
@@ -216,8 +216,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     edged = has_seed & (left >= 0) & (right < K)
     at_border = edged & ~(in_lo & in_hi)
     edged &= ~at_border
-    info["border"] += int((ok & at_border).sum())
-    info["no_edge"] = int((ok & ~edged & ~at_border).sum())
+    info.border += int((ok & at_border).sum())
+    info.no_edge = int((ok & ~edged & ~at_border).sum())
     ok &= edged
     # One-sided sections: one edge, the other side cut by the image border (or, below, inside
     # another bar's footprint). The width is then twice the edge's distance from the axis: it
@@ -251,7 +251,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             r2 = rows[two]
             g = _remap(rgb, u[r2], v[r2])
             c_lo, c_hi, moved = _colour_edges_rgb(g, t, t_lo[two], t_hi[two], st[r2, 2] / intr.fx, prm)
-            info["colour_edges"] = int(moved.sum())
+            info.colour_edges = int(moved.sum())
             both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
             colour_w[r2[both]] = (c_hi - c_lo)[both]
             if prm.colour_edges == "replace":
@@ -270,11 +270,11 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
             beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
             bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
             bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
-            info["crossing"] = int((two & (bad_lo | bad_hi)).sum())
+            info.crossing = int((two & (bad_lo | bad_hi)).sum())
             # sections with one clean edge and the other at another bar (a sliver beside it)
-            info["one_edge"] = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
+            info.one_edge = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
         if strip_side:  # nor is the end at a strip without depth beside the bar (above)
-            info["holed"] = int(two.sum())
+            info.holed = int(two.sum())
             bad_lo |= strip_side == "lo"
             bad_hi |= strip_side == "hi"
         # the side at another bar is lost; the other side may still give a one-sided width, if
@@ -316,7 +316,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
                 lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
                 dark = lum < prm.shadow_ratio * np.median(lum)
                 if (len(rows) - dark.sum()) >= prm.min_sections:
-                    info["shadow"] = int(dark.sum())
+                    info.shadow = int(dark.sum())
                     ok[rows[dark]] = False
                     one_sided[rows[dark]] = False
     # edges from the mask are sharper than edges at depth steps (a depth camera fattens a nearer
@@ -325,7 +325,7 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # the minimum, one outlier left a bar with hundreds of sections "too few")
     cut_off = np.zeros(M, bool)  # sections left out for their edge at a depth step
     if (ok & ~cut).sum() >= 2 * prm.min_sections:
-        info["depth_cut"] = int((ok & cut).sum())
+        info.depth_cut = int((ok & cut).sum())
         cut_off = ok & cut
         ok &= ~cut
     sel = ok | one_sided
@@ -338,24 +338,24 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
         mad = 1.4826 * np.median(np.abs(w - med))
         px_mm = float(np.median(st[sel, 2])) / intr.fx
         keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
-        info["outlier"] = int((~keep).sum())
+        info.outlier = int((~keep).sum())
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
-    info["one_sided_share"] = float(one_sided[kept].mean()) if len(kept) else 0.0
-    info["rib_pitch_mm"], info["rib_p"], info["crest_mm"], info["core_mm"] = math.nan, 1.0, math.nan, math.nan
-    info["rib_length_mm"] = math.nan
+    info.one_sided_share = float(one_sided[kept].mean()) if len(kept) else 0.0
+    info.rib_pitch_mm, info.rib_p, info.crest_mm, info.core_mm = math.nan, 1.0, math.nan, math.nan
+    info.rib_length_mm = math.nan
     s_k = (st[kept] - bar.p0) @ pl.direction  # the sections' places along the bar (mm)
     # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
-    info["edges"] = (s_k, edge_lo[kept], edge_hi[kept])
-    info["one_edges"] = (s_k, side_lo[kept], side_hi[kept])  # (a face read from one side: _face_pitch)
+    info.edges = (s_k, edge_lo[kept], edge_hi[kept])
+    info.one_edges = (s_k, side_lo[kept], side_hi[kept])  # (a face read from one side: _face_pitch)
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
-        info["crest_mm"], info["core_mm"] = (float(q) for q in np.quantile(w, [prm.crest_quantile,
+        info.crest_mm, info.core_mm = (float(q) for q in np.quantile(w, [prm.crest_quantile,
                                                                                prm.core_quantile]))
     # A binary mask's width along a slanted bar steps by a pixel periodically as its edges cross
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
-    if math.isfinite(info["crest_mm"]) and info["crest_mm"] - info["core_mm"] >= prm.rib_min_px * float(
+    if math.isfinite(info.crest_mm) and info.crest_mm - info.core_mm >= prm.rib_min_px * float(
             np.median(st[kept, 2])) / intr.fx:
-        info["rib_pitch_mm"], info["rib_p"] = _rib_periodicity(s_k, w, band=prm.rib_band)
-        info["rib_length_mm"] = float(s_k.max() - s_k.min())
+        info.rib_pitch_mm, info.rib_p = _rib_periodicity(s_k, w, band=prm.rib_band)
+        info.rib_length_mm = float(s_k.max() - s_k.min())
     # The crests are the widest sections, and where a bar's silhouette touches one beside it
     # (a bar under it peeking out) they are the sections whose runs merge with it and are cut
     # at the depth step, left out above: the crests would then be read from the core between
@@ -363,46 +363,47 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # section ends at the first sample behind the bar or without depth: at its flank, or inside
     # it where the flank has no depth. So the crests are read over the cut sections too, those
     # within the bar's footprint (room for a size larger).
-    if math.isfinite(info["crest_mm"]) and cut_off.any():
+    if math.isfinite(info.crest_mm) and cut_off.any():
         wc = _tangent_correct(widths[cut_off], pl.offset_mm)
         wc = wc[np.isfinite(wc) & (wc <= 2 * fp.half_mm[i])]
         if len(wc):
-            info["crest_mm"] = float(np.quantile(np.concatenate([w, wc]), prm.crest_quantile))
+            info.crest_mm = float(np.quantile(np.concatenate([w, wc]), prm.crest_quantile))
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
-    info["depth_width_mm"], info["depth_spread_mm"], info["depth_points"], info["depth_off_share"] = _depth_width(
+    info.depth_width_mm, info.depth_spread_mm, info.depth_points, info.depth_off_share = _depth_width(
         depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm,
         occluded[ck]) if depth_img is not None else (math.nan, math.nan, 0, math.nan)
     # that share was read where every section lies under a nearer bar
-    info["depth_off_covered"] = bool(len(ck) and occluded[ck].all())
-    info["circle_width_mm"] = info["circle_sigma_mm"] = math.nan
+    info.depth_off_covered = bool(len(ck) and occluded[ck].all())
+    info.circle_width_mm = info.circle_sigma_mm = math.nan
     if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
         two_k = _thinned(kept[~one_sided[kept]], prm.cloud_sections)
-        info["circle_width_mm"], info["circle_sigma_mm"] = _cloud_circle(
+        info.circle_width_mm, info.circle_sigma_mm = _cloud_circle(
             depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm)
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
     # (along the bar, for a capture whose mask smooths its ribs away: _colour_ribs)
-    info["colour_widths"] = (s_k, cw)
+    info.colour_widths = (s_k, cw)
     cw = cw[np.isfinite(cw)]
-    info["colour_width_mm"] = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
+    info.colour_width_mm = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
     two_kept = ~one_sided[kept]  # a one-sided section has no centre of its own
-    info["centre_mm"] = float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
-    info["px_mm"] = float(np.median(st[:, 2])) / intr.fx
+    info.centre_mm = float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
+    info.px_mm = float(np.median(st[:, 2])) / intr.fx
     # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
     # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same
     # rounding; a slanted bar's edges cross the grid min(|du|, |dv|) times and the rounding
     # averages out over the sections.
-    info["phase_sweep_px"] = 0.0
+    info.phase_sweep_px = 0.0
     if len(kept) >= 2:
         uv_k = project(st[kept[[0, -1]]], intr)
-        info["phase_sweep_px"] = float(np.abs(uv_k[1] - uv_k[0]).min())
-    info["z_mm"] = float(np.median(st[:, 2]))
-    info["lum"] = math.nan
+        info.phase_sweep_px = float(np.abs(uv_k[1] - uv_k[0]).min())
+    info.z_mm = float(np.median(st[:, 2]))
+    info.lum = math.nan
     if gray is not None and in_img.any():
         uvc = project(st[in_img], intr)
-        info["lum"] = float(np.median(_remap(gray, uvc[:, 0:1], uvc[:, 1:2])))
-    return w, occluded, in_img, info
+        info.lum = float(np.median(_remap(gray, uvc[:, 0:1], uvc[:, 1:2])))
+    info.widths, info.occluded, info.in_image = w, occluded, in_img
+    return info
