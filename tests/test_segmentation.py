@@ -171,6 +171,33 @@ def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
     assert mask[:, :70].all() and not mask[:, 90:].any()
 
 
+def test_in_test_model_fixed_size_keeps_the_aspect_ratio_and_pads(tmp_path):
+    sidecar = {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40)))
+    assert model._input_size(160, 100) == (40, 25)  # the input's own aspect ratio: scaled
+    assert model._input_size(160, 120) == (33, 25)  # 4:3 into 16:10: padded on the right
+    assert model._input_size(100, 200) == (12, 25)  # portrait
+    img, truth = _red_left_blue_right(120, 160)
+    mask = model.predict_mask(img)
+    assert mask.shape == (120, 160)
+    assert mask[:, :70].all() and not mask[:, 90:].any()
+    stretch = dict(sidecar, input={"size": [40, 25], "resize": "stretch"})
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, stretch, name="st", fixed=(25, 40)))
+    assert model._input_size(160, 120) == (40, 25)
+
+
+def test_in_test_dynamic_model_keeps_the_pixel_scale_at_any_size(tmp_path):
+    sidecar = {"input": {"scale": 0.5, "pad_to": 16}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="dyn"))
+    for h, w in ((480, 640), (301, 199), (3024, 4032)):
+        assert model._input_size(w, h) == (round(w / 2), round(h / 2))
+        img, truth = _red_left_blue_right(h, w)
+        mask = model.predict_mask(img)
+        assert mask.shape == (h, w)
+        assert np.array_equal(mask[:, : w // 2 - 3], truth[:, : w // 2 - 3])
+        assert not mask[:, w // 2 + 3:].any()
+
+
 @pytest.mark.parametrize("flips", [[], ["h", "v", "hv"]])
 def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips):
     # a pointwise model (logit = (R - B) / 16) on an image 4 x its input each way: run on tiles at

@@ -68,3 +68,37 @@ def test_full_renders_are_kept_for_training_captures_only(t):
     assert t._full_renders(split) == {"10r", "11r", "12r"}
     assert t._full_renders(split, relief_full=2) == {"10r", "11r"}
     assert t._full_renders(split, relief_full=0, every=True) == {1, 2, "10r", "11r", "12r"}
+
+
+@pytest.fixture(scope="module")
+def dr():
+    """The domain-randomised compositor (training/domain_random.py) as a module."""
+    spec = importlib.util.spec_from_file_location("domain_random", ROOT / "training" / "domain_random.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_randomised_scene_is_seeded_and_its_mask_marks_bars_only(dr):
+    rgb, mask = dr.scene(5, size=160)
+    again, mask_again = dr.scene(5, size=160)
+    assert rgb.shape == (160, 160, 3) and rgb.dtype == np.uint8 and mask.shape == (160, 160)
+    assert np.array_equal(rgb, again) and np.array_equal(mask, mask_again)
+    assert not np.array_equal(rgb, dr.scene(6, size=160)[0])
+    # over a few scenes: bars in most, never the whole image
+    shares = [dr.scene(i, size=160)[1].mean() for i in range(8)]
+    assert sum(s > 0 for s in shares) >= 4 and max(shares) < 0.9
+
+
+def test_a_randomised_scene_is_written_as_the_model_sees_it_and_resumes(dr, tmp_path):
+    assert dr.write_sample(3, tmp_path, size=160)
+    img = cv2.imread(str(tmp_path / "00003.jpg"))[:, :, ::-1].astype(int)
+    mask = cv2.imread(str(tmp_path / "00003.png"), cv2.IMREAD_GRAYSCALE) > 0
+    rgb, truth = dr.scene(3, size=160)
+    small = cv2.resize(rgb, (80, 80), interpolation=cv2.INTER_AREA).astype(int)
+    assert img.shape == (80, 80, 3) and np.abs(img - small).mean() < 5  # half size, JPEG 92
+    assert _png_bit_depth(tmp_path / "00003.png") == 1
+    np.testing.assert_array_equal(mask, truth)
+    stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
+    assert not dr.write_sample(3, tmp_path, size=160)
+    assert {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()} == stamps

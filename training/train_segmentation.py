@@ -158,6 +158,22 @@ def _load(work: Path, part: str):
     return np.ascontiguousarray(np.stack(imgs)), np.stack(masks)
 
 
+def _load_dr(folder: Path, val_every: int):
+    """The domain-randomised scenes of ``training/domain_random.py`` in ``folder``: (train
+    images, train masks, val images, val masks) as :func:`_load` gives them; every scene whose
+    index is a multiple of ``val_every`` validates. Scenes whose two files are not both there
+    yet (the data step still running) are skipped."""
+    import cv2
+
+    stems = sorted(p.stem for p in folder.glob("*.jpg") if not p.stem.endswith(".tmp")
+                   and (folder / f"{p.stem}.png").exists())
+    imgs = [cv2.imread(str(folder / f"{s}.jpg"))[:, :, ::-1] for s in stems]
+    masks = [cv2.imread(str(folder / f"{s}.png"), cv2.IMREAD_GRAYSCALE) > 0 for s in stems]
+    imgs, masks = np.ascontiguousarray(np.stack(imgs)), np.stack(masks)
+    val = np.array([int(s) % val_every == 0 for s in stems])
+    return imgs[~val], masks[~val], imgs[val], masks[val]
+
+
 def _load_full(work: Path, part: str) -> dict:
     """{position in the part: full-resolution image (2*IN_H, 2*IN_W, 3) uint8 RGB} for the entries
     whose full-resolution render was kept (see ``_full_renders``)."""
@@ -532,6 +548,11 @@ def cmd_train(args):
     tag = args.tag or args.arch
     imgs, masks = (torch.from_numpy(a).to(dev) for a in _load(work, "train"))
     vimgs, vmasks = (torch.from_numpy(a).to(dev) for a in _load(work, "val"))
+    dr = None
+    if args.dr_work:
+        dr = [torch.from_numpy(a).to(dev) for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)]
+        print(f"--dr-work: {len(dr[0])} train / {len(dr[2])} val domain-randomised scenes, "
+              f"{args.dr_share:.0%} of each batch", flush=True)
     full = None
     if args.full_zoom:
         full = {k: torch.from_numpy(a).to(dev) for k, a in _load_full(work, "train").items()}
@@ -577,8 +598,12 @@ def cmd_train(args):
         lr = args.lr * min(1.0, (it + 1) / 100) * 0.5 * (1 + math.cos(math.pi * frac))
         for grp in opt.param_groups:
             grp["lr"] = lr
-        x, y = _batch(imgs, masks, g, args.crop, args.batch, zoom=args.zoom, full=full,
+        n_dr = int(round(args.batch * args.dr_share)) if dr is not None else 0
+        x, y = _batch(imgs, masks, g, args.crop, args.batch - n_dr, zoom=args.zoom, full=full,
                       colour=args.colour)
+        if n_dr:
+            xd, yd = _batch(dr[0], dr[1], g, args.crop, n_dr, zoom=args.zoom, colour=args.colour)
+            x, y = torch.cat([x, xd]), torch.cat([y, yd])
         if dev.type == "cuda":
             x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(**amp):
@@ -594,9 +619,19 @@ def cmd_train(args):
             print(f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True)
         if time.time() - last_val > args.val_every_s:
             v_iou, v_dice = evaluate(model, vimgs, vmasks)
+            entry = {"it": it, "t_s": round(time.time() - t0), "val_iou": v_iou, "val_dice": v_dice}
+            if dr is not None:
+                entry["dr_val_iou"] = evaluate(model, dr[2], dr[3])[0]
+                # every validation keeps a snapshot: the real-photo benchmark picks among them
+                torch.save(model.state_dict(), out_dir / f"{tag}_it{it}.pt")
+                if args.dr_work and args.dr_reload:  # scenes the data step wrote meanwhile
+                    dr = [torch.from_numpy(a).to(dev)
+                          for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)]
+                    entry["dr_train"] = len(dr[0])
             last_val = time.time()
-            log.append({"it": it, "t_s": round(last_val - t0), "val_iou": v_iou, "val_dice": v_dice})
-            print(f"VAL it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
+            log.append(entry)
+            print("VAL " + " ".join(f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}"
+                                    for k, v in entry.items()), flush=True)
             if v_iou > best:
                 best = v_iou
                 torch.save(model.state_dict(), out_dir / f"{tag}.pt")
@@ -613,7 +648,9 @@ def cmd_train(args):
             "device_name": torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu",
             "threads": args.threads if dev.type == "cpu" else None, "torch": torch.__version__,
             "train_seed": TRAIN_SEED, "best_val_iou": best, "log": log,
-            "train_captures": len(imgs), "val_captures": len(vimgs)}
+            "train_captures": len(imgs), "val_captures": len(vimgs),
+            "dr_work": args.dr_work, "dr_share": args.dr_share if dr is not None else None,
+            "dr_train_scenes": len(dr[0]) if dr is not None else None}
     (out_dir / f"{tag}.json").write_text(json.dumps(info, indent=1))
 
 
@@ -671,14 +708,19 @@ def cmd_export(args):
     threshold = round(1 / (1 + math.exp(-best_t)), 4)
     x = torch.zeros(1, 3, IN_H, IN_W)
     onnx_path = out / f"{args.name}.onnx"
+    # --dynamic: any input size (the sidecar then scales a photo by input.scale, keeping its
+    # aspect ratio, and pads it to a multiple of input.pad_to instead of squashing it)
+    dynamic = {"image": {2: "height", 3: "width"}, "logits": {2: "height", 3: "width"}} \
+        if args.dynamic else None
     torch.onnx.export(model, (x,), str(onnx_path), input_names=["image"], output_names=["logits"],
-                      opset_version=17, dynamo=False)
+                      opset_version=17, dynamo=False, dynamic_axes=dynamic)
     info_path = run_dir / f"{tag}.json"
     info = json.loads(info_path.read_text()) if info_path.exists() else \
         {"parameters": sum(p.numel() for p in model.parameters()), "best_val_iou": None}
     sidecar = {
         "format": "rebarlib-segmentation/1",
-        "input": {"name": "image", "size": [IN_W, IN_H], "channel_order": "RGB",
+        "input": {"name": "image", **({"scale": 0.5, "pad_to": 16} if args.dynamic
+                                      else {"size": [IN_W, IN_H]}), "channel_order": "RGB",
                   "mean": MEAN, "std": STD, "layout": "NCHW", "dtype": "float32", "flips": list(args.flips),
                   **({"max_bar_px": args.max_bar_px} if args.max_bar_px else {})},
         "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
@@ -727,6 +769,13 @@ def main(argv=None):
                    help="colour jitter beyond the renderer's palette (saturation, contrast, channel order)")
     a.add_argument("--full-zoom", action="store_true",
                    help="take the enlarged crops from the full-resolution render where the data keeps one")
+    a.add_argument("--dr-work", default=None,
+                   help="folder of domain-randomised scenes (training/domain_random.py --work)")
+    a.add_argument("--dr-share", type=float, default=0.5, help="share of each batch from --dr-work")
+    a.add_argument("--dr-val", type=int, default=20,
+                   help="scenes of --dr-work whose index is a multiple of this validate")
+    a.add_argument("--dr-reload", action="store_true",
+                   help="at every validation, load the scenes the data step wrote meanwhile")
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
     a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
@@ -739,6 +788,8 @@ def main(argv=None):
     a.add_argument("--run-dir", default=None, help="where the run's state dict and log are (default: --work)")
     a.add_argument("--flips", nargs="*", default=[], choices=["h", "v", "hv"],
                    help="test-time flips written into the sidecar (the threshold is chosen with them)")
+    a.add_argument("--dynamic", action="store_true",
+                   help="any input size: the photo scaled by 0.5 and padded, never squashed")
     a.add_argument("--max-bar-px", type=float, default=None,
                    help="the widest bar (input px) the model was trained on, written into the sidecar")
     a = sub.add_parser("eval")

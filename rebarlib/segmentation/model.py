@@ -160,16 +160,16 @@ class SegmentationModel:
                                   f"{img.shape} {img.dtype}")
         H, W = img.shape[:2]
         inp = self._inp
-        if inp["size"] is not None:
-            w, h = inp["size"]
-        else:
-            w, h = max(1, round(W * inp["scale"])), max(1, round(H * inp["scale"]))
+        w, h = self._input_size(W, H)
         interp = cv2.INTER_AREA if w < W else cv2.INTER_LINEAR
         x = img if (w, h) == (W, H) else cv2.resize(img, (w, h), interpolation=interp)
         if inp["channel_order"] == "BGR":
             x = x[..., ::-1]
+        # padded bottom / right: to the fixed input where the image's aspect ratio differs
+        # from it, then to a multiple of pad_to; the padding is cut off the output
+        fw, fh = inp["size"] if inp["size"] is not None else (w, h)
         p = inp["pad_to"]
-        ph, pw = -h % p, -w % p
+        ph, pw = fh - h + (-fh % p), fw - w + (-fw % p)
         if self._np_dtype == np.uint8:
             t = np.ascontiguousarray(x)
         else:
@@ -180,6 +180,20 @@ class SegmentationModel:
             t = np.pad(t, ((0, ph), (0, pw), (0, 0)))
         t = t.transpose(2, 0, 1)[None] if inp["layout"] == "NCHW" else t[None]
         return np.ascontiguousarray(t, dtype=self._np_dtype), (h, w), (h + ph, w + pw)
+
+    def _input_size(self, W: int, H: int) -> tuple[int, int]:
+        """(width, height) the network sees an image of W × H at, before any padding: scaled by
+        ``input.scale``, or, for a fixed ``input.size``, by the largest factor that fits it,
+        keeping the aspect ratio (``input.resize`` "keep_aspect", the default: the rest is
+        padded), or stretched to it (``input.resize`` "stretch")."""
+        inp = self._inp
+        if inp["size"] is None:
+            return max(1, round(W * inp["scale"])), max(1, round(H * inp["scale"]))
+        w, h = inp["size"]
+        if inp["resize"] == "stretch":
+            return w, h
+        f = min(w / W, h / H)
+        return max(1, min(w, round(W * f))), max(1, min(h, round(H * f)))
 
     def _score(self, color, flips: bool = True):
         """The rebar score map at full resolution and the threshold it is compared with."""

@@ -21,6 +21,7 @@ _LAYOUTS = ("NCHW", "NHWC")
 _DTYPES = {"float32": ("tensor(float)", np.float32), "uint8": ("tensor(uint8)", np.uint8),
            "float16": ("tensor(float16)", np.float16)}
 _KINDS = ("logits", "probability", "labels")
+_RESIZE = ("keep_aspect", "stretch")  # a fixed input.size: fitted and padded, or stretched
 _FLIPS = ("h", "v", "hv")  # test-time flips: horizontal, vertical, both
 
 
@@ -45,6 +46,9 @@ def read_sidecar(path: Path) -> dict:
     if size is not None:
         if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size)):
             raise _bad(path, f"input.size: expected [width, height] in pixels, got {size!r}")
+    resize = inp.get("resize", "keep_aspect")
+    if resize not in _RESIZE:
+        raise _bad(path, f"input.resize: expected one of {_RESIZE}, got {resize!r}")
     scale = inp.get("scale", 1.0)
     if not isinstance(scale, (int, float)) or not 0 < scale <= 4:
         raise _bad(path, f"input.scale: expected a number in (0, 4], got {scale!r}")
@@ -77,7 +81,7 @@ def read_sidecar(path: Path) -> dict:
     if max_bar_px is not None and (isinstance(max_bar_px, bool) or not isinstance(max_bar_px, (int, float))
                                    or max_bar_px <= 0):
         raise _bad(path, f"input.max_bar_px: expected a positive number of input pixels, got {max_bar_px!r}")
-    inp.update(size=size, scale=float(scale), pad_to=pad_to, channel_order=order, layout=layout,
+    inp.update(size=size, resize=resize, scale=float(scale), pad_to=pad_to, channel_order=order, layout=layout,
                dtype=dtype, value_scale=float(value_scale), flips=list(flips),
                max_bar_px=None if max_bar_px is None else float(max_bar_px))
     kind = out.get("kind")
