@@ -50,18 +50,21 @@ def crossing_lift(q, bars: list, noise: dict) -> float:
     Seen from above, a bar beneath a crossing bar is hidden there, and the band along it holds
     the crossing bar's points, a bar radius or two higher; the bar on top shows its own surface
     either way. Seen from below (up taken upside down) the hidden bar's band holds points lower
-    than its own."""
+    than its own. The band keeps to the bar's height: within a diameter and two height-noise σ
+    of its axis (``noise[layer]`` is (plan, height) σ), which holds the crossing bar resting on
+    it; with four radii and three *plan* σ it also held the other level's bars well away from
+    the crossings, and at σ 15 mm the sign was right in 1 of 4 synthetic scans."""
     total, weight = 0.0, 0
     plan, h = q[:, :2], q[:, 2]
     for layer in G.LAYERS:
-        sig = noise.get(layer, (10.0, 10.0))[0]
+        sig, sig_h = noise.get(layer, (10.0, 10.0))
         mine = [b for b in bars if b.layer == layer]
         for b in mine:
             n2 = b.normal2d
             t = _dot(plan, b.direction)
             across = np.abs(_dot(plan, n2) - (b.offset_mm + b.slope * t))
             band = (across < b.radius_mm + sig) & (t >= b.t0_mm) & (t <= b.t1_mm)
-            band &= np.abs(h - b.axis_height_mm) < 4 * b.radius_mm + 3 * sig
+            band &= np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 2 * sig_h
             idx = np.flatnonzero(band)
             cross = [_cross_axes(b, x) for x in mine if x.level != b.level]
             cross = np.array([c for c in cross if np.isfinite(c)])
