@@ -34,7 +34,7 @@ import bench_diameter as B  # noqa: E402  (the captures, masks and axes the benc
 
 import rebarlib.diameter.measure as D  # noqa: E402  (its _refined_bar is wrapped below)
 from rebarlib.diameter.barsizes import bar_system, rib_pitch_mm  # noqa: E402
-from rebarlib.diameter.params import _RefinedParams  # noqa: E402
+from rebarlib.diameter.params import DiameterParams  # noqa: E402
 from rebarlib.diameter.ribs import _rib_periodicity  # noqa: E402
 from rebarlib.synth import Appearance  # noqa: E402
 
@@ -66,7 +66,7 @@ def main() -> None:
     ap.add_argument("--cache", default="")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    prm = _RefinedParams()
+    prm = DiameterParams()
     gb = bar_system("GB1499.2")
     masks, _ = B._mask_sources()
     axes_src, _ = B._axis_sources()

@@ -173,9 +173,9 @@ def test_colour_calibration_by_hand():
     from rebarlib.diameter.bars import _Bar
     from rebarlib.diameter.calibration import _colour_calibration, _mask_between_spread
     from rebarlib.diameter.decision import _refined_decision
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
     e = [0.0, 0.0, 0.2, -0.2, 0.4, -0.4]
     results = [BarReading(widths=np.full(prm.min_sections, m),
@@ -406,9 +406,9 @@ def test_axes_placed_with_the_design_radius_never_confirm_another_size_alone():
 def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_or_a_circle():
     # Decisions for axes placed with an assumed radius (veto mode), by hand.
     from rebarlib.diameter.decision import _refined_decision
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
     base = BarReading(px_mm=0.8, centre_mm=0.0, colour_width_mm=math.nan, z_mm=550.0, phase_sweep_px=20.0,
                       mask_between_mm=0.3, depth_spread_mm=1.0, depth_points=2000, one_sided_share=0.0,
@@ -465,9 +465,9 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     # A top-level bar's top stands one diameter above the bars it rests on (stack_mm): a width
     # that does not depend on where an axis placed with an assumed radius lies. By hand, veto mode.
     from rebarlib.diameter.decision import _refined_decision
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
     base = _veto_bar(stack_width_mm=math.nan, stack_sigma_mm=math.nan, stack_between_mm=math.nan)
     # a mask width between Φ12 (13.9) and Φ14 (16.2), nearer Φ14: ambiguous alone (confidence 0.72)
@@ -553,9 +553,9 @@ def test_circle_calibration_by_hand():
     # χ²(0.10; 6) ≈ 2.204 (Wilson–Hilferty), σ = √(Σe² / 2.204). An ambiguous mask (15.2 mm)
     # is not learnt from.
     from rebarlib.diameter.calibration import _width_calibration
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     masks = [16.2, 16.3, 16.1, 16.2, 16.25, 16.15, 18.4, 15.2]
     e = [0.0, 0.3, -0.3, 0.1, -0.1, 0.2, 0.0, 5.0]
     env = [16.2] * 6 + [18.4, 16.2]
@@ -586,9 +586,9 @@ def test_level_calibration_by_hand():
     # raised to its upper 90 % bound (χ²(0.10; 6) by Wilson–Hilferty), and a bar's σ also holds
     # its level's offset's error: σ √(1 + 1/n).
     from rebarlib.diameter.calibration import _width_calibration
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     e_lo, e_up = [0.0, 0.4, -0.3, 0.2, -0.1], [0.3, -0.2, 0.0]
     tops = [25 + 16.2 + e for e in e_lo] + [100 + 13.9 + e for e in e_up] + [60 + 11.6]
     masks = [16.2] * 5 + [13.9] * 3 + [11.6]
@@ -623,9 +623,9 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     # A bar of a level resting on spacers has no bar under it (no stack height), but the bars of
     # one level rest on the same supports: its top less theirs is its width (level_width_mm).
     from rebarlib.diameter.decision import _refined_decision
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
     base = _veto_bar(level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
     # 15.25 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.625 ± 0.42, Φ14
@@ -955,10 +955,10 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     """Fisher's combination of the bars' p-values: a dozen bars each at p = 0.001 make a capture
     that shows ribs; one bar however periodic (its p floored) among quiet ones does not; fewer
     than three bars say nothing."""
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _ribs_in_view
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
 
     def res(ps):
         return _rib_results([8.0] * len(ps), ps)
@@ -968,7 +968,7 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     assert _ribs_in_view(res([1e-9, 1e-9]), prm) == 1.0
     assert _ribs_in_view(res([1.0] * 12), prm) == 1.0
     # by hand: two bars with p = e^-5 each: χ²/2 = 10 over 4 dof, P = e^-10 (1 + 10)
-    prm2 = _RefinedParams(rib_min_bars=2)
+    prm2 = DiameterParams(rib_min_bars=2)
     assert _ribs_in_view(res([math.exp(-5)] * 2), prm2) == pytest.approx(11 * math.exp(-10), rel=1e-9)
 
 
@@ -978,10 +978,10 @@ def test_ribs_in_view_needs_one_pitch_per_size():
     over 6-16 mm: no ribs; the same at 8.0 ± 0.3 mm: ribs. Two sizes, each at its own pitch (8 and
     11 mm), agree within their size, not taken as one (each 16 % from the median 9.5 mm). Peaks
     that are not clear do not count."""
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _ribs_in_view
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
 
     def res(pitches, p=1e-3):
         return _rib_results(pitches, [p] * len(pitches))
@@ -1090,11 +1090,11 @@ def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s
     (± its σ, 0.5 mm here) and below the next size's d1; else it is "not measured" and names
     the size its core points to. The first case failed before: its core is nearer Φ16's d1."""
     from rebarlib.diameter.decision import _check_core
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
     row = {"nominal_mm": crest_size, "diameter_status": "measured", "confidence": 0.95, "width_sigma_mm": 0.5,
            "diameter_reason": ""}
-    _check_core(row, BarReading(core_mm=core_mm, crest_mm=crest_size + 1.5), _RefinedParams(), system="GB1499.2")
+    _check_core(row, BarReading(core_mm=core_mm, crest_mm=crest_size + 1.5), DiameterParams(), system="GB1499.2")
     if expected is None:
         assert row["diameter_status"] == "measured" and row["nominal_mm"] == crest_size
     else:
@@ -1108,7 +1108,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
     ``pitches_12`` and Φ14 with ``pitches_14``, all sized by their widths, and a last bar designed
     Φ12 whose widths left it between the sizes ``pair``, with the pitch ``pitch_amb``; each bar
     read over ``length_mm`` (300 mm: a pitch resolution of about 1.5 %)."""
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
 
     rows, results, keys = [], [], []
     for design, p in [(12.0, q) for q in pitches_12] + [(14.0, q) for q in pitches_14] + [(12.0, pitch_amb)]:
@@ -1122,7 +1122,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
                     width_used_mm=15.1, width_sigma_mm=0.7, _pair=pair,
                     diameter_reason="ambiguous: width 15.1 mm (mask) lies between Φ12 (13.9 mm) and Φ14 (16.2 mm), "
                                     "nearer Φ14 (confidence 0.60): check it by hand")
-    return rows, results, keys, [False] * len(rows), _RefinedParams()
+    return rows, results, keys, [False] * len(rows), DiameterParams()
 
 
 @pytest.mark.slow
@@ -1303,12 +1303,12 @@ def test_rib_pitch_band_counts_each_read_s_resolution_like_the_spread():
     # bin, 0.7 % over 400 mm) counts as a standard error too, so all of them match Φ8's 5.5 mm
     # after the capture's scale: (12 + 1) / (12 + 2). With the spread alone as the band, 3 of
     # them would not, and a capture whose bars all follow the table would fail its check.
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.pitch import _pitch_band, _pitch_table
 
     pitches = [5.48, 5.48, 5.51, 5.51, 5.52, 5.52, 5.52, 5.52, 5.52, 5.52, 5.55, 5.56]
     clear = {i: (p, p / (2 * 400.0)) for i, p in enumerate(pitches)}
-    prm = _RefinedParams()
+    prm = DiameterParams()
     scale, spread, conf = _pitch_table(clear, [8.0] * len(pitches), prm, system="GB1499.2")
     assert spread < 0.002 and conf == pytest.approx(13 / 14)
     assert _pitch_band(spread, 0.007, prm) == pytest.approx(3 * math.hypot(spread, 0.007))
@@ -1329,11 +1329,11 @@ def test_pitch_table_lets_a_design_group_hold_bars_of_another_size(pitches, size
     # Each design group's own spacing must be the one most of its pitches are nearest to (ties
     # count), and the capture's scale is learnt from those pitches only, so bars of another size
     # than designed neither break the check nor pull the scale.
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.pitch import _pitch_table
 
     clear = {i: (p, p / (2 * 300.0)) for i, p in enumerate(pitches)}
-    fit = _pitch_table(clear, sizes, _RefinedParams(), system="GB1499.2")
+    fit = _pitch_table(clear, sizes, DiameterParams(), system="GB1499.2")
     if expected:
         assert fit is not None and 0.99 < fit[0] < 1.03, why
     else:
@@ -1358,10 +1358,10 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     # The two sides' crests set off by half a pitch: the width, their difference, repeats every
     # 4.5 mm, shorter than any pitch a 14 mm bar's ribs may have (0.4-1.2 x its width), so the
     # width shows no pitch; each edge shows 9 mm.
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _edge_pitch, _rib_periodicity
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     s = np.arange(0, 600, 2.2)
     info = _edges_info(s, 9.0, 9.0)
     lo, hi = info.edges[1:]
@@ -1381,12 +1381,12 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     (None, None, "no ribs at all"),
 ])
 def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why):
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _edge_pitch
 
-    assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), _RefinedParams()) is None, why
+    assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), DiameterParams()) is None, why
     # too few sections to read a periodicity from
-    assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), _RefinedParams()) is None
+    assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), DiameterParams()) is None
 
 
 def _bars_along_u(*places):
@@ -1430,10 +1430,10 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
     # (9.16 mm for 9 mm). Scaled back by the face's height, the pitch is 9 mm within a
     # periodogram step (a 0.25 bin at 4 x oversampling over 507 mm: 0.04 mm), and 8 mm bars
     # read 8 mm: the two sizes' spacings are told apart.
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _face_pitch
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     for pitch in (9.0, 8.0):
         bar, info, gray = _striped_bar(pitch)
         read, resolution = _face_pitch(bar, info, gray, K, prm)
@@ -1446,16 +1446,16 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
     (dict(stripes=40.0, pitch_mm=40.0), "a pitch beyond the band searched (1.2 x the bar's width)"),
 ])
 def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _face_pitch
 
     kw = {"pitch_mm": 9.0, **kw}
     bar, info, gray = _striped_bar(**kw)
-    assert _face_pitch(bar, info, gray, K, _RefinedParams()) is None, why
+    assert _face_pitch(bar, info, gray, K, DiameterParams()) is None, why
     # nor with too few clean sections to read along
     s, lo, hi = info.edges
     bar, info, gray = _striped_bar(9.0)
-    assert _face_pitch(bar, BarReading(edges=(s[:10], lo[:10], hi[:10])), gray, K, _RefinedParams()) is None
+    assert _face_pitch(bar, BarReading(edges=(s[:10], lo[:10], hi[:10])), gray, K, DiameterParams()) is None
 
 
 def _one_sided(info):
@@ -1470,10 +1470,10 @@ def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
     # The same five lines squeezed between the one edge and the axis (at 0.8 to 0.2 of the
     # edge's distance from the axis): their mean height over the axis is 0.83 r, so read there
     # the stripes are 1.7 % long; scaled back, 9 and 8 mm read within 0.06 mm, told apart.
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _face_pitch
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     for pitch in (9.0, 8.0):
         bar, info, gray = _striped_bar(pitch)
         read, _ = _face_pitch(bar, _one_sided(info), gray, K, prm)
@@ -1494,10 +1494,10 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
     # on the plane the striped bar's positions are measured in. Its footprint (the bar with
     # room for a size larger and a pixel and a half) reaches a further 2.8 mm.
     from rebarlib.diameter.bars import _footprints, _prepare
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _face_pitch
 
-    prm = _RefinedParams()
+    prm = DiameterParams()
     z1, r = 380.0, 8.1
     a = ((np.arange(K.height) - K.cy) / K.fy)[:, None]  # ray y / z per row
     b = ((np.arange(K.width) - K.cx) / K.fx)[None, :]
@@ -1584,11 +1584,11 @@ def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expec
     # A learnt mask may smooth the ribs away; the colour edges beside it still show them. The
     # capture is taken to resolve ribs only where the colour widths are periodic as the mask
     # widths must be (_ribs_in_view) and at their sizes' spacings (_pitch_table).
-    from rebarlib.diameter.params import _RefinedParams
+    from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.pitch import _colour_ribs
 
     results, keys = _colour_case(bars)
-    assert _colour_ribs(results, keys, _RefinedParams(), system=system) is expected, why
+    assert _colour_ribs(results, keys, DiameterParams(), system=system) is expected, why
 
 
 @pytest.fixture(scope="module")

@@ -225,13 +225,83 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     standard uncertainty. Where both are sound they must agree (else "not measured": one of them
     is biased) and their weighted mean is snapped; where the mask's edges are unreliable
     (scattered, off-centre) a sound point-cloud width alone gives the size, its confidence
-    capped because it relies on the axis lying at the bar's centre. ``med`` is the mask's
-    width (the ribs' envelope read from their crests where the capture resolves them, with
-    ``info.rib_sigma_mm`` for how far a crest's reach varies with the bar's roll; the colour
-    edges are then checked against the mask's median, ``mask_median``, the like statistic).
-    ``covered``: the share of its cross-sections that lie partly under nearer bars (a bar mostly
-    covered is not alerted as of another size, :func:`_alert_other_size`).
+    capped because it relies on the axis lying at the bar's centre.
+
+    Parameters
+    ----------
+    med : the mask's width (the ribs' envelope read from their crests where the capture resolves
+        them, with ``info.rib_sigma_mm`` for how far a crest's reach varies with the bar's roll)
+    spread, n : the robust spread of the section widths and how many sections
+    info : the bar's :class:`BarReading`
+    in_shadow : the bar lies in shadow over its whole length (its confidence is capped)
+    prm : DiameterParams
+    system, deformed : the bar-size standard and whether the bars are deformed
+    use_cloud : True, False or "veto" (see :func:`measure_diameters`)
+    assumed_mm : the radius the axis was placed with (NaN: none assumed)
+    mask_median : the sections' median width, which the colour edges are checked against where
+        ``med`` is read from the crests (None: ``med``)
+    covered : the share of its cross-sections that lie partly under nearer bars (a bar mostly
+        covered is not alerted as of another size, :func:`_alert_other_size`)
+
+    Returns
+    -------
+    dict of the row's columns that the decision sets (``nominal_mm``, ``confidence``,
+    ``diameter_status``, ``diameter_reason``, ``cloud_width_mm``, ``width_source``,
+    ``width_used_mm``, ``width_sigma_mm``) and, for a bar left between two sizes, ``_pair``.
     """
+    sigma_m = _mask_sigma(med, spread, n, info, prm, mask_median)
+    mask_problem = _mask_problem(med, spread, n, info, prm)
+    dw = info.depth_width_mm
+    cloud = bool(use_cloud and math.isfinite(dw))
+    veto_only = use_cloud == "veto"
+    sigma_c = _cloud_sigma(info, prm) if cloud else math.inf
+    out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
+    if use_cloud and info.depth_off_share > 0.5:  # (NaN: no cloud, no verdict)
+        out["diameter_reason"] = _off_bar_reason(info)
+        return out
+    cap = 1.0
+    if not mask_problem and cloud:
+        done, width, sigma, source = _mask_and_cloud(
+            out, med, sigma_m, sigma_c, info, in_shadow, prm, system=system, deformed=deformed,
+            veto_only=veto_only, assumed_mm=assumed_mm, covered=covered)
+        if done is not None:
+            return done
+    elif not mask_problem:
+        width, sigma, source = med, sigma_m, "mask"
+    elif cloud and not veto_only:
+        width, sigma, source = dw, sigma_c, "cloud"
+        cap = prm.cloud_only_confidence
+    else:
+        out["diameter_reason"] = mask_problem
+        return out
+    nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
+    if not math.isfinite(nominal):
+        out["diameter_reason"] = f"width {width:.1f} mm matches no {system} size"
+        return out
+    if conf < prm.min_confidence and veto_only and cloud and not mask_problem:
+        # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
+        # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
+        # confirm what the mask leans to but never overturn it
+        settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
+                          deformed=deformed, size=nominal)
+        if settled is not None:
+            return settled
+    if conf < prm.min_confidence:
+        pair = bracketing_sizes(width, system=system, deformed=deformed)
+        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3),
+                   width_sigma_mm=round(sigma, 3),
+                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, pair, system))
+        if pair is not None:
+            out["_pair"] = (pair[0][0], pair[1][0])
+        return out
+    reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
+    return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
+
+
+def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
+    """The standard uncertainty of a bar's mask width ``med``: the sections' scatter, the mask's
+    error per bar, its runs off the axis, the colour edges' disagreement, one-sided sections and
+    the rib crests' reach (see :func:`_refined_decision`)."""
     px_mm, off = info.px_mm, abs(info.centre_mm)
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
@@ -249,107 +319,89 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.mask_between_mm)
     # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
     one_sided = 2 * prm.axis_sigma_mm * info.one_sided_share
-    sigma_m = math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                         max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.rib_sigma_mm)
-    mask_problem = ""
+    return math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
+                      max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.rib_sigma_mm)
+
+
+def _mask_problem(med, spread, n, info, prm) -> str:
+    """Why a bar's mask width cannot be trusted (its runs off the axis, its widths too
+    scattered); "" where it can."""
     if _off_centre(info, med, prm):
-        mask_problem = (f"mask not centred on the axis ({off:.1f} mm off over a {med:.1f} mm width): "
-                        f"one side lost to shadow or segmentation")
-    elif spread > prm.max_spread_rel * med:
-        mask_problem = f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
-    dw, d_spread, d_n = info.depth_width_mm, info.depth_spread_mm, info.depth_points
-    cloud = bool(use_cloud and math.isfinite(dw))
-    veto_only = use_cloud == "veto"
-    sigma_c = math.inf
-    if cloud:
-        # depth noise grows with z²; besides its random part, the cloud of an active stereo
-        # camera is off by up to about a millimetre on a bar's diameter at 500-700 mm
-        sigma_c = math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
-                             2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info.z_mm / 1000) ** 2)
-    out = {"cloud_width_mm": dw, "confidence": 0.0, "diameter_status": NOT_MEASURED}
+        return (f"mask not centred on the axis ({abs(info.centre_mm):.1f} mm off over a {med:.1f} mm width): "
+                f"one side lost to shadow or segmentation")
+    if spread > prm.max_spread_rel * med:
+        return f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
+    return ""
+
+
+def _cloud_sigma(info, prm) -> float:
+    """The standard uncertainty of a bar's point-cloud width: its points' scatter (neighbours
+    sharing their noise), the axis's lateral error and the camera's bias, growing with z²."""
+    # depth noise grows with z²; besides its random part, the cloud of an active stereo
+    # camera is off by up to about a millimetre on a bar's diameter at 500-700 mm
+    d_spread, d_n = info.depth_spread_mm, info.depth_points
+    return math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
+                      2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info.z_mm / 1000) ** 2)
+
+
+def _off_bar_reason(info) -> str:
+    """Why a bar whose point cloud across the mask runs lies mostly off the bar is not sized."""
     off_bar = info.depth_off_share
-    if use_cloud and off_bar > 0.5:  # (NaN: no cloud, no verdict)
-        if info.depth_off_covered:
-            # every section under a nearer bar (a sliver beside it): the band from its one edge to
-            # the axis runs under that bar, and too few of the bar's own points are left there
-            out["diameter_reason"] = (
-                f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
+    if info.depth_off_covered:
+        # every section under a nearer bar (a sliver beside it): the band from its one edge to
+        # the axis runs under that bar, and too few of the bar's own points are left there
+        return (f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
                 "the bar over it, and too few of its own points are left to check a width from one "
                 "edge")
-        else:
-            # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
-            # mask shows there is mostly another object (the bar over this one), not this bar
-            out["diameter_reason"] = (
-                f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the axis "
-                "than the bar's diameter: the mask there shows another object (a bar over it)")
-        return out
-    cap = 1.0
-    if not mask_problem and cloud:
-        # With an assumed axis radius the cloud width echoes it: a mask giving another size can
-        # never be confirmed by the cloud, so in veto mode the mask must give the assumed size.
-        # That size is the assumed radius's where it is known, not the echo's: where the axis is
-        # off across the bar, the echo drifts with it, and so does a width from one edge to the
-        # axis; the two would then agree on a wrong size (seen on a bar seen from one side only)
-        nom_c = nom_m = math.nan
-        conf_m = 0.0
-        if veto_only:
-            nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
-                     else snap_diameter(dw, system=system, deformed=deformed)[0])
-            nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
-        strict = veto_only and nom_c != nom_m
-        if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
-            out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
-            if not veto_only:  # (veto mode has snapped both above)
-                nom_m, nom_c = (snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw))
-            out["_pair"] = (nom_m, nom_c)  # the rib pitch may tell them apart (_pitch_settle)
-            if veto_only:
-                _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm, covered)
-                # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
-                # it confirms the size the mask alone gives clearly, that size is measured. Not a
-                # width from one edge to the axis: the axis was placed with the assumed radius (a
-                # fit over part of the bar's arc slides with it), so that width cannot overturn it
-                if conf_m >= prm.min_confidence and _two_sided(info):
-                    settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
-                                      deformed=deformed, size=nom_m)
-                    if settled is not None:
-                        return settled
-                # else the widths that depend on neither the mask nor the axis may tell the
-                # mask's size from the assumed one
-                return _arbitrate(out, med, conf_m, (nom_m, nom_c), info, in_shadow, prm, system=system,
-                                  deformed=deformed) or out
-            return out
-        wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
-        width, sigma, source = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc), "mask+cloud"
-        # two estimates further apart than their σ say: the σ are too small (Birge ratio)
-        sigma *= max(1.0, abs(med - dw) / math.hypot(sigma_m, sigma_c))
-        if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
-            width, sigma, source = med, sigma_m, "mask"
-    elif not mask_problem:
-        width, sigma, source = med, sigma_m, "mask"
-    elif cloud and not veto_only:
-        width, sigma, source = dw, sigma_c, "cloud"
-        cap = prm.cloud_only_confidence
-    else:
-        out["diameter_reason"] = mask_problem
-        return out
-    nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
-    if not math.isfinite(nominal):
-        out["diameter_reason"] = f"width {width:.1f} mm matches no {system} size"
-        return out
-    if conf < prm.min_confidence and veto_only and cloud and not mask_problem:
-        # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
-        # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
-        # confirm what the mask leans to but never overturn it
-        settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed,
-                          size=nominal)
-        if settled is not None:
-            return settled
-    if conf < prm.min_confidence:
-        pair = bracketing_sizes(width, system=system, deformed=deformed)
-        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3),
-                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, pair, system))
-        if pair is not None:
-            out["_pair"] = (pair[0][0], pair[1][0])
-        return out
-    reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
-    return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
+    # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
+    # mask shows there is mostly another object (the bar over this one), not this bar
+    return (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the axis "
+            "than the bar's diameter: the mask there shows another object (a bar over it)")
+
+
+def _mask_and_cloud(out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system, deformed,
+                    veto_only, assumed_mm, covered):
+    """A sound mask width against a point-cloud width: ``(done, width, sigma, source)``, where
+    ``done`` is the bar's finished row where they disagree (else None, and the width to snap:
+    their weighted mean, or in veto mode the mask's alone)."""
+    dw = info.depth_width_mm
+    # With an assumed axis radius the cloud width echoes it: a mask giving another size can
+    # never be confirmed by the cloud, so in veto mode the mask must give the assumed size.
+    # That size is the assumed radius's where it is known, not the echo's: where the axis is
+    # off across the bar, the echo drifts with it, and so does a width from one edge to the
+    # axis; the two would then agree on a wrong size (seen on a bar seen from one side only)
+    nom_c = nom_m = math.nan
+    conf_m = 0.0
+    if veto_only:
+        nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
+                 else snap_diameter(dw, system=system, deformed=deformed)[0])
+        nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
+    strict = veto_only and nom_c != nom_m
+    if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
+        out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
+        if not veto_only:  # (veto mode has snapped both above)
+            nom_m, nom_c = (snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw))
+        out["_pair"] = (nom_m, nom_c)  # the rib pitch may tell them apart (_pitch_settle)
+        if not veto_only:
+            return out, None, None, None
+        _alert_other_size(out, med, nom_m, conf_m, dw, nom_c, prm, covered)
+        # the shape of the cloud (a circle fit) does not depend on the assumed radius: where
+        # it confirms the size the mask alone gives clearly, that size is measured. Not a
+        # width from one edge to the axis: the axis was placed with the assumed radius (a
+        # fit over part of the bar's arc slides with it), so that width cannot overturn it
+        if conf_m >= prm.min_confidence and _two_sided(info):
+            settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
+                              deformed=deformed, size=nom_m)
+            if settled is not None:
+                return settled, None, None, None
+        # else the widths that depend on neither the mask nor the axis may tell the
+        # mask's size from the assumed one
+        return (_arbitrate(out, med, conf_m, (nom_m, nom_c), info, in_shadow, prm, system=system,
+                           deformed=deformed) or out), None, None, None
+    if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
+        return None, med, sigma_m, "mask"
+    wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
+    width, sigma = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc)
+    # two estimates further apart than their σ say: the σ are too small (Birge ratio)
+    sigma *= max(1.0, abs(med - dw) / math.hypot(sigma_m, sigma_c))
+    return None, width, sigma, "mask+cloud"

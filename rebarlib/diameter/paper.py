@@ -35,7 +35,7 @@ def _attribute_pixels(pixels, prepared, intr) -> np.ndarray:
     return owner
 
 
-def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner):
+def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner, short_px: float = 6.0):
     pl = bar.plane
     H, W = mask.shape
     st = _stations(bar, intr, 1.0, n_points)
@@ -47,7 +47,7 @@ def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner):
             continue
         across, along = cross_section_direction(p, pl.direction, intr)
         long_px = 2 * design * intr.fx / p[2]
-        region = pixels_in_region(diameter_region(c, across, along, long_px=long_px, short_px=6.0), mask.shape)
+        region = pixels_in_region(diameter_region(c, across, along, long_px=long_px, short_px=short_px), mask.shape)
         if len(region) == 0:
             continue
         bp = region[edge[region[:, 1], region[:, 0]]]
@@ -64,13 +64,13 @@ def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner):
     return np.array(Ds)
 
 
-def _paper_vote(Ds, system):
+def _paper_vote(Ds, system, bin_mm: float = 1.0):
     sizes = np.array(bar_system(system).sizes_mm)
     if len(Ds) == 0:
         return math.nan, 0.0
     # bins of ±1 mm around the nominal sizes (8 ↔ 7–9, 10 ↔ 9–11, ...); outside every bin: no vote
     k = np.abs(Ds[:, None] - sizes[None, :]).argmin(axis=1)
-    inbin = np.abs(Ds - sizes[k]) <= 1.0
+    inbin = np.abs(Ds - sizes[k]) <= bin_mm
     if not inbin.any():
         return math.nan, 0.0
     counts = np.bincount(k[inbin], minlength=len(sizes))

@@ -172,28 +172,40 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
             read, where = face_read(i), " (in the shading along its face)"
         if read is None:
             continue
-        p, resolution = read
-        ls = [rib_pitch_mm(sz, system=system) for sz in pair]
-        if not all(math.isfinite(x) for x in ls):
-            continue
-        # The pitch must name one size among all those from one of the two to the other, not
-        # only between the two (two sizes of one spacing then both match, and the pitch names
-        # neither): a mask and a point cloud that disagree may leave a bar between Φ14 and Φ18,
-        # and a pitch of 10 mm is Φ16's as much as Φ18's.
-        band = _pitch_band(spread, resolution, prm)
-        span = [sz for sz in sysm.sizes_mm if min(pair) - 1e-6 <= sz <= max(pair) + 1e-6]
-        on = [sz for sz in span if abs(p / (scale * rib_pitch_mm(sz, system=system)) - 1) <= band]
-        if len(on) != 1 or on[0] not in pair:
-            continue
-        j = list(pair).index(on[0])
-        size, other = pair[j], pair[1 - j]
-        why = row["diameter_reason"].removesuffix(": check it by hand")
-        reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
-                  f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
-        width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else results[i].mask_width_mm
-        _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
-               reason, shadows[i], prm)
-        row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
+        _size_by_pitch(row, read, where, results[i], shadows[i], scale, spread, conf, prm,
+                       system=system)
+
+
+def _size_by_pitch(row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system) -> None:
+    """Size a bar left between two sizes (``row["_pair"]``) by its rib pitch ``read``
+    (``(pitch, relative resolution)``, read ``where``) where it lies within the band of exactly
+    one of the sizes from one of the two to the other (the capture's ``scale`` and ``spread``
+    of pitches, :func:`_pitch_table`), and that size is one of the two; the row is changed in
+    place."""
+    sysm = bar_system(system)
+    pair = row["_pair"]
+    p, resolution = read
+    ls = [rib_pitch_mm(sz, system=system) for sz in pair]
+    if not all(math.isfinite(x) for x in ls):
+        return
+    # The pitch must name one size among all those from one of the two to the other, not
+    # only between the two (two sizes of one spacing then both match, and the pitch names
+    # neither): a mask and a point cloud that disagree may leave a bar between Φ14 and Φ18,
+    # and a pitch of 10 mm is Φ16's as much as Φ18's.
+    band = _pitch_band(spread, resolution, prm)
+    span = [sz for sz in sysm.sizes_mm if min(pair) - 1e-6 <= sz <= max(pair) + 1e-6]
+    on = [sz for sz in span if abs(p / (scale * rib_pitch_mm(sz, system=system)) - 1) <= band]
+    if len(on) != 1 or on[0] not in pair:
+        return
+    j = list(pair).index(on[0])
+    size, other = pair[j], pair[1 - j]
+    why = row["diameter_reason"].removesuffix(": check it by hand")
+    reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
+              f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
+    width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else reading.mask_width_mm
+    _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
+           reason, in_shadow, prm)
+    row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
 
 
 def _pitch_veto(rows, results, prm, *, system) -> None:

@@ -205,23 +205,8 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     lum = _remap(gray, uv[:, 0:1], uv[:, 1:2])[:, 0].reshape(len(fr), n).astype(float)
     m = np.broadcast_to(keep, lum.shape).astype(float)  # (lines, n): the samples read
     if one_side:
-        H, W = gray.shape[:2]
-        seen = (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
-        if fp is not None and i is not None:
-            cand = _candidates(i, fp, [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
-            if len(cand):
-                seen &= ~_hits_footprints(P, fp, cand)[1].any(axis=1)
-        m = m * seen.reshape(m.shape)
-    # slow changes out: a Gaussian over the samples kept (normalised convolution across the gaps)
-    sig = 3 * prm.rib_band[1] * width / ds
-    half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
-    x_g = np.arange(-half, half + 1)
-    g = np.exp(-0.5 * (x_g / sig) ** 2)
-    x = np.array([(row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
-                  for row, mk in zip(lum, m)])
-    cnt = np.maximum(m.sum(axis=1), 1.0)  # samples read per line (a line with none has no variance)
-    x -= (x.sum(axis=1) / cnt)[:, None] * m
-    var = (x ** 2).sum(axis=1) / cnt
+        m = m * _seen_samples(uv, P, gray, fp, i).reshape(m.shape)
+    x, cnt, var = _detrended(lum, m, width, ds, n, prm)
     # a line read over less than half of the bar's clean length says too little (a sliver's
     # line that runs under the bar over it)
     varied = (var > 1e-9) & (cnt >= 0.5 * keep.sum())
@@ -238,6 +223,35 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     # the face's mean height over the axis, on a circle through the edges
     h = float(np.mean(np.sqrt(np.clip(1 - (2 * fr - 1) ** 2, 0, 1)))) * width / 2
     return _clear_pitch(float(1 / f[k]) * (1 - h / dist), p, length, prm)
+
+
+def _seen_samples(uv, P, gray, fp, i) -> np.ndarray:
+    """Which samples (pixels ``uv`` of the points ``P``) of a bar seen from one side are its
+    own: inside the image and outside the footprint of every nearer bar (``fp``, this bar's
+    index ``i``; without them, inside the image)."""
+    H, W = gray.shape[:2]
+    seen = (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+    if fp is not None and i is not None:
+        cand = _candidates(i, fp, [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+        if len(cand):
+            seen &= ~_hits_footprints(P, fp, cand)[1].any(axis=1)
+    return seen
+
+
+def _detrended(lum, m, width, ds, n, prm):
+    """The face's lines of luminance ``lum`` (lines, n) less their slow changes (light, rust,
+    shadows: a Gaussian over three of the longest pitches searched, normalised over the samples
+    read, ``m``) and their means: ``(x, samples read per line, variance per line)``."""
+    sig = 3 * prm.rib_band[1] * width / ds
+    half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
+    x_g = np.arange(-half, half + 1)
+    g = np.exp(-0.5 * (x_g / sig) ** 2)
+    x = np.array([(row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
+                  for row, mk in zip(lum, m)])
+    cnt = np.maximum(m.sum(axis=1), 1.0)  # samples read per line (a line with none has no variance)
+    x -= (x.sum(axis=1) / cnt)[:, None] * m
+    var = (x ** 2).sum(axis=1) / cnt
+    return x, cnt, var
 
 
 def _ribs_in_view(reads, prm, sizes=None) -> float:

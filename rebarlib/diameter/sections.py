@@ -6,13 +6,14 @@ crossings, under a nearer bar, at the image border, in deep shadow, cut at a dep
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._camera import project
 from .bars import _Bar, _candidates, _hits_footprints, _remap, _stations
 from .cloud import _cloud_circle, _depth_width
-from .params import _RefinedParams
+from .params import DiameterParams
 from .reading import BarReading
 from .ribs import _rib_periodicity
 
@@ -117,9 +118,99 @@ def _thinned(idx, n: int):
     return idx[::max(1, -(-len(idx) // n))]
 
 
-def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams, rgb=None, depth_img=None,
-                 circle=False):
-    H, W = maskf.shape
+@dataclass
+class _Sections:
+    """One bar's cross-sections while they are read (mm across the bar in γ, from the axis).
+
+    ``st`` (M, 3): the stations on the axis (camera frame); ``t`` (K,): the profile's samples
+    across the bar; ``u``, ``v``, ``z`` (M, K): each sample's pixel and depth;
+    ``inside_px`` (M, K): the sample lies in the image; ``in_img`` (M,): the station does. Per
+    station: ``ok`` (two clean edges so far), ``one_sided``, ``occluded`` (under a nearer bar),
+    ``cut`` (an edge at a depth step), the section's ``widths`` and ``centres``, its colour
+    width ``colour_w``, the band the point cloud is read in (``d_centre``, ``d_width``), its two
+    edges (``edge_lo``, ``edge_hi``) or its one edge (``side_lo``, ``side_hi``). From the mask
+    runs: the profiles ``m``, the samples ``behind`` the bar, the runs' ends ``left`` and
+    ``right`` (indices into ``t``), the sections with only their low or high edge
+    (``one_lo``, ``one_hi``) and the side of a strip without depth (``strip_side``).
+    """
+
+    st: np.ndarray
+    t: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    z: np.ndarray
+    inside_px: np.ndarray
+    in_img: np.ndarray
+    ok: np.ndarray = None
+    one_sided: np.ndarray = None
+    occluded: np.ndarray = None
+    cut: np.ndarray = None
+    widths: np.ndarray = None
+    centres: np.ndarray = None
+    colour_w: np.ndarray = None
+    d_centre: np.ndarray = None
+    d_width: np.ndarray = None
+    edge_lo: np.ndarray = None
+    edge_hi: np.ndarray = None
+    side_lo: np.ndarray = None
+    side_hi: np.ndarray = None
+    m: np.ndarray = None
+    behind: np.ndarray = None
+    left: np.ndarray = None
+    right: np.ndarray = None
+    one_lo: np.ndarray = None
+    one_hi: np.ndarray = None
+    strip_side: str = ""
+
+
+def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: DiameterParams, rgb=None,
+                 depth_img=None, circle=False) -> BarReading:
+    """Read one bar's cross-sections (refined method).
+
+    Parameters
+    ----------
+    i : the bar's index in ``fp`` (its footprint; the others are the bars that may hide it)
+    bar : the bar (:func:`~rebarlib.diameter.bars._prepare`)
+    maskf : (H, W) float rebar probability (a bool mask as 0/1)
+    gray, rgb : the colour image as luminance and as RGB (None: no colour)
+    depth : (H, W) depth (mm) for separating a bar from one behind it (None: not used)
+    intr : Intrinsics
+    fp : the capture's footprints (:func:`~rebarlib.diameter.bars._footprints`)
+    prm : DiameterParams
+    depth_img : (H, W) depth (mm) for the point-cloud widths (None: not read)
+    circle : also fit a circle to the bar's cloud (axes placed with an assumed radius)
+
+    Returns
+    -------
+    BarReading: the kept sections' widths and everything read along the way.
+    """
+    sec = _profiles(bar, maskf.shape, intr, prm)
+    reading = BarReading(stations=len(sec.st), border=int((~sec.in_img).sum()))
+    cand = _occlusion(i, bar, sec, fp, prm)
+    reading.n_occluded = int(sec.occluded.sum())
+    _mask_runs(i, bar, sec, maskf, depth, intr, fp, prm, reading)
+    rows = np.flatnonzero(sec.ok | sec.one_lo | sec.one_hi)
+    if len(rows):
+        _section_edges(i, bar, sec, rows, rgb, cand, intr, fp, prm, reading)
+        if gray is not None:
+            _shadowed_sections(bar, sec, gray, intr, prm, reading)
+    w, c, cw, kept, cut_off = _kept_widths(bar, sec, intr, prm, reading)
+    reading.one_sided_share = float(sec.one_sided[kept].mean()) if len(kept) else 0.0
+    s_k = (sec.st[kept] - bar.p0) @ bar.plane.direction  # the sections' places along the bar (mm)
+    # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
+    reading.edges = (s_k, sec.edge_lo[kept], sec.edge_hi[kept])
+    # (a face read from one side: _face_pitch)
+    reading.one_edges = (s_k, sec.side_lo[kept], sec.side_hi[kept])
+    _read_ribs(i, bar, sec, w, kept, cut_off, s_k, intr, fp, prm, reading)
+    _read_cloud(bar, sec, kept, depth_img, circle, intr, prm, reading)
+    _read_colour_and_place(sec, c, cw, kept, s_k, gray, intr, prm, reading)
+    reading.widths, reading.occluded, reading.in_image = w, sec.occluded, sec.in_img
+    return reading
+
+
+def _profiles(bar: _Bar, shape, intr, prm) -> _Sections:
+    """The stations along the bar's axis and the profile samples across it at each, in γ."""
+    H, W = shape
     pl = bar.plane
     st = _stations(bar, intr, prm.step_px, prm.max_sections)
     M = len(st)
@@ -133,31 +224,40 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     v = intr.fy * X[..., 1] / z + intr.cy
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
-    info = BarReading(stations=M, border=int((~in_img).sum()))
-    widths = np.full(M, np.nan)
-    centres = np.full(M, np.nan)  # middle of the two edges, mm from the axis in γ
-    colour_w = np.full(M, np.nan)  # width between the colour edges next to the mask edges
-    d_centre = np.full(M, np.nan)  # middle and width of the band the point cloud is read in
-    d_width = np.full(M, np.nan)
-    edge_lo = np.full(M, np.nan)  # the two edges of a section with both, mm from the axis in γ
-    edge_hi = np.full(M, np.nan)
-    side_lo = np.full(M, np.nan)  # the one edge of a one-sided section, mm from the axis in γ
-    side_hi = np.full(M, np.nan)
-    cut = np.zeros(M, bool)
-    ok = in_img.copy()
+    nan = np.full(M, np.nan)
+    return _Sections(st, t, u, v, z, inside_px, in_img, ok=in_img.copy(),
+                     one_sided=np.zeros(M, bool), cut=np.zeros(M, bool), widths=nan.copy(),
+                     centres=nan.copy(), colour_w=nan.copy(), d_centre=nan.copy(),
+                     d_width=nan.copy(), edge_lo=nan.copy(), edge_hi=nan.copy(),
+                     side_lo=nan.copy(), side_hi=nan.copy())
 
-    # occlusion by a nearer bar across the expected width at each station (for "hidden")
-    win_uv = np.column_stack((u[in_img].ravel(), v[in_img].ravel())) if in_img.any() else np.zeros((1, 2))
-    cand = _candidates(i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(), win_uv[:, 1].max()])
-    probe_t = np.array([-0.5, -0.25, 0.0, 0.25, 0.5]) * bar.expected_mm
+
+def _occlusion(i, bar: _Bar, sec: _Sections, fp, prm):
+    """Mark the stations whose section lies under a nearer bar across the expected width (for
+    "hidden"); the bars whose footprints reach the bar's window (their indices)."""
+    u, v, in_img, st, M = sec.u, sec.v, sec.in_img, sec.st, len(sec.st)
+    win_uv = (np.column_stack((u[in_img].ravel(), v[in_img].ravel())) if in_img.any()
+              else np.zeros((1, 2)))
+    cand = _candidates(i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(),
+                               win_uv[:, 1].max()])
+    probe_t = np.array(prm.probe_fractions) * bar.expected_mm
     occluded = np.zeros(M, bool)
     if len(cand):
-        P = (st[:, None, :] + probe_t[None, :, None] * pl.across).reshape(-1, 3)
+        P = (st[:, None, :] + probe_t[None, :, None] * bar.plane.across).reshape(-1, 3)
         _, nearer = _hits_footprints(P, fp, cand)
         occluded = nearer.any(axis=1).reshape(M, -1).any(axis=1)
     occluded &= in_img
-    info.n_occluded = int(occluded.sum())
+    sec.occluded = occluded
+    return cand
 
+
+def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, reading) -> None:
+    """The mask run through the axis in every section, its ends cut where it runs on into a
+    bar behind (by the depth), and which sections have both edges, or one edge and the image
+    border on the other side."""
+    u, v, t, z, st = sec.u, sec.v, sec.t, sec.z, sec.st
+    inside_px, in_img = sec.inside_px, sec.in_img
+    M, K = u.shape
     m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
     b = m >= 0.5
     behind = np.zeros_like(b)
@@ -203,8 +303,8 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # where the depth cannot cut it off (and where it can, the sections cut there and those
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
-    strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed,
-                                                      sample_px, prm)
+    sec.strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2,
+                                                          in_img & has_seed, sample_px, prm)
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     # An edge is where the run meets a non-bar sample inside the image; a run that meets the
@@ -216,146 +316,181 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     edged = has_seed & (left >= 0) & (right < K)
     at_border = edged & ~(in_lo & in_hi)
     edged &= ~at_border
-    info.border += int((ok & at_border).sum())
-    info.no_edge = int((ok & ~edged & ~at_border).sum())
-    ok &= edged
+    reading.border += int((sec.ok & at_border).sum())
+    reading.no_edge = int((sec.ok & ~edged & ~at_border).sum())
+    sec.ok &= edged
     # One-sided sections: one edge, the other side cut by the image border (or, below, inside
     # another bar's footprint). The width is then twice the edge's distance from the axis: it
     # needs the axis in the bar's middle to a fraction of a millimetre, so only for axes the
     # geometry stage measured, only where the axis itself is in view (at least half the bar's
     # width is), and only where too few sections show both edges (see below).
-    one_lo = lo_edge & hi_border & in_img & bar.axis_ok  # the low edge only
-    one_hi = hi_edge & lo_border & in_img & bar.axis_ok
-    one_sided = np.zeros(M, bool)
-    usable = ok | one_lo | one_hi
-    rows = np.flatnonzero(usable)
-    if len(rows):
-        la, ra = left[rows], right[rows]  # both in the profile: every usable row has its two run ends
-        ma0, ma1 = m[rows, la], m[rows, la + 1]
-        mb0, mb1 = m[rows, ra - 1], m[rows, ra]
-        dt = t[1] - t[0]
-        # sub-pixel: where the interpolated mask profile crosses 0.5
-        t_lo = t[la] + np.clip((0.5 - ma0) / np.maximum(ma1 - ma0, 1e-9), 0, 1) * dt
-        t_hi = t[ra - 1] + np.clip((mb0 - 0.5) / np.maximum(mb0 - mb1, 1e-9), 0, 1) * dt
-        # an edge cut at a depth step lies half-way between the samples either side of it
-        cut_lo, cut_hi = behind[rows, la], behind[rows, ra]
-        t_lo = np.where(cut_lo, t[la] + dt / 2, t_lo)
-        t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
-        two = ok[rows]
-        has_lo, has_hi = two | one_lo[rows], two | one_hi[rows]
-        # a one-sided section's edge must be a clean mask edge
-        has_lo &= ~(cut_lo & ~two)
-        has_hi &= ~(cut_hi & ~two)
-        cut[rows] = two & (cut_lo | cut_hi)
-        if rgb is not None and prm.colour_edges and two.any():
-            r2 = rows[two]
-            g = _remap(rgb, u[r2], v[r2])
-            c_lo, c_hi, moved = _colour_edges_rgb(g, t, t_lo[two], t_hi[two], st[r2, 2] / intr.fx, prm)
-            info.colour_edges = int(moved.sum())
-            both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
-            colour_w[r2[both]] = (c_hi - c_lo)[both]
-            if prm.colour_edges == "replace":
-                t_lo[two] = np.where(cut_lo[two], t_lo[two], c_lo)
-                t_hi[two] = np.where(cut_hi[two], t_hi[two], c_hi)
-        # An edge is trusted unless it may belong to another bar: inside the footprint of a
-        # nearer bar (ours is occluded there), or beyond our own expected width and inside a
-        # farther bar's footprint (our run merged with the bar behind).
-        bad_lo = np.zeros(len(rows), bool)
-        bad_hi = np.zeros(len(rows), bool)
-        if len(cand):
-            px_mm = st[rows, 2] / intr.fx
-            tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm))
-            P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
-            inside, nearer = _hits_footprints(P, fp, cand)
-            beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
-            bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
-            bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
-            info.crossing = int((two & (bad_lo | bad_hi)).sum())
-            # sections with one clean edge and the other at another bar (a sliver beside it)
-            info.one_edge = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
-        if strip_side:  # nor is the end at a strip without depth beside the bar (above)
-            info.holed = int(two.sum())
-            bad_lo |= strip_side == "lo"
-            bad_hi |= strip_side == "hi"
-        # the side at another bar is lost; the other side may still give a one-sided width, if
-        # the axis may be measured from
-        if not bar.axis_ok:
-            bad_lo = bad_hi = bad_lo | bad_hi
-        has_lo &= ~bad_lo
-        has_hi &= ~bad_hi
-        is_two = has_lo & has_hi
-        is_one = has_lo ^ has_hi
-        # a colour width is the width between two colour edges: it checks a section measured
-        # between two mask edges only (a one-sided width runs from one edge to the axis; the
-        # colour edges found at its other end belong to the border or to the bar over it)
-        colour_w[rows[~is_two]] = np.nan
-        ok[rows] = is_two
-        one_sided[rows] = is_one
-        widths[rows] = np.where(is_two, t_hi - t_lo, np.where(has_lo, -2 * t_lo, 2 * t_hi))
-        centres[rows] = np.where(is_two, (t_hi + t_lo) / 2, 0.0)
-        edge_lo[rows] = np.where(is_two, t_lo, np.nan)
-        edge_hi[rows] = np.where(is_two, t_hi, np.nan)
-        side_lo[rows] = np.where(is_one & has_lo, t_lo, np.nan)
-        side_hi[rows] = np.where(is_one & has_hi, t_hi, np.nan)
-        # the point cloud of a one-sided section: from the visible half, between edge and axis
-        d_centre[rows] = np.where(is_two, centres[rows], np.where(has_lo, t_lo, t_hi) / 2)
-        d_width[rows] = np.where(is_two, widths[rows], widths[rows] / 2)
-        # one-sided sections only where the sections with both edges are too few to size the
-        # bar and fewer than the one-sided ones (a bar along the image border, or along a bar
-        # over it): elsewhere the width does not depend on where the axis lies across the bar
-        if int(ok.sum()) >= max(prm.min_sections, int(one_sided.sum())):
-            one_sided[:] = False
-        # shadow: the middle of the section much darker than the bar usually is (the station on
-        # the axis; the middle of the visible part for a one-sided section)
-        if gray is not None:
-            rows = np.flatnonzero(ok | one_sided)
-            if len(rows) >= prm.min_sections:
-                pos = np.where(ok[rows], 0.0, (t[np.clip(left[rows] + 1, 0, K - 1)]
-                                               + t[np.clip(right[rows] - 1, 0, K - 1)]) / 2)
-                uvc = project(st[rows] + pos[:, None] * pl.across, intr)
-                lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
-                dark = lum < prm.shadow_ratio * np.median(lum)
-                if (len(rows) - dark.sum()) >= prm.min_sections:
-                    info.shadow = int(dark.sum())
-                    ok[rows[dark]] = False
-                    one_sided[rows[dark]] = False
+    sec.one_lo = lo_edge & hi_border & in_img & bar.axis_ok  # the low edge only
+    sec.one_hi = hi_edge & lo_border & in_img & bar.axis_ok
+    sec.m, sec.behind, sec.left, sec.right = m, behind, left, right
+
+
+def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
+                   reading) -> None:
+    """Both edges of the sections ``rows`` to a fraction of a sample, checked against the colour
+    image and against the other bars' footprints; each section's width, centre and edges."""
+    t, pl = sec.t, bar.plane
+    la, ra = sec.left[rows], sec.right[rows]  # every usable row has its two run ends
+    m = sec.m
+    ma0, ma1 = m[rows, la], m[rows, la + 1]
+    mb0, mb1 = m[rows, ra - 1], m[rows, ra]
+    dt = t[1] - t[0]
+    # sub-pixel: where the interpolated mask profile crosses 0.5
+    t_lo = t[la] + np.clip((0.5 - ma0) / np.maximum(ma1 - ma0, 1e-9), 0, 1) * dt
+    t_hi = t[ra - 1] + np.clip((mb0 - 0.5) / np.maximum(mb0 - mb1, 1e-9), 0, 1) * dt
+    # an edge cut at a depth step lies half-way between the samples either side of it
+    cut_lo, cut_hi = sec.behind[rows, la], sec.behind[rows, ra]
+    t_lo = np.where(cut_lo, t[la] + dt / 2, t_lo)
+    t_hi = np.where(cut_hi, t[ra] - dt / 2, t_hi)
+    two = sec.ok[rows]
+    has_lo, has_hi = two | sec.one_lo[rows], two | sec.one_hi[rows]
+    # a one-sided section's edge must be a clean mask edge
+    has_lo &= ~(cut_lo & ~two)
+    has_hi &= ~(cut_hi & ~two)
+    sec.cut[rows] = two & (cut_lo | cut_hi)
+    if rgb is not None and prm.colour_edges and two.any():
+        _colour_check(sec, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading)
+    bad_lo, bad_hi = _edges_at_other_bars(i, sec, rows, t_lo, t_hi, two, has_lo, has_hi, cand,
+                                          pl, intr, fp, reading)
+    if sec.strip_side:  # nor is the end at a strip without depth beside the bar (_mask_runs)
+        reading.holed = int(two.sum())
+        bad_lo |= sec.strip_side == "lo"
+        bad_hi |= sec.strip_side == "hi"
+    # the side at another bar is lost; the other side may still give a one-sided width, if
+    # the axis may be measured from
+    if not bar.axis_ok:
+        bad_lo = bad_hi = bad_lo | bad_hi
+    has_lo &= ~bad_lo
+    has_hi &= ~bad_hi
+    is_two = has_lo & has_hi
+    is_one = has_lo ^ has_hi
+    # a colour width is the width between two colour edges: it checks a section measured
+    # between two mask edges only (a one-sided width runs from one edge to the axis; the
+    # colour edges found at its other end belong to the border or to the bar over it)
+    sec.colour_w[rows[~is_two]] = np.nan
+    sec.ok[rows] = is_two
+    sec.one_sided[rows] = is_one
+    sec.widths[rows] = np.where(is_two, t_hi - t_lo, np.where(has_lo, -2 * t_lo, 2 * t_hi))
+    sec.centres[rows] = np.where(is_two, (t_hi + t_lo) / 2, 0.0)
+    sec.edge_lo[rows] = np.where(is_two, t_lo, np.nan)
+    sec.edge_hi[rows] = np.where(is_two, t_hi, np.nan)
+    sec.side_lo[rows] = np.where(is_one & has_lo, t_lo, np.nan)
+    sec.side_hi[rows] = np.where(is_one & has_hi, t_hi, np.nan)
+    # the point cloud of a one-sided section: from the visible half, between edge and axis
+    sec.d_centre[rows] = np.where(is_two, sec.centres[rows], np.where(has_lo, t_lo, t_hi) / 2)
+    sec.d_width[rows] = np.where(is_two, sec.widths[rows], sec.widths[rows] / 2)
+    # one-sided sections only where the sections with both edges are too few to size the
+    # bar and fewer than the one-sided ones (a bar along the image border, or along a bar
+    # over it): elsewhere the width does not depend on where the axis lies across the bar
+    if int(sec.ok.sum()) >= max(prm.min_sections, int(sec.one_sided.sum())):
+        sec.one_sided[:] = False
+
+
+def _colour_check(sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm,
+                  reading) -> None:
+    """The colour edges next to the two-edged sections' mask edges: their widths
+    (``sec.colour_w``), and with ``prm.colour_edges == "replace"`` the edges themselves (in
+    place in ``t_lo``, ``t_hi``; never an edge cut at a depth step)."""
+    r2 = rows[two]
+    g = _remap(rgb, sec.u[r2], sec.v[r2])
+    c_lo, c_hi, moved = _colour_edges_rgb(g, sec.t, t_lo[two], t_hi[two], sec.st[r2, 2] / intr.fx,
+                                          prm)
+    reading.colour_edges = int(moved.sum())
+    both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
+    sec.colour_w[r2[both]] = (c_hi - c_lo)[both]
+    if prm.colour_edges == "replace":
+        t_lo[two] = np.where(cut_lo[two], t_lo[two], c_lo)
+        t_hi[two] = np.where(cut_hi[two], t_hi[two], c_hi)
+
+
+def _edges_at_other_bars(i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl,
+                         intr, fp, reading):
+    """Per section of ``rows``, whether its low and its high edge may belong to another bar:
+    inside the footprint of a nearer bar (ours is occluded there), or beyond our own expected
+    width and inside a farther bar's footprint (our run merged with the bar behind)."""
+    bad_lo = np.zeros(len(rows), bool)
+    bad_hi = np.zeros(len(rows), bool)
+    if len(cand):
+        st = sec.st
+        px_mm = st[rows, 2] / intr.fx
+        tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi,
+                              t_hi + 1.5 * px_mm))
+        P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
+        inside, nearer = _hits_footprints(P, fp, cand)
+        beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
+        bad = (nearer.any(axis=1) | (inside.any(axis=1) & beyond)).reshape(len(rows), -1)
+        bad_lo, bad_hi = bad[:, :3].any(axis=1), bad[:, 3:].any(axis=1)
+        reading.crossing = int((two & (bad_lo | bad_hi)).sum())
+        # sections with one clean edge and the other at another bar (a sliver beside it)
+        reading.one_edge = int(((has_lo & ~bad_lo) ^ (has_hi & ~bad_hi)).sum())
+    return bad_lo, bad_hi
+
+
+def _shadowed_sections(bar: _Bar, sec: _Sections, gray, intr, prm, reading) -> None:
+    """Drop the sections whose middle is much darker than the bar usually is (in shadow): the
+    station on the axis, the middle of the visible part for a one-sided section."""
+    ok, one_sided, t = sec.ok, sec.one_sided, sec.t
+    K = len(t)
+    rows = np.flatnonzero(ok | one_sided)
+    if len(rows) >= prm.min_sections:
+        pos = np.where(ok[rows], 0.0, (t[np.clip(sec.left[rows] + 1, 0, K - 1)]
+                                       + t[np.clip(sec.right[rows] - 1, 0, K - 1)]) / 2)
+        uvc = project(sec.st[rows] + pos[:, None] * bar.plane.across, intr)
+        lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
+        dark = lum < prm.shadow_ratio * np.median(lum)
+        if (len(rows) - dark.sum()) >= prm.min_sections:
+            reading.shadow = int(dark.sum())
+            ok[rows[dark]] = False
+            one_sided[rows[dark]] = False
+
+
+def _kept_widths(bar: _Bar, sec: _Sections, intr, prm, reading):
+    """The sections the bar is sized from: ``(widths, centres, colour widths, their stations'
+    indices, the sections left out for an edge at a depth step)``; widths corrected for
+    silhouette rays tangent to the bar, outliers left out."""
+    ok, cut, st, pl = sec.ok, sec.cut, sec.st, bar.plane
     # edges from the mask are sharper than edges at depth steps (a depth camera fattens a nearer
     # object's edge): use the latter only if needed, that is unless the sections with mask edges
     # alone are enough with room for the outliers dropped below (twice the minimum: with just
     # the minimum, one outlier left a bar with hundreds of sections "too few")
-    cut_off = np.zeros(M, bool)  # sections left out for their edge at a depth step
+    cut_off = np.zeros(len(st), bool)  # sections left out for their edge at a depth step
     if (ok & ~cut).sum() >= 2 * prm.min_sections:
-        info.depth_cut = int((ok & cut).sum())
+        reading.depth_cut = int((ok & cut).sum())
         cut_off = ok & cut
         ok &= ~cut
-    sel = ok | one_sided
+    sel = ok | sec.one_sided
     kept = np.flatnonzero(sel)
-    w = _tangent_correct(widths[sel], pl.offset_mm)
-    c = centres[sel]
-    cw = _tangent_correct(colour_w[sel], pl.offset_mm)
+    w = _tangent_correct(sec.widths[sel], pl.offset_mm)
+    c = sec.centres[sel]
+    cw = _tangent_correct(sec.colour_w[sel], pl.offset_mm)
     if len(w) >= 3:
         med = np.median(w)
         mad = 1.4826 * np.median(np.abs(w - med))
         px_mm = float(np.median(st[sel, 2])) / intr.fx
-        keep = np.abs(w - med) <= max(prm.outlier_k * mad, 1.0 * px_mm)
-        info.outlier = int((~keep).sum())
+        keep = np.abs(w - med) <= max(prm.outlier_k * mad, prm.outlier_floor_px * px_mm)
+        reading.outlier = int((~keep).sum())
         w, c, cw, kept = w[keep], c[keep], cw[keep], kept[keep]
-    info.one_sided_share = float(one_sided[kept].mean()) if len(kept) else 0.0
-    info.rib_pitch_mm, info.rib_p, info.crest_mm, info.core_mm = math.nan, 1.0, math.nan, math.nan
-    info.rib_length_mm = math.nan
-    s_k = (st[kept] - bar.p0) @ pl.direction  # the sections' places along the bar (mm)
-    # each edge along the bar, for a rib pitch read from one side at a time (_edge_pitch)
-    info.edges = (s_k, edge_lo[kept], edge_hi[kept])
-    info.one_edges = (s_k, side_lo[kept], side_hi[kept])  # (a face read from one side: _face_pitch)
+    return w, c, cw, kept, cut_off
+
+
+def _read_ribs(i, bar: _Bar, sec: _Sections, w, kept, cut_off, s_k, intr, fp, prm,
+               reading) -> None:
+    """The crests and core of the bar's widths and, where they differ by more than the pixel
+    grid's steps, the period of the widths along the bar (its rib pitch)."""
+    st = sec.st
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
-        info.crest_mm, info.core_mm = (float(q) for q in np.quantile(w, [prm.crest_quantile,
-                                                                               prm.core_quantile]))
+        reading.crest_mm, reading.core_mm = (
+            float(q) for q in np.quantile(w, [prm.crest_quantile, prm.core_quantile]))
     # A binary mask's width along a slanted bar steps by a pixel periodically as its edges cross
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
-    if math.isfinite(info.crest_mm) and info.crest_mm - info.core_mm >= prm.rib_min_px * float(
-            np.median(st[kept, 2])) / intr.fx:
-        info.rib_pitch_mm, info.rib_p = _rib_periodicity(s_k, w, band=prm.rib_band)
-        info.rib_length_mm = float(s_k.max() - s_k.min())
+    if math.isfinite(reading.crest_mm) and reading.crest_mm - reading.core_mm >= (
+            prm.rib_min_px * float(np.median(st[kept, 2])) / intr.fx):
+        reading.rib_pitch_mm, reading.rib_p = _rib_periodicity(s_k, w, band=prm.rib_band)
+        reading.rib_length_mm = float(s_k.max() - s_k.min())
     # The crests are the widest sections, and where a bar's silhouette touches one beside it
     # (a bar under it peeking out) they are the sections whose runs merge with it and are cut
     # at the depth step, left out above: the crests would then be read from the core between
@@ -363,47 +498,56 @@ def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: _RefinedParams
     # section ends at the first sample behind the bar or without depth: at its flank, or inside
     # it where the flank has no depth. So the crests are read over the cut sections too, those
     # within the bar's footprint (room for a size larger).
-    if math.isfinite(info.crest_mm) and cut_off.any():
-        wc = _tangent_correct(widths[cut_off], pl.offset_mm)
+    if math.isfinite(reading.crest_mm) and cut_off.any():
+        wc = _tangent_correct(sec.widths[cut_off], bar.plane.offset_mm)
         wc = wc[np.isfinite(wc) & (wc <= 2 * fp.half_mm[i])]
         if len(wc):
-            info.crest_mm = float(np.quantile(np.concatenate([w, wc]), prm.crest_quantile))
+            reading.crest_mm = float(np.quantile(np.concatenate([w, wc]), prm.crest_quantile))
+
+
+def _read_cloud(bar: _Bar, sec: _Sections, kept, depth_img, circle, intr, prm, reading) -> None:
+    """The bar's diameter from its point cloud (:func:`_depth_width`) and, for an axis placed
+    with an assumed radius (``circle``), the circle fitted to it (:func:`_cloud_circle`)."""
+    st, pl, occluded = sec.st, bar.plane, sec.occluded
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
-    info.depth_width_mm, info.depth_spread_mm, info.depth_points, info.depth_off_share = _depth_width(
-        depth_img, intr, pl, st[ck], d_centre[ck], d_width[ck], prm, bar.expected_mm,
+    (reading.depth_width_mm, reading.depth_spread_mm, reading.depth_points,
+     reading.depth_off_share) = _depth_width(
+        depth_img, intr, pl, st[ck], sec.d_centre[ck], sec.d_width[ck], prm, bar.expected_mm,
         occluded[ck]) if depth_img is not None else (math.nan, math.nan, 0, math.nan)
     # that share was read where every section lies under a nearer bar
-    info.depth_off_covered = bool(len(ck) and occluded[ck].all())
-    info.circle_width_mm = info.circle_sigma_mm = math.nan
-    if depth_img is not None and circle:  # only used where the axis was placed with an assumed radius
-        two_k = _thinned(kept[~one_sided[kept]], prm.cloud_sections)
-        info.circle_width_mm, info.circle_sigma_mm = _cloud_circle(
-            depth_img, intr, pl, st[two_k], centres[two_k], widths[two_k], prm)
+    reading.depth_off_covered = bool(len(ck) and occluded[ck].all())
+    if depth_img is not None and circle:  # (only for axes placed with an assumed radius)
+        two_k = _thinned(kept[~sec.one_sided[kept]], prm.cloud_sections)
+        reading.circle_width_mm, reading.circle_sigma_mm = _cloud_circle(
+            depth_img, intr, pl, st[two_k], sec.centres[two_k], sec.widths[two_k], prm)
+
+
+def _read_colour_and_place(sec: _Sections, c, cw, kept, s_k, gray, intr, prm, reading) -> None:
+    """The colour widths, how far the mask runs are centred off the axis, the pixel's footprint
+    and depth, the pixel phases the edges sweep and the bar's luminance."""
+    st, in_img = sec.st, sec.in_img
     # The colour edges next to the mask edges are an independent check of the mask: where the
     # two widths disagree the mask may be biased (a learnt mask bleeding into a shadow or eating
     # into a dark bar), and the width is no better known than their difference.
     # (along the bar, for a capture whose mask smooths its ribs away: _colour_ribs)
-    info.colour_widths = (s_k, cw)
+    reading.colour_widths = (s_k, cw)
     cw = cw[np.isfinite(cw)]
-    info.colour_width_mm = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
+    reading.colour_width_mm = float(np.median(cw)) if len(cw) >= prm.min_sections else math.nan
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
-    two_kept = ~one_sided[kept]  # a one-sided section has no centre of its own
-    info.centre_mm = float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
-    info.px_mm = float(np.median(st[:, 2])) / intr.fx
+    two_kept = ~sec.one_sided[kept]  # a one-sided section has no centre of its own
+    reading.centre_mm = (float(np.median(c[two_kept])) if two_kept.any()
+                         else (0.0 if len(c) else math.nan))
+    reading.px_mm = float(np.median(st[:, 2])) / intr.fx
     # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
     # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same
     # rounding; a slanted bar's edges cross the grid min(|du|, |dv|) times and the rounding
     # averages out over the sections.
-    info.phase_sweep_px = 0.0
     if len(kept) >= 2:
         uv_k = project(st[kept[[0, -1]]], intr)
-        info.phase_sweep_px = float(np.abs(uv_k[1] - uv_k[0]).min())
-    info.z_mm = float(np.median(st[:, 2]))
-    info.lum = math.nan
+        reading.phase_sweep_px = float(np.abs(uv_k[1] - uv_k[0]).min())
+    reading.z_mm = float(np.median(st[:, 2]))
     if gray is not None and in_img.any():
         uvc = project(st[in_img], intr)
-        info.lum = float(np.median(_remap(gray, uvc[:, 0:1], uvc[:, 1:2])))
-    info.widths, info.occluded, info.in_image = w, occluded, in_img
-    return info
+        reading.lum = float(np.median(_remap(gray, uvc[:, 0:1], uvc[:, 1:2])))
