@@ -48,6 +48,7 @@ Modules, in the order the data flows:
 - :mod:`~rebarlib.geometry.second_look`: a second look at the empty positions of a row
 - :mod:`~rebarlib.geometry.paper`: the paper's procedure
 - :mod:`~rebarlib.geometry.scoring`: a result scored against a synthetic capture's truth
+- :mod:`~rebarlib.geometry.params`: :class:`GeometryParams`, the bar search's tuning
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from .bars import bar_directions, direction_sharpness, find_bars
 from .layers import LAYERS, LEVELS, find_layer_split, split_layers
 from .levels import assign_levels, level_heights, stack_heights, top_heights
 from .paper import group_directions, paper_find_bars, paper_spacings
+from .params import GeometryParams
 from .partial import flag_border_cut
 from .plane import (Plane, fit_formwork, from_slab_frame, paper_fit_formwork, plane_frame,
                     to_slab_frame)
@@ -69,5 +71,5 @@ __all__ = [
     "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
     "level_heights", "stack_heights", "top_heights", "count_bars", "envelope_mm",
     "direction_sharpness", "flag_border_cut", "assign_levels", "find_missed_bars", "LAYERS",
-    "LEVELS",
+    "LEVELS", "GeometryParams",
 ]

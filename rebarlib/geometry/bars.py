@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
 from .axis import BarAxis, _longest_run
 from .fit import _facing_fit, _fit_bar, _refit_along_rays, _rms_on
+from .params import GeometryParams
 from .partial import _approximate_axes
 
 
@@ -141,7 +143,8 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
 def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
               window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
               pitch_mm: float | None = None, min_arc_deg: float = 90.0, max_arc_deg: float = 200.0,
-              camera=None, skew_check_deg: float = 2.0, rng=None) -> list:
+              camera=None, skew_check_deg: float = 2.0, rng=None,
+              params: GeometryParams | None = None) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -179,12 +182,14 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         of a bar must hold at least 20 % of the points a fully seen bar surface would give
         there; without it, 2 points per cell. The sampled extent of a bar falls short of its
         visible length by about one pitch, so ``min_length_mm`` applies to extent + pitch.
+    params : GeometryParams, the search's other tuning (default ``GeometryParams()``)
 
     Returns
     -------
     list of BarAxis (``group`` = direction index); bars with too few points are kept with
     status "not measured" and the reason.
     """
+    prm = params or GeometryParams()
     rng = np.random.default_rng(rng)
     q = np.asarray(points, float)
     if len(q) < min_points:
@@ -197,137 +202,25 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     dirs = bar_directions(plan, rng=rng)
     radii = radius_mm if isinstance(radius_mm, dict) else {0: float(radius_mm), 1: float(radius_mm)}
     max_r = max(radii.values())
-    # per point and direction: offsets and the candidate bar
-    cand = []
-    for g, ang in enumerate(dirs):
-        a = math.radians(ang)
-        d = np.array([math.cos(a), math.sin(a)])
-        n2 = np.array([-d[1], d[0]])
-        off = plan @ n2
-        along = plan @ d
-        r = radii.get(g, max_r)
-        min_cell = 2 if pitch_mm is None else max(2, int(0.2 * 5.0 * 2 * r / pitch_mm**2))
-        centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent, min_cell_points=min_cell)
-        win = window_mm if window_mm is not None else r + 3.0
-        if len(centres):
-            j = np.searchsorted(centres, off)
-            j0, j1 = np.clip(j - 1, 0, len(centres) - 1), np.clip(j, 0, len(centres) - 1)
-            near = np.where(np.abs(off - centres[j0]) < np.abs(off - centres[j1]), j0, j1)
-            member = np.abs(off - centres[near]) < win
-        else:
-            near = np.zeros(len(off), int)
-            member = np.zeros(len(off), bool)
-        cand.append((g, d, n2, off, along, r, centres, near, member, win))
+    cand = [_direction_band(g, ang, plan, radii.get(g, max_r), min_extent, pitch_mm, window_mm, prm)
+            for g, ang in enumerate(dirs)]
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
-        ambiguous = cand[0][8] & cand[1][8]
+        ambiguous = cand[0].member & cand[1].member
     bars = []
-    for g, d, n2, off, along, r, centres, near, member, win in cand:
-        for k, c in enumerate(centres):
-            band = member & (near == k)
-            # a "run" made mostly of points that also belong to crossing bars is the crossing
-            # bars themselves, not a bar of this direction
-            if (band & ambiguous).sum() > 0.5 * max(band.sum(), 1):
-                continue
-            idx = np.where(band & ~ambiguous)[0]
-            if len(idx) == 0:
-                continue
-            t = along[idx]
-            # the bar's extent: the longest run of occupied 5 mm cells (a peak can also catch a
-            # few stray points far away along the line)
-            t0, t1 = _longest_run(t, cell_mm=5.0, max_gap_mm=max(60.0, 8 * r))
-            sel = (t >= t0) & (t <= t1)
-            idx, t = idx[sel], t[sel]
-            length = float(t1 - t0)
-            if length < min_extent:
-                continue
-            if len(idx) < min_points:
-                bars.append(BarAxis(layer, d, float(c), 0.0, float(np.median(h[idx])) - r, 0.0, float(t0), float(t1),
-                                    r, len(idx), float("nan"), idx, g, status="not measured",
-                                    reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit"))
-                continue
-            fit = _fit_bar(t, off[idx] - c, h[idx], r)
-            # the candidate's centre is only good to a few mm: gather the points around the
-            # fitted axis again and refit (twice), so the band is centred on the bar
-            # the band also keeps to the bar's height (within a radius of the fitted axis, plus 3
-            # times the fit's residual, at least 3 mm): a refit band that moved across picks up
-            # points of the crossing bars beside the original band (not "ambiguous" there), which
-            # lie a bar diameter above this bar's surface and would drag the fit off
-            for _ in range(2):
-                (a0, a1, b0, b1), w, rms, _ = fit
-                pred = c + a0 + a1 * along
-                h_axis = b0 + b1 * along
-                reach = r + max(3.0, 3.0 * rms if np.isfinite(rms) else 3.0)
-                near_axis = ((np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - 20) & (along <= t1 + 20)
-                             & (np.abs(h - h_axis) < reach))
-                idx2 = np.where(near_axis)[0]
-                if len(idx2) < min_points:
-                    break
-                idx, t = idx2, along[idx2]
-                fit = _fit_bar(t, off[idx] - c, h[idx], r)
-            s_b, h_b = off[idx] - c, h[idx]
-            if abs(fit[0][1]) > math.tan(math.radians(skew_check_deg)):
-                # more skewed than a mesh's bars are: unless the skew fits the points clearly
-                # better, the bar runs parallel to its direction (a short sliver tilts a free fit)
-                par = _fit_bar(t, s_b, h_b, r, parallel=True)
-                if _rms_on(par, fit, t, s_b, h_b, r) <= 1.1 * fit[2]:
-                    fit = par
-            if camera is not None:
-                fit, facing = _facing_fit(fit, t, s_b, h_b, r, camera, c, n2)
-                if facing:  # depth noise lies along the lines of sight: take its bias out
-                    fit = _refit_along_rays(fit, t, s_b, h_b, r, camera, c, d, n2)
-            (a0, a1, b0, b1), w, rms, se = fit
-            keep = w > 0
-            # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
-            # (a spacer block, a tie, a chair)
-            if keep.mean() < min_inlier_fraction or keep.sum() < min_points:
-                continue
-            tt = t[keep]
-            if tt.max() - tt.min() < min_extent:
-                continue
-            # how much of the cross-section the points cover: a bar seen only along one edge
-            # (the rest hidden by a bar above it) does not fix its axis
-            phi = np.degrees(np.arctan2(h[idx][keep] - (b0 + b1 * tt), off[idx][keep] - (c + a0 + a1 * tt)))
-            phi = (phi + 90.0) % 360.0 - 90.0  # the seen upper half, [0°, 180°], without a wrap
-            arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
-            status, reason = "measured", ""
-            if camera is not None and not facing:
-                status, reason = "not measured", ("its points face away from the camera from either side of "
-                                                  "them: a flank seen alone, its axis cannot be placed")
-            bars.append(BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
-                                float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status, reason=reason,
-                                arc_deg=arc, axis_se_mm=float(max(se))))
+    for dn in cand:
+        for k, c in enumerate(dn.centres):
+            bar = _candidate_bar(dn, k, c, h, ambiguous, layer=layer, min_points=min_points,
+                                 min_extent=min_extent, min_inlier_fraction=min_inlier_fraction,
+                                 skew_check_deg=skew_check_deg, camera=camera, prm=prm)
+            if bar is not None:
+                bars.append(bar)
     # sparse bars: a stretch whose depth is mostly lost (too few points for the density test
     # above) is still a bar if its few points sit at its direction's bar height; it is reported
     # "not measured", never dropped silently and never given a number
     bars += _sparse_bars(bars, cand, ambiguous, h, layer=layer, min_extent_mm=min_extent)
-    # something lying well below the other bars of its direction (a spacer block's top, the
-    # stub of a chair) is not a bar of this lattice level; a bar fitted well above them was fitted
-    # on a sliver (seen beside a bar over it) and its axis is not where it seems
-    for g in {b.group for b in bars}:
-        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
-        if len(hs) >= 2:
-            med, tol = float(np.median(hs)), 1.5 * radii.get(g, max_r)
-            bars = [b for b in bars if b.group != g or b.status != "measured"
-                    or b.axis_height_mm >= med - tol]
-            bars = [replace(b, status="not measured",
-                             reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
-                                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed")
-                    if b.group == g and b.status == "measured" and b.axis_height_mm > med + tol
-                    else b for b in bars]
-    # a bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
-    # along the visible arc. Not measured: under 2/3 of min_arc_deg of its cross-section seen, or
-    # under min_arc_deg and sparsely sampled (under a quarter of the layer's typical points/mm)
-    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
-    if dens:
-        typical = float(np.median(dens))
-        bars = [replace(b, status="not measured",
-                         reason=(f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
-                                 f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
-                                 f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"))
-                if b.status == "measured" and (b.arc_deg < 2 / 3 * min_arc_deg or b.arc_deg > max_arc_deg or (
-                    b.arc_deg < min_arc_deg and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < 0.25 * typical))
-                else b for b in bars]
+    bars = _off_their_level(bars, radii, max_r, prm)
+    bars = _seen_in_parts(bars, min_arc_deg, max_arc_deg, prm)
     # two bars of one direction cannot overlap: of two axes closer than the sum of their radii,
     # keep the one with more points (the other is the first one's edge or shadow fringe)
     bars = _drop_overlaps(bars)
@@ -336,6 +229,188 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
         limit = max_rms_ratio * float(np.median(rms))
         bars = [b for b in bars if b.status != "measured" or b.rms_mm <= limit]
     return _approximate_axes(bars, {c[0]: c[3] for c in cand}, h, camera)
+
+
+class _Direction(NamedTuple):
+    """One direction group's candidate bars: the points' offsets across and positions along
+    it, the candidates' offsets (``centres``), each point's nearest candidate and whether it
+    lies within ``win`` of it."""
+
+    g: int
+    d: np.ndarray
+    n2: np.ndarray
+    off: np.ndarray
+    along: np.ndarray
+    r: float
+    centres: np.ndarray
+    near: np.ndarray
+    member: np.ndarray
+    win: float
+
+
+def _direction_band(g, ang, plan, r, min_extent, pitch_mm, window_mm, prm) -> _Direction:
+    """The candidate bars of direction group ``g`` (plan angle ``ang`` degrees) and the band of
+    points around each (:func:`_bar_candidates`)."""
+    a = math.radians(ang)
+    d = np.array([math.cos(a), math.sin(a)])
+    n2 = np.array([-d[1], d[0]])
+    off = plan @ n2
+    along = plan @ d
+    min_cell = (2 if pitch_mm is None
+                else max(2, int(prm.min_cell_share * prm.cell_mm * 2 * r / pitch_mm**2)))
+    centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent,
+                                 cell_mm=prm.cell_mm, min_cell_points=min_cell)
+    win = window_mm if window_mm is not None else r + prm.window_margin_mm
+    if len(centres):
+        j = np.searchsorted(centres, off)
+        j0, j1 = np.clip(j - 1, 0, len(centres) - 1), np.clip(j, 0, len(centres) - 1)
+        near = np.where(np.abs(off - centres[j0]) < np.abs(off - centres[j1]), j0, j1)
+        member = np.abs(off - centres[near]) < win
+    else:
+        near = np.zeros(len(off), int)
+        member = np.zeros(len(off), bool)
+    return _Direction(g, d, n2, off, along, r, centres, near, member, win)
+
+
+def _candidate_bar(dn: _Direction, k, c, h, ambiguous, *, layer, min_points, min_extent,
+                   min_inlier_fraction, skew_check_deg, camera, prm):
+    """The bar at candidate ``k`` (offset ``c``) of a direction: its points' stretch, the
+    cylinder fitted to them (:func:`_fitted_bar`), or a "not measured" bar with too few points
+    for a fit; None where there is no bar."""
+    g, d, r, along = dn.g, dn.d, dn.r, dn.along
+    band = dn.member & (dn.near == k)
+    # a "run" made mostly of points that also belong to crossing bars is the crossing
+    # bars themselves, not a bar of this direction
+    if (band & ambiguous).sum() > prm.crossing_share * max(band.sum(), 1):
+        return None
+    idx = np.where(band & ~ambiguous)[0]
+    if len(idx) == 0:
+        return None
+    t = along[idx]
+    # the bar's extent: the longest run of occupied 5 mm cells (a peak can also catch a
+    # few stray points far away along the line)
+    t0, t1 = _longest_run(t, cell_mm=prm.run_cell_mm,
+                          max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r))
+    sel = (t >= t0) & (t <= t1)
+    idx, t = idx[sel], t[sel]
+    length = float(t1 - t0)
+    if length < min_extent:
+        return None
+    if len(idx) < min_points:
+        return BarAxis(layer, d, float(c), 0.0, float(np.median(h[idx])) - r, 0.0, float(t0),
+                       float(t1), r, len(idx), float("nan"), idx, g, status="not measured",
+                       reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit")
+    return _fitted_bar(dn, c, idx, t, t0, t1, h, ambiguous, layer=layer, min_points=min_points,
+                       min_extent=min_extent, min_inlier_fraction=min_inlier_fraction,
+                       skew_check_deg=skew_check_deg, camera=camera, prm=prm)
+
+
+def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, *, layer, min_points,
+                min_extent, min_inlier_fraction, skew_check_deg, camera, prm):
+    """A candidate's cylinder, refitted on its band re-centred (:func:`_refit_band`), kept
+    parallel unless a skew fits clearly better, on the side facing the camera and with the
+    depth noise's bias out; None where most of its points are not on the cylinder."""
+    g, d, n2, off, r = dn.g, dn.d, dn.n2, dn.off, dn.r
+    fit, idx, t = _refit_band(dn, c, idx, t, t0, t1, h, ambiguous, min_points, prm)
+    s_b, h_b = off[idx] - c, h[idx]
+    if abs(fit[0][1]) > math.tan(math.radians(skew_check_deg)):
+        # more skewed than a mesh's bars are: unless the skew fits the points clearly
+        # better, the bar runs parallel to its direction (a short sliver tilts a free fit)
+        par = _fit_bar(t, s_b, h_b, r, parallel=True)
+        if _rms_on(par, fit, t, s_b, h_b, r) <= prm.skew_gain * fit[2]:
+            fit = par
+    if camera is not None:
+        fit, facing = _facing_fit(fit, t, s_b, h_b, r, camera, c, n2)
+        if facing:  # depth noise lies along the lines of sight: take its bias out
+            fit = _refit_along_rays(fit, t, s_b, h_b, r, camera, c, d, n2)
+    (a0, a1, b0, b1), w, rms, se = fit
+    keep = w > 0
+    # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
+    # (a spacer block, a tie, a chair)
+    if keep.mean() < min_inlier_fraction or keep.sum() < min_points:
+        return None
+    tt = t[keep]
+    if tt.max() - tt.min() < min_extent:
+        return None
+    # how much of the cross-section the points cover: a bar seen only along one edge
+    # (the rest hidden by a bar above it) does not fix its axis
+    phi = np.degrees(np.arctan2(h[idx][keep] - (b0 + b1 * tt), off[idx][keep] - (c + a0 + a1 * tt)))
+    phi = (phi + 90.0) % 360.0 - 90.0  # the seen upper half, [0°, 180°], without a wrap
+    arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
+    status, reason = "measured", ""
+    if camera is not None and not facing:
+        status, reason = "not measured", ("its points face away from the camera from either side of "
+                                          "them: a flank seen alone, its axis cannot be placed")
+    return BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
+                   float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status,
+                   reason=reason, arc_deg=arc, axis_se_mm=float(max(se)))
+
+
+def _refit_band(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, min_points, prm):
+    """``(fit, idx, t)``: the cylinder fitted to a candidate's points, then (twice) to the
+    points gathered again around the fitted axis.
+
+    The candidate's centre is only good to a few mm, so the band is re-centred on the bar. It
+    also keeps to the bar's height (within a radius of the fitted axis, plus 3 times the fit's
+    residual, at least 3 mm): a refit band that moved across picks up points of the crossing
+    bars beside the original band (not "ambiguous" there), which lie a bar diameter above this
+    bar's surface and would drag the fit off."""
+    off, along, r, win = dn.off, dn.along, dn.r, dn.win
+    fit = _fit_bar(t, off[idx] - c, h[idx], r)
+    for _ in range(prm.refits):
+        (a0, a1, b0, b1), w, rms, _ = fit
+        pred = c + a0 + a1 * along
+        h_axis = b0 + b1 * along
+        reach = r + max(prm.refit_reach_mm, prm.refit_reach_rms * rms if np.isfinite(rms)
+                        else prm.refit_reach_mm)
+        near_axis = ((np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - prm.refit_margin_mm)
+                     & (along <= t1 + prm.refit_margin_mm)
+                     & (np.abs(h - h_axis) < reach))
+        idx2 = np.where(near_axis)[0]
+        if len(idx2) < min_points:
+            break
+        idx, t = idx2, along[idx2]
+        fit = _fit_bar(t, off[idx] - c, h[idx], r)
+    return fit, idx, t
+
+
+def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
+    """Something lying well below the other bars of its direction (a spacer block's top, the
+    stub of a chair) is not a bar of this lattice level and is left out; a bar fitted well
+    above them was fitted on a sliver (seen beside a bar over it) and its axis is not where it
+    seems: "not measured"."""
+    for g in {b.group for b in bars}:
+        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
+        if len(hs) >= 2:
+            med, tol = float(np.median(hs)), prm.level_tol_radii * radii.get(g, max_r)
+            bars = [b for b in bars if b.group != g or b.status != "measured"
+                    or b.axis_height_mm >= med - tol]
+            bars = [replace(b, status="not measured",
+                             reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
+                                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed")
+                    if b.group == g and b.status == "measured" and b.axis_height_mm > med + tol
+                    else b for b in bars]
+    return bars
+
+
+def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> list:
+    """A bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
+    along the visible arc. "Not measured": under 2/3 of ``min_arc_deg`` of its cross-section
+    seen, or under ``min_arc_deg`` and sparsely sampled (under a quarter of the layer's typical
+    points per mm), or over ``max_arc_deg`` (two flanks of a bar under a bar above it)."""
+    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
+    if dens:
+        typical = float(np.median(dens))
+        bars = [replace(b, status="not measured",
+                         reason=(f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
+                                 f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
+                                 f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"))
+                if b.status == "measured" and (
+                    b.arc_deg < prm.arc_min_share * min_arc_deg or b.arc_deg > max_arc_deg or (
+                        b.arc_deg < min_arc_deg
+                        and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < prm.sparse_density_share * typical))
+                else b for b in bars]
+    return bars
 
 
 def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .._camera import Cloud, Intrinsics, backproject, project
@@ -59,6 +61,7 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     """
     depth = np.asarray(depth_mm, float)
     tol = max(2.0, 3.0 * (noise_mm if noise_mm and np.isfinite(noise_mm) else 0.0))
+    look = _Look(tol, step_mm, min_length_mm, min_points, min_fill)
     eye = to_slab_frame(np.zeros((1, 3)), plane)[0]  # the camera in the slab frame
     new, clouds = [], []
     for layer in LAYERS:
@@ -69,55 +72,114 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
             if not measured or not s or not np.isfinite(s):
                 continue
             ref = measured[0]
-            d, n2 = ref.direction, ref.normal2d
             r = float(np.median([b.radius_mm for b in measured]))
             h_axis = float(np.median([b.axis_height_mm for b in measured]))
-            offs = np.array([float(b.plan_point(b.t_mid) @ n2) for b in grp])
-            # candidate positions, each with the samples along it where its surface is in view
-            cand = []
-            for a_off, b_off in zip(offs[:-1], offs[1:]):
-                k = int(round((b_off - a_off) / s)) - 1
-                cand += [(o, _surface_in_image(ref, o, h_axis, r, plane, intrinsics))
-                         for o in (a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1))]
-            for start, sign in ((offs[0], -1), (offs[-1], 1)):
-                for j in range(1, 200):
-                    off = start + sign * j * s
-                    inside = _surface_in_image(ref, off, h_axis, r, plane, intrinsics)
-                    if not inside.any():
-                        break
-                    cand.append((off, inside))
+            offs = np.array([float(b.plan_point(b.t_mid) @ ref.normal2d) for b in grp])
             half = search_fraction * s
-            for off, inside in cand:
+            for off, inside in _empty_positions(ref, offs, s, h_axis, r, plane, intrinsics):
                 if np.min(np.abs(offs - off)) < 0.5 * s:
                     continue
-                found = _look_at_position(ref, off, inside, half, h_axis, r, depth, intrinsics, plane, eye, tol,
-                                          step_mm, min_length_mm, min_points, min_fill)
+                found = _look_at_position(ref, off, inside, half, h_axis, r, depth, intrinsics, plane,
+                                          eye, look)
                 if found is None:
                     continue
                 c, t0, t1, cloud = found
-                new.append(BarAxis(layer, d, c, 0.0, h_axis, 0.0, t0, t1, r, len(cloud), float("nan"), None,
-                                   ref.group, level=level, status="not measured",
-                                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over "
-                                           f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "
-                                           "image border): it is there, but its axis cannot be placed to the "
-                                           "millimetre")))
+                new.append(_bar_seen_at(ref, layer, level, c, t0, t1, h_axis, r, cloud))
                 clouds.append(cloud)
                 offs = np.sort(np.append(offs, c))
     return new, clouds
 
 
+def _empty_positions(ref: BarAxis, offs, s, h_axis, r, plane, intrinsics) -> list:
+    """The positions of a row (offsets ``offs`` across ``ref``'s direction, design spacing
+    ``s``) where a bar may be missing: between two found bars a gap of several spacings holds,
+    and beyond the outermost ones as long as they are in view; each with the samples along it
+    where its surface is in the image (:func:`_surface_in_image`)."""
+    cand = []
+    for a_off, b_off in zip(offs[:-1], offs[1:]):
+        k = int(round((b_off - a_off) / s)) - 1
+        cand += [(o, _surface_in_image(ref, o, h_axis, r, plane, intrinsics))
+                 for o in (a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1))]
+    for start, sign in ((offs[0], -1), (offs[-1], 1)):
+        for j in range(1, 200):
+            off = start + sign * j * s
+            inside = _surface_in_image(ref, off, h_axis, r, plane, intrinsics)
+            if not inside.any():
+                break
+            cand.append((off, inside))
+    return cand
+
+
+def _bar_seen_at(ref: BarAxis, layer, level, c, t0, t1, h_axis, r, cloud) -> BarAxis:
+    """The bar the second look found at offset ``c``: "not measured", its axis at its level's
+    height."""
+    return BarAxis(layer, ref.direction, c, 0.0, h_axis, 0.0, t0, t1, r, len(cloud), float("nan"),
+                   None, ref.group, level=level, status="not measured",
+                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over "
+                           f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "
+                           "image border): it is there, but its axis cannot be placed to the "
+                           "millimetre"))
+
+
+class _Look(NamedTuple):
+    """How :func:`find_missed_bars` looks at an empty position: the cylinder's tolerance, the
+    scan step of its offset, and what a bar there must show (a run of ``min_length_mm``, at
+    least ``min_points`` points, one per 1 / ``min_fill`` pixels of its length)."""
+
+    tol: float
+    step_mm: float
+    min_length_mm: float
+    min_points: int
+    min_fill: float
+
+
 def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: float, r: float, depth,
-                      intr: Intrinsics, plane: Plane, eye, tol: float, step_mm: float, min_length_mm: float,
-                      min_points: int, min_fill: float):
+                      intr: Intrinsics, plane: Plane, eye, look: _Look):
     """Full-resolution points of the corridor ``off ± half`` on the cylinder of radius ``r`` at
     height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None. ``inside``:
     the samples of ``_POSITION_T`` where the position's surface is in the image; ``eye``: the
     camera in the slab frame."""
+    if inside.sum() < 2:
+        return None
+    found = _corridor_points(ref, off, inside, half, h_axis, r, depth, intr, plane, look.min_points)
+    if found is None:
+        return None
+    o, t, hz, pix, pts, o_all, t_all, h_all = found
+    # the footprint of one pixel on the bar: the bars' gaps are judged against it
+    pitch = float(np.median(pts[:, 2])) / (0.5 * (intr.fx + intr.fy))
+    # the camera sees the side of a cylinder that faces it: a point on the far flank of a circle
+    # is not on it (without this, a strip of one flank fits a circle on either side of it)
+    eye_o, eye_h = float(eye[:2] @ ref.normal2d), float(eye[2])
+
+    def on_cylinder(c):
+        ro, rh = o - c, hz - h_axis
+        return (np.abs(np.hypot(ro, rh) - r) < look.tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
+
+    c = _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look)
+    if c is None:
+        return None
+    on = on_cylinder(c)
+    t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
+    on &= (t >= t0) & (t <= t1)
+    along = (t_all >= t0) & (t_all <= t1)
+    if _seen_through(c, o_all[along], h_all[along], h_axis, r, eye_o, eye_h, look.tol) > 0.5 * on.sum():
+        return None
+    # a bar in view is a continuous stripe in the image, a sliver of it at least a pixel wide:
+    # along its run, at least ``min_fill`` of the pixels' length must hold one of its points.
+    # Chance hits of mixed depths (flying pixels along an edge) are sparser than that
+    if on.sum() < look.min_fill * (t1 - t0) / pitch:
+        return None
+    return c, t0, t1, Cloud(pts[on], pix[on])
+
+
+def _corridor_points(ref: BarAxis, off, inside, half, h_axis, r, depth, intr, plane, min_points):
+    """The depth pixels of the corridor ``off ± half`` (from the formwork to a little over a
+    bar's top) as points: ``(o, t, h, pixels, camera points)`` of those at a bar's height and
+    ``(o, t, h)`` of all in the corridor (offsets across, positions along, heights); None with
+    too few."""
     import cv2
 
     H, W = depth.shape
-    if inside.sum() < 2:
-        return None
     ta, tb = _POSITION_T[inside].min() - 2 * half, _POSITION_T[inside].max() + 2 * half
     # the corridor's footprint in the image, from the formwork to a little over a bar's top
     corners = []
@@ -151,32 +213,28 @@ def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: flo
     band = corridor & (q[:, 2] > h_axis - 0.5 * r)
     if band.sum() < min_points:
         return None
-    o, t, hz, pix, pts = o[band], t[band], q[band, 2], pix[band], pts[band]
-    # the footprint of one pixel on the bar: the bars' gaps are judged against it
-    pitch = float(np.median(pts[:, 2])) / (0.5 * (intr.fx + intr.fy))
-    # the camera sees the side of a cylinder that faces it: a point on the far flank of a circle
-    # is not on it (without this, a strip of one flank fits a circle on either side of it)
-    eye_o, eye_h = float(eye[:2] @ ref.normal2d), float(eye[2])
+    return o[band], t[band], q[band, 2], pix[band], pts[band], o_all, t_all, h_all
 
-    def on_cylinder(c):
-        ro, rh = o - c, hz - h_axis
-        return (np.abs(np.hypot(ro, rh) - r) < tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
 
-    offsets = np.arange(off - half, off + half + step_mm, step_mm)
+def _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look: _Look):
+    """The offset across the corridor whose cylinder explains the most points along a long
+    run (the middle of the offsets that do about as well), or None where none runs
+    ``min_length_mm`` (less a pixel) with ``min_points``."""
+    offsets = np.arange(off - half, off + half + look.step_mm, look.step_mm)
     # how many points each offset's cylinder holds, all offsets at once (the facing test is
     # left to the loop): only offsets that can reach min_points are looked at further
     near = np.zeros(len(offsets), int)
     for k in range(0, len(offsets), 64):
         c_ = offsets[k:k + 64, None]
-        near[k:k + 64] = (np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < tol).sum(axis=1)
+        near[k:k + 64] = (np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < look.tol).sum(axis=1)
     scores = []  # (offset, run start, run end, points on the cylinder along the run)
-    for c in offsets[near >= min_points]:
+    for c in offsets[near >= look.min_points]:
         on = on_cylinder(c)
-        if on.sum() < min_points:
+        if on.sum() < look.min_points:
             continue
         t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
         scores.append((float(c), t0, t1, int(np.sum(on & (t >= t0) & (t <= t1)))))
-    ok = [x for x in scores if x[2] - x[1] >= min_length_mm - pitch and x[3] >= min_points]
+    ok = [x for x in scores if x[2] - x[1] >= look.min_length_mm - pitch and x[3] >= look.min_points]
     if not ok:
         return None
     # the offsets that explain the most points along a long run; several neighbouring offsets do
@@ -184,32 +242,24 @@ def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: flo
     longest = max(x[2] - x[1] for x in ok)
     ok = [x for x in ok if x[2] - x[1] >= 0.9 * longest]
     most = max(x[3] for x in ok)
-    c = float(np.median([x[0] for x in ok if x[3] >= 0.95 * most]))
-    on = on_cylinder(c)
-    t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
-    on &= (t >= t0) & (t <= t1)
-    # a bar is solid: the camera sees neither into it nor through it. A point lying inside the
-    # cylinder (by more than ``tol``), or lying beyond it on a ray from the camera that passes
-    # inside it, could not be seen if the bar were there. Many such points (the formwork seen
-    # where the bar would be, the top of a board lower than a bar) mean there is no bar there,
-    # whatever lies on its flanks; a bar's own slivers never give them. In the cross-section
-    # plane (the cylinder runs along t): distance from the axis to the segment camera -> point.
-    along = (t_all >= t0) & (t_all <= t1)
-    eo, eh = o_all[along] - eye_o, h_all[along] - eye_h
+    return float(np.median([x[0] for x in ok if x[3] >= 0.95 * most]))
+
+
+def _seen_through(c, o, h, h_axis, r, eye_o, eye_h, tol) -> int:
+    """How many points ``(o, h)`` (offsets across, heights) could not be seen if a bar of radius
+    ``r`` lay at offset ``c``: inside it (by more than ``tol``), or beyond it on a ray from the
+    camera that passes inside it.
+
+    A bar is solid: many such points (the formwork seen where the bar would be, the top of a
+    board lower than a bar) mean there is no bar there, whatever lies on its flanks; a bar's own
+    slivers never give them. In the cross-section plane (the cylinder runs along t): distance
+    from the axis to the segment camera -> point."""
+    eo, eh = o - eye_o, h - eye_h
     wo, wh = c - eye_o, h_axis - eye_h
     s_ = np.clip((wo * eo + wh * eh) / np.maximum(eo * eo + eh * eh, 1e-9), 0.0, 1.0)
     closest = np.hypot(wo - s_ * eo, wh - s_ * eh)
-    dist = np.hypot(o_all[along] - c, h_all[along] - h_axis)
-    contrary = int(np.sum(((closest < r - tol) & (dist > r + tol)) | (dist < r - tol)))
-    if contrary > 0.5 * on.sum():
-        return None
-    # a bar in view is a continuous stripe in the image, a sliver of it at least a pixel wide:
-    # along its run, at least ``min_fill`` of the pixels' length must hold one of its points.
-    # Chance hits of mixed depths (flying pixels along an edge) are sparser than that
-    if on.sum() < min_fill * (t1 - t0) / pitch:
-        return None
-    return c, t0, t1, Cloud(pts[on], pix[on])
-
+    dist = np.hypot(o - c, h - h_axis)
+    return int(np.sum(((closest < r - tol) & (dist > r + tol)) | (dist < r - tol)))
 
 def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, intr: Intrinsics):
     """Samples every 5 mm of a line parallel to ``ref`` at plan offset ``off`` and ``height_mm``:

@@ -40,9 +40,37 @@ def _pair_spacing(a: BarAxis, b: BarAxis) -> float:
 def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.DataFrame:
     """Spacing of every pair of adjacent bars of each layer and level, in order across the bars.
 
-    ``design_spacing``: ``{(layer, level): spacing_mm}`` adds the design value and deviation.
-    Bars must carry ``bar_id`` order (list position) — the table names bars by their index in
-    ``bars``.
+    Parameters
+    ----------
+    bars : list of BarAxis with ``layer`` and ``level`` set; the table names each bar by its
+        position in the list
+    design_spacing : ``{(layer, level): spacing_mm}``, adds the design value and the deviation
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per pair of neighbours:
+
+        ==================  ==========================================================
+        column              meaning
+        ==================  ==========================================================
+        layer, level        the pair's lattice and direction group
+        bar_a, bar_b        the two bars (positions in ``bars``), in order across
+        spacing_mm          axis to axis at the middle of their common stretch (NaN
+                            where a bar is not measured)
+        design_spacing_mm   the design's spacing (NaN without one)
+        deviation_mm        spacing less design spacing
+        status, reason      "measured", or "not measured" and which bar
+        ==================  ==========================================================
+
+    Examples
+    --------
+    >>> from rebarlib.geometry import BarAxis
+    >>> bars = [BarAxis("lower", np.array([1.0, 0.0]), y, 0.0, 30.0, 0.0, 0.0, 500.0, 7.0, 100,
+    ...                 0.3, level="bottom") for y in (0.0, 203.0)]
+    >>> t = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0})
+    >>> t.loc[0, ["bar_a", "bar_b"]].tolist(), t.loc[0, ["spacing_mm", "deviation_mm"]].tolist()
+    ([0, 1], [203.0, 3.0])
     """
     rows = []
     ids = {id(b): i for i, b in enumerate(bars)}
@@ -108,11 +136,39 @@ def count_bars(bars: list, *, design_spacing: dict) -> pd.DataFrame:
 
 
 def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataFrame:
-    """The bar table: ``bar_id, layer, level, plan_angle_deg, start_/end_{x,y,z}_mm`` (axis ends
-    over the visible extent, camera frame), ``visible_length_mm, n_points, axis_height_mm,
-    underside_mm, radius_mm, fit_rms_mm, arc_deg, axis_se_mm, stack_mm, top_mm, status, reason``
-    (``stack_mm``: :func:`stack_heights`; ``top_mm``: :func:`top_heights`; both from ``points``,
-    each bar's camera-frame points, or from the fitted axes without them)."""
+    """The bars table of an inspection.
+
+    Parameters
+    ----------
+    bars : list of BarAxis (slab frame)
+    plane : the formwork Plane of the slab frame
+    points : per bar, its camera-frame points (or None): the tops are read off them
+        (:func:`top_heights`, :func:`stack_heights`); without them, off the fitted circles
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per bar (mm, camera frame for the ends):
+
+        =======================  ===========================================================
+        column                   meaning
+        =======================  ===========================================================
+        bar_id                   the bar's position in ``bars``
+        layer, level             "lower"/"upper", "bottom"/"top"
+        plan_angle_deg           its direction in plan, [0, 180)
+        start_/end_{x,y,z}_mm    the axis's ends over the visible extent
+        visible_length_mm        the visible extent's length
+        n_points                 points fitted
+        axis_height_mm           the axis's height over the formwork, mid-extent
+        underside_mm, radius_mm  the axis height less the radius, the radius (NaN: none)
+        fit_rms_mm               the cylinder fit's residual
+        arc_deg                  the span of its cross-section the points cover
+        axis_se_mm               the axis position's standard error
+        stack_mm                 its top above the bars it rests on (:func:`stack_heights`)
+        top_mm                   its top above the formwork (:func:`top_heights`)
+        status, reason           "measured", or "not measured" and why
+        =======================  ===========================================================
+    """
     rows = []
     slab_points = None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
     crest = _crest_lines(bars, slab_points)  # read once: the stack and top heights both use them
