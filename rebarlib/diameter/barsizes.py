@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 from .._checks import RebarInputError
 
-__all__ = ["BAR_SYSTEMS", "BarSystem", "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter"]
+__all__ = ["BAR_SYSTEMS", "BarSystem", "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter",
+           "GB_RIBS", "GB_RIB_PITCH", "rib_envelope_mm"]
 
 
 @dataclass(frozen=True)
@@ -64,8 +65,32 @@ _GB = ((6, 5.8, 0.6), (8, 7.7, 0.8), (10, 9.6, 1.0), (12, 11.5, 1.2), (14, 13.4,
        (28, 27.2, 2.2), (32, 31.0, 2.4), (36, 35.0, 2.6), (40, 38.7, 2.9), (50, 48.5, 3.2))
 # GB 1499.2 crescent-rib bars: nominal spacing l of the transverse ribs per size (same order)
 _GB_PITCH = (4.0, 5.5, 7.0, 8.0, 9.0, 10.0, 10.0, 10.0, 10.5, 12.5, 12.5, 14.0, 15.0, 15.0, 16.0)
+#: The same table by size, as the simulator draws ribs (``rebarlib.synth``): nominal size ->
+#: (d1, h), and nominal size -> transverse-rib spacing l
+GB_RIBS = {s: (d1, h) for s, d1, h in _GB}
+GB_RIB_PITCH = {s: p for (s, _, _), p in zip(_GB, _GB_PITCH)}
 _GB_RATIO = {s: (d1 + 2 * h) / s for s, d1, h in _GB}
 _GB_CORE_RATIO = {s: d1 / s for s, d1, h in _GB}
+
+
+def rib_envelope_mm(nominal_mm: float) -> float:
+    """Outer diameter over the ribs of a GB 1499.2 deformed bar, d1 + 2h (e.g. 12 -> 13.9 mm).
+
+    Sizes not in the table scale with the nearest tabulated size's envelope. For the table's
+    sizes this is :func:`observed_width_mm`; off the table the two round differently in the
+    third decimal (``nominal × envelope / size`` here, ``nominal × (envelope / size)`` there),
+    which the simulator's and the judge's results depend on.
+
+    Examples
+    --------
+    >>> rib_envelope_mm(12)
+    13.9
+    """
+    key = min(GB_RIBS, key=lambda s: abs(s - nominal_mm))
+    d1, h = GB_RIBS[key]
+    if key == nominal_mm:
+        return round(d1 + 2 * h, 3)
+    return round(nominal_mm * (d1 + 2 * h) / key, 3)
 
 
 def _gb_like(nominal_mm: float, ratios=_GB_RATIO) -> float:

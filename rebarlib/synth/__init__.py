@@ -22,7 +22,7 @@ Examples
 
 from __future__ import annotations
 
-from .._ribs import rib_envelope_mm
+from ..diameter.barsizes import rib_envelope_mm
 # (and the internals the other simulators use: ``synth_scan`` casts its laser's rays into the
 # same geometry, ``synth_calib`` puts a checkerboard through the same sensor model)
 from .raycast import K_BAR, K_CHAIR, K_FORMWORK, K_SPACER, K_TIE

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._ribs import _GB_RIB_PITCH, _GB_RIBS
+from ..diameter.barsizes import GB_RIB_PITCH as _GB_RIB_PITCH
+from ..diameter.barsizes import GB_RIBS as _GB_RIBS
 from .scene import SlabScene
 
 __all__ = ["K_FORMWORK", "K_BAR", "K_SPACER", "K_CHAIR", "K_TIE"]

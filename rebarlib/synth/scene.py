@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._design import Design
-from .._ribs import _GB_RIBS, rib_envelope_mm
+from ..diameter.barsizes import GB_RIBS as _GB_RIBS
+from ..diameter.barsizes import rib_envelope_mm
 
 __all__ = ["Deviations", "Bar", "SlabScene", "make_scene"]
 
