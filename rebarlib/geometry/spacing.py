@@ -156,7 +156,8 @@ def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataF
         bar_id                   the bar's position in ``bars``
         layer, level             "lower"/"upper", "bottom"/"top"
         plan_angle_deg           its direction in plan, [0, 180)
-        start_/end_{x,y,z}_mm    the axis's ends over the visible extent
+        ``start_{x,y,z}_mm``     the axis's ends over the visible extent
+        ``end_{x,y,z}_mm``
         visible_length_mm        the visible extent's length
         n_points                 points fitted
         axis_height_mm           the axis's height over the formwork, mid-extent
