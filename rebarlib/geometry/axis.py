@@ -14,6 +14,28 @@ class BarAxis:
 
     The axis is ``p(t) = t·direction + (offset_mm + slope·t)·normal2d`` in plan, at height
     ``centre_h_mm + h_slope·t``, for ``t`` in ``[t0_mm, t1_mm]`` (the visible extent).
+
+    Attributes
+    ----------
+    layer : "lower" or "upper"
+    direction : (2,) unit plan direction
+    offset_mm, slope : plan offset across the direction at t = 0, and its drift per mm along
+    centre_h_mm, h_slope : axis height at t = 0, and its drift per mm along
+    t0_mm, t1_mm : the visible extent along the direction
+    radius_mm : the cylinder's radius (0: none fitted, the paper's lines)
+    n_points, rms_mm : points fitted and the fit's residual
+    point_index : indices of the fitted points into the lattice's points
+    group, level : direction group (0, 1) and "bottom" / "top"
+    status, reason : "measured", or "not measured" and why
+    arc_deg : span of the cross-section the fitted points cover
+    axis_se_mm : standard error of the axis position (offset, height)
+
+    Examples
+    --------
+    >>> b = BarAxis("lower", np.array([1.0, 0.0]), 50.0, 0.0, 30.0, 0.0, -100.0, 300.0, 7.0, 400,
+    ...             0.3)
+    >>> b.axis_height_mm, b.underside_mm, b.t_mid, b.plan_angle_deg
+    (30.0, 23.0, 100.0, 0.0)
     """
 
     layer: str
@@ -72,7 +94,23 @@ class BarAxis:
 
 
 def envelope_mm(nominal_mm: float, system: str = "GB1499.2") -> float:
-    """Outer diameter over the ribs (what a depth camera sees) of a nominal size."""
+    """Outer diameter over the ribs (what a depth camera sees) of a nominal size: the bar
+    sizes' :func:`~rebarlib.diameter.barsizes.observed_width_mm` of a deformed bar.
+
+    Parameters
+    ----------
+    nominal_mm : nominal diameter
+    system : bar-size standard
+
+    Returns
+    -------
+    float, mm
+
+    Examples
+    --------
+    >>> envelope_mm(12)
+    13.9
+    """
     from ..diameter.barsizes import observed_width_mm
 
     return float(observed_width_mm(nominal_mm, system=system, deformed=True))

@@ -46,7 +46,22 @@ def find_layer_split(heights, *, bin_mm: float = 1.0, min_gap_mm: float = 6.0,
 
 
 def split_layers(heights, *, split_mm: float | None) -> np.ndarray:
-    """Layer of each point: 0 = lower, 1 = upper (``split_mm=None``: everything lower)."""
+    """Layer of each point by its height.
+
+    Parameters
+    ----------
+    heights : (N,) heights above the formwork (mm)
+    split_mm : the height between the lattices (:func:`find_layer_split`); None: one lattice
+
+    Returns
+    -------
+    (N,) int8: 0 = lower, 1 = upper (everything lower without a split)
+
+    Examples
+    --------
+    >>> split_layers([20.0, 90.0, 110.0], split_mm=77.3).tolist()
+    [0, 1, 1]
+    """
     h = np.asarray(heights, float)
     if split_mm is None:
         return np.zeros(len(h), np.int8)

@@ -12,7 +12,16 @@ from .axis import BarAxis
 
 
 def level_heights(bars: list) -> dict:
-    """Median axis height of each direction group: ``{group: height_mm}``."""
+    """Median axis height of each direction group's measured bars.
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+
+    Returns
+    -------
+    dict ``{group: height_mm}`` (groups without a measured bar left out)
+    """
     out = {}
     for g in sorted({b.group for b in bars}):
         hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
@@ -65,7 +74,17 @@ def top_heights(bars: list, points: list | None = None) -> np.ndarray:
     off its own points near its axis (:func:`_crest_line`: not off the fixed-radius circle, whose
     top a bar of another size pulls); without ``points`` (slab frame), the fitted circle's. NaN
     for a bar not measured. The bars of one level rest on the same supports, so their tops differ
-    by their diameters (``_diameter`` compares a bar's top with its level's)."""
+    by their diameters (the diameter stage compares a bar's top with its level's).
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+    points : per bar, its slab-frame points (or None), or None for all
+
+    Returns
+    -------
+    (len(bars),) float, mm above the formwork
+    """
     return _tops(bars, _crest_lines(bars, points))
 
 
@@ -90,6 +109,16 @@ def stack_heights(bars: list, points: list | None = None, *, min_crossings: int 
     was fitted with; without them, the fitted circles' tops are used, which a bar of another size
     than the fit's radius pulls by up to a millimetre or two. It assumes the two bars touch: a gap
     between them (a bar lifted by a tie or bent) adds to it.
+
+    Parameters
+    ----------
+    bars : list of BarAxis with ``layer`` and ``level`` set
+    points : per bar, its slab-frame points (or None), or None for all
+    min_crossings : crossings with measured bottom bars a top bar needs
+
+    Returns
+    -------
+    (len(bars),) float, mm (NaN where not measured, above)
     """
     return _stacks(bars, _crest_lines(bars, points), min_crossings)
 
@@ -116,7 +145,16 @@ def _stacks(bars: list, crest: list, min_crossings: int) -> np.ndarray:
 
 
 def assign_levels(bars: list) -> list:
-    """Name each direction group "bottom" (lower axes) or "top" (resting on the bottom bars)."""
+    """Name each direction group "bottom" (lower axes) or "top" (resting on the bottom bars).
+
+    Parameters
+    ----------
+    bars : list of BarAxis of one lattice, ``group`` set
+
+    Returns
+    -------
+    list of BarAxis with ``level`` set (one group alone is "bottom")
+    """
     hs = level_heights(bars)
     order = sorted(hs, key=hs.get)
     names = {g: ("bottom" if i == 0 else "top") for i, g in enumerate(order)}

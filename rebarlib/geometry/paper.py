@@ -32,6 +32,22 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
     ``stop_fraction`` of the lattice's points remain; drop lines with fewer than
     ``min_count_ratio`` × the mean inlier count. The axis height is the inliers' mean height (the
     paper has no cross-section model).
+
+    Parameters
+    ----------
+    points : (N, 3) slab-frame points of one lattice
+    layer : "lower" or "upper" (copied into the bars)
+    threshold_mm : a point within this distance of a line is its inlier
+    max_trials : line hypotheses per line found (the paper's k)
+    stop_fraction, min_count_ratio, max_bars : when to stop and which lines to keep (above)
+    chunk : hypotheses evaluated at once
+    score_points : hypotheses are scored on at most this many random points (the chosen line's
+        inliers are then taken from all points)
+    rng : seed or Generator
+
+    Returns
+    -------
+    list of BarAxis (no radius, ``group`` unset: :func:`group_directions` sets it)
     """
     rng = np.random.default_rng(rng)
     q = np.asarray(points, float)
@@ -123,7 +139,20 @@ def group_directions(bars: list, *, rng=None) -> list:
 def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | None = None,
                    n_sample: int = 1000, rng=None) -> pd.DataFrame:
     """The paper's spacing: mean distance of ``n_sample`` random points of one bar to the fitted
-    axis of its neighbour (3-D, slab frame)."""
+    axis of its neighbour (3-D, slab frame).
+
+    Parameters
+    ----------
+    bars : list of BarAxis with ``layer``, ``level`` and ``point_index`` set
+    points_by_layer : ``{layer: (N, 3) slab-frame points}`` the bars' indices refer to
+    design_spacing : ``{(layer, level): spacing_mm}``, adds the design value and deviation
+    n_sample : points of each bar sampled
+    rng : seed or Generator for the sampling
+
+    Returns
+    -------
+    pandas.DataFrame with the columns of :func:`~rebarlib.geometry.measure_spacings`
+    """
     rng = np.random.default_rng(rng)
     rows = []
     ids = {id(b): i for i, b in enumerate(bars)}

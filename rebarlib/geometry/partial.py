@@ -112,7 +112,19 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
     reported "not measured", with an approximate axis as for any such bar. (A bar seen whole
     that far off its level is a real finding and stays measured.)
 
-    ``points``: the lattice's slab-frame points that ``bars[i].point_index`` refers to.
+    Parameters
+    ----------
+    bars : list of BarAxis of one lattice
+    points : the lattice's slab-frame points that ``bars[i].point_index`` refers to
+    plane : the formwork Plane (the slab frame)
+    intrinsics : the camera's Intrinsics
+    min_whole_fraction : a bar with less of its points at whole cross-sections is cut
+    margin_px : a cross-section is whole where it projects this far inside the image
+
+    Returns
+    -------
+    list of BarAxis: the bars, those cut and off their level "not measured" with an
+    approximate axis
     """
     q = np.asarray(points, float)
     W, H = intrinsics.width, intrinsics.height

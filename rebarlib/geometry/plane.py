@@ -17,7 +17,20 @@ from .._checks import RebarInputError
 @dataclass(frozen=True)
 class Plane:
     """A plane ``normal · p + offset_mm = 0`` in the camera frame; ``normal`` is a unit vector
-    pointing toward the camera, so ``normal · p + offset_mm`` is the height above the plane."""
+    pointing toward the camera, so ``normal · p + offset_mm`` is the height above the plane.
+
+    Attributes
+    ----------
+    normal : (3,) float, unit normal towards the camera
+    offset_mm : float, the camera centre's height above the plane (mm)
+    n_inliers : int, points the plane was fitted to
+    noise_mm : float or None, robust standard deviation of the inliers' heights
+
+    Examples
+    --------
+    >>> Plane(np.array([0.0, 0.0, -1.0]), 500.0).height([[0.0, 0.0, 480.0]]).tolist()
+    [20.0]
+    """
 
     normal: np.ndarray
     offset_mm: float
@@ -147,7 +160,24 @@ def plane_frame(plane: Plane) -> np.ndarray:
 
 
 def to_slab_frame(points, plane: Plane) -> np.ndarray:
-    """(N, 3) camera-frame points -> (N, 3) slab-frame ``(a, b, h)``, h = height above the plane."""
+    """Camera-frame points in the slab frame of ``plane``.
+
+    Parameters
+    ----------
+    points : (N, 3) camera-frame points (mm)
+    plane : the formwork Plane
+
+    Returns
+    -------
+    (N, 3) float: ``(a, b, h)``, two plan coordinates (:func:`plane_frame`) and the height above
+    the plane
+
+    Examples
+    --------
+    >>> plane = Plane(np.array([0.0, 0.0, -1.0]), 500.0)
+    >>> to_slab_frame([[10.0, 0.0, 480.0]], plane).round(6).tolist()
+    [[10.0, 0.0, 20.0]]
+    """
     R = plane_frame(plane)
     q = np.asarray(points, float) @ R.T
     q[:, 2] += plane.offset_mm
@@ -155,7 +185,24 @@ def to_slab_frame(points, plane: Plane) -> np.ndarray:
 
 
 def from_slab_frame(q, plane: Plane) -> np.ndarray:
-    """Inverse of :func:`to_slab_frame`."""
+    """Slab-frame points ``(a, b, h)`` back in the camera frame: the inverse of
+    :func:`to_slab_frame`.
+
+    Parameters
+    ----------
+    q : (..., 3) slab-frame points (mm)
+    plane : the formwork Plane
+
+    Returns
+    -------
+    (..., 3) float, camera-frame points (mm)
+
+    Examples
+    --------
+    >>> plane = Plane(np.array([0.0, 0.0, -1.0]), 500.0)
+    >>> from_slab_frame([[10.0, 0.0, 20.0]], plane).round(6).tolist()
+    [[10.0, 0.0, 480.0]]
+    """
     R = plane_frame(plane)
     q = np.array(q, float, copy=True)
     q[..., 2] -= plane.offset_mm

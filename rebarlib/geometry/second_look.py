@@ -57,7 +57,21 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
     It counts as found, so the position is no longer "hidden" or "missing", and both spacings
     to its neighbours are "not measured" rather than one spacing twice the real one.
 
-    Returns ``(bars, clouds)``: the new bars and, for each, its points (camera frame, with pixels).
+    Parameters
+    ----------
+    bars : list of BarAxis found so far (both lattices, ``level`` set)
+    depth_mm : (H, W) the full-resolution depth image (mm; 0 = none)
+    intrinsics : the camera's Intrinsics
+    plane : the formwork Plane (the slab frame)
+    design_spacing : ``{(layer, level): spacing_mm}``
+    noise_mm : the sensor noise measured on the formwork (sets ``tol``)
+    min_length_mm, min_points, min_fill : what a bar there must show (above)
+    search_fraction : the corridor's half-width, in design spacings
+    step_mm : the scan step of the offset across the corridor
+
+    Returns
+    -------
+    ``(bars, clouds)``: the new bars and, for each, its points (camera frame, with pixels)
     """
     depth = np.asarray(depth_mm, float)
     tol = max(2.0, 3.0 * (noise_mm if noise_mm and np.isfinite(noise_mm) else 0.0))

@@ -114,6 +114,26 @@ def count_bars(bars: list, *, design_spacing: dict) -> pd.DataFrame:
     (rounded) between two found bars holds ``k - 1`` missing bars, and adjacent bars closer than
     half a spacing make one extra bar. The refined method counts on evidence instead
     (``rebarlib._counts``, docs/verdicts.md).
+
+    Parameters
+    ----------
+    bars : list of BarAxis with ``layer`` and ``level`` set
+    design_spacing : ``{(layer, level): spacing_mm}``
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per layer and level:
+
+        ============  ===============================================================
+        column        meaning
+        ============  ===============================================================
+        layer, level  the lattice and direction group
+        found         bars found
+        expected      found − extra + missing (None without a design spacing)
+        missing       bars the gaps of two or more spacings leave out
+        extra         neighbours closer than half a spacing
+        ============  ===============================================================
     """
     rows = []
     for layer in LAYERS:
