@@ -98,6 +98,20 @@ def test_bar_without_depth_counts_as_found_and_is_placed_from_the_mask():
 
 
 @pytest.mark.slow
+def test_bar_without_depth_is_sized_from_its_mask():
+    # its own pixels have no depth: they are the bar's, not a bar under it peeking out
+    cap = S.synth_capture(DESIGN, height_mm=550.0, tilt_deg=10.0, yaw_deg=20.0, target_mm=(0, 0), seed=7,
+                          deviations=S.Deviations(end_overhang_mm=50),
+                          sensor=S.SensorModel(bars_without_depth=1))
+    res = R.inspect(cap, DESIGN, rng=0)
+    gone = next(b for b in cap.truth["bars"] if b["no_depth"])
+    placed = res.positions[res.positions["status"] == C.PRESENT_NO_DEPTH]
+    row = res.bars.set_index("bar_id").loc[int(placed.iloc[0]["bar_id"])]
+    assert row["diameter_status"] == "measured", row["diameter_reason"]
+    assert row["nominal_mm"] == gone["diameter_mm"]
+
+
+@pytest.mark.slow
 def test_jittered_spacings_are_not_missing_bars():
     dev = S.Deviations(end_overhang_mm=50, position_sigma_mm=0.0, position_uniform_mm=7.5)  # spacings ±15 mm
     cap, res = _inspect(dev, target=(100, -50), seed=9, tilt=15)

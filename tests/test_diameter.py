@@ -1737,3 +1737,34 @@ def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_th
                           design=design, use_cloud=False).iloc[0]
     assert abs(t.width_median_mm - env) <= 0.5 / K.fx * 400 and t.nominal_mm == 12
     assert t.width_sigma_mm < 2 * 0.3  # not a width from one edge (σ twice the axis's tolerance)
+
+
+def _one_sided_reading(occluded_share: float):
+    """A Φ14 bar (rib envelope 16.2 mm) whose mask shows 9.2 mm of it, 3.3 mm off its axis."""
+    from rebarlib.diameter.bars import _Bar
+    from rebarlib.diameter.reading import BarReading
+
+    p0, p1 = np.array([-300.0, 0.0, 500.0]), np.array([300.0, 0.0, 500.0])
+    bar = _Bar(1, "lower", "bottom", p0, p1, imaginary_plane(p0, p1), 600.0, 14.0, 16.2, 8.1, True)
+    m = 120
+    occluded = np.arange(m) < round(occluded_share * m)
+    widths = 9.2 + 0.2 * np.random.default_rng(0).standard_normal(80)
+    reading = BarReading(widths=widths, occluded=occluded, in_image=np.ones(m, bool), stations=m,
+                         centre_mm=3.3, mask_width_mm=9.2, px_mm=0.7, z_mm=500.0, lum=100.0)
+    return bar, reading
+
+
+@pytest.mark.parametrize("occluded_share, status", [(1.0, "hidden"), (0.2, "not measured")])
+def test_a_bar_showing_one_side_beside_nearer_bars_is_hidden_for_its_size(occluded_share, status):
+    # its mask runs lie off its axis by a third of their width: along most of the bar (under the
+    # nearer bars) no section shows its whole width, as for a bar wholly under them; where
+    # nothing covers it, the lost side is the mask's fault and the bar stays not measured
+    from rebarlib.diameter.measure import _bar_row
+    from rebarlib.diameter.params import DiameterParams
+
+    bar, reading = _one_sided_reading(occluded_share)
+    row = _bar_row(bar, reading, None, False, "fuse", False, DiameterParams(), method="refined",
+                   system="GB1499.2", deformed=True)
+    assert row["diameter_status"] == status
+    assert "mask not centred on the axis (3.3 mm off" in row["diameter_reason"]
+    assert math.isnan(row["nominal_mm"])

@@ -334,9 +334,11 @@ def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method,
             _check_core(row, reading, prm, system=system)
         if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
                 and _off_centre(reading, med, prm)):
-            # the side the mask lacks is most likely under the nearer bars: say so
-            row["diameter_reason"] += (f"; {occ_frac:.0%} of its cross-sections lie partly under "
-                                       "nearer bars: what is seen may be a sliver beside them")
+            # the side the mask lacks is under the nearer bars along most of the bar: no section
+            # shows its whole width, so it is hidden for its size, as a bar wholly under them is
+            row.update(diameter_status=HIDDEN, hidden=True, diameter_reason=(
+                f"hidden: {occ_frac:.0%} of its cross-sections lie partly under nearer bars and the "
+                f"mask shows one side only ({row['diameter_reason']})"))
     if row["diameter_status"] == MEASURED:
         row["matches_design"] = _matches_design(row["nominal_mm"], bar.design_mm)
     return row

@@ -62,6 +62,9 @@ class DiameterParams:
     shadow_confidence : the confidence cap of a bar in shadow over its whole length
     behind_mm : depth this far behind the bar's surface is another object
     sliver_min_px : a mask run going on this far over a surface well behind is cut there
+    own_no_depth_share : a bar whose core (± a quarter of its width about the axis) lacks depth
+        in this share of its sections has no depth of its own (a bar placed from the colour
+        mask, in a projector's shadow): its pixels without depth are its own, not a bar under it
     colour_edges : colour edges next to the mask edges: ``"check"`` the mask, ``"replace"`` it,
         or False (not read)
     depth_correlated_px : neighbouring depth points share their noise: effective count / this
@@ -121,6 +124,7 @@ class DiameterParams:
     shadow_confidence: float = 0.7
     behind_mm: float = 15.0
     sliver_min_px: float = 2.0
+    own_no_depth_share: float = 0.8
     colour_edges: object = "check"
     depth_correlated_px: float = 4.0
     cloud_bias_mm_per_m2: float = 1.5

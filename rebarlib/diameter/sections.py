@@ -269,9 +269,12 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
 
         dz = cv2.remap(depth, u.astype(np.float32), v.astype(np.float32), cv2.INTER_NEAREST,
                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        # no depth counts too: beside a bar the projector's shadow often hides the bar behind
+        # no depth counts too: beside a bar the projector's shadow often hides the bar behind,
+        # unless the bar itself has none (then the pixels without depth are its own)
         deep = b & (dz > z + bar.expected_mm / 2 + prm.behind_mm)
-        behind = deep | (b & (dz <= 0))
+        core = np.abs(t) <= bar.expected_mm / 4
+        own_none = in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
+        behind = deep if own_none else deep | (b & (dz <= 0))
     kc = K // 2
     idx = np.arange(K)
     rr = np.arange(M)
