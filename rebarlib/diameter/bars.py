@@ -23,6 +23,15 @@ def bars_from_truth(truth: dict, *, visible_only: bool = True):
     The axis end points are the true axis over the visible extent (``visible_start_mm`` /
     ``visible_end_mm``), so later stages can be developed and taught on exact axes.
 
+    Parameters
+    ----------
+    truth : a synthetic capture's ``capture.truth``
+    visible_only : leave out the bars the renderer flags as not visible
+
+    Returns
+    -------
+    pandas.DataFrame with :data:`BAR_COLUMNS` (``bar_id`` the true bar's id)
+
     Examples
     --------
     >>> truth = {"bars": [{"id": 3, "layer": "lower", "level": "top", "visible": True,

@@ -175,6 +175,14 @@ WIDTH_SIGMA_DOF = 10.0
 def bar_system(name: str) -> BarSystem:
     """The bar-size table of a standard (``"GB1499.2"``, ``"ASTM-A615"``, ``"CSA"``, ``"EU"``).
 
+    Parameters
+    ----------
+    name : a system's name or an alias (``"GB"``, ``"ASTM"``, ``"JIS G 3112"``, ...), any case
+
+    Returns
+    -------
+    BarSystem
+
     Examples
     --------
     >>> bar_system("GB1499.2").envelope_mm[3]
@@ -189,6 +197,16 @@ def bar_system(name: str) -> BarSystem:
 
 def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: bool = True) -> float:
     """Width a silhouette shows of a bar of ``nominal_mm``: the rib envelope, or the diameter if smooth.
+
+    Parameters
+    ----------
+    nominal_mm : nominal diameter (a size off the table: scaled like the nearest GB 1499.2 size)
+    system : bar-size standard (:func:`bar_system`)
+    deformed : False for a smooth bar
+
+    Returns
+    -------
+    float, mm
 
     Examples
     --------
@@ -206,6 +224,15 @@ def barset_width_mm(bar_set, system: str = "GB1499.2") -> float:
     """Outer width of the bars of one design bar set: the rib envelope of a deformed bar, the
     true diameter of a plain one (``bar_set.surface == "plain"``: plain round bars have no ribs,
     so cover, heights and sizes use their diameter).
+
+    Parameters
+    ----------
+    bar_set : a design's BarSet (``diameter_mm``, ``surface``)
+    system : bar-size standard
+
+    Returns
+    -------
+    float, mm
 
     Examples
     --------
@@ -225,6 +252,15 @@ def _nearest(values, x: float) -> int:
 def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
     """Nominal size of ``system`` whose core diameter (between the ribs) is nearest to ``width_mm``.
 
+    Parameters
+    ----------
+    width_mm : a width read between the ribs (NaN gives NaN)
+    system : bar-size standard
+
+    Returns
+    -------
+    float, the nominal size (mm)
+
     Examples
     --------
     >>> core_size(11.7), core_size(13.5)  # GB 1499.2 cores: Φ12 11.5, Φ14 13.4
@@ -239,6 +275,15 @@ def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
     """Transverse-rib spacing the standard sets for size ``nominal_mm`` (NaN where it sets none,
     or for a size not in its table).
 
+    Parameters
+    ----------
+    nominal_mm : nominal diameter
+    system : bar-size standard
+
+    Returns
+    -------
+    float, mm (NaN where the standard sets none)
+
     Examples
     --------
     >>> rib_pitch_mm(12), rib_pitch_mm(14), rib_pitch_mm(12, system="ASTM-A615")
@@ -251,6 +296,15 @@ def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
 def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:
     """Rib height h, (envelope − core) / 2, of the size of ``system`` whose envelope is nearest
     to ``width_mm``.
+
+    Parameters
+    ----------
+    width_mm : a width over the ribs (NaN gives NaN)
+    system : bar-size standard
+
+    Returns
+    -------
+    float, mm
 
     Examples
     --------
@@ -276,6 +330,16 @@ def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     next smaller and next larger sizes of ``system`` (at the ends of the table, the nearest
     step): a width beyond them snaps to another size.
 
+    Parameters
+    ----------
+    nominal_mm : nominal diameter
+    system : bar-size standard
+    deformed : compare rib envelopes (True) or nominal sizes
+
+    Returns
+    -------
+    (to the smaller size, to the larger size), mm
+
     Examples
     --------
     >>> [round(g, 2) for g in size_half_gaps_mm(14)]  # envelopes 13.9, 16.2, 18.4
@@ -291,6 +355,16 @@ def bracketing_sizes(width_mm: float, *, system: str = "GB1499.2", deformed: boo
     """The two nominal sizes of ``system`` whose observed widths lie either side of
     ``width_mm``, as ``((smaller, its width), (larger, its width))``; ``None`` for a width
     outside the table (what an ambiguous width names as the sizes to tell apart by hand).
+
+    Parameters
+    ----------
+    width_mm : a measured width
+    system : bar-size standard
+    deformed : compare rib envelopes (True) or nominal sizes
+
+    Returns
+    -------
+    ((smaller size, its width), (larger size, its width)) or None
 
     Examples
     --------

@@ -164,6 +164,15 @@ def pixels_in_region(corners, shape) -> np.ndarray:
     """Integer pixels (u, v) whose centres lie inside the parallelogram ``corners`` (from
     :func:`diameter_region`), clipped to an image of ``shape`` (H, W).
 
+    Parameters
+    ----------
+    corners : (4, 2) corners (u, v) in order around the parallelogram
+    shape : (H, W) of the image
+
+    Returns
+    -------
+    (N, 2) int, pixels (u, v)
+
     Examples
     --------
     >>> corners = diameter_region([10.0, 20.0], [0.0, 1.0], [1.0, 0.0], long_px=4, short_px=2)
@@ -189,6 +198,14 @@ def pixels_in_region(corners, shape) -> np.ndarray:
 
 def boundary_pixels(mask) -> np.ndarray:
     """Rebar pixels with at least one background 4-neighbour (image border counts as background).
+
+    Parameters
+    ----------
+    mask : (H, W) bool rebar mask
+
+    Returns
+    -------
+    (H, W) bool
 
     Examples
     --------
