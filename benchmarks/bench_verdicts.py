@@ -13,7 +13,10 @@ spacings out of tolerance, so one spacing 25 mm off is within that code's allowa
 
 Prints the verdict confusion matrix (truth: clean / defective against accepted / incomplete /
 rejected), per item the false fails and the missed defects, and whether each rejected slab names
-its true defect. Renders are cached (``--cache DIR``), so a second run only inspects.
+its true defect, and why the clean slabs left incomplete are (per cause). Renders are cached
+(``--cache DIR``), so a second run only inspects; each capture's result is saved there too
+(``result_<capture>.json``), so ``--rejudge`` judges them again without inspecting (a change to
+the acceptance alone).
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
 """
@@ -176,7 +179,7 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     return [tuple(map(float, t)) for t in out[:n]]
 
 
-def _inspect_slab(folder: str) -> dict:
+def _inspect_slab(folder: str, rejudge: bool = False) -> dict:
     import rebarlib as R
 
     folder = Path(folder)
@@ -184,7 +187,15 @@ def _inspect_slab(folder: str) -> dict:
     out_file = folder / "verdict.json"
     design = R.load_design(folder / "design.toml")
     t = time.perf_counter()
-    results = [R.inspect(R.load_capture(folder / c), design, rng=0).to_dict() for c in meta["captures"]]
+    results = []
+    for c in meta["captures"]:
+        saved = folder / f"result_{c}.json"
+        if rejudge and saved.exists():  # judge again what was inspected before
+            results.append(json.loads(saved.read_text()))
+            continue
+        res = R.inspect(R.load_capture(folder / c), design, rng=0)
+        saved.write_text(res.to_json(), encoding="utf-8")
+        results.append(res.to_dict())
     acc = R.evaluate(results, design)
     items = acc.items
     failed = sorted({str(i).split("_lower")[0].split("_upper")[0] for i, v in zip(items["item"], items["verdict"])
@@ -203,6 +214,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--cache", default="/tmp/rebarlib_verdicts")
     ap.add_argument("--start", type=int, default=0, help="first slab number")
+    ap.add_argument("--rejudge", action="store_true",
+                    help="judge again from the results saved in --cache (no rendering, no inspection)")
     ap.add_argument("--report-only", action="store_true",
                     help="print the tables from the slabs already judged in --cache (no rendering)")
     args = ap.parse_args(argv)
@@ -212,6 +225,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     if args.report_only:
         recs = [json.loads(f.read_text()) for f in sorted(cache.glob("slab_*/verdict.json"))]
+    elif args.rejudge:
+        recs = [_inspect_slab(str(f.parent), rejudge=True) for f in sorted(cache.glob("slab_*/slab.json"))]
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
             recs = list(ex.map(_render_and_judge, [(k, str(cache)) for k in ks]))
@@ -254,6 +269,7 @@ def report(recs: list) -> None:
         missed = sum(DEFECT_ITEM.get(r["defect"]) == it and it not in r["failed"] for r in recs)
         inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None)
         print(f"| {it} | {false} | {missed} | {inc} |")
+    causes(recs)
     print("\nSlabs not as expected:")
     for r in recs:
         want = "accepted" if r["defect"] is None else "rejected"
@@ -262,6 +278,36 @@ def report(recs: list) -> None:
             print(f"- slab {r['slab']:03d} ({r['defect'] or 'clean'}, {len(r['captures'])} captures, edge view "
                   f"{r['edge_view']}, shadows {r['shadows']}): {r['verdict']}; failed {r['failed']}; "
                   f"incomplete {r['incomplete']}")
+
+
+#: what a checkpoint's reason says, in order: the first that matches names the cause
+CAUSES = (("position hidden under a bar", "bar_count", "hidden under another bar"),
+          ("other count evidence", "bar_count", ""),
+          ("size ambiguous between two sizes", "bar_size", "ambiguous"),
+          ("mask and cloud widths disagree", "bar_size", "disagree"),
+          ("mask widths scattered", "bar_size", "too scattered"),
+          ("too few clean cross-sections", "bar_size", "too few clean cross-sections"),
+          ("possible wrong size", "bar_size", "possible wrong size"),
+          ("other size reason", "bar_size", ""))
+
+
+def causes(recs: list) -> None:
+    """Why the clean slabs left incomplete are: per cause, the slabs whose reasons name it (a slab
+    can have several)."""
+    clean = [r for r in recs if r["defect"] is None and r["verdict"] == "incomplete"]
+    if not clean:
+        return
+    print(f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n")
+    print("| cause | item | slabs |")
+    print("|---|---|---:|")
+    for name, item, key in CAUSES:
+        n = 0
+        for r in clean:
+            text = " ".join(x for x in r["reasons"] if x.startswith("Bar " + item.split("_")[1]))
+            hits = [k for nm, it, k in CAUSES if it == item and k and k in text]
+            if (key and key in text) or (not key and text and not hits):
+                n += 1
+        print(f"| {name} | {item} | {n} |")
 
 
 if __name__ == "__main__":

@@ -418,7 +418,7 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
             vals = []
             for c in (c for c in cps if c["capture"] == cap):
                 if c["status"] == EXCLUDED:
-                    v = "hidden"
+                    v = "not in view" if str(c.get("reason", "")).startswith("not in view") else "hidden"
                 elif c["status"] == NOT_MEASURED:
                     v = "n/m"
                 elif it["item"].startswith("bar_size"):
