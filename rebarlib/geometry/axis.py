@@ -15,20 +15,15 @@ class BarAxis:
     The axis is ``p(t) = t·direction + (offset_mm + slope·t)·normal2d`` in plan, at height
     ``centre_h_mm + h_slope·t``, for ``t`` in ``[t0_mm, t1_mm]`` (the visible extent).
 
-    Attributes
-    ----------
-    layer : "lower" or "upper"
-    direction : (2,) unit plan direction
-    offset_mm, slope : plan offset across the direction at t = 0, and its drift per mm along
-    centre_h_mm, h_slope : axis height at t = 0, and its drift per mm along
-    t0_mm, t1_mm : the visible extent along the direction
-    radius_mm : the cylinder's radius (0: none fitted, the paper's lines)
-    n_points, rms_mm : points fitted and the fit's residual
-    point_index : indices of the fitted points into the lattice's points
-    group, level : direction group (0, 1) and "bottom" / "top"
-    status, reason : "measured", or "not measured" and why
-    arc_deg : span of the cross-section the fitted points cover
-    axis_se_mm : standard error of the axis position (offset, height)
+    Its fields: ``layer`` ("lower" or "upper"); ``direction`` ((2,) unit plan direction);
+    ``offset_mm`` and ``slope`` (plan offset across the direction at t = 0, and its drift per mm
+    along); ``centre_h_mm`` and ``h_slope`` (axis height at t = 0, and its drift per mm);
+    ``t0_mm``, ``t1_mm`` (the visible extent along the direction); ``radius_mm`` (the cylinder's
+    radius; 0: none fitted, the paper's lines); ``n_points``, ``rms_mm`` (points fitted, the
+    fit's residual); ``point_index`` (the fitted points' indices into the lattice's points);
+    ``group``, ``level`` (direction group 0 or 1, "bottom" or "top"); ``status``, ``reason``
+    ("measured", or "not measured" and why); ``arc_deg`` (span of the cross-section the fitted
+    points cover); ``axis_se_mm`` (standard error of the axis position).
 
     Examples
     --------
