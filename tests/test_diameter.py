@@ -215,6 +215,19 @@ def test_colour_calibration_by_hand():
     assert off["diameter_status"] == "not measured" and "ambiguous" in off["diameter_reason"]
 
 
+def test_a_bar_reading_is_typed_and_starts_as_an_unread_bar():
+    """A BarReading has named fields only (a misspelt one is an error, not a new key), and an
+    unread bar trusts its colour edges not at all: no offset, the whole disagreement counts."""
+    from rebarlib.diameter import BarReading, DiameterParams
+
+    r = BarReading()
+    assert (r.colour_offset_px, r.colour_weight, r.mask_between_mm, r.one_sided_share) == (0.0, 1.0, 0.0, 0.0)
+    assert r.mask_width_mm is None and math.isnan(r.circle_between_mm) and r.edges[0].size == 0
+    with pytest.raises(AttributeError):
+        r.colour_offset = 1.0
+    assert DiameterParams().min_sections == 8 and DiameterParams(min_sections=12).min_sections == 12
+
+
 def test_bars_from_truth_and_input_checks():
     cap = synth_capture(_design(14, 12), height_mm=500, tilt_deg=0, sensor=SensorModel.ideal(),
                         intrinsics=GEMINI2.scaled(0.25), seed=0)

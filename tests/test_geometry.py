@@ -197,6 +197,21 @@ def test_find_bars_every_bar_once_no_phantom(lattice):
         assert d < ANGLE_TOL_DEG
 
 
+def test_find_bars_reads_its_other_tuning_from_geometry_params():
+    """The defaults of GeometryParams are the search's: passing them changes nothing; on this
+    clean lattice a search without the refits around the fitted axes still finds every bar."""
+    from rebarlib.geometry import GeometryParams
+
+    q, on_bar, _ = lattice_points(bottom_offsets=BOTTOM, top_offsets=TOP, angle_deg=33.0)
+    kw = dict(layer="lower", radius_mm=8.1, pitch_mm=PITCH_MM, rng=0)
+    plain = find_bars(q[on_bar], **kw)
+    same = find_bars(q[on_bar], params=GeometryParams(), **kw)
+    assert [(b.offset_mm, b.centre_h_mm, b.t0_mm, b.t1_mm, b.status) for b in plain] == \
+        [(b.offset_mm, b.centre_h_mm, b.t0_mm, b.t1_mm, b.status) for b in same]
+    no_refit = find_bars(q[on_bar], params=GeometryParams(refits=0), **kw)
+    assert len([b for b in no_refit if b.status == "measured"]) == len(BOTTOM) + len(TOP)
+
+
 def test_find_bars_axes_unbiased(lattice):
     """The cylinder fit puts the axis at the true centre: heights not pulled toward the camera,
     undersides at the cover."""
