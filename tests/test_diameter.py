@@ -221,7 +221,8 @@ def test_a_bar_reading_is_typed_and_starts_as_an_unread_bar():
     from rebarlib.diameter import BarReading, DiameterParams
 
     r = BarReading()
-    assert (r.colour_offset_px, r.colour_weight, r.mask_between_mm, r.one_sided_share) == (0.0, 1.0, 0.0, 0.0)
+    assert (r.colour_offset_px, r.colour_weight, r.mask_between_mm, r.one_sided_share) == (
+        0.0, 1.0, 0.0, 0.0)
     assert r.mask_width_mm is None and math.isnan(r.circle_between_mm) and r.edges[0].size == 0
     with pytest.raises(AttributeError):
         r.colour_offset = 1.0
