@@ -609,7 +609,7 @@ def design_top_cover_mm(design: Design) -> float | None:
 
     Cover and layer distance are measured to the bars' rib envelope (docs/method.md), and so is
     the top of the upper bars; judging it against nominal diameters would read a Φ12 mesh ~4 mm
-    high on every slab. The envelope is GB 1499.2's d1 + 2h (``rebarlib._ribs.rib_envelope_mm``).
+    high on every slab. The envelope is GB 1499.2's d1 + 2h (``rebarlib.diameter.barsizes.rib_envelope_mm``).
 
     Examples
     --------
@@ -620,7 +620,7 @@ def design_top_cover_mm(design: Design) -> float | None:
     """
     if design.thickness_mm is None:
         return None
-    from ._ribs import rib_envelope_mm
+    from .diameter.barsizes import rib_envelope_mm
 
     upper = design.upper
     top = (design.cover_mm + design.layer_distance_mm + rib_envelope_mm(upper.bottom.diameter_mm)
