@@ -48,13 +48,13 @@ import numpy as np
 import pandas as pd
 
 from ._camera import Intrinsics, backproject, project
+from ._status import (EXTRA, MEASURED, MISSING, NOT_EXTRA, NOT_IN_VIEW, NOT_MEASURED, OUTSIDE,
+                      PRESENT, PRESENT_NO_DEPTH)
 from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
 
 __all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings",
            "POSITION_COLUMNS"]
 
-MISSING, PRESENT, PRESENT_NO_DEPTH, NOT_MEASURED = "missing", "present", "present (no depth)", "not measured"
-OUTSIDE, NOT_IN_VIEW, EXTRA, NOT_EXTRA = "outside the mesh", "not in view", "extra", "not counted"
 
 POSITION_COLUMNS = ["layer", "level", "kind", "offset_mm", "status", "reason", "in_view_mm", "empty_mm",
                     "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm", "position_sigma_mm", "bar_id",
@@ -470,7 +470,7 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
                 continue
             n2 = bars[idx[0]].normal2d
             order = sorted(idx, key=lambda i: _offset(bars[i], n2))
-            meas = [bars[i] for i in order if bars[i].status == "measured"]
+            meas = [bars[i] for i in order if bars[i].status == MEASURED]
             if not meas:
                 continue
             hs = np.array([b.axis_height_mm for b in meas])
@@ -683,7 +683,7 @@ def _present(row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, r
     bar = BarAxis(layer=row.layer, direction=ref.direction.copy(), offset_mm=float(off), slope=0.0,
                   centre_h_mm=row.height, h_slope=0.0, t0_mm=t0, t1_mm=t1, radius_mm=row.radius, n_points=0,
                   rms_mm=math.nan, point_index=np.zeros(0, int), group=ref.group, level=row.level,
-                  status="not measured", reason=reason)
+                  status=NOT_MEASURED, reason=reason)
     bar = replace(bar, axis_se_mm=float(sd))
     return {**rec, "status": status, "reason": reason, "position_sigma_mm": round(sd, 2), "offset_mm": round(off, 1),
             "_bar": True, "_new": bar}
@@ -715,7 +715,7 @@ def _pairs(row: _Row, plane, intr, foot, mask, prm):
             yield {**base, "status": NOT_EXTRA, "reason": (
                 f"{what}, side by side over {max(overlap, 0):.0f} mm only: a lap or a loose piece, not an extra bar")}
             continue
-        weak = [(row.index[k], x) for x, k in ((a, k_extra), (b, k_twin)) if x.status != "measured"]
+        weak = [(row.index[k], x) for x, k in ((a, k_extra), (b, k_twin)) if x.status != MEASURED]
         if weak:
             # the position has its bar; the other is no evidence of an extra one
             yield {**base, "status": NOT_EXTRA, "reason": (
@@ -798,18 +798,18 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
     for i, s in out.iterrows():
         a, b = int(s["bar_a"]), int(s["bar_b"])
         ds = s["design_spacing_mm"]
-        if (a in placed or b in placed) and s["status"] != "measured":
+        if (a in placed or b in placed) and s["status"] != MEASURED:
             others = [x for x in (a, b) if x not in placed]
             sig = [placed[x] for x in (a, b) if x in placed]
-            if all(bars[x].status == "measured" for x in others) and max(sig) <= prm.max_position_sigma_mm:
+            if all(bars[x].status == MEASURED for x in others) and max(sig) <= prm.max_position_sigma_mm:
                 val = _pair_spacing(bars[a], bars[b])
                 out.loc[i, "spacing_mm"] = val
                 out.loc[i, "deviation_mm"] = val - ds if np.isfinite(ds) else np.nan
-                out.loc[i, "status"] = "measured"
+                out.loc[i, "status"] = MEASURED
                 out.loc[i, "reason"] = (f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from "
                                         f"the colour mask (± {max(sig):.1f} mm across)")
                 s = out.loc[i]
-        if s["status"] != "measured" or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
+        if s["status"] != MEASURED or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
             continue
         pos = positions[(positions["layer"] == s["layer"]) & (positions["level"] == s["level"])
                         & (positions["kind"] == "gap")] if len(positions) else positions
@@ -824,7 +824,7 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
             continue
         why = "; ".join(str(x) for x in inner["reason"]) if len(inner) else "its positions were not examined"
         out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
-        out.loc[i, "status"] = "not measured"
+        out.loc[i, "status"] = NOT_MEASURED
         out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap with a bar position between that could not be "
                                 f"judged ({why}), so it is not one spacing")
     return out

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import math
 
+from ._status import BEYOND, BEYOND_NOT_PROVEN, WITHIN, WITHIN_NOT_PROVEN
+
 __all__ = ["DECISION_RULES", "RULE_TEXT", "check_rule", "decide", "decide_size", "risk_summary"]
 
 DECISION_RULES = ("simple", "guarded", "shared risk")
@@ -28,8 +30,8 @@ RULE_TEXT = {
     "shared risk": "shared risk (JCGM 106 §8.3.3): the measured value against the limit, the risk of a wrong "
                    "decision near a limit shared by agreement",
 }
-PROVEN = ("within", "beyond")
-WITHIN_NP, BEYOND_NP = "within, not proven", "beyond, not proven"
+PROVEN = (WITHIN, BEYOND)
+WITHIN_NP, BEYOND_NP = WITHIN_NOT_PROVEN, BEYOND_NOT_PROVEN
 
 
 def check_rule(value, where: str) -> str:

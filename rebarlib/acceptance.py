@@ -20,6 +20,8 @@ import pandas as pd
 from ._checks import RebarInputError
 from ._decision import BEYOND_NP, WITHIN_NP, check_rule, decide, decide_size, risk_summary
 from ._design import Design
+from ._status import (ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MEASURED,
+                      NOT_CHECKED, NOT_MEASURED, PASS, REJECTED, SLAB_INCOMPLETE, WITHIN)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -33,12 +35,8 @@ PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 DEFAULT_PRESET = "GB50204-2015"
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
-#: Checkpoint status words, and the flag a Chinese record sheet prints next to them.
-WITHIN, BEYOND, BEYOND_MAX, NOT_MEASURED, EXCLUDED = (
-    "within", "beyond", "beyond max", "not measured", "excluded")
+#: The flag a Chinese record sheet prints next to a checkpoint beyond its tolerance.
 FLAGS = {BEYOND: "*", BEYOND_MAX: "#"}
-PASS, FAIL, INCOMPLETE = "pass", "fail", "incomplete"
-ACCEPTED, REJECTED, SLAB_INCOMPLETE = "accepted", "rejected", "incomplete"
 # Deviations come from results rounded to 0.001 mm; a deviation that equals its limit to within
 # this is on the limit (inside), so "exactly 1.5x" is not lost to binary rounding.
 _EPS = 1e-6
@@ -711,13 +709,13 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
         meas = r.get("measurements") or {}
         for item in ("cover", "layer_distance") + (("top_cover",) if thickness is not None else ()):
             m = meas.get(item) or {}
-            ok = m.get("status", "measured") == "measured" and _num(m.get("value_mm")) is not None
+            ok = m.get("status", MEASURED) == MEASURED and _num(m.get("value_mm")) is not None
             add(item, cap, "", "", "capture", _design_value(item, design),
                 _num(m.get("value_mm")) if ok else None, _num(m.get("uncertainty_mm")),
                 reason="" if ok else (m.get("reason") or "not in the result"))
         for la, lv, item, dv, rec in _group_records(_table(r, "spacings"), "spacing", design):
             v = _num(rec.get("spacing_mm"))
-            ok = rec.get("status", "measured") == "measured" and v is not None
+            ok = rec.get("status", MEASURED) == MEASURED and v is not None
             add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
                 _num(rec.get("design_spacing_mm")) or dv, v if ok else None, _num(rec.get("uncertainty_mm")),
                 reason="" if ok else (rec.get("reason") or "spacing not measured"))
@@ -726,13 +724,13 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
         for la, lv, item, dv, rec in _group_records(bars, "bar_size", design):
             what = f"bar {rec.get('bar_id')}"
             ddv = _num(rec.get("design_diameter_mm")) or dv
-            hidden = is_true(rec.get("hidden")) or rec.get("diameter_status") == "hidden"
+            hidden = is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN
             if hidden:
                 add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
                     reason=rec.get("diameter_reason") or "hidden under crossing bars")
                 continue
             nominal = _num(rec.get("nominal_mm"))
-            ok = has_diam and rec.get("diameter_status", "measured") == "measured" and nominal is not None
+            ok = has_diam and rec.get("diameter_status", MEASURED) == MEASURED and nominal is not None
             seen_mm = _num(rec.get("visible_length_mm"))
             if has_diam and not ok and seen_mm is not None and seen_mm < in_view_mm:
                 # a bar the capture shows over less than a bar position needs to be judged in view
@@ -812,7 +810,7 @@ def _open_positions(positions: pd.DataFrame, layer: str, level: str) -> str:
     if not len(positions) or "status" not in positions:
         return "see the result's positions table"
     sel = positions[(positions["layer"] == layer) & (positions["level"] == level)
-                    & (positions["status"] == "not measured")]
+                    & (positions["status"] == NOT_MEASURED)]
     return "; ".join(f"at {float(o):.0f} mm: {r}" for o, r in zip(sel["offset_mm"], sel["reason"])) or "–"
 
 
@@ -834,7 +832,7 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
         worst = float(dev.iloc[int(np.argmax(np.abs(dev.to_numpy())))])
     reasons = sorted(set(r for r in counted.loc[counted["status"] == NOT_MEASURED, "reason"] if r))
     if n_meas == 0:
-        verdict = "not measured"
+        verdict = NOT_MEASURED
         reason = "; ".join(reasons) or "no checkpoints in the results"
     else:
         ok_ratio = passed >= rule.min_pass_ratio * n_meas - _EPS
@@ -875,7 +873,7 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
 def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):
     reasons = []
     failed = items[items["verdict"] == FAIL]
-    open_ = items[items["verdict"].isin(["not measured", INCOMPLETE])]
+    open_ = items[items["verdict"].isin([NOT_MEASURED, INCOMPLETE])]
     for rec in failed.itertuples():
         reasons.append(f"{rec.label}: fails ({rec.reason})")
     for rec in open_.itertuples():
@@ -921,14 +919,14 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
     for b in bar_rows:
         st = per_bar.get((b["capture"], str(b["bar_id"])), [])
         if any(s in (BEYOND, BEYOND_MAX) for s in st):
-            v = "fail"
+            v = FAIL
         elif EXCLUDED in st:
-            v = "hidden"
+            v = HIDDEN
         elif "not in view" in st:  # its size is for another capture to check
-            v = "not checked"
+            v = NOT_CHECKED
         elif WITHIN in st:
             v = INCOMPLETE if (b["capture"], str(b["bar_id"])) in own_open else PASS
         else:
-            v = "not checked"
+            v = NOT_CHECKED
         out.append({**b, "verdict": v})
     return pd.DataFrame(out, columns=["capture", "bar_id", "layer", "level", "verdict"])
