@@ -12,7 +12,7 @@ import pandas as pd
 
 from .. import geometry as G
 from .._design import Design
-from .._inspect import _top_cover
+from .._refined import _top_cover
 from .._results import InspectionResult, Measurement
 from ..cloud_io import ScanCloud
 from ._axes import _cross_axes
