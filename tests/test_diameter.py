@@ -1782,3 +1782,26 @@ def test_a_bar_showing_one_side_beside_nearer_bars_is_hidden_for_its_size(occlud
     assert row["diameter_status"] == status
     assert "mask not centred on the axis (3.3 mm off" in row["diameter_reason"]
     assert math.isnan(row["nominal_mm"])
+
+
+@pytest.mark.parametrize("one_sided_share, covered, sized", [(0.0, 1.0, 12.0), (1.0, 0.0, 12.0),
+                                                              (1.0, 1.0, None)])
+def test_a_width_from_one_edge_beside_nearer_bars_never_sizes_against_its_axis(one_sided_share, covered,
+                                                                                sized):
+    # The mask reads Φ12 (clear, 0.9), the axis was fitted with Φ14's radius, and the bar's top
+    # above its level's supports says Φ12: between two edges, or on a bar in the open, that
+    # settles it; from one edge of a bar seen beside nearer bars (its axis fitted to the side it
+    # shows, an error the width carries twice) it does not, and the bar stays not measured
+    from rebarlib.diameter.decision import _arbitrate
+    from rebarlib.diameter.params import DiameterParams
+
+    reading = BarReading(one_sided_share=one_sided_share, level_width_mm=13.8, level_sigma_mm=0.4,
+                         level_between_mm=0.3)
+    out = {"diameter_status": "not measured", "diameter_reason": "mask width 14.6 mm and point-cloud width "
+           "15.9 mm disagree", "nominal_mm": math.nan}
+    got = _arbitrate(out, 14.6, 0.9, (12.0, 14.0), reading, False, DiameterParams(), system="GB1499.2",
+                     deformed=True, covered=covered)
+    if sized is None:
+        assert got is None
+    else:
+        assert got["nominal_mm"] == sized and got["diameter_status"] == "measured"

@@ -72,7 +72,7 @@ def _birge_mean(widths, sigmas) -> tuple[float, float]:
     return width, max(1.0, birge) / math.sqrt(float(wt.sum()))
 
 
-def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed):
+def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed, covered: float = 0.0):
     """``out`` as a bar sized by its independent widths alone (:func:`_independent_widths`),
     where its mask width ``med`` and the size its axis was placed with disagree (``pair``: the
     mask's size and the assumed one); None where they cannot tell.
@@ -99,7 +99,13 @@ def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed
     if (nominal not in pair or conf < prm.min_confidence
             or sigma > min(size_half_gaps_mm(nominal, system=system, deformed=deformed))):
         return None
-    if pair[0] != pair[1] and (nominal == pair[0]) != (conf_m >= prm.min_confidence):
+    # a mask width from one edge and the axis of a bar seen beside nearer bars (``covered``: the
+    # share of its sections partly under them) carries the axis's error twice, and the axis of
+    # such a bar is fitted to the side it shows: it is no clear word against the radius that
+    # axis was placed with (:func:`_two_sided`). Four such bars, their tops read 2-3 mm low,
+    # were sized a size down on it at confidence 0.85-0.98
+    clear = conf_m >= prm.min_confidence and (_two_sided(info) or covered < prm.hidden_fraction)
+    if pair[0] != pair[1] and (nominal == pair[0]) != clear:
         # The mask's own word decides which of the two these widths may confirm. A mask clear
         # about another size than the assumed one is the alert a bar of the wrong size gives:
         # one width with tails of its own (a bar lifted off its supports by a tie reads a size
@@ -397,7 +403,7 @@ def _mask_and_cloud(out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system,
         # else the widths that depend on neither the mask nor the axis may tell the
         # mask's size from the assumed one
         return (_arbitrate(out, med, conf_m, (nom_m, nom_c), info, in_shadow, prm, system=system,
-                           deformed=deformed) or out), None, None, None
+                           deformed=deformed, covered=covered) or out), None, None, None
     if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
         return None, med, sigma_m, "mask"
     wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
