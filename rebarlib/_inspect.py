@@ -556,8 +556,43 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     T["layers"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    d_low = design.lower.bottom.diameter_mm
     notes = ["paper method: cover = m1 - 1.2 d_lower, layer distance = m2 - m1 (method.md stage 1)"]
+    cover, layer_distance, upper_top = _paper_heights(q, lower, design, rng, notes)
+    if not has_formwork:
+        why = (f"no formwork visible in the capture: {below:.0%} of the points lie under the best plane "
+               "(heights above it would be heights above the bars)")
+        cover = Measurement.not_measured(why)
+        layer_distance = Measurement.not_measured(why + "; the paper's layer split t2 is a height above the formwork")
+        upper_top = Measurement.not_measured(why)
+        notes.append(why)
+    T["cover"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    bars, clouds = _paper_bars(q, lower, rest, cloud, design, rng)
+    T["bars"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    pts_by_layer = {"lower": q[lower], "upper": q[~lower]}
+    spacings = G.paper_spacings(bars, pts_by_layer, design_spacing=_design_spacing(design), rng=rng)
+    counts = G.count_bars(bars, design_spacing=_design_spacing(design))
+    T["spacing"] = time.perf_counter() - t
+
+    res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
+                           upper_top=upper_top, top_cover=_paper_top_cover(design, upper_top),
+                           bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
+                           formwork={**plane.to_dict(), "found": bool(has_formwork)},
+                           camera=_camera_pose(plane) if has_formwork else {},
+                           timings_s=T, notes=notes,
+                           extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
+    res.bar_points = {i: c for i, c in enumerate(clouds)}
+    return res
+
+
+def _paper_heights(q, lower, design: Design, rng, notes: list) -> tuple:
+    """The paper's cover and layer distance from the mean heights of random samples of each
+    lattice's points (cover = m1 - 1.2 d), and the top of the upper lattice (its heights' 99th
+    percentile, which the paper does not measure)."""
+    d_low = design.lower.bottom.diameter_mm
     ql, qu = q[lower], q[~lower]
     if len(ql) == 0:
         m1 = None
@@ -577,16 +612,12 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
         upper_top = Measurement(float(np.percentile(qu[:, 2], 99)), None, len(qu))
         notes.append("paper method: top of the upper lattice is the 99th percentile of the upper heights "
                      "(the paper does not measure it)")
-    if not has_formwork:
-        why = (f"no formwork visible in the capture: {below:.0%} of the points lie under the best plane "
-               "(heights above it would be heights above the bars)")
-        cover = Measurement.not_measured(why)
-        layer_distance = Measurement.not_measured(why + "; the paper's layer split t2 is a height above the formwork")
-        upper_top = Measurement.not_measured(why)
-        notes.append(why)
-    T["cover"] = time.perf_counter() - t
+    return cover, layer_distance, upper_top
 
-    t = time.perf_counter()
+
+def _paper_bars(q, lower, rest, cloud, design: Design, rng) -> tuple:
+    """The paper's bars of each lattice: sequential RANSAC lines, K-means directions, levels;
+    (bars, the cloud of each)."""
     bars, clouds = [], []
     for lname, sel in (("lower", lower), ("upper", ~lower)):
         idx = np.where(sel)[0]
@@ -601,20 +632,4 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
         for b in found:
             clouds.append(cloud.subset(rest[idx[b.point_index]]))
         bars.extend(found)
-    T["bars"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    pts_by_layer = {"lower": q[lower], "upper": q[~lower]}
-    spacings = G.paper_spacings(bars, pts_by_layer, design_spacing=_design_spacing(design), rng=rng)
-    counts = G.count_bars(bars, design_spacing=_design_spacing(design))
-    T["spacing"] = time.perf_counter() - t
-
-    res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
-                           upper_top=upper_top, top_cover=_paper_top_cover(design, upper_top),
-                           bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
-                           formwork={**plane.to_dict(), "found": bool(has_formwork)},
-                           camera=_camera_pose(plane) if has_formwork else {},
-                           timings_s=T, notes=notes,
-                           extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
-    res.bar_points = {i: c for i, c in enumerate(clouds)}
-    return res
+    return bars, clouds
