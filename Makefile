@@ -10,6 +10,7 @@ test-fast:     # the default tier, without the tests marked slow (a few minutes 
 	bash scripts/test.sh -m "not slow"
 lint: setup
 	.venv/bin/ruff check .
+	.venv/bin/ruff format --check .
 # The HTML site in docs/_build/html. Notebooks are executed once and cached; CI passes
 # SPHINXOPTS="-W --keep-going -D nb_execution_mode=off" (its slow tier already runs them).
 SPHINXOPTS ?= -W --keep-going

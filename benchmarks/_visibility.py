@@ -82,5 +82,8 @@ def shows_width(cap, min_length_d: float = SHOWS_WIDTH_D, step_px: float = 3.0) 
     """Ids of the bars whose whole width the image shows over at least ``min_length_d`` of
     their own diameters (see the module's docstring)."""
     bars = {int(b["id"]): b for b in cap.truth["bars"]}
-    return {i for i, (_, length) in width_sections(cap, step_px).items()
-            if length >= min_length_d * bars[i]["diameter_mm"]}
+    return {
+        i
+        for i, (_, length) in width_sections(cap, step_px).items()
+        if length >= min_length_d * bars[i]["diameter_mm"]
+    }

@@ -71,8 +71,8 @@ if threads != "default":
     import cv2
     I.MODEL_THREADS = int(threads); cv2.setNumThreads(int(threads))
 from rebarlib import load_capture, load_design
-d = load_design({str(PAPER / 'design.toml')!r})
-cap = load_capture({str(PAPER / 'B_500')!r})
+d = load_design({str(PAPER / "design.toml")!r})
+cap = load_capture({str(PAPER / "B_500")!r})
 I.inspect(cap, d, rng=0)
 walls, cpus, st = [], [], {{}}
 for i in range({repeats}):
@@ -83,8 +83,9 @@ for i in range({repeats}):
 print(json.dumps({{"wall": statistics.median(walls), "cpu": statistics.median(cpus),
                   "stages": {{k: statistics.median(v) for k, v in st.items()}}}}))
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -94,8 +95,11 @@ def bench_stages(repeats: int) -> None:
     rows = [[s] + [f"{runs[t]['stages'].get(s, float('nan')):.3f}" for t in runs] for s in stages]
     rows.append(["**whole capture, wall**"] + [f"**{runs[t]['wall']:.3f}**" for t in runs])
     rows.append(["whole capture, CPU"] + [f"{runs[t]['cpu']:.3f}" for t in runs])
-    table(f"stages: inspect() of examples/paper_slab/B_500 with diameters, median of {repeats} (s)",
-          ["stage", "model threads: default", "model threads: 1"], rows)
+    table(
+        f"stages: inspect() of examples/paper_slab/B_500 with diameters, median of {repeats} (s)",
+        ["stage", "model threads: default", "model threads: 1"],
+        rows,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -122,17 +126,52 @@ def bench_startup(repeats: int) -> None:
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         res = Path(tmp) / "res"
         caps = [str(p) for p in sorted(PAPER.iterdir()) if p.is_dir()]
-        subprocess.run([*REBAR, "inspect", *caps, "--design", str(PAPER / "design.toml"),
-                        "--out", str(res), "--quiet", "--jobs", "2"],
-                       check=True, cwd=ROOT, capture_output=True)
+        subprocess.run(
+            [
+                *REBAR,
+                "inspect",
+                *caps,
+                "--design",
+                str(PAPER / "design.toml"),
+                "--out",
+                str(res),
+                "--quiet",
+                "--jobs",
+                "2",
+            ],
+            check=True,
+            cwd=ROOT,
+            capture_output=True,
+        )
         help_ = _median_of([[rebar, "--help"]] * repeats)
-        report = _median_of([[rebar, "report", str(PAPER), "--results", str(res),
-                              "--out", str(Path(tmp) / f"r{i}.pdf")] for i in range(repeats)])
-        rows = [["rebar --help", f"{help_[0]:.3f}", f"{help_[1]:.3f}", "0.3"],
-                ["rebar report --results (4 captures, PDF)", f"{report[0]:.3f}", f"{report[1]:.3f}",
-                 "3.0"]]
-    table(f"startup: seconds with the interpreter's start-up, median of {repeats}",
-          ["command", "wall s", "CPU s", "target (wall)"], rows)
+        report = _median_of(
+            [
+                [
+                    rebar,
+                    "report",
+                    str(PAPER),
+                    "--results",
+                    str(res),
+                    "--out",
+                    str(Path(tmp) / f"r{i}.pdf"),
+                ]
+                for i in range(repeats)
+            ]
+        )
+        rows = [
+            ["rebar --help", f"{help_[0]:.3f}", f"{help_[1]:.3f}", "0.3"],
+            [
+                "rebar report --results (4 captures, PDF)",
+                f"{report[0]:.3f}",
+                f"{report[1]:.3f}",
+                "3.0",
+            ],
+        ]
+    table(
+        f"startup: seconds with the interpreter's start-up, median of {repeats}",
+        ["command", "wall s", "CPU s", "target (wall)"],
+        rows,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -193,10 +232,20 @@ def run_batch(caps: list, out: Path, *extra) -> tuple:
 
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    cmd = [*REBAR, "inspect", *map(str, caps), "--design", str(PAPER / "design.toml"),
-           "--out", str(out), "--quiet", *extra]
-    p = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.PIPE, text=True)
+    cmd = [
+        *REBAR,
+        "inspect",
+        *map(str, caps),
+        "--design",
+        str(PAPER / "design.toml"),
+        "--out",
+        str(out),
+        "--quiet",
+        *extra,
+    ]
+    p = subprocess.Popen(
+        cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
     mem = PeakMemory(p.pid)
     _, err = p.communicate()
     wall = time.perf_counter() - t
@@ -215,18 +264,38 @@ def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
         for jobs in jobs_list:
             walls, peaks, cpus = [], [], []
             for r in range(repeats):
-                wall, peak, rc, cpu = run_batch(caps, Path(tmp) / f"out_{jobs}_{r}",
-                                                "--jobs", str(jobs))
+                wall, peak, rc, cpu = run_batch(
+                    caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs)
+                )
                 walls.append(wall)
                 peaks.append(peak)
                 cpus.append(cpu)
             w = statistics.median(walls)
-            rows.append([jobs, n, f"{w:.1f}", f"{60 * n / w:.1f}",
-                         f"{statistics.median(cpus) / n:.2f}", f"{max(peaks):.0f}", rc])
-    table(f"batch: rebar inspect --jobs J over {n} copies of the paper slab's captures "
-          f"(diameters on), median of {repeats}",
-          ["jobs", "captures", "wall s", "captures/min", "CPU s per capture (all processes)",
-           "peak MiB (tree)", "exit"], rows)
+            rows.append(
+                [
+                    jobs,
+                    n,
+                    f"{w:.1f}",
+                    f"{60 * n / w:.1f}",
+                    f"{statistics.median(cpus) / n:.2f}",
+                    f"{max(peaks):.0f}",
+                    rc,
+                ]
+            )
+    table(
+        f"batch: rebar inspect --jobs J over {n} copies of the paper slab's captures "
+        f"(diameters on), median of {repeats}",
+        [
+            "jobs",
+            "captures",
+            "wall s",
+            "captures/min",
+            "CPU s per capture (all processes)",
+            "peak MiB (tree)",
+            "exit",
+        ],
+        rows,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -240,20 +309,30 @@ def bench_dask(n: int, repeats: int) -> None:
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         caps = copies(Path(tmp) / "caps", n)
         for workers in (1, 2):
-            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                              dashboard_address=None, host="127.0.0.1") as cluster:
+            with LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                host="127.0.0.1",
+            ) as cluster:
                 address = cluster.scheduler_address
                 # a first small batch lets every worker import the stages before the clock starts
-                run_batch(caps[:2 * workers], Path(tmp) / f"warm_{workers}", "--dask", address)
-                walls = [run_batch(caps, Path(tmp) / f"out_{workers}_{r}", "--dask", address)[0]
-                         for r in range(repeats)]
+                run_batch(caps[: 2 * workers], Path(tmp) / f"warm_{workers}", "--dask", address)
+                walls = [
+                    run_batch(caps, Path(tmp) / f"out_{workers}_{r}", "--dask", address)[0]
+                    for r in range(repeats)
+                ]
             w = statistics.median(walls)
             rate = 60 * n / w
             rate1 = rate1 or rate
             rows.append([workers, n, f"{w:.1f}", f"{rate:.1f}", f"{rate / rate1:.2f}"])
-    table(f"dask: rebar inspect --dask on a local cluster (1 thread per worker), {n} captures, "
-          f"median of {repeats}", ["workers", "captures", "wall s", "captures/min", "scaling"],
-          rows)
+    table(
+        f"dask: rebar inspect --dask on a local cluster (1 thread per worker), {n} captures, "
+        f"median of {repeats}",
+        ["workers", "captures", "wall s", "captures/min", "scaling"],
+        rows,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -275,8 +354,11 @@ def dump_results() -> dict:
 
 def _differences(a, b, path="") -> list:
     if isinstance(a, dict) and isinstance(b, dict):
-        return [d for k in sorted(set(a) | set(b))
-                for d in _differences(a.get(k), b.get(k), f"{path}.{k}")]
+        return [
+            d
+            for k in sorted(set(a) | set(b))
+            for d in _differences(a.get(k), b.get(k), f"{path}.{k}")
+        ]
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
     return [] if a == b else [f"{path}: {a!r} -> {b!r}"]
@@ -297,13 +379,22 @@ def check(path: Path) -> int:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--only", choices=("stages", "startup", "batch", "dask"), action="append")
-    ap.add_argument("--n", type=int, default=24,
-                    help="captures in the batch and dask tables (default 24)")
-    ap.add_argument("--jobs", type=int, action="append",
-                    help="--jobs values of the batch table (default 1 and 2)")
+    ap.add_argument(
+        "--n", type=int, default=24, help="captures in the batch and dask tables (default 24)"
+    )
+    ap.add_argument(
+        "--jobs",
+        type=int,
+        action="append",
+        help="--jobs values of the batch table (default 1 and 2)",
+    )
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--big", type=int, metavar="N",
-                    help="only the batch table, once, over N captures with --jobs 2")
+    ap.add_argument(
+        "--big",
+        type=int,
+        metavar="N",
+        help="only the batch table, once, over N captures with --jobs 2",
+    )
     ap.add_argument("--dump", type=Path, metavar="FILE")
     ap.add_argument("--check", type=Path, metavar="FILE")
     a = ap.parse_args(argv)

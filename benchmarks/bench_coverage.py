@@ -43,7 +43,11 @@ from rebarlib.synth import Deviations, SensorModel, synth_capture
 
 SETS = {  # name: (camera, sensor, device string written with the capture)
     "gemini2": ("gemini2", SensorModel(), "rebarlib synthetic (Gemini-2-like)"),
-    "gemini2-noisy": ("gemini2", SensorModel(disparity_sigma_px=0.2), "rebarlib synthetic (Gemini-2-like)"),
+    "gemini2-noisy": (
+        "gemini2",
+        SensorModel(disparity_sigma_px=0.2),
+        "rebarlib synthetic (Gemini-2-like)",
+    ),
     "d435-848": ("d435-848", SensorModel(), "Intel RealSense D435"),
 }
 
@@ -52,10 +56,12 @@ def draw_errors(device: str, rng) -> dict:
     """Systematic errors of one camera, drawn uniformly within its profile's limits."""
     prof, _ = device_for(device)
     lim = prof.depth_limits()
-    return {"bias_mm_per_m2": float(rng.uniform(-1, 1) * lim["quad_mm_per_m2"]),
-            "depth_scale_error": float(rng.uniform(-1, 1) * lim["scale"]),
-            "depth_offset_mm": float(rng.uniform(-1, 1) * lim["offset_mm"]),
-            "focal_error": float(rng.uniform(-1, 1) * prof.focal_percent / 100)}
+    return {
+        "bias_mm_per_m2": float(rng.uniform(-1, 1) * lim["quad_mm_per_m2"]),
+        "depth_scale_error": float(rng.uniform(-1, 1) * lim["scale"]),
+        "depth_offset_mm": float(rng.uniform(-1, 1) * lim["offset_mm"]),
+        "focal_error": float(rng.uniform(-1, 1) * prof.focal_percent / 100),
+    }
 
 
 def cases(quick: bool, seed: int = 59):
@@ -64,12 +70,22 @@ def cases(quick: bool, seed: int = 59):
     # (cover, tilts): the full run sees cover 15 at tilts 0 and 10, cover 25 at 5 and 15
     grid = ((20, (5, 15)),) if quick else ((15, (0, 10)), (25, (5, 15)))
     out = []
-    for name in (("gemini2", "d435-848") if quick else SETS):
+    for name in ("gemini2", "d435-848") if quick else SETS:
         for cover, tilts in grid:
             for h in heights:
                 for tilt in tilts:
-                    out.append((name, cover, h, tilt, float(rng.uniform(0, 180)), float(rng.uniform(0, 360)),
-                                int(rng.integers(1e6)), draw_errors(SETS[name][2], rng)))
+                    out.append(
+                        (
+                            name,
+                            cover,
+                            h,
+                            tilt,
+                            float(rng.uniform(0, 180)),
+                            float(rng.uniform(0, 360)),
+                            int(rng.integers(1e6)),
+                            draw_errors(SETS[name][2], rng),
+                        )
+                    )
     return out
 
 
@@ -78,10 +94,18 @@ def rows_of(res, cap, case, diameters: bool) -> list:
     tr = cap.truth
     base = {"set": name, "height": h, "tilt": tilt, **errs}
     out = []
-    for q, key in (("cover", "cover_mm"), ("layer distance", "layer_distance_mm"), ("upper top", "upper_top_mm")):
-        m = getattr(res, {"cover": "cover", "layer distance": "layer_distance", "upper top": "upper_top"}[q])
+    for q, key in (
+        ("cover", "cover_mm"),
+        ("layer distance", "layer_distance_mm"),
+        ("upper top", "upper_top_mm"),
+    ):
+        m = getattr(
+            res, {"cover": "cover", "layer distance": "layer_distance", "upper top": "upper_top"}[q]
+        )
         if m.ok and tr.get(key) is not None and m.uncertainty_mm:
-            out.append({**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm})
+            out.append(
+                {**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm}
+            )
     visible = {b["id"] for b in tr["bars"] if b["visible"]}
     mapping, _, tb = match_bars(res, tr, visible)
     tsp = {(s["bar_a"], s["bar_b"]): s["spacing_mm"] for s in tr["spacings"]}
@@ -90,8 +114,14 @@ def rows_of(res, cap, case, diameters: bool) -> list:
         ta, tb_ = mapping.get(s.bar_a), mapping.get(s.bar_b)
         if ta is None or tb_ is None or (ta, tb_) not in tsp or not np.isfinite(s.spacing_mm):
             continue
-        out.append({**base, "quantity": "spacing", "error": s.spacing_mm - abs(tsp[(ta, tb_)]),
-                    "u": s.uncertainty_mm})
+        out.append(
+            {
+                **base,
+                "quantity": "spacing",
+                "error": s.spacing_mm - abs(tsp[(ta, tb_)]),
+                "u": s.uncertainty_mm,
+            }
+        )
     if diameters and "width_uncertainty_mm" in res.bars:
         wcol = "width_used_mm" if "width_used_mm" in res.bars else "width_mm"
         for r in res.bars.itertuples():
@@ -108,28 +138,43 @@ def run(quick: bool, diameters: bool, seed: int = 59) -> pd.DataFrame:
     for case in cases(quick, seed):
         name, cover, h, tilt, mesh_yaw, cam_yaw, seed, errs = case
         camera, sensor, device = SETS[name]
-        cap = synth_capture(paper_design(cover), height_mm=h, tilt_deg=tilt, yaw_deg=cam_yaw,
-                            deviations=Deviations(mesh_yaw_deg=mesh_yaw), sensor=replace(sensor, **errs),
-                            intrinsics=CAMERAS[camera], seed=seed, scene_seed=seed + 1)
+        cap = synth_capture(
+            paper_design(cover),
+            height_mm=h,
+            tilt_deg=tilt,
+            yaw_deg=cam_yaw,
+            deviations=Deviations(mesh_yaw_deg=mesh_yaw),
+            sensor=replace(sensor, **errs),
+            intrinsics=CAMERAS[camera],
+            seed=seed,
+            scene_seed=seed + 1,
+        )
         cap = replace(cap, metadata={**cap.metadata, "device": device})
         t0 = time.perf_counter()
         res = inspect(cap, paper_design(cover), diameters=diameters, rng=seed)
         new = rows_of(res, cap, case, diameters)
         rows.extend(new)
         c = [r for r in new if r["quantity"] == "cover"]
-        print(f"  {name:13s} c{cover} {h} mm tilt {tilt:>2}°  k {errs['bias_mm_per_m2']:+6.2f} mm/m²  s "
-              f"{100 * errs['depth_scale_error']:+.2f} %  f {100 * errs['focal_error']:+.2f} %  cover err "
-              f"{c[0]['error'] if c else float('nan'):+.2f} (u {c[0]['u'] if c else float('nan'):.2f})  "
-              f"{time.perf_counter() - t0:.1f} s", flush=True)
+        print(
+            f"  {name:13s} c{cover} {h} mm tilt {tilt:>2}°  k {errs['bias_mm_per_m2']:+6.2f} mm/m²  s "
+            f"{100 * errs['depth_scale_error']:+.2f} %  f {100 * errs['focal_error']:+.2f} %  cover err "
+            f"{c[0]['error'] if c else float('nan'):+.2f} (u {c[0]['u'] if c else float('nan'):.2f})  "
+            f"{time.perf_counter() - t0:.1f} s",
+            flush=True,
+        )
     return pd.DataFrame(rows)
 
 
 def report(df: pd.DataFrame) -> None:
     df = df.assign(z=(df["error"] / df["u"]).abs())
     order = ["cover", "layer distance", "upper top", "spacing", "width"]
-    print("\nCoverage of the stated standard uncertainty u (k = 2: target 95 % <= within 2u <= 99.9 %)")
-    print(f"{'quantity':15s} {'set':13s} {'n':>5s} {'mean err':>9s} {'RMS err':>8s} {'median u':>9s} "
-          f"{'<= 1u':>7s} {'<= 2u':>7s}  target")
+    print(
+        "\nCoverage of the stated standard uncertainty u (k = 2: target 95 % <= within 2u <= 99.9 %)"
+    )
+    print(
+        f"{'quantity':15s} {'set':13s} {'n':>5s} {'mean err':>9s} {'RMS err':>8s} {'median u':>9s} "
+        f"{'<= 1u':>7s} {'<= 2u':>7s}  target"
+    )
     for q in order:
         sub = df[df["quantity"] == q]
         if not len(sub):
@@ -137,16 +182,22 @@ def report(df: pd.DataFrame) -> None:
         for name, g in [("all", sub)] + list(sub.groupby("set")):
             share2 = float((g["z"] <= 2).mean())
             ok = "met" if 0.95 <= share2 <= 0.999 else ("too wide" if share2 > 0.999 else "MISSED")
-            print(f"{q:15s} {name:13s} {len(g):5d} {g['error'].mean():+9.3f} {np.sqrt((g['error'] ** 2).mean()):8.3f} "
-                  f"{g['u'].median():9.3f} {100 * (g['z'] <= 1).mean():6.1f}% {100 * share2:6.1f}%  "
-                  f"{ok if name == 'all' else ''}")
+            print(
+                f"{q:15s} {name:13s} {len(g):5d} {g['error'].mean():+9.3f} {np.sqrt((g['error'] ** 2).mean()):8.3f} "
+                f"{g['u'].median():9.3f} {100 * (g['z'] <= 1).mean():6.1f}% {100 * share2:6.1f}%  "
+                f"{ok if name == 'all' else ''}"
+            )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="8 captures instead of 36")
-    ap.add_argument("--diameters", action="store_true", help="also the bars' widths (runs the diameter stage)")
-    ap.add_argument("--seed", type=int, default=59, help="seed of the scenes and error draws (default 59)")
+    ap.add_argument(
+        "--diameters", action="store_true", help="also the bars' widths (runs the diameter stage)"
+    )
+    ap.add_argument(
+        "--seed", type=int, default=59, help="seed of the scenes and error draws (default 59)"
+    )
     ap.add_argument("--csv", help="write every measurement's error and u to this CSV")
     a = ap.parse_args()
     df = run(a.quick, a.diameters, a.seed)

@@ -64,10 +64,17 @@ MATCH_DEG = 8.0
 
 
 def _design(lower_mm, upper_mm, spacing_mm=200):
-    return design_from_dict({"slab": {"id": f"L{lower_mm}-U{upper_mm}"}, "design": {
-        "cover_mm": 20, "layer_distance_mm": 30 + lower_mm + upper_mm,
-        "lower": {"diameter_mm": lower_mm, "spacing_mm": spacing_mm},
-        "upper": {"diameter_mm": upper_mm, "spacing_mm": spacing_mm}}})
+    return design_from_dict(
+        {
+            "slab": {"id": f"L{lower_mm}-U{upper_mm}"},
+            "design": {
+                "cover_mm": 20,
+                "layer_distance_mm": 30 + lower_mm + upper_mm,
+                "lower": {"diameter_mm": lower_mm, "spacing_mm": spacing_mm},
+                "upper": {"diameter_mm": upper_mm, "spacing_mm": spacing_mm},
+            },
+        }
+    )
 
 
 def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
@@ -76,17 +83,27 @@ def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
     ``heights`` / ``seeds``: the paper set-up only, at these camera heights (mm) and seeds
     (how the sizing depends on the capture distance)."""
     out = []
-    heights0, tilts, seeds0 = ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
+    heights0, tilts, seeds0 = (
+        ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
+    )
     only_paper = heights is not None or seeds is not None
     heights, seeds = heights or heights0, seeds or seeds0
     for h in heights:
         for tilt in tilts:
             for seed in seeds:
-                out.append((f"paper {h}/{tilt}°/s{seed}", paper_design(), dict(height_mm=h, tilt_deg=tilt, seed=seed)))
+                out.append(
+                    (
+                        f"paper {h}/{tilt}°/s{seed}",
+                        paper_design(),
+                        dict(height_mm=h, tilt_deg=tilt, seed=seed),
+                    )
+                )
     if not only_paper:
         out += _other_scenarios(quick)
     if seed_offset:
-        out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
+        out = [
+            (f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out
+        ]
     return out
 
 
@@ -96,17 +113,48 @@ def _other_scenarios(quick: bool):
     out = []
     site = ((450, 10),) if quick else ((400, 0), (450, 10), (500, 5), (500, 15))
     for k, (h, tilt) in enumerate(site):
-        out.append((f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k)))
-    others = ((10, 10, 500), (20, 16, 550)) if quick else (
-        (10, 10, 450), (10, 10, 550), (16, 10, 500), (16, 10, 600), (20, 16, 500), (20, 16, 600))
+        out.append(
+            (f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k))
+        )
+    others = (
+        ((10, 10, 500), (20, 16, 550))
+        if quick
+        else (
+            (10, 10, 450),
+            (10, 10, 550),
+            (16, 10, 500),
+            (16, 10, 600),
+            (20, 16, 500),
+            (20, 16, 600),
+        )
+    )
     for k, (lo, up, h) in enumerate(others):
-        out.append((f"Φ{lo}/Φ{up} {h}/8°", _design(lo, up, 150 if lo <= 10 else 200),
-                    dict(height_mm=h, tilt_deg=8, yaw_deg=7 * k, seed=20 + k)))
+        out.append(
+            (
+                f"Φ{lo}/Φ{up} {h}/8°",
+                _design(lo, up, 150 if lo <= 10 else 200),
+                dict(height_mm=h, tilt_deg=8, yaw_deg=7 * k, seed=20 + k),
+            )
+        )
     # a few bars of another size than designed, on a smaller slab so that they are in view
-    wrong = ((450, 0, 30), (500, 10, 31)) if quick else ((450, 0, 30), (450, 10, 31), (500, 5, 32), (550, 15, 33))
+    wrong = (
+        ((450, 0, 30), (500, 10, 31))
+        if quick
+        else ((450, 0, 30), (450, 10, 31), (500, 5, 32), (550, 15, 33))
+    )
     for h, tilt, seed in wrong:
-        out.append((f"wrong-size {h}/{tilt}°", paper_design(), dict(
-            height_mm=h, tilt_deg=tilt, seed=seed, deviations=Deviations(wrong_size=3, slab_size_mm=800))))
+        out.append(
+            (
+                f"wrong-size {h}/{tilt}°",
+                paper_design(),
+                dict(
+                    height_mm=h,
+                    tilt_deg=tilt,
+                    seed=seed,
+                    deviations=Deviations(wrong_size=3, slab_size_mm=800),
+                ),
+            )
+        )
     return out
 
 
@@ -148,10 +196,12 @@ def _mask_sources(model_path=""):
     (``registered_mask``), for each available mask,
     and notes on the others. ``model_path``: an ONNX model (with its sidecar) to use instead of
     the shipped one for the "model" and "fused" masks (a candidate from ``training/``)."""
-    sources = {"truth": lambda cap, design: cap.labels > 0,
-               # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
-               "dilated": lambda cap, design: _morph(cap.labels > 0, +1),
-               "eroded": lambda cap, design: _morph(cap.labels > 0, -1)}
+    sources = {
+        "truth": lambda cap, design: cap.labels > 0,
+        # the truth mask a pixel too wide / too narrow: a learnt mask's typical bias
+        "dilated": lambda cap, design: _morph(cap.labels > 0, +1),
+        "eroded": lambda cap, design: _morph(cap.labels > 0, -1),
+    }
     notes = []
     try:
         from rebarlib import segmentation as seg
@@ -160,11 +210,15 @@ def _mask_sources(model_path=""):
     model = None
     if hasattr(seg, "SegmentationModel"):
         try:
-            model = seg.SegmentationModel(model_path) if model_path else seg.SegmentationModel.default()
+            model = (
+                seg.SegmentationModel(model_path) if model_path else seg.SegmentationModel.default()
+            )
             if model_path:
                 notes.append(f"model and fused masks: {model_path}, not the shipped model")
         except Exception as e:  # noqa: BLE001 - report whatever keeps the model from loading
-            notes.append(f"loading the segmentation model ({model_path or 'the shipped one'}) failed: {e!r}")
+            notes.append(
+                f"loading the segmentation model ({model_path or 'the shipped one'}) failed: {e!r}"
+            )
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
@@ -183,19 +237,26 @@ def _mask_sources(model_path=""):
         # tiles of the image, as rebarlib.inspect does for the refined method; "-whole": on the
         # whole image down-scaled to the network's input (as for the paper's method, and what
         # these masks were before)
-        sources["model"] = lambda cap, design: registered(cap, source="model", tiled=True,
-                                                    bar_width_px=widest_bar_px(cap, design))
+        sources["model"] = lambda cap, design: registered(
+            cap, source="model", tiled=True, bar_width_px=widest_bar_px(cap, design)
+        )
         sources["model-whole"] = lambda cap, design: registered(cap, source="model")
         if hasattr(seg, "fuse_masks") and hasattr(seg, "mask_from_depth"):
             # as the pipeline builds it (rebar_mask): colour mask, the network's probability for
             # the hysteresis, the depth mask (its own plane fit)
-            sources["fused"] = lambda cap, design: registered(cap, source="fused", tiled=True,
-                                                        bar_width_px=widest_bar_px(cap, design))
+            sources["fused"] = lambda cap, design: registered(
+                cap, source="fused", tiled=True, bar_width_px=widest_bar_px(cap, design)
+            )
             sources["fused-whole"] = lambda cap, design: registered(cap, source="fused")
             # without the probability (no hysteresis): what this benchmark called "fused" before
             sources["fused-nohyst"] = lambda cap, design: np.asarray(
-                seg.fuse_masks(np.asarray(model.predict_mask(cap.color), bool), seg.mask_from_depth(cap, rng=0),
-                               depth_valid=cap.depth_mm > 0), bool)
+                seg.fuse_masks(
+                    np.asarray(model.predict_mask(cap.color), bool),
+                    seg.mask_from_depth(cap, rng=0),
+                    depth_valid=cap.depth_mm > 0,
+                ),
+                bool,
+            )
         else:
             notes.append("no fuse_masks / mask_from_depth yet: fused mask skipped")
     return sources, notes
@@ -235,16 +296,22 @@ def _design_radius_axes(bars, truth, declare=False):
             out.loc[out.index[k], f"start_{c}_mm"] = p0[i] + shift * n[i]
             out.loc[out.index[k], f"end_{c}_mm"] = p1[i] + shift * n[i]
     if declare:  # say so, as the geometry stage should: the cloud width then only vetoes
-        out["axis_radius_mm"] = [rib_envelope_mm(tb[int(i)]["design_diameter_mm"]) / 2 for i in out.bar_id]
+        out["axis_radius_mm"] = [
+            rib_envelope_mm(tb[int(i)]["design_diameter_mm"]) / 2 for i in out.bar_id
+        ]
     return out
 
 
 def _axis_sources():
-    sources = {"truth": lambda cap, design: bars_from_truth(cap.truth),
-               # the true axes moved by 1 mm (σ) across: what detected axes may look like
-               "jitter1": lambda cap, design: _jittered(bars_from_truth(cap.truth), sigma_mm=1.0, rng=0),
-               "designr": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth),
-               "designr+": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth, True)}
+    sources = {
+        "truth": lambda cap, design: bars_from_truth(cap.truth),
+        # the true axes moved by 1 mm (σ) across: what detected axes may look like
+        "jitter1": lambda cap, design: _jittered(bars_from_truth(cap.truth), sigma_mm=1.0, rng=0),
+        "designr": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth),
+        "designr+": lambda cap, design: _design_radius_axes(
+            bars_from_truth(cap.truth), cap.truth, True
+        ),
+    }
     try:
         from rebarlib._inspect import inspect
     except ImportError as e:
@@ -294,12 +361,15 @@ def _unsizeable(cap, design):
     it: half a bar along the border shows one edge only)."""
     df = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design)
     reason = df.diameter_reason.fillna("")
-    cut = (df.diameter_status == "not measured") & (reason.str.contains("at the image border")
-                                                   | reason.str.contains("outside the image"))
+    cut = (df.diameter_status == "not measured") & (
+        reason.str.contains("at the image border") | reason.str.contains("outside the image")
+    )
     return {int(i) for i in df.bar_id[df.hidden]}, {int(i) for i in df.bar_id[cut]}
 
 
-def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset(), shows=frozenset()):
+def _score(
+    df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset(), shows=frozenset()
+):
     """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such:
     (records, missed, missed and truly hidden). A bar that lies under nearer bars cannot be seen,
     so an axis detector that does not find it has missed no visible bar: it counts as hidden.
@@ -318,14 +388,31 @@ def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset()
     seen = set()
     for r, t in zip(df.itertuples(index=False), tid):
         if t < 0 or t not in visible or t in seen:  # a spurious or duplicate axis
-            recs.append(dict(kind="extra", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence))
+            recs.append(
+                dict(
+                    kind="extra", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence
+                )
+            )
             continue
         seen.add(t)
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
-        recs.append(dict(kind="bar", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence,
-                         true=tb[t]["diameter_mm"], env=tb[t]["envelope_mm"], width=width, row=r, true_id=int(t),
-                         wrong_size=bool(tb[t]["wrong_size"]), cut=t in cut, truly_hidden=t in truly_hidden,
-                         shows=t in shows))
+        recs.append(
+            dict(
+                kind="bar",
+                status=r.diameter_status,
+                nominal=r.nominal_mm,
+                conf=r.confidence,
+                true=tb[t]["diameter_mm"],
+                env=tb[t]["envelope_mm"],
+                width=width,
+                row=r,
+                true_id=int(t),
+                wrong_size=bool(tb[t]["wrong_size"]),
+                cut=t in cut,
+                truly_hidden=t in truly_hidden,
+                shows=t in shows,
+            )
+        )
     missed = visible - seen
     missed_cut = (missed & set(cut)) - set(truly_hidden)
     recs += [dict(kind="missed-cut")] * len(missed_cut)
@@ -344,41 +431,92 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="a few captures only")
     ap.add_argument("--methods", default="paper,refined")
     ap.add_argument("--masks", default="truth,dilated,eroded,model,fused")
-    ap.add_argument("--edges", default="check", help="refined colour edges: check, replace or mask (none)")
+    ap.add_argument(
+        "--edges", default="check", help="refined colour edges: check, replace or mask (none)"
+    )
     ap.add_argument("--axes", default="truth,jitter1,designr,designr+,detected")
     ap.add_argument("--show-wrong", action="store_true", help="print every wrong size")
     ap.add_argument("--only", default="", help="only captures whose name contains this")
-    ap.add_argument("--cloud", default="fuse", choices=("fuse", "veto", "off"),
-                    help="refined: use_cloud True (fuse), 'veto' or False (off)")
-    ap.add_argument("--heights", default="", help="H1,H2,...: the paper set-up only, at these camera heights (mm)")
-    ap.add_argument("--seeds", default="", help="S1,S2,...: the paper set-up only, with these seeds")
-    ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
-    ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
-    ap.add_argument("--pixel-samples", type=int, default=1,
-                    help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)")
-    ap.add_argument("--blur", type=float, default=0.0,
-                    help="Gaussian blur σ (px) of the colour image, as a real lens and demosaicing "
-                         "soften edges (Appearance.blur_px; 0: none)")
-    ap.add_argument("--jpeg", type=int, default=0,
-                    help="JPEG round trip of the colour image at this quality (Appearance.jpeg_quality; 0: none)")
-    ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
-                    help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another")
-    ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
-                    help="depth-sensor model the captures are rendered with (SENSORS): the default, or "
-                         "3x the flying pixels, 2.5x the stereo noise, no edge effects")
-    ap.add_argument("--ribs", default="envelope", choices=("envelope", "relief"),
-                    help="deformed bars drawn as their rib envelope (smooth), or with the ribs in relief "
-                         "(Deviations.rib_relief: a core of d1, crescent and longitudinal ribs, random roll)")
-    ap.add_argument("--depth-shift", default="0,0",
-                    help="DU,DV: shift the depth image this many pixels against the colour image (a "
-                         "colour-depth misregistration, as a camera's factory alignment leaves); the model "
-                         "and fused masks are registered as inspect does. Only the detected axes are "
-                         "meaningful then: the true axes belong to the colour image, not the moved depth")
-    ap.add_argument("--model", default="",
-                    help="ONNX segmentation model for the model and fused masks (default: the shipped one)")
-    ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
-    ap.add_argument("--reasons", action="store_true",
-                    help="print why bars were not measured (diameter_reason, numbers left out) per combination")
+    ap.add_argument(
+        "--cloud",
+        default="fuse",
+        choices=("fuse", "veto", "off"),
+        help="refined: use_cloud True (fuse), 'veto' or False (off)",
+    )
+    ap.add_argument(
+        "--heights",
+        default="",
+        help="H1,H2,...: the paper set-up only, at these camera heights (mm)",
+    )
+    ap.add_argument(
+        "--seeds", default="", help="S1,S2,...: the paper set-up only, with these seeds"
+    )
+    ap.add_argument(
+        "--seed-offset", type=int, default=0, help="shift every seed (held-out captures)"
+    )
+    ap.add_argument(
+        "--cache", default="", help="folder to keep rendered captures in (re-runs are faster)"
+    )
+    ap.add_argument(
+        "--pixel-samples",
+        type=int,
+        default=1,
+        help="rays per pixel side for the colour image (Appearance.pixel_samples; 1: aliased)",
+    )
+    ap.add_argument(
+        "--blur",
+        type=float,
+        default=0.0,
+        help="Gaussian blur σ (px) of the colour image, as a real lens and demosaicing "
+        "soften edges (Appearance.blur_px; 0: none)",
+    )
+    ap.add_argument(
+        "--jpeg",
+        type=int,
+        default=0,
+        help="JPEG round trip of the colour image at this quality (Appearance.jpeg_quality; 0: none)",
+    )
+    ap.add_argument(
+        "--camera",
+        default="gemini2",
+        choices=sorted(CAMERAS),
+        help="camera the captures are rendered with (CAMERAS): the reference Gemini 2, or another",
+    )
+    ap.add_argument(
+        "--sensor",
+        default="default",
+        choices=sorted(SENSORS),
+        help="depth-sensor model the captures are rendered with (SENSORS): the default, or "
+        "3x the flying pixels, 2.5x the stereo noise, no edge effects",
+    )
+    ap.add_argument(
+        "--ribs",
+        default="envelope",
+        choices=("envelope", "relief"),
+        help="deformed bars drawn as their rib envelope (smooth), or with the ribs in relief "
+        "(Deviations.rib_relief: a core of d1, crescent and longitudinal ribs, random roll)",
+    )
+    ap.add_argument(
+        "--depth-shift",
+        default="0,0",
+        help="DU,DV: shift the depth image this many pixels against the colour image (a "
+        "colour-depth misregistration, as a camera's factory alignment leaves); the model "
+        "and fused masks are registered as inspect does. Only the detected axes are "
+        "meaningful then: the true axes belong to the colour image, not the moved depth",
+    )
+    ap.add_argument(
+        "--model",
+        default="",
+        help="ONNX segmentation model for the model and fused masks (default: the shipped one)",
+    )
+    ap.add_argument(
+        "--dump", default="", help="write every bar's row, joined to the truth, to this CSV"
+    )
+    ap.add_argument(
+        "--reasons",
+        action="store_true",
+        help="print why bars were not measured (diameter_reason, numbers left out) per combination",
+    )
     args = ap.parse_args()
     depth_shift = tuple(map(int, args.depth_shift.split(",")))
     mask_src, notes = _mask_sources(args.model)
@@ -390,8 +528,12 @@ def main() -> None:
     combos = [(m, k, a) for a in axis_src for k in mask_src for m in methods]
     for n in notes:
         print("note:", n)
-    app = Appearance(rust_fraction=0.3, pixel_samples=args.pixel_samples, blur_px=args.blur,
-                     jpeg_quality=args.jpeg or None)  # random sun per seed: shadows of the upper bars on the lower
+    app = Appearance(
+        rust_fraction=0.3,
+        pixel_samples=args.pixel_samples,
+        blur_px=args.blur,
+        jpeg_quality=args.jpeg or None,
+    )  # random sun per seed: shadows of the upper bars on the lower
     per_capture = []
     dump = []  # every bar row joined to the truth (--dump)
     recs = defaultdict(list)
@@ -401,10 +543,14 @@ def main() -> None:
     missed_hidden = defaultdict(int)
     reasons = defaultdict(lambda: defaultdict(int))
     ints = lambda text: tuple(int(x) for x in text.split(",")) if text else None  # noqa: E731
-    for name, design, kw in scenarios(args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)):
+    for name, design, kw in scenarios(
+        args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)
+    ):
         if args.only not in name:
             continue
-        cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor, args.ribs == "relief")
+        cap = _capture(
+            name, design, kw, app, args.cache, args.camera, args.sensor, args.ribs == "relief"
+        )
         if depth_shift != (0, 0):
             cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
@@ -428,34 +574,62 @@ def main() -> None:
             if a not in axes:
                 continue
             t0, c0 = time.perf_counter(), time.process_time()
-            df = measure_diameters(measured_on[k], axes[a], masks[k], design=design, method=m,
-                                   colour_edges=False if args.edges == "mask" else args.edges,
-                                   use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud])
+            df = measure_diameters(
+                measured_on[k],
+                axes[a],
+                masks[k],
+                design=design,
+                method=m,
+                colour_edges=False if args.edges == "mask" else args.edges,
+                use_cloud={"fuse": True, "veto": "veto", "off": False}[args.cloud],
+            )
             times[combo].append(time.perf_counter() - t0)
             cpu[combo].append(time.process_time() - c0)
-            rr, n_missed, n_missed_hidden = _score(df, axes[a], cap.truth, a, hidden_truth, cut_truth, shows)
+            rr, n_missed, n_missed_hidden = _score(
+                df, axes[a], cap.truth, a, hidden_truth, cut_truth, shows
+            )
             recs[combo] += rr
             missed[combo] += n_missed
             missed_hidden[combo] += n_missed_hidden
             for r in rr:
                 if r["kind"] == "bar" and r["status"] != "measured":
                     why = re.sub(r"-?\d+(\.\d+)?", "#", r["row"].diameter_reason)
-                    reasons[combo][why if why.startswith(f"{r['status']}: ") else f"{r['status']}: {why}"] += 1
+                    reasons[combo][
+                        why if why.startswith(f"{r['status']}: ") else f"{r['status']}: {why}"
+                    ] += 1
             if n_missed > n_missed_hidden:
                 reasons[combo]["no axis found for the bar"] += n_missed - n_missed_hidden
             if n_missed_hidden:
-                reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
+                reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += (
+                    n_missed_hidden
+                )
             bars_rr = [r for r in rr if r["kind"] == "bar"]
-            dump += [{"capture": name, "method": m, "mask": k, "axes": a, "true_id": r["true_id"],
-                      "true_mm": r["true"], "true_envelope_mm": r["env"], "wrong_size": r["wrong_size"],
-                      "shows_width": r["shows"], **r["row"]._asdict()} for r in bars_rr]
+            dump += [
+                {
+                    "capture": name,
+                    "method": m,
+                    "mask": k,
+                    "axes": a,
+                    "true_id": r["true_id"],
+                    "true_mm": r["true"],
+                    "true_envelope_mm": r["env"],
+                    "wrong_size": r["wrong_size"],
+                    "shows_width": r["shows"],
+                    **r["row"]._asdict(),
+                }
+                for r in bars_rr
+            ]
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
-                        print(f"    wrong {combo}: true Φ{r['true']:g} (envelope {r['env']}) -> {r['row']}")
-            row[combo] = (sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in bars_rr),
-                          sum(r["status"] == "hidden" for r in bars_rr) + n_missed_hidden,
-                          sum(r["status"] == "not measured" for r in bars_rr) + n_missed - n_missed_hidden)
+                        print(
+                            f"    wrong {combo}: true Φ{r['true']:g} (envelope {r['env']}) -> {r['row']}"
+                        )
+            row[combo] = (
+                sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in bars_rr),
+                sum(r["status"] == "hidden" for r in bars_rr) + n_missed_hidden,
+                sum(r["status"] == "not measured" for r in bars_rr) + n_missed - n_missed_hidden,
+            )
         per_capture.append(row)
         print(f"  done {name}", flush=True)
 
@@ -472,18 +646,22 @@ def main() -> None:
         cells = [("%d/%d/%d" % row[c]) if c in row else "-" for c in combos]
         print(f"{row['capture']:<22}{row['bars']:>5} " + " ".join(f"{c:>17}" for c in cells))
 
-    print(f"\nSummary over {len(per_capture)} captures (hidden: reported hidden, or not found by the axes and "
-          "hidden under nearer bars by the truth; of those, 'h.noax' had no axis; 'cut': of the other bars, "
-          "those the true axes and true mask cannot size because the image border cuts them (one edge "
-          "only, or under 8 cross-sections with both); 'meas.%¬cut': measured % of the bars neither "
-          "hidden nor cut; 'h.¬tr': bars reported hidden that the true axes and true mask do not report "
-          "hidden; 'right%tr': bars measured to their true size, % of the bars not hidden by the truth; "
-          f"'right%w': the same, % of the bars whose whole width the truth's image shows over {SHOWS_WIDTH_D:g} "
-          "of their diameters or more (both edges in the image, neither under a nearer bar), and 'w.n': "
-          "how many bars those are)")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
-          f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'cut':>5}{'meas.%¬cut':>11}{'extra':>6}{'h.noax':>7}"
-          f"{'h.¬tr':>6}{'right%tr':>9}{'w.n':>5}{'right%w':>8}{'median s':>9}{'cpu s':>7}")
+    print(
+        f"\nSummary over {len(per_capture)} captures (hidden: reported hidden, or not found by the axes and "
+        "hidden under nearer bars by the truth; of those, 'h.noax' had no axis; 'cut': of the other bars, "
+        "those the true axes and true mask cannot size because the image border cuts them (one edge "
+        "only, or under 8 cross-sections with both); 'meas.%¬cut': measured % of the bars neither "
+        "hidden nor cut; 'h.¬tr': bars reported hidden that the true axes and true mask do not report "
+        "hidden; 'right%tr': bars measured to their true size, % of the bars not hidden by the truth; "
+        f"'right%w': the same, % of the bars whose whole width the truth's image shows over {SHOWS_WIDTH_D:g} "
+        "of their diameters or more (both edges in the image, neither under a nearer bar), and 'w.n': "
+        "how many bars those are)"
+    )
+    print(
+        f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'hidden':>7}{'meas.':>7}{'n.m.':>6}{'wrong':>6}"
+        f"{'wrong≥0.9':>10}{'correct%':>9}{'measured%':>10}{'cut':>5}{'meas.%¬cut':>11}{'extra':>6}{'h.noax':>7}"
+        f"{'h.¬tr':>6}{'right%tr':>9}{'w.n':>5}{'right%w':>8}{'median s':>9}{'cpu s':>7}"
+    )
     for combo in combos:
         rr = [r for r in recs[combo] if r["kind"] == "bar"]
         if not rr and not missed[combo]:
@@ -495,27 +673,36 @@ def main() -> None:
         wrong_hi = [r for r in wrong if r["conf"] >= HIGH_CONFIDENCE]
         extra = sum(r["kind"] == "extra" for r in recs[combo])
         base = max(nb - hidden, 1)
-        cut = (sum(r["status"] != "hidden" and r["cut"] for r in rr)
-               + sum(r["kind"] == "missed-cut" for r in recs[combo]))
+        cut = sum(r["status"] != "hidden" and r["cut"] for r in rr) + sum(
+            r["kind"] == "missed-cut" for r in recs[combo]
+        )
         meas_uncut = sum(not r["cut"] for r in meas)
         false_hidden = sum(r["status"] == "hidden" and not r["truly_hidden"] for r in rr)
         truly_hidden = sum(r["truly_hidden"] for r in rr) + missed_hidden[combo]
         right = len(meas) - len(wrong)
-        n_shows = sum(r["shows"] for r in rr) + sum(r["kind"] == "missed-shows" for r in recs[combo])
+        n_shows = sum(r["shows"] for r in rr) + sum(
+            r["kind"] == "missed-shows" for r in recs[combo]
+        )
         right_shows = sum(r["shows"] and r["nominal"] == r["true"] for r in meas)
         m, k, a = combo
-        print(f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
-              f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
-              f"{cut:>5}{100 * meas_uncut / max(base - cut, 1):>11.1f}"
-              f"{extra:>6}{missed_hidden[combo]:>7}{false_hidden:>6}"
-              f"{100 * right / max(nb - truly_hidden, 1):>9.1f}{n_shows:>5}{100 * right_shows / max(n_shows, 1):>8.1f}"
-              f"{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}")
+        print(
+            f"{m:<8}{k:<13}{a:<9}{nb:>6}{hidden:>7}{len(meas):>7}{nb - hidden - len(meas):>6}{len(wrong):>6}"
+            f"{len(wrong_hi):>10}{100 * (base - len(wrong)) / base:>9.2f}{100 * len(meas) / base:>10.1f}"
+            f"{cut:>5}{100 * meas_uncut / max(base - cut, 1):>11.1f}"
+            f"{extra:>6}{missed_hidden[combo]:>7}{false_hidden:>6}"
+            f"{100 * right / max(nb - truly_hidden, 1):>9.1f}{n_shows:>5}{100 * right_shows / max(n_shows, 1):>8.1f}"
+            f"{np.median(times[combo]):>9.3f}{np.median(cpu[combo]):>7.3f}"
+        )
 
-    print("\nBars of another size than designed: flagged (measured, right size, not matching the design), "
-          "not measured (of those, 'alerted': the reason says 'possible wrong size' and names the true size), "
-          "missed (measured as another size); 'false alerts': bars of the design size given that reason")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'alerted':>9}{'missed':>8}"
-          f"{'false alerts':>14}")
+    print(
+        "\nBars of another size than designed: flagged (measured, right size, not matching the design), "
+        "not measured (of those, 'alerted': the reason says 'possible wrong size' and names the true size), "
+        "missed (measured as another size); 'false alerts': bars of the design size given that reason"
+    )
+    print(
+        f"{'method':<8}{'mask':<13}{'axes':<9}{'bars':>6}{'flagged':>9}{'n.m.':>6}{'alerted':>9}{'missed':>8}"
+        f"{'false alerts':>14}"
+    )
 
     def alert(r):
         reason = getattr(r.get("row"), "diameter_reason", "") or ""
@@ -528,68 +715,109 @@ def main() -> None:
         flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
         as_other = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
         alerted = sum(alert(r) and f"Φ{r['true']:g} " in r["row"].diameter_reason for r in ws)
-        false_alerts = sum(alert(r) for r in recs[combo] if r["kind"] == "bar" and not r["wrong_size"])
+        false_alerts = sum(
+            alert(r) for r in recs[combo] if r["kind"] == "bar" and not r["wrong_size"]
+        )
         m, k, a = combo
-        print(f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{alerted:>9}"
-              f"{as_other:>8}{false_alerts:>14}")
+        print(
+            f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{alerted:>9}"
+            f"{as_other:>8}{false_alerts:>14}"
+        )
 
-    print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
-          "bars measured with the true axes")
-    print(f"{'method':<8}{'mask':<13}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}")
+    print(
+        "\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
+        "bars measured with the true axes"
+    )
+    print(
+        f"{'method':<8}{'mask':<13}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}"
+    )
     for combo in combos:
         m, k, a = combo
         if a != "truth":
             continue
-        err = np.array([r["width"] - r["env"] for r in recs[combo]
-                        if r["kind"] == "bar" and r["status"] == "measured"], float)
+        err = np.array(
+            [
+                r["width"] - r["env"]
+                for r in recs[combo]
+                if r["kind"] == "bar" and r["status"] == "measured"
+            ],
+            float,
+        )
         if len(err) == 0:
             continue
         ae = np.abs(err)
-        print(f"{m:<8}{k:<13}{len(err):>6}{np.median(err):>7.2f}{np.median(ae):>13.2f}"
-              f"{np.percentile(ae, 90):>7.2f}{np.percentile(ae, 99):>7.2f}{ae.max():>7.2f}")
+        print(
+            f"{m:<8}{k:<13}{len(err):>6}{np.median(err):>7.2f}{np.median(ae):>13.2f}"
+            f"{np.percentile(ae, 90):>7.2f}{np.percentile(ae, 99):>7.2f}{ae.max():>7.2f}"
+        )
 
-    print("\nHow honest the uncertainty is (refined): z = (width_used_mm - true envelope) / σ, σ = width_sigma_mm\n"
-          "with the size table's 0.15 mm (what the confidence is computed from), over the bars measured or left\n"
-          "ambiguous; for a normal error |z| would read 0.67, 1.00, 1.64, 1.96, 2.58 and 4.6 % beyond 2. 'ambig.\n"
-          "nearer': ambiguous bars whose nearer size (named in the reason) is the true one")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'n':>6}{'p50':>6}{'p68':>6}{'p90':>6}{'p95':>6}{'p99':>6}"
-          f"{'max':>7}{'>2σ %':>7}{'ambig. nearer':>15}")
+    print(
+        "\nHow honest the uncertainty is (refined): z = (width_used_mm - true envelope) / σ, σ = width_sigma_mm\n"
+        "with the size table's 0.15 mm (what the confidence is computed from), over the bars measured or left\n"
+        "ambiguous; for a normal error |z| would read 0.67, 1.00, 1.64, 1.96, 2.58 and 4.6 % beyond 2. 'ambig.\n"
+        "nearer': ambiguous bars whose nearer size (named in the reason) is the true one"
+    )
+    print(
+        f"{'method':<8}{'mask':<13}{'axes':<9}{'n':>6}{'p50':>6}{'p68':>6}{'p90':>6}{'p95':>6}{'p99':>6}"
+        f"{'max':>7}{'>2σ %':>7}{'ambig. nearer':>15}"
+    )
     for combo in combos:
         m, k, a = combo
-        rs = [r for r in recs[combo] if r["kind"] == "bar" and np.isfinite(getattr(r["row"], "width_sigma_mm", np.nan))]
+        rs = [
+            r
+            for r in recs[combo]
+            if r["kind"] == "bar" and np.isfinite(getattr(r["row"], "width_sigma_mm", np.nan))
+        ]
         if m != "refined" or not rs:
             continue
         z = np.array([_z(r["row"], r["env"]) for r in rs])
         az = np.abs(z)
         amb = [r for r in rs if str(r["row"].diameter_reason).startswith("ambiguous")]
-        near = sum(f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason) for r in amb)
-        print(f"{m:<8}{k:<13}{a:<9}{len(z):>6}"
-              + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
-              + f"{az.max():>7.2f}{100 * (az > 2).mean():>7.1f}{f'{near} of {len(amb)}':>15}")
+        near = sum(
+            f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason)
+            for r in amb
+        )
+        print(
+            f"{m:<8}{k:<13}{a:<9}{len(z):>6}"
+            + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
+            + f"{az.max():>7.2f}{100 * (az > 2).mean():>7.1f}{f'{near} of {len(amb)}':>15}"
+        )
 
-    print("\nMask widths from two edges against widths from one edge and the axis (refined;\n"
-          "bars with at least half their sections one-sided, one_sided_share >= 0.5, against\n"
-          "bars with none): the mask width (width_median_mm) − true envelope, its median and\n"
-          "RMS, and |z| as above over those measured or left ambiguous. A one-sided width is\n"
-          "off by twice the axis's error across the bar")
-    print(f"{'method':<8}{'mask':<13}{'axes':<9}{'sides':<6}{'n':>6}{'bias':>7}{'rms':>7}{'n z':>6}"
-          f"{'|z| p50':>8}{'p95':>6}{'max':>7}")
+    print(
+        "\nMask widths from two edges against widths from one edge and the axis (refined;\n"
+        "bars with at least half their sections one-sided, one_sided_share >= 0.5, against\n"
+        "bars with none): the mask width (width_median_mm) − true envelope, its median and\n"
+        "RMS, and |z| as above over those measured or left ambiguous. A one-sided width is\n"
+        "off by twice the axis's error across the bar"
+    )
+    print(
+        f"{'method':<8}{'mask':<13}{'axes':<9}{'sides':<6}{'n':>6}{'bias':>7}{'rms':>7}{'n z':>6}"
+        f"{'|z| p50':>8}{'p95':>6}{'max':>7}"
+    )
     for combo in combos:
         m, k, a = combo
         if m != "refined":
             continue
-        rs = [(r["row"], r["env"]) for r in recs[combo]
-              if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)]
+        rs = [
+            (r["row"], r["env"])
+            for r in recs[combo]
+            if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)
+        ]
         for label, pick in (("two", lambda s: s == 0), ("one", lambda s: s >= 0.5)):
             g = [(row, env) for row, env in rs if pick(row.one_sided_share)]
             if not g:
                 continue
             err = np.array([row.width_median_mm - env for row, env in g], float)
             az = np.abs([_z(row, env) for row, env in g if np.isfinite(row.width_sigma_mm)])
-            zs = (f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}"
-                  if len(az) else "")
-            print(f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}"
-                  f"{np.sqrt(np.mean(err ** 2)):>7.2f}{len(az):>6}" + zs)
+            zs = (
+                f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}"
+                if len(az)
+                else ""
+            )
+            print(
+                f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}"
+                f"{np.sqrt(np.mean(err**2)):>7.2f}{len(az):>6}" + zs
+            )
 
     if args.reasons:
         print("\nWhy bars were not measured (diameter_reason, numbers left out), per combination")

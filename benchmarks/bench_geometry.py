@@ -58,32 +58,69 @@ MATCH_DIST_MM, MATCH_ANGLE_DEG = 6.0, 5.0
 
 
 def paper_design(cover_mm: float):
-    return design_from_dict({"slab": {"id": f"paper-c{cover_mm:g}"},
-                             "design": {"cover_mm": cover_mm, "layer_distance_mm": 85,
-                                        "lower": {"diameter_mm": 14, "spacing_mm": 200},
-                                        "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    return design_from_dict(
+        {
+            "slab": {"id": f"paper-c{cover_mm:g}"},
+            "design": {
+                "cover_mm": cover_mm,
+                "layer_distance_mm": 85,
+                "lower": {"diameter_mm": 14, "spacing_mm": 200},
+                "upper": {"diameter_mm": 12, "spacing_mm": 200},
+            },
+        }
+    )
 
 
 def cases(quick: bool):
     rng = np.random.default_rng(2024)
     out = []
-    covers, heights, tilts = ((20,), (400, 500, 600), (5, 15)) if quick else ((15, 20, 25), (400, 500, 600),
-                                                                                (0, 5, 10, 15))
+    covers, heights, tilts = (
+        ((20,), (400, 500, 600), (5, 15))
+        if quick
+        else ((15, 20, 25), (400, 500, 600), (0, 5, 10, 15))
+    )
     for cover in covers:
         for h in heights:
             for tilt in tilts:
-                out.append(("paper", paper_design(cover), h, tilt, float(rng.uniform(0, 180)),
-                            float(rng.uniform(0, 360)), int(rng.integers(1e6))))
-    for h in ((500, 600) if quick else (400, 500, 600)):
-        for tilt in ((10,) if quick else (5, 15)):
-            out.append(("site", site_design(), h, tilt, float(rng.uniform(0, 180)), float(rng.uniform(0, 360)),
-                        int(rng.integers(1e6))))
+                out.append(
+                    (
+                        "paper",
+                        paper_design(cover),
+                        h,
+                        tilt,
+                        float(rng.uniform(0, 180)),
+                        float(rng.uniform(0, 360)),
+                        int(rng.integers(1e6)),
+                    )
+                )
+    for h in (500, 600) if quick else (400, 500, 600):
+        for tilt in (10,) if quick else (5, 15):
+            out.append(
+                (
+                    "site",
+                    site_design(),
+                    h,
+                    tilt,
+                    float(rng.uniform(0, 180)),
+                    float(rng.uniform(0, 360)),
+                    int(rng.integers(1e6)),
+                )
+            )
     # stacked: the paper's slab with each upper bar right above the lower bar of its direction and
     # 6 bars left out, so lower bars show only as slivers and some empty positions lie under upper bars
-    for h in ((600,) if quick else (400, 500, 600)):
-        for tilt in ((5,) if quick else (5, 15)):
-            out.append(("stacked", paper_design(20), h, tilt, float(rng.uniform(0, 180)), float(rng.uniform(0, 360)),
-                        int(rng.integers(1e6))))
+    for h in (600,) if quick else (400, 500, 600):
+        for tilt in (5,) if quick else (5, 15):
+            out.append(
+                (
+                    "stacked",
+                    paper_design(20),
+                    h,
+                    tilt,
+                    float(rng.uniform(0, 180)),
+                    float(rng.uniform(0, 360)),
+                    int(rng.integers(1e6)),
+                )
+            )
     return out
 
 
@@ -129,7 +166,12 @@ def bar_stretches(cap, pixels=None) -> dict:
         if len(t) < 2:
             continue
         uv = project(pts, K)
-        ok = (uv[:, 0] > -200) & (uv[:, 0] < K.width + 200) & (uv[:, 1] > -200) & (uv[:, 1] < K.height + 200)
+        ok = (
+            (uv[:, 0] > -200)
+            & (uv[:, 0] < K.width + 200)
+            & (uv[:, 1] > -200)
+            & (uv[:, 1] < K.height + 200)
+        )
         uv, t = uv[ok], t[ok]
         if len(t) < 2:
             continue
@@ -172,7 +214,10 @@ def match_bars(res, truth, measurable):
 def _distance_to_axis(r, b):
     """Distance (mm) from the middle of a bars-table row's axis to a truth bar's axis line, and
     that line's unit direction."""
-    mid = (np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm]) + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])) / 2
+    mid = (
+        np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
+        + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
+    ) / 2
     p0, p1 = np.array(b["axis_start_mm"]), np.array(b["axis_end_mm"])
     v = (p1 - p0) / np.linalg.norm(p1 - p0)
     return float(np.linalg.norm(np.cross(mid - p0, v))), v
@@ -181,8 +226,11 @@ def _distance_to_axis(r, b):
 def approximate_axis_errors(res, tb, mapping) -> list:
     """Distance (mm) from the middle of each "not measured" bar's approximate axis to its true
     bar's axis (bars matched to one)."""
-    return [_distance_to_axis(r, tb[mapping[r.bar_id]])[0] for r in res.bars.itertuples()
-            if r.status != "measured" and mapping.get(r.bar_id) is not None]
+    return [
+        _distance_to_axis(r, tb[mapping[r.bar_id]])[0]
+        for r in res.bars.itertuples()
+        if r.status != "measured" and mapping.get(r.bar_id) is not None
+    ]
 
 
 def spacing_errors(res, truth, mapping):
@@ -202,17 +250,30 @@ def edge_trim(cap, design) -> int:
     where there is none): inspect then fits its bars on the depth without that fringe."""
     from rebarlib._inspect import registered_mask, widest_bar_px
 
-    reg = registered_mask(cap, rng=0, soft=True, tiled=True,
-                          bar_width_px=widest_bar_px(cap, design))[2]
+    reg = registered_mask(
+        cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design)
+    )[2]
     return reg["depth_overreach_px"]
 
 
-def run(quick: bool, listing: bool = False, camera: str = "gemini2",
-        sensor: str = "default", trim: bool = True) -> pd.DataFrame:
+def run(
+    quick: bool,
+    listing: bool = False,
+    camera: str = "gemini2",
+    sensor: str = "default",
+    trim: bool = True,
+) -> pd.DataFrame:
     rows = []
     for slab, design, h, tilt, mesh_yaw, cam_yaw, seed in cases(quick):
-        kw = dict(height_mm=h, tilt_deg=tilt, yaw_deg=cam_yaw, deviations=deviations(slab, mesh_yaw), seed=seed,
-                  scene_seed=seed + 1, intrinsics=CAMERAS[camera])
+        kw = dict(
+            height_mm=h,
+            tilt_deg=tilt,
+            yaw_deg=cam_yaw,
+            deviations=deviations(slab, mesh_yaw),
+            seed=seed,
+            scene_seed=seed + 1,
+            intrinsics=CAMERAS[camera],
+        )
         cap = synth_capture(design, sensor=SENSORS[sensor], **kw)
         ideal = synth_capture(design, sensor=SensorModel.ideal(), **kw)
         tr = cap.truth
@@ -223,43 +284,73 @@ def run(quick: bool, listing: bool = False, camera: str = "gemini2",
         trim_px = edge_trim(cap, design) if trim else 0
         for method in ("paper", "refined"):
             t0 = time.perf_counter()
-            res = inspect(cap, design, method=method, diameters=False, rng=seed,
-                          edge_trim_px=trim_px if method == "refined" else None)
+            res = inspect(
+                cap,
+                design,
+                method=method,
+                diameters=False,
+                rng=seed,
+                edge_trim_px=trim_px if method == "refined" else None,
+            )
             dt = time.perf_counter() - t0
             mapping, missed, tb = match_bars(res, tr, measurable)
             missed_any = sorted(measurable_any - {v for v in mapping.values() if v is not None})
             sp = spacing_errors(res, tr, mapping)
             approx = approximate_axis_errors(res, tb, mapping)
-            rows.append({
-                "slab": slab, "cover_design": design.cover_mm, "height": h, "tilt": tilt, "method": method,
-                "cover_true": tr["cover_mm"], "cover": res.cover.value_mm,
-                "ld_true": tr["layer_distance_mm"], "ld": res.layer_distance.value_mm,
-                "measurable": len(measurable), "found": len(res.bars),
-                "matched": sum(v is not None for v in mapping.values()), "missed": len(missed),
-                "measurable_any": len(measurable_any), "missed_any": len(missed_any),
-                "phantom": sum(v is None for v in mapping.values()),
-                "not_measured": int((res.bars.status != "measured").sum()),
-                "second_look": int(res.bars.reason.str.startswith("seen only at full resolution").sum()),
-                "edge_trim_px": trim_px if method == "refined" else 0,
-                "spacing_n": len(sp), "spacing_max_err": max(map(abs, sp)) if sp else np.nan,
-                "spacing_mean_err": float(np.mean(sp)) if sp else np.nan, "time_s": dt,
-                "approx_axis_err": " ".join(f"{e:.2f}" for e in approx),
-            })
-            print(f"  {slab} c{design.cover_mm:g} {h} mm tilt {tilt:>2}° {method:7s} cover "
-                  f"{_f(res.cover.value_mm)} / {tr['cover_mm']:.2f}  LD {_f(res.layer_distance.value_mm)} / "
-                  f"{tr['layer_distance_mm']:.2f}  bars {rows[-1]['matched']}/{len(measurable)} "
-                  f"phantom {rows[-1]['phantom']}  {dt:.2f} s", flush=True)
+            rows.append(
+                {
+                    "slab": slab,
+                    "cover_design": design.cover_mm,
+                    "height": h,
+                    "tilt": tilt,
+                    "method": method,
+                    "cover_true": tr["cover_mm"],
+                    "cover": res.cover.value_mm,
+                    "ld_true": tr["layer_distance_mm"],
+                    "ld": res.layer_distance.value_mm,
+                    "measurable": len(measurable),
+                    "found": len(res.bars),
+                    "matched": sum(v is not None for v in mapping.values()),
+                    "missed": len(missed),
+                    "measurable_any": len(measurable_any),
+                    "missed_any": len(missed_any),
+                    "phantom": sum(v is None for v in mapping.values()),
+                    "not_measured": int((res.bars.status != "measured").sum()),
+                    "second_look": int(
+                        res.bars.reason.str.startswith("seen only at full resolution").sum()
+                    ),
+                    "edge_trim_px": trim_px if method == "refined" else 0,
+                    "spacing_n": len(sp),
+                    "spacing_max_err": max(map(abs, sp)) if sp else np.nan,
+                    "spacing_mean_err": float(np.mean(sp)) if sp else np.nan,
+                    "time_s": dt,
+                    "approx_axis_err": " ".join(f"{e:.2f}" for e in approx),
+                }
+            )
+            print(
+                f"  {slab} c{design.cover_mm:g} {h} mm tilt {tilt:>2}° {method:7s} cover "
+                f"{_f(res.cover.value_mm)} / {tr['cover_mm']:.2f}  LD {_f(res.layer_distance.value_mm)} / "
+                f"{tr['layer_distance_mm']:.2f}  bars {rows[-1]['matched']}/{len(measurable)} "
+                f"phantom {rows[-1]['phantom']}  {dt:.2f} s",
+                flush=True,
+            )
             if listing and method == "refined":
                 for i in sorted(set(missed) | set(missed_any)):
                     b = tb[i]
-                    print(f"      missed{'' if i in missed else ' (any depth only)'}: truth bar {i} ({b['layer']} "
-                          f"{b['level']}, {b['visible_pixels']} pixels over {b['visible_length_mm']:.0f} mm): stretch "
-                          f"{stretch[i]:.0f} mm of its own depth, {stretch_any[i]:.0f} mm of any depth", flush=True)
+                    print(
+                        f"      missed{'' if i in missed else ' (any depth only)'}: truth bar {i} ({b['layer']} "
+                        f"{b['level']}, {b['visible_pixels']} pixels over {b['visible_length_mm']:.0f} mm): stretch "
+                        f"{stretch[i]:.0f} mm of its own depth, {stretch_any[i]:.0f} mm of any depth",
+                        flush=True,
+                    )
                 for k, v in mapping.items():
                     if v is None:
                         r = res.bars.iloc[k]
-                        print(f"      phantom: bar {k} ({r.layer} {r.level}, {r.visible_length_mm:.0f} mm, "
-                              f"{r.n_points} points, {r.status}) {r.reason}", flush=True)
+                        print(
+                            f"      phantom: bar {k} ({r.layer} {r.level}, {r.visible_length_mm:.0f} mm, "
+                            f"{r.n_points} points, {r.status}) {r.reason}",
+                            flush=True,
+                        )
     df = pd.DataFrame(rows)
     for q in ("cover", "ld"):
         df[f"{q}_abs_err"] = (df[q] - df[f"{q}_true"]).abs()
@@ -274,76 +365,155 @@ def _f(x):
 def report(df: pd.DataFrame) -> None:
     pd.set_option("display.width", 200)
     pd.set_option("display.max_rows", 500)
-    for q, title in (("cover", "Table 4 — concrete cover (mm)"), ("ld", "Table 5 — layer distance (mm)")):
+    for q, title in (
+        ("cover", "Table 4 — concrete cover (mm)"),
+        ("ld", "Table 5 — layer distance (mm)"),
+    ):
         print(f"\n{title}: actual, detected, absolute and relative error")
-        t = df.pivot_table(index=["slab", "cover_design", "height", "tilt"], columns="method",
-                           values=[f"{q}_true", q, f"{q}_abs_err", f"{q}_rel_err_%"], aggfunc="first")
-        t = t[[(f"{q}_true", "refined"), (q, "paper"), (q, "refined"), (f"{q}_abs_err", "paper"),
-               (f"{q}_abs_err", "refined"), (f"{q}_rel_err_%", "paper"), (f"{q}_rel_err_%", "refined")]]
-        t.columns = ["actual", "paper", "refined", "abs err paper", "abs err refined", "rel % paper", "rel % refined"]
+        t = df.pivot_table(
+            index=["slab", "cover_design", "height", "tilt"],
+            columns="method",
+            values=[f"{q}_true", q, f"{q}_abs_err", f"{q}_rel_err_%"],
+            aggfunc="first",
+        )
+        t = t[
+            [
+                (f"{q}_true", "refined"),
+                (q, "paper"),
+                (q, "refined"),
+                (f"{q}_abs_err", "paper"),
+                (f"{q}_abs_err", "refined"),
+                (f"{q}_rel_err_%", "paper"),
+                (f"{q}_rel_err_%", "refined"),
+            ]
+        ]
+        t.columns = [
+            "actual",
+            "paper",
+            "refined",
+            "abs err paper",
+            "abs err refined",
+            "rel % paper",
+            "rel % refined",
+        ]
         print(t.round(2).to_string())
     print("\nWorst case per camera height (max |error|, mm; bars over all captures)")
     g = df.groupby(["height", "method"])
-    w = pd.DataFrame({
-        "captures": g.size(), "cover max": g["cover_abs_err"].max(), "cover mean": g["cover_abs_err"].mean(),
-        "LD max": g["ld_abs_err"].max(), "LD mean": g["ld_abs_err"].mean(),
-        "spacing max": g["spacing_max_err"].max(), "spacings": g["spacing_n"].sum(),
-        "measurable bars": g["measurable"].sum(), "matched": g["matched"].sum(), "missed": g["missed"].sum(),
-        "phantom": g["phantom"].sum(), "bars not measured": g["not_measured"].sum(),
-        "measurable (any depth)": g["measurable_any"].sum(), "missed (any depth)": g["missed_any"].sum(),
-        "time median s": g["time_s"].median()}).unstack("method")
+    w = pd.DataFrame(
+        {
+            "captures": g.size(),
+            "cover max": g["cover_abs_err"].max(),
+            "cover mean": g["cover_abs_err"].mean(),
+            "LD max": g["ld_abs_err"].max(),
+            "LD mean": g["ld_abs_err"].mean(),
+            "spacing max": g["spacing_max_err"].max(),
+            "spacings": g["spacing_n"].sum(),
+            "measurable bars": g["measurable"].sum(),
+            "matched": g["matched"].sum(),
+            "missed": g["missed"].sum(),
+            "phantom": g["phantom"].sum(),
+            "bars not measured": g["not_measured"].sum(),
+            "measurable (any depth)": g["measurable_any"].sum(),
+            "missed (any depth)": g["missed_any"].sum(),
+            "time median s": g["time_s"].median(),
+        }
+    ).unstack("method")
     w = w.swaplevel(axis=1).sort_index(axis=1, level=0)
     print(w.round(2).T.to_string())
     print("\nAll captures")
     g = df.groupby("method")
-    a = pd.DataFrame({
-        "cover max |err|": g["cover_abs_err"].max(), "LD max |err|": g["ld_abs_err"].max(),
-        "spacing max |err|": g["spacing_max_err"].max(), "measurable": g["measurable"].sum(),
-        "missed": g["missed"].sum(), "phantom": g["phantom"].sum(), "bars not measured": g["not_measured"].sum(),
-        "measurable (any depth)": g["measurable_any"].sum(), "missed (any depth)": g["missed_any"].sum(),
-        "cover not measured": g["cover"].apply(lambda s: int(s.isna().sum())),
-        "edge fattening trimmed": g["edge_trim_px"].apply(lambda s: int((s > 0).sum())),
-    })
+    a = pd.DataFrame(
+        {
+            "cover max |err|": g["cover_abs_err"].max(),
+            "LD max |err|": g["ld_abs_err"].max(),
+            "spacing max |err|": g["spacing_max_err"].max(),
+            "measurable": g["measurable"].sum(),
+            "missed": g["missed"].sum(),
+            "phantom": g["phantom"].sum(),
+            "bars not measured": g["not_measured"].sum(),
+            "measurable (any depth)": g["measurable_any"].sum(),
+            "missed (any depth)": g["missed_any"].sum(),
+            "cover not measured": g["cover"].apply(lambda s: int(s.isna().sum())),
+            "edge fattening trimmed": g["edge_trim_px"].apply(lambda s: int((s > 0).sum())),
+        }
+    )
     print(a.round(2).to_string())
     print("\nRefined, per slab")
     r = df[df["method"] == "refined"]
     g = r.groupby("slab", sort=False)
-    print(pd.DataFrame({
-        "captures": g.size(), "cover max |err|": g["cover_abs_err"].max(), "LD max |err|": g["ld_abs_err"].max(),
-        "spacing max |err|": g["spacing_max_err"].max(), "measurable": g["measurable"].sum(),
-        "missed": g["missed"].sum(), "phantom": g["phantom"].sum(), "second look": g["second_look"].sum(),
-        "bars not measured": g["not_measured"].sum()}).round(2).to_string())
-    print("(second look: bars found only by the full-resolution look at empty row positions, find_missed_bars)")
+    print(
+        pd.DataFrame(
+            {
+                "captures": g.size(),
+                "cover max |err|": g["cover_abs_err"].max(),
+                "LD max |err|": g["ld_abs_err"].max(),
+                "spacing max |err|": g["spacing_max_err"].max(),
+                "measurable": g["measurable"].sum(),
+                "missed": g["missed"].sum(),
+                "phantom": g["phantom"].sum(),
+                "second look": g["second_look"].sum(),
+                "bars not measured": g["not_measured"].sum(),
+            }
+        )
+        .round(2)
+        .to_string()
+    )
+    print(
+        "(second look: bars found only by the full-resolution look at empty row positions, find_missed_bars)"
+    )
     errs = np.array([float(e) for v in r["approx_axis_err"].fillna("") for e in str(v).split()])
-    print("\nRefined, approximate axes of the bars reported \"not measured\" (matched to a true bar): distance of "
-          "the axis's middle from the true axis (mm)")
+    print(
+        '\nRefined, approximate axes of the bars reported "not measured" (matched to a true bar): distance of '
+        "the axis's middle from the true axis (mm)"
+    )
     if len(errs):
-        print(f"  n {len(errs)}  median {np.median(errs):.2f}  p90 {np.percentile(errs, 90):.2f}  "
-              f"max {errs.max():.2f}  over 2 mm {int((errs > 2).sum())}")
+        print(
+            f"  n {len(errs)}  median {np.median(errs):.2f}  p90 {np.percentile(errs, 90):.2f}  "
+            f"max {errs.max():.2f}  over 2 mm {int((errs > 2).sum())}"
+        )
     else:
         print("  none")
-    print("\nTargets (refined, <= 600 mm): cover and LD max |err| <= 0.5 mm, spacing <= 2 mm, no missed, no phantom")
-    print("(missed counts bars with a 50 mm stretch of pixels showing their own depth; missed (any depth): bars "
-          "with a 50 mm stretch of pixels with any depth, also another surface's)")
+    print(
+        "\nTargets (refined, <= 600 mm): cover and LD max |err| <= 0.5 mm, spacing <= 2 mm, no missed, no phantom"
+    )
+    print(
+        "(missed counts bars with a 50 mm stretch of pixels showing their own depth; missed (any depth): bars "
+        "with a 50 mm stretch of pixels with any depth, also another surface's)"
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="9 captures instead of 48")
     ap.add_argument("--csv", help="also write the per-capture rows to this CSV file")
-    ap.add_argument("--list", action="store_true", help="list every missed and phantom bar of the refined method")
-    ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS),
-                    help="camera the captures are rendered with (benchmarks/_cameras.py)")
-    ap.add_argument("--sensor", default="default", choices=sorted(SENSORS),
-                    help="depth-sensor model the captures are rendered with "
-                         "(benchmarks/_cameras.py)")
-    ap.add_argument("--no-trim", action="store_true",
-                    help="fit the refined method's bars on the depth as it comes, as "
-                         "inspect(diameters=False) does, not on the depth without the edge "
-                         "fattening its mask step measures")
+    ap.add_argument(
+        "--list",
+        action="store_true",
+        help="list every missed and phantom bar of the refined method",
+    )
+    ap.add_argument(
+        "--camera",
+        default="gemini2",
+        choices=sorted(CAMERAS),
+        help="camera the captures are rendered with (benchmarks/_cameras.py)",
+    )
+    ap.add_argument(
+        "--sensor",
+        default="default",
+        choices=sorted(SENSORS),
+        help="depth-sensor model the captures are rendered with (benchmarks/_cameras.py)",
+    )
+    ap.add_argument(
+        "--no-trim",
+        action="store_true",
+        help="fit the refined method's bars on the depth as it comes, as "
+        "inspect(diameters=False) does, not on the depth without the edge "
+        "fattening its mask step measures",
+    )
     args = ap.parse_args()
-    df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor,
-             trim=not args.no_trim)
+    df = run(
+        args.quick, listing=args.list, camera=args.camera, sensor=args.sensor, trim=not args.no_trim
+    )
     if args.csv:
         df.to_csv(args.csv, index=False)
     report(df)

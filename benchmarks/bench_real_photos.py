@@ -70,7 +70,9 @@ def _line_kernel(length: int, angle: float):
     k = np.zeros((length, length), np.uint8)
     c = (length - 1) / 2
     dx, dy = c * np.cos(angle), c * np.sin(angle)
-    cv2.line(k, (int(round(c - dx)), int(round(c - dy))), (int(round(c + dx)), int(round(c + dy))), 1)
+    cv2.line(
+        k, (int(round(c - dx)), int(round(c - dy))), (int(round(c + dx)), int(round(c + dy))), 1
+    )
     return k
 
 
@@ -141,18 +143,32 @@ def score(pred, ref, left_out, tol_px: float) -> dict:
     core = _erode(ref, max(1, tol // 2))
     core = np.where(core.any(), core, ref)  # bars thinner than the erosion keep their pixels
     bg = ~near & ~left_out
-    return {"pred": int(p.sum()), "pred_near": int((p & near).sum()), "core": int(core.sum()),
-            "core_hit": int((core & pred).sum()), "bg": int(bg.sum()), "bg_marked": int((bg & pred).sum()),
-            "pixels": int(pred.size), "marked": int(pred.sum()), "ref": int(ref.sum())}
+    return {
+        "pred": int(p.sum()),
+        "pred_near": int((p & near).sum()),
+        "core": int(core.sum()),
+        "core_hit": int((core & pred).sum()),
+        "bg": int(bg.sum()),
+        "bg_marked": int((bg & pred).sum()),
+        "pixels": int(pred.size),
+        "marked": int(pred.sum()),
+        "ref": int(ref.sum()),
+    }
 
 
 def summary(c: dict) -> dict:
     prec = c["pred_near"] / c["pred"] if c["pred"] else float("nan")
     rec = c["core_hit"] / c["core"] if c["core"] else float("nan")
     d = 2 * prec * rec / (prec + rec) if prec + rec > 0 else float("nan")
-    return {"marked %": 100 * c["marked"] / c["pixels"], "ref %": 100 * c["ref"] / c["pixels"],
-            "precision %": 100 * prec, "recall %": 100 * rec, "IoU %": 100 * d / (2 - d),
-            "Dice %": 100 * d, "bg marked %": 100 * c["bg_marked"] / max(c["bg"], 1)}
+    return {
+        "marked %": 100 * c["marked"] / c["pixels"],
+        "ref %": 100 * c["ref"] / c["pixels"],
+        "precision %": 100 * prec,
+        "recall %": 100 * rec,
+        "IoU %": 100 * d / (2 - d),
+        "Dice %": 100 * d,
+        "bg marked %": 100 * c["bg_marked"] / max(c["bg"], 1),
+    }
 
 
 def _fmt(v):
@@ -160,11 +176,17 @@ def _fmt(v):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--set", action="append", default=[], metavar="NAME=FOLDER", required=True)
-    ap.add_argument("--ref-shift", action="append", default=[], metavar="NAME=DX,DY",
-                    help="move a set's rough reference masks by DX, DY px (dtu: 10,-8)")
+    ap.add_argument(
+        "--ref-shift",
+        action="append",
+        default=[],
+        metavar="NAME=DX,DY",
+        help="move a set's rough reference masks by DX, DY px (dtu: 10,-8)",
+    )
     ap.add_argument("--models", nargs="*", help="ONNX files (default: the shipped model)")
     ap.add_argument("--tol-px", type=float, default=4.0, help="tolerance at 640 px of width")
     ap.add_argument("--tiled", action="store_true", help="predict_proba(tiled=True) masks")
@@ -173,19 +195,29 @@ def main(argv=None):
     ap.add_argument("--per-image", action="store_true")
     ap.add_argument("--save", default=None, help="folder for the predicted masks (PNG)")
     args = ap.parse_args(argv)
-    shifts = {k: tuple(float(v) for v in s.split(",")) for k, s in
-              (a.split("=", 1) for a in args.ref_shift)}
+    shifts = {
+        k: tuple(float(v) for v in s.split(","))
+        for k, s in (a.split("=", 1) for a in args.ref_shift)
+    }
     sets = {}
     for a in args.set:
         name, folder = a.split("=", 1)
         sets[name] = load_set(Path(folder), shifts.get(name, (0, 0)))
         if not sets[name]:
             sys.exit(f"--set {a}: no photos found")
-    paths = [Path(p) for p in args.models] if args.models else [ROOT / "rebarlib/models/rebar_seg.onnx"]
+    paths = (
+        [Path(p) for p in args.models] if args.models else [ROOT / "rebarlib/models/rebar_seg.onnx"]
+    )
     cols = ["marked %", "ref %", "precision %", "recall %", "IoU %", "Dice %", "bg marked %"]
-    print(f"# Real-photo benchmark: tolerance {args.tol_px:g} px at 640 px width, "
-          f"{'tiled' if args.tiled else 'whole image'}, flips {'off' if args.no_flips else 'as sidecar'}")
-    print(f"{'model':28s} {'set':8s} {'n':>3s} " + " ".join(f"{c[:11]:>11s}" for c in cols) + "   ms/img")
+    print(
+        f"# Real-photo benchmark: tolerance {args.tol_px:g} px at 640 px width, "
+        f"{'tiled' if args.tiled else 'whole image'}, flips {'off' if args.no_flips else 'as sidecar'}"
+    )
+    print(
+        f"{'model':28s} {'set':8s} {'n':>3s} "
+        + " ".join(f"{c[:11]:>11s}" for c in cols)
+        + "   ms/img"
+    )
     for path in paths:
         model = SegmentationModel(path, threads=args.threads)
         for name, items in sets.items():
@@ -199,14 +231,20 @@ def main(argv=None):
                 tot = {k: tot.get(k, 0) + v for k, v in c.items()}
                 if args.per_image:
                     s = summary(c)
-                    print(f"  {stem:26s} {name:8s}     " + " ".join(f"{_fmt(s[k]):>11s}" for k in cols))
+                    print(
+                        f"  {stem:26s} {name:8s}     "
+                        + " ".join(f"{_fmt(s[k]):>11s}" for k in cols)
+                    )
                 if args.save:
                     out = Path(args.save) / path.stem / name
                     out.mkdir(parents=True, exist_ok=True)
                     cv2.imwrite(str(out / f"{stem}.png"), pred.astype(np.uint8) * 255)
             s = summary(tot)
-            print(f"{path.stem[:28]:28s} {name:8s} {len(items):3d} "
-                  + " ".join(f"{_fmt(s[k]):>11s}" for k in cols) + f"   {np.median(ms):6.0f}")
+            print(
+                f"{path.stem[:28]:28s} {name:8s} {len(items):3d} "
+                + " ".join(f"{_fmt(s[k]):>11s}" for k in cols)
+                + f"   {np.median(ms):6.0f}"
+            )
 
 
 if __name__ == "__main__":

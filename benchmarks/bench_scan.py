@@ -40,15 +40,28 @@ def _stations(kind: str):
 def run_case(design, sigma, kind, seed, formwork=True) -> dict:
     step_az = 0.06 if kind == "dense" else 0.24
     scanner = ScannerModel(range_sigma_mm=sigma, step_az_deg=step_az, step_el_deg=0.06)
-    pts, truth, _ = synth_scan(design, stations=_stations(kind), scanner=scanner, formwork=formwork, rng=seed)
+    pts, truth, _ = synth_scan(
+        design, stations=_stations(kind), scanner=scanner, formwork=formwork, rng=seed
+    )
     t = time.perf_counter()
     res = inspect_cloud(pts, design)
     dt = time.perf_counter() - t
     s = score_scan(res, truth)
-    return {"sigma_mm": sigma, "sampling": kind, "formwork": formwork, "seed": seed, "points": len(pts),
-            "scanned": s["scanned"], "found": s["found"], "missed": s["missed"], "phantoms": s["phantoms"],
-            "spacing_max_abs_err_mm": s["spacing_max_abs_err_mm"], "layer_distance_err_mm": s["layer_distance_err_mm"],
-            "cover_err_mm": s["cover_err_mm"], "time_s": dt}
+    return {
+        "sigma_mm": sigma,
+        "sampling": kind,
+        "formwork": formwork,
+        "seed": seed,
+        "points": len(pts),
+        "scanned": s["scanned"],
+        "found": s["found"],
+        "missed": s["missed"],
+        "phantoms": s["phantoms"],
+        "spacing_max_abs_err_mm": s["spacing_max_abs_err_mm"],
+        "layer_distance_err_mm": s["layer_distance_err_mm"],
+        "cover_err_mm": s["cover_err_mm"],
+        "time_s": dt,
+    }
 
 
 def speed(design, n_target: int = 1_000_000) -> dict:
@@ -61,8 +74,13 @@ def speed(design, n_target: int = 1_000_000) -> dict:
         times.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
     s = score_scan(res, truth)
-    return {"points": len(pts), "median_time_s": float(np.median(times)), "median_cpu_s": float(np.median(cpu)),
-            "missed": s["missed"], "phantoms": s["phantoms"]}
+    return {
+        "points": len(pts),
+        "median_time_s": float(np.median(times)),
+        "median_cpu_s": float(np.median(cpu)),
+        "missed": s["missed"],
+        "phantoms": s["phantoms"],
+    }
 
 
 def up_sign(design, sigmas, seeds) -> pd.DataFrame:
@@ -76,9 +94,17 @@ def up_sign(design, sigmas, seeds) -> pd.DataFrame:
             for flip in (False, True):
                 res = inspect_cloud(pts * np.array([1.0, -1.0, -1.0]) if flip else pts, design)
                 ld = res.layer_distance
-                rows.append({"sigma_mm": sg, "seed": seed, "upside_down": flip,
-                             "right": bool((res.extras["cloud"]["up"][2] < 0) == flip),
-                             "layer_distance_err_mm": ld.value_mm - truth.layer_distance_mm if ld.ok else None})
+                rows.append(
+                    {
+                        "sigma_mm": sg,
+                        "seed": seed,
+                        "upside_down": flip,
+                        "right": bool((res.extras["cloud"]["up"][2] < 0) == flip),
+                        "layer_distance_err_mm": ld.value_mm - truth.layer_distance_mm
+                        if ld.ok
+                        else None,
+                    }
+                )
     return pd.DataFrame(rows)
 
 
@@ -87,27 +113,46 @@ def diameters(design, sigmas=(0.3, 1.0)) -> pd.DataFrame:
     want = {"lower": design.lower.bottom.diameter_mm, "upper": design.upper.bottom.diameter_mm}
     rows = []
     for sg in sigmas:
-        scanner = ScannerModel(range_sigma_mm=sg, step_az_deg=0.05, step_el_deg=0.05, mixed_fraction=0.2)
+        scanner = ScannerModel(
+            range_sigma_mm=sg, step_az_deg=0.05, step_el_deg=0.05, mixed_fraction=0.2
+        )
         pts, _, _ = synth_scan(design, scanner=scanner, rng=0)
         bars = inspect_cloud(pts, design).bars
         sized = bars[bars["diameter_status"] == "measured"]
         right = sized["nominal_mm"] == sized["layer"].map(want)
         wrong_conf = sized.loc[~right, "confidence"]
-        rows.append({"sigma_mm": sg, "bars": len(bars), "sized": len(sized), "right": int(right.sum()),
-                     "wrong": int((~right).sum()),
-                     "wrong_max_confidence": float(wrong_conf.max()) if len(wrong_conf) else None})
+        rows.append(
+            {
+                "sigma_mm": sg,
+                "bars": len(bars),
+                "sized": len(sized),
+                "right": int(right.sum()),
+                "wrong": int((~right).sum()),
+                "wrong_max_confidence": float(wrong_conf.max()) if len(wrong_conf) else None,
+            }
+        )
     return pd.DataFrame(rows)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2)
-    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed ... first-seed + seeds - 1")
-    ap.add_argument("--up-sign", action="store_true", help="only the up side guessed without formwork or normals")
+    ap.add_argument(
+        "--first-seed", type=int, default=0, help="seeds first-seed ... first-seed + seeds - 1"
+    )
+    ap.add_argument(
+        "--up-sign",
+        action="store_true",
+        help="only the up side guessed without formwork or normals",
+    )
     ap.add_argument("--sigmas", type=float, nargs="+", default=[5.0, 10.0, 15.0, 20.0])
     ap.add_argument("--no-speed", action="store_true")
-    ap.add_argument("--no-formwork", action="store_true", help="scan the mesh with nothing under it")
-    ap.add_argument("--diameters", action="store_true", help="also size bars on fine scans (sigma 0.3, 1 mm)")
+    ap.add_argument(
+        "--no-formwork", action="store_true", help="scan the mesh with nothing under it"
+    )
+    ap.add_argument(
+        "--diameters", action="store_true", help="also size bars on fine scans (sigma 0.3, 1 mm)"
+    )
     args = ap.parse_args(argv)
     design = load_design(DESIGN)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
@@ -115,17 +160,32 @@ def main(argv=None) -> int:
     if args.up_sign:
         df = up_sign(design, args.sigmas, seeds)
         print(df.round(2).to_string(index=False))
-        print("\nright:", df.groupby("sigma_mm")["right"].agg(lambda x: f"{int(x.sum())} of {len(x)}").to_string())
+        print(
+            "\nright:",
+            df.groupby("sigma_mm")["right"]
+            .agg(lambda x: f"{int(x.sum())} of {len(x)}")
+            .to_string(),
+        )
         return 0
-    rows = [run_case(design, sg, kind, seed, formwork=not args.no_formwork)
-            for sg in args.sigmas for kind in ("dense", "sparse") for seed in seeds]
+    rows = [
+        run_case(design, sg, kind, seed, formwork=not args.no_formwork)
+        for sg in args.sigmas
+        for kind in ("dense", "sparse")
+        for seed in seeds
+    ]
     df = pd.DataFrame(rows)
     print(df.round(2).to_string(index=False))
     agg = df.groupby(["sigma_mm", "sampling"]).agg(
-        missed=("missed", "sum"), phantoms=("phantoms", "sum"), spacing_max=("spacing_max_abs_err_mm", "max"),
+        missed=("missed", "sum"),
+        phantoms=("phantoms", "sum"),
+        spacing_max=("spacing_max_abs_err_mm", "max"),
         ld_max=("layer_distance_err_mm", lambda x: float(np.max(np.abs(x)))),
-        cover_max=("cover_err_mm", lambda x: float(np.max(np.abs(x))) if x.notna().any() else np.nan),
-        time_s=("time_s", "median"))
+        cover_max=(
+            "cover_err_mm",
+            lambda x: float(np.max(np.abs(x))) if x.notna().any() else np.nan,
+        ),
+        time_s=("time_s", "median"),
+    )
     print("\nworst per case (max |err| in mm, sums of missed/phantom bars):")
     print(agg.round(2).to_string())
     if args.diameters:
@@ -133,8 +193,10 @@ def main(argv=None) -> int:
         print(diameters(design).to_string(index=False))
     if not args.no_speed:
         sp = speed(design)
-        print(f"\nspeed: {sp['points']:,} points, inspect_cloud median of 3: {sp['median_time_s']:.2f} s wall, "
-              f"{sp['median_cpu_s']:.2f} s CPU (missed {sp['missed']}, phantoms {sp['phantoms']})")
+        print(
+            f"\nspeed: {sp['points']:,} points, inspect_cloud median of 3: {sp['median_time_s']:.2f} s wall, "
+            f"{sp['median_cpu_s']:.2f} s CPU (missed {sp['missed']}, phantoms {sp['phantoms']})"
+        )
     return 0
 
 

@@ -35,8 +35,14 @@ import numpy as np
 
 DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
 #: the acceptance item a defect must fail
-DEFECT_ITEM = {"missing_inside": "bar_count", "missing_end": "bar_count", "wrong_size": "bar_size",
-               "cover": "cover", "spacing": "spacing", "layer_distance": "layer_distance"}
+DEFECT_ITEM = {
+    "missing_inside": "bar_count",
+    "missing_end": "bar_count",
+    "wrong_size": "bar_size",
+    "cover": "cover",
+    "spacing": "spacing",
+    "layer_distance": "layer_distance",
+}
 DESIGNS = (  # (lower Φ, lower spacing, upper Φ, upper spacing, cover, layer distance)
     (14, 200, 12, 200, 20, 85),
     (12, 150, 10, 150, 25, 70),
@@ -47,9 +53,11 @@ DESIGNS = (  # (lower Φ, lower spacing, upper Φ, upper spacing, cover, layer d
 def design_toml(k: int, defect: str | None) -> str:
     dl, sl, du, su, cover, ld = DESIGNS[k % len(DESIGNS)]
     std = "EN13670-class1" if defect == "spacing" else "GB50204-2015"
-    return (f'[slab]\nid = "V-{k:03d}"\nstandard = "{std}"\n\n[design]\ncover_mm = {cover}\n'
-            f"layer_distance_mm = {ld}\n\n[design.lower]\ndiameter_mm = {dl}\nspacing_mm = {sl}\n\n"
-            f"[design.upper]\ndiameter_mm = {du}\nspacing_mm = {su}\n")
+    return (
+        f'[slab]\nid = "V-{k:03d}"\nstandard = "{std}"\n\n[design]\ncover_mm = {cover}\n'
+        f"layer_distance_mm = {ld}\n\n[design.lower]\ndiameter_mm = {dl}\nspacing_mm = {sl}\n\n"
+        f"[design.upper]\ndiameter_mm = {du}\nspacing_mm = {su}\n"
+    )
 
 
 def _render_slab(args) -> str:
@@ -71,11 +79,16 @@ def _render_slab(args) -> str:
         render = _with(design, cover_mm=design.cover_mm + 5)
     elif defect == "layer_distance":
         render = _with(design, layer_distance_mm=design.layer_distance_mm + 8)
-    dev = S.Deviations(end_overhang_mm=float(rng.uniform(25, 75)), mesh_yaw_deg=float(rng.uniform(0, 180)),
-                       position_sigma_mm=1.5, position_uniform_mm=4.0, slab_size_mm=float(rng.uniform(1600, 2400)),
-                       missing=1 if defect == "missing_inside" else 0,
-                       missing_at_end=1 if defect == "missing_end" else 0,
-                       wrong_size=1 if defect == "wrong_size" else 0)
+    dev = S.Deviations(
+        end_overhang_mm=float(rng.uniform(25, 75)),
+        mesh_yaw_deg=float(rng.uniform(0, 180)),
+        position_sigma_mm=1.5,
+        position_uniform_mm=4.0,
+        slab_size_mm=float(rng.uniform(1600, 2400)),
+        missing=1 if defect == "missing_inside" else 0,
+        missing_at_end=1 if defect == "missing_end" else 0,
+        wrong_size=1 if defect == "wrong_size" else 0,
+    )
     scene = S.make_scene(render, dev, rng=np.random.default_rng([2026, k, 1]))
     gap = None
     if defect == "spacing":
@@ -86,18 +99,38 @@ def _render_slab(args) -> str:
     caps = []
     for j, target in enumerate(targets):
         h = float(rng.uniform(400, 700))
-        pose = S.CameraPose.looking_down(h, tilt_deg=float(rng.uniform(0, 20)), yaw_deg=float(rng.uniform(0, 360)),
-                                         target_mm=tuple(target))
+        pose = S.CameraPose.looking_down(
+            h,
+            tilt_deg=float(rng.uniform(0, 20)),
+            yaw_deg=float(rng.uniform(0, 360)),
+            target_mm=tuple(target),
+        )
         shadow = int(rng.random() < 0.25)
         sensor = S.SensorModel(bars_without_depth=shadow)
         app = S.Appearance(rust_fraction=float(rng.choice([0.0, 0.0, 0.3, 0.8])))
-        cap = S.render_capture(scene, pose, sensor=sensor, appearance=app, rng=np.random.default_rng([2026, k, 2, j]),
-                               name=f"C{j}_{int(h)}")
+        cap = S.render_capture(
+            scene,
+            pose,
+            sensor=sensor,
+            appearance=app,
+            rng=np.random.default_rng([2026, k, 2, j]),
+            name=f"C{j}_{int(h)}",
+        )
         R.save_capture(cap, folder / f"C{j}_{int(h)}", overwrite=True)
         caps.append(f"C{j}_{int(h)}")
-    meta = {"slab": k, "defect": defect, "captures": caps, "edge_view": edge_view,
-            "shadows": sum(1 for c in caps if json.loads((folder / c / "truth.json").read_text())["sensor"]
-                           .get("bars_without_depth"))}
+    meta = {
+        "slab": k,
+        "defect": defect,
+        "captures": caps,
+        "edge_view": edge_view,
+        "shadows": sum(
+            1
+            for c in caps
+            if json.loads((folder / c / "truth.json").read_text())["sensor"].get(
+                "bars_without_depth"
+            )
+        ),
+    }
     (folder / "slab.json").write_text(json.dumps(meta), encoding="utf-8")
     return str(folder)
 
@@ -123,7 +156,9 @@ def _open_one_gap(scene, rng, by_mm: float):
     bars = []
     for b in scene.bars:
         if b.id in moved:
-            b = dataclasses.replace(b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b))
+            b = dataclasses.replace(
+                b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b)
+            )
         bars.append(b)
     return dataclasses.replace(scene, bars=tuple(bars)), (row[cut - 1].id, row[cut].id)
 
@@ -155,7 +190,9 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     if defect in ("missing_inside", "missing_end") and scene.ghosts:
         g = scene.ghosts[0]
         focus = g.axis[0, :2] + rng.uniform(0.3, 0.7) * (g.axis[-1, :2] - g.axis[0, :2])
-        if defect == "missing_end":  # step 100 mm towards the mesh's middle: the edge and the row in view
+        if (
+            defect == "missing_end"
+        ):  # step 100 mm towards the mesh's middle: the edge and the row in view
             mid = world(0.5 * (lo + hi))
             focus = focus + 100.0 * (mid - focus) / max(np.linalg.norm(mid - focus), 1.0)
     elif defect == "wrong_size":
@@ -198,12 +235,28 @@ def _inspect_slab(folder: str, rejudge: bool = False) -> dict:
         results.append(res.to_dict())
     acc = R.evaluate(results, design)
     items = acc.items
-    failed = sorted({str(i).split("_lower")[0].split("_upper")[0] for i, v in zip(items["item"], items["verdict"])
-                     if v == "fail"})
-    incomplete = sorted({str(i).split("_lower")[0].split("_upper")[0]
-                         for i, v in zip(items["item"], items["verdict"]) if v not in ("pass", "fail")})
-    rec = {**meta, "verdict": acc.verdict, "failed": failed, "incomplete": incomplete,
-           "reasons": list(acc.reasons), "seconds": round(time.perf_counter() - t, 2)}
+    failed = sorted(
+        {
+            str(i).split("_lower")[0].split("_upper")[0]
+            for i, v in zip(items["item"], items["verdict"])
+            if v == "fail"
+        }
+    )
+    incomplete = sorted(
+        {
+            str(i).split("_lower")[0].split("_upper")[0]
+            for i, v in zip(items["item"], items["verdict"])
+            if v not in ("pass", "fail")
+        }
+    )
+    rec = {
+        **meta,
+        "verdict": acc.verdict,
+        "failed": failed,
+        "incomplete": incomplete,
+        "reasons": list(acc.reasons),
+        "seconds": round(time.perf_counter() - t, 2),
+    }
     out_file.write_text(json.dumps(rec, indent=1), encoding="utf-8")
     return rec
 
@@ -214,10 +267,16 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--cache", default="/tmp/rebarlib_verdicts")
     ap.add_argument("--start", type=int, default=0, help="first slab number")
-    ap.add_argument("--rejudge", action="store_true",
-                    help="judge again from the results saved in --cache (no rendering, no inspection)")
-    ap.add_argument("--report-only", action="store_true",
-                    help="print the tables from the slabs already judged in --cache (no rendering)")
+    ap.add_argument(
+        "--rejudge",
+        action="store_true",
+        help="judge again from the results saved in --cache (no rendering, no inspection)",
+    )
+    ap.add_argument(
+        "--report-only",
+        action="store_true",
+        help="print the tables from the slabs already judged in --cache (no rendering)",
+    )
     args = ap.parse_args(argv)
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
@@ -226,13 +285,18 @@ def main(argv=None) -> int:
     if args.report_only:
         recs = [json.loads(f.read_text()) for f in sorted(cache.glob("slab_*/verdict.json"))]
     elif args.rejudge:
-        recs = [_inspect_slab(str(f.parent), rejudge=True) for f in sorted(cache.glob("slab_*/slab.json"))]
+        recs = [
+            _inspect_slab(str(f.parent), rejudge=True)
+            for f in sorted(cache.glob("slab_*/slab.json"))
+        ]
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
             recs = list(ex.map(_render_and_judge, [(k, str(cache)) for k in ks]))
-    print(f"{len(recs)} slabs, {sum(len(r['captures']) for r in recs)} captures "
-          f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
-          f"{sum(r['seconds'] for r in recs):.0f} s of it in all)\n")
+    print(
+        f"{len(recs)} slabs, {sum(len(r['captures']) for r in recs)} captures "
+        f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
+        f"{sum(r['seconds'] for r in recs):.0f} s of it in all)\n"
+    )
     report(recs)
     return 0
 
@@ -247,21 +311,32 @@ def report(recs: list) -> None:
     print("|---|" + "---:|" * len(verdicts))
     for truth in ("clean", "defective"):
         sel = [r for r in recs if (r["defect"] is None) == (truth == "clean")]
-        print(f"| {truth} ({len(sel)}) | " + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts)
-              + " |")
-    print("\nPer defect: slabs, rejected naming the defect, rejected for something else only, incomplete, "
-          "accepted (missed)\n")
-    print("| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |")
+        print(
+            f"| {truth} ({len(sel)}) | "
+            + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts)
+            + " |"
+        )
+    print(
+        "\nPer defect: slabs, rejected naming the defect, rejected for something else only, incomplete, "
+        "accepted (missed)\n"
+    )
+    print(
+        "| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |"
+    )
     print("|---|---:|---:|---:|---:|---:|")
     for d in DEFECTS:
         sel = [r for r in recs if r["defect"] == d]
         named = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] in r["failed"] for r in sel)
         other = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] not in r["failed"] for r in sel)
-        print(f"| {d} | {len(sel)} | {named} | {other} | {sum(r['verdict'] == 'incomplete' for r in sel)} | "
-              f"{sum(r['verdict'] == 'accepted' for r in sel)} |")
+        print(
+            f"| {d} | {len(sel)} | {named} | {other} | {sum(r['verdict'] == 'incomplete' for r in sel)} | "
+            f"{sum(r['verdict'] == 'accepted' for r in sel)} |"
+        )
     items = ("cover", "layer_distance", "spacing", "bar_size", "bar_count")
-    print("\nPer item: false fails (failed on a slab without that defect), missed (defect of that item, "
-          "item not failed), left incomplete\n")
+    print(
+        "\nPer item: false fails (failed on a slab without that defect), missed (defect of that item, "
+        "item not failed), left incomplete\n"
+    )
     print("| item | false fails | missed | incomplete (clean slabs) |")
     print("|---|---:|---:|---:|")
     for it in items:
@@ -275,20 +350,24 @@ def report(recs: list) -> None:
         want = "accepted" if r["defect"] is None else "rejected"
         extra = [f for f in r["failed"] if f != DEFECT_ITEM.get(r["defect"])]
         if r["verdict"] != want or extra:
-            print(f"- slab {r['slab']:03d} ({r['defect'] or 'clean'}, {len(r['captures'])} captures, edge view "
-                  f"{r['edge_view']}, shadows {r['shadows']}): {r['verdict']}; failed {r['failed']}; "
-                  f"incomplete {r['incomplete']}")
+            print(
+                f"- slab {r['slab']:03d} ({r['defect'] or 'clean'}, {len(r['captures'])} captures, edge view "
+                f"{r['edge_view']}, shadows {r['shadows']}): {r['verdict']}; failed {r['failed']}; "
+                f"incomplete {r['incomplete']}"
+            )
 
 
 #: what a checkpoint's reason says, in order: the first that matches names the cause
-CAUSES = (("position hidden under a bar", "bar_count", "hidden under another bar"),
-          ("other count evidence", "bar_count", ""),
-          ("size ambiguous between two sizes", "bar_size", "ambiguous"),
-          ("mask and cloud widths disagree", "bar_size", "disagree"),
-          ("mask widths scattered", "bar_size", "too scattered"),
-          ("too few clean cross-sections", "bar_size", "too few clean cross-sections"),
-          ("possible wrong size", "bar_size", "possible wrong size"),
-          ("other size reason", "bar_size", ""))
+CAUSES = (
+    ("position hidden under a bar", "bar_count", "hidden under another bar"),
+    ("other count evidence", "bar_count", ""),
+    ("size ambiguous between two sizes", "bar_size", "ambiguous"),
+    ("mask and cloud widths disagree", "bar_size", "disagree"),
+    ("mask widths scattered", "bar_size", "too scattered"),
+    ("too few clean cross-sections", "bar_size", "too few clean cross-sections"),
+    ("possible wrong size", "bar_size", "possible wrong size"),
+    ("other size reason", "bar_size", ""),
+)
 
 
 def causes(recs: list) -> None:
@@ -297,7 +376,9 @@ def causes(recs: list) -> None:
     clean = [r for r in recs if r["defect"] is None and r["verdict"] == "incomplete"]
     if not clean:
         return
-    print(f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n")
+    print(
+        f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n"
+    )
     print("| cause | item | slabs |")
     print("|---|---|---:|")
     for name, item, key in CAUSES:

@@ -67,7 +67,9 @@ def text(v) -> str:
     if isinstance(v, np.ndarray):
         return json.dumps([text(x) for x in v.ravel().tolist()] + [f"shape={v.shape}"])
     if isinstance(v, dict):
-        return json.dumps({str(k): text(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))})
+        return json.dumps(
+            {str(k): text(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))}
+        )
     if isinstance(v, (list, tuple, set, frozenset)):
         seq = sorted(v, key=str) if isinstance(v, (set, frozenset)) else v
         return json.dumps([text(x) for x in seq])
@@ -127,24 +129,68 @@ def _synthetic_cases():
     paper, site = paper_design(), site_design()
     specs = [
         ("syn_paper_400_t0", paper, dict(height_mm=400, tilt_deg=0, seed=1, intrinsics=half)),
-        ("syn_paper_500_t10", paper, dict(height_mm=500, tilt_deg=10, yaw_deg=5, seed=2,
-                                          deviations=Deviations(mesh_yaw_deg=7.0, wrong_size=2),
-                                          intrinsics=half)),
-        ("syn_paper_600_t15", paper, dict(height_mm=600, tilt_deg=15, yaw_deg=-4, seed=3,
-                                          deviations=Deviations(missing=1, bow_mm=3.0),
-                                          intrinsics=half)),
-        ("syn_site_450_t5", site, dict(height_mm=450, tilt_deg=5, seed=4,
-                                       deviations=Deviations(mesh_yaw_deg=21.0,
-                                                             position_sigma_mm=4.0),
-                                       intrinsics=half)),
-        ("syn_paper_stacked", paper, dict(height_mm=500, tilt_deg=8, seed=5,
-                                          deviations=Deviations(stacked=True), intrinsics=half)),
-        ("syn_paper_ideal_full", paper, dict(height_mm=450, tilt_deg=5, seed=6,
-                                             sensor=SensorModel.ideal(), intrinsics=GEMINI2)),
-        ("syn_paper_relief", paper, dict(height_mm=400, tilt_deg=5, seed=7,
-                                         deviations=Deviations(rib_relief=True, spacers=False,
-                                                               chairs=False, ties=False),
-                                         intrinsics=half)),
+        (
+            "syn_paper_500_t10",
+            paper,
+            dict(
+                height_mm=500,
+                tilt_deg=10,
+                yaw_deg=5,
+                seed=2,
+                deviations=Deviations(mesh_yaw_deg=7.0, wrong_size=2),
+                intrinsics=half,
+            ),
+        ),
+        (
+            "syn_paper_600_t15",
+            paper,
+            dict(
+                height_mm=600,
+                tilt_deg=15,
+                yaw_deg=-4,
+                seed=3,
+                deviations=Deviations(missing=1, bow_mm=3.0),
+                intrinsics=half,
+            ),
+        ),
+        (
+            "syn_site_450_t5",
+            site,
+            dict(
+                height_mm=450,
+                tilt_deg=5,
+                seed=4,
+                deviations=Deviations(mesh_yaw_deg=21.0, position_sigma_mm=4.0),
+                intrinsics=half,
+            ),
+        ),
+        (
+            "syn_paper_stacked",
+            paper,
+            dict(
+                height_mm=500,
+                tilt_deg=8,
+                seed=5,
+                deviations=Deviations(stacked=True),
+                intrinsics=half,
+            ),
+        ),
+        (
+            "syn_paper_ideal_full",
+            paper,
+            dict(height_mm=450, tilt_deg=5, seed=6, sensor=SensorModel.ideal(), intrinsics=GEMINI2),
+        ),
+        (
+            "syn_paper_relief",
+            paper,
+            dict(
+                height_mm=400,
+                tilt_deg=5,
+                seed=7,
+                deviations=Deviations(rib_relief=True, spacers=False, chairs=False, ties=False),
+                intrinsics=half,
+            ),
+        ),
     ]
     for name, design, kw in specs:
         yield name, design, synth_capture(design, name=name, **kw)
@@ -214,41 +260,81 @@ def _barsize_rows(table: Table) -> None:
     except ImportError:
         from rebarlib import _barsizes as B
     BAR_SYSTEMS, bar_system, barset_width_mm = B.BAR_SYSTEMS, B.bar_system, B.barset_width_mm
-    bracketing_sizes, core_size, observed_width_mm = (B.bracketing_sizes, B.core_size,
-                                                      B.observed_width_mm)
-    rib_height_mm, rib_pitch_mm, size_half_gaps_mm = (B.rib_height_mm, B.rib_pitch_mm,
-                                                      B.size_half_gaps_mm)
+    bracketing_sizes, core_size, observed_width_mm = (
+        B.bracketing_sizes,
+        B.core_size,
+        B.observed_width_mm,
+    )
+    rib_height_mm, rib_pitch_mm, size_half_gaps_mm = (
+        B.rib_height_mm,
+        B.rib_pitch_mm,
+        B.size_half_gaps_mm,
+    )
     snap_diameter = B.snap_diameter
 
     for name in sorted(BAR_SYSTEMS):
         s = bar_system(name)
         table.add({"kind": "system", "system": name, "value": s})
         for size in s.sizes_mm:
-            table.add({"kind": "size", "system": name, "x": size,
-                       "value": [size_half_gaps_mm(size, system=name),
-                                 size_half_gaps_mm(size, system=name, deformed=False),
-                                 observed_width_mm(size, system=name),
-                                 observed_width_mm(size, system=name, deformed=False),
-                                 rib_pitch_mm(size, system=name)]})
+            table.add(
+                {
+                    "kind": "size",
+                    "system": name,
+                    "x": size,
+                    "value": [
+                        size_half_gaps_mm(size, system=name),
+                        size_half_gaps_mm(size, system=name, deformed=False),
+                        observed_width_mm(size, system=name),
+                        observed_width_mm(size, system=name, deformed=False),
+                        rib_pitch_mm(size, system=name),
+                    ],
+                }
+            )
         for w in np.round(np.arange(4.0, 45.0, 0.37), 2):
             w = float(w)
             for deformed in (True, False):
                 for sigma in (0.0, 0.4):
-                    table.add({"kind": f"snap_{sigma}", "system": name, "x": w,
-                               "deformed": deformed,
-                               "value": snap_diameter(w, system=name, deformed=deformed,
-                                                      sigma_mm=sigma)})
-            table.add({"kind": "bracket", "system": name, "x": w,
-                       "value": bracketing_sizes(w, system=name)})
+                    table.add(
+                        {
+                            "kind": f"snap_{sigma}",
+                            "system": name,
+                            "x": w,
+                            "deformed": deformed,
+                            "value": snap_diameter(
+                                w, system=name, deformed=deformed, sigma_mm=sigma
+                            ),
+                        }
+                    )
+            table.add(
+                {
+                    "kind": "bracket",
+                    "system": name,
+                    "x": w,
+                    "value": bracketing_sizes(w, system=name),
+                }
+            )
     for w in np.round(np.arange(4.0, 45.0, 0.37), 2):
-        table.add({"kind": "core_rib", "system": "GB1499.2", "x": float(w),
-                   "value": [core_size(float(w)), rib_height_mm(float(w))]})
+        table.add(
+            {
+                "kind": "core_rib",
+                "system": "GB1499.2",
+                "x": float(w),
+                "value": [core_size(float(w)), rib_height_mm(float(w))],
+            }
+        )
     from rebarlib.data import paper_design, site_design
+
     for dname, d in (("paper", paper_design()), ("site", site_design())):
         for layer in ("lower", "upper"):
             bs = d.lattice(layer).level("bottom")
-            table.add({"kind": "barset", "system": dname, "x": layer,
-                       "value": barset_width_mm(bs, system=d.bar_system)})
+            table.add(
+                {
+                    "kind": "barset",
+                    "system": dname,
+                    "x": layer,
+                    "value": barset_width_mm(bs, system=d.bar_system),
+                }
+            )
 
 
 def dump(out: Path, *, quick: bool = False) -> None:
@@ -265,11 +351,17 @@ def dump(out: Path, *, quick: bool = False) -> None:
         from rebarlib._geom_eval import score_result
 
     out.mkdir(parents=True, exist_ok=True)
-    bars, spacings, summary = Table(["case", "method", "bar_id"]), \
-        Table(["case", "method", "layer", "level", "bar_a", "bar_b"]), Table(["case", "method"])
-    o_unc, o_counts, o_pos, o_summary = Table(["case", "method", "table", "bar_id"]), \
-        Table(["case", "method", "layer", "level"]), Table(["case", "method", "layer", "level"]), \
-        Table(["case", "method"])
+    bars, spacings, summary = (
+        Table(["case", "method", "bar_id"]),
+        Table(["case", "method", "layer", "level", "bar_a", "bar_b"]),
+        Table(["case", "method"]),
+    )
+    o_unc, o_counts, o_pos, o_summary = (
+        Table(["case", "method", "table", "bar_id"]),
+        Table(["case", "method", "layer", "level"]),
+        Table(["case", "method", "layer", "level"]),
+        Table(["case", "method"]),
+    )
     diam, scores = Table(["case", "variant", "bar_id"]), Table(["case", "method"])
     sizes = Table(["kind", "system", "x", "deformed"])
 
@@ -309,10 +401,18 @@ def dump(out: Path, *, quick: bool = False) -> None:
         print(f"{case}: {time.time() - t:.1f} s", flush=True)
     _barsize_rows(sizes)
 
-    for name, table in (("bars", bars), ("spacings", spacings), ("summary", summary),
-                        ("diameters", diam), ("scores", scores), ("barsizes", sizes),
-                        ("others_uncertainty", o_unc), ("others_counts", o_counts),
-                        ("others_positions", o_pos), ("others_summary", o_summary)):
+    for name, table in (
+        ("bars", bars),
+        ("spacings", spacings),
+        ("summary", summary),
+        ("diameters", diam),
+        ("scores", scores),
+        ("barsizes", sizes),
+        ("others_uncertainty", o_unc),
+        ("others_counts", o_counts),
+        ("others_positions", o_pos),
+        ("others_summary", o_summary),
+    ):
         table.write(out / f"{name}.csv")
     print(f"wrote {out} in {time.time() - t0:.0f} s")
 
@@ -343,9 +443,11 @@ def compare(a: Path, b: Path, *, show: int = 20) -> int:
         hb, rb = _read(pb)
         diffs = []
         if ha != hb:
-            diffs.append(f"columns differ: only in A {sorted(set(ha) - set(hb))}, "
-                         f"only in B {sorted(set(hb) - set(ha))}, order equal: "
-                         f"{[c for c in ha if c in hb] == [c for c in hb if c in ha]}")
+            diffs.append(
+                f"columns differ: only in A {sorted(set(ha) - set(hb))}, "
+                f"only in B {sorted(set(hb) - set(ha))}, order equal: "
+                f"{[c for c in ha if c in hb] == [c for c in hb if c in ha]}"
+            )
         if len(ra) != len(rb):
             diffs.append(f"{len(ra)} rows against {len(rb)}")
         common = [c for c in ha if c in hb]
@@ -366,16 +468,19 @@ def compare(a: Path, b: Path, *, show: int = 20) -> int:
         else:
             total_own += len(diffs)
     verdict = "IDENTICAL" if total_own == 0 else "DIFFERENT"
-    print(f"{verdict}: {total_own} difference(s) in the dumped rows, {total_other} in other "
-          "sessions' columns")
+    print(
+        f"{verdict}: {total_own} difference(s) in the dumped rows, {total_other} in other "
+        "sessions' columns"
+    )
     return total_own
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out", nargs="?", type=Path, help="folder to write the rows into")
-    ap.add_argument("--compare", nargs=2, type=Path, metavar=("A", "B"),
-                    help="compare two dumps instead")
+    ap.add_argument(
+        "--compare", nargs=2, type=Path, metavar=("A", "B"), help="compare two dumps instead"
+    )
     ap.add_argument("--quick", action="store_true", help="two captures only (a smoke test)")
     args = ap.parse_args(argv)
     if args.compare:

@@ -16,8 +16,13 @@ import numpy as np
 from bench_segmentation import _add, _zero
 from rebarlib import GEMINI2
 from rebarlib.segmentation import confusion_counts, iou
-from rebarlib.synth_segmentation import (DATASET_SEED, DATASET_SIZE, split_indices,
-                                         synth_eval_regions, synth_segmentation_capture)
+from rebarlib.synth_segmentation import (
+    DATASET_SEED,
+    DATASET_SIZE,
+    split_indices,
+    synth_eval_regions,
+    synth_segmentation_capture,
+)
 
 SUBSETS = ("all", "shadow", "rust", "unlit")
 N_CAPTURES = 20
@@ -38,11 +43,15 @@ def main() -> None:
             edge[s][0] += int((truth & ~shrunk & inside).sum())
             edge[s][1] += int((truth & inside).sum())
             for m, mask in (("dilated", grown), ("eroded", shrunk)):
-                counts[(m, s)] = _add(counts[(m, s)], confusion_counts(mask, truth, region=regions[s]))
+                counts[(m, s)] = _add(
+                    counts[(m, s)], confusion_counts(mask, truth, region=regions[s])
+                )
     for s in SUBSETS:
-        print(f"{s}: edge-pixel share of bar pixels {100 * edge[s][0] / edge[s][1]:.1f} %, IoU of the truth "
-              f"dilated 1 px {100 * iou(counts[('dilated', s)]):.2f}, "
-              f"eroded 1 px {100 * iou(counts[('eroded', s)]):.2f}")
+        print(
+            f"{s}: edge-pixel share of bar pixels {100 * edge[s][0] / edge[s][1]:.1f} %, IoU of the truth "
+            f"dilated 1 px {100 * iou(counts[('dilated', s)]):.2f}, "
+            f"eroded 1 px {100 * iou(counts[('eroded', s)]):.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -20,8 +20,11 @@ from bench_geometry import bar_stretches, match_bars, own_depth_pixels, paper_de
 from rebarlib._inspect import inspect
 from rebarlib.synth import Deviations, SensorModel, synth_capture
 
-VARIANTS = {"flying pixels x3.3": SENSORS["flying"], "stereo noise x2.5": SENSORS["noisy"],
-            "no edge effects": SENSORS["clean"]}
+VARIANTS = {
+    "flying pixels x3.3": SENSORS["flying"],
+    "stereo noise x2.5": SENSORS["noisy"],
+    "no edge effects": SENSORS["clean"],
+}
 POSES = ((400, 5), (500, 15), (600, 5), (600, 15))
 
 
@@ -31,20 +34,42 @@ def main() -> None:
     for name, sensor in VARIANTS.items():
         for k, (h, tilt) in enumerate(POSES):
             for stacked in (True, False):
-                kw = dict(height_mm=h, tilt_deg=tilt, yaw_deg=47.0 * k, seed=500 + k, scene_seed=600 + k,
-                          deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6))
+                kw = dict(
+                    height_mm=h,
+                    tilt_deg=tilt,
+                    yaw_deg=47.0 * k,
+                    seed=500 + k,
+                    scene_seed=600 + k,
+                    deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
+                )
                 cap = synth_capture(design, sensor=sensor, **kw)
                 ideal = synth_capture(design, sensor=SensorModel.ideal(), **kw)
-                measurable = {i for i, r in bar_stretches(cap, own_depth_pixels(cap, ideal)).items() if r >= 50.0}
+                measurable = {
+                    i
+                    for i, r in bar_stretches(cap, own_depth_pixels(cap, ideal)).items()
+                    if r >= 50.0
+                }
                 res = inspect(cap, design, diameters=False, rng=0)
                 mapping, missed, _ = match_bars(res, cap.truth, measurable)
                 phantom = [i for i, v in mapping.items() if v is None]
-                second = int(res.bars["reason"].str.startswith("seen only at full resolution").sum())
-                rows.append({"sensor": name, "measurable": len(measurable), "missed": len(missed),
-                             "phantom": len(phantom), "second look": second})
+                second = int(
+                    res.bars["reason"].str.startswith("seen only at full resolution").sum()
+                )
+                rows.append(
+                    {
+                        "sensor": name,
+                        "measurable": len(measurable),
+                        "missed": len(missed),
+                        "phantom": len(phantom),
+                        "second look": second,
+                    }
+                )
                 for what, ids in (("missed truth bar", missed), ("phantom bar", phantom)):
                     for i in ids:
-                        print(f"  {name}: {h} mm tilt {tilt}°{' stacked' if stacked else ''}: {what} {i}", flush=True)
+                        print(
+                            f"  {name}: {h} mm tilt {tilt}°{' stacked' if stacked else ''}: {what} {i}",
+                            flush=True,
+                        )
     print(pd.DataFrame(rows).groupby("sensor", sort=False).sum().to_string())
 
 

@@ -50,15 +50,22 @@ def _sides(info, prm):
     line = np.polyval(np.polyfit(s, (lo + hi) / 2, 1), s)
     right, left = hi - line, line - lo
     width = float(np.median(hi - lo))
-    out = {"core": float(np.percentile(right, 25) + np.percentile(left, 25)),
-           "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left)) / info.px_mm}
+    out = {
+        "core": float(np.percentile(right, 25) + np.percentile(left, 25)),
+        "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left))
+        / info.px_mm,
+    }
     for k, e in (("lo", lo), ("hi", hi)):
-        out[k] = _rib_periodicity(s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width)
+        out[k] = _rib_periodicity(
+            s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width
+        )
     return out
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--ribs", default="relief", choices=("envelope", "relief"))
     ap.add_argument("--mask", default="fused")
     ap.add_argument("--axes", default="detected")
@@ -70,7 +77,9 @@ def main() -> None:
     gb = bar_system("GB1499.2")
     masks, _ = B._mask_sources()
     axes_src, _ = B._axis_sources()
-    app = Appearance(rust_fraction=0.3)  # as bench_diameter.py draws them (its cache has no key for it)
+    app = Appearance(
+        rust_fraction=0.3
+    )  # as bench_diameter.py draws them (its cache has no key for it)
     rows = []
     for name, design, kw in B.scenarios(args.quick):
         cap = B._capture(name, design, kw, app, args.cache, relief=args.ribs == "relief")
@@ -97,33 +106,66 @@ def main() -> None:
                 continue
             true = truth[int(tid)]["diameter_mm"]
             d1 = gb.of_size(gb.core_mm, true)
-            rows.append(dict(capture=name, true_mm=true, h=(truth[int(tid)]["envelope_mm"] - d1) / 2, d1=d1,
-                             status=t.iloc[j].diameter_status, spacing=rib_pitch_mm(true), **sd))
+            rows.append(
+                dict(
+                    capture=name,
+                    true_mm=true,
+                    h=(truth[int(tid)]["envelope_mm"] - d1) / 2,
+                    d1=d1,
+                    status=t.iloc[j].diameter_status,
+                    spacing=rib_pitch_mm(true),
+                    **sd,
+                )
+            )
         print(f"{name}: {len(t)} bars", file=sys.stderr, flush=True)
     d = pd.DataFrame(rows)
     pd.set_option("display.width", 200)
-    print(f"\nEach side's core - true d1 (in rib heights h), by how far the ribs stand out "
-          f"({args.mask} mask, {args.axes} axes, ribs {args.ribs})")
+    print(
+        f"\nEach side's core - true d1 (in rib heights h), by how far the ribs stand out "
+        f"({args.mask} mask, {args.axes} axes, ribs {args.ribs})"
+    )
     d["err_h"] = (d.core - d.d1) / d.h
-    print(d.groupby(pd.cut(d.amp_px, [0, 0.5, 0.75, 1, 1.5, 2, 3, 99])).err_h.describe().round(2).to_string())
+    print(
+        d.groupby(pd.cut(d.amp_px, [0, 0.5, 0.75, 1, 1.5, 2, 3, 99]))
+        .err_h.describe()
+        .round(2)
+        .to_string()
+    )
     d1s = np.array(gb.core_mm)
     near = np.abs(d.core.to_numpy()[:, None] - d1s[None, :])
     srt = np.sort(near, axis=1)
     d["snap"] = np.array(gb.sizes_mm)[near.argmin(axis=1)]
     d["margin"] = (srt[:, 1] - srt[:, 0]) / (srt[:, 1] + srt[:, 0])  # 0 half-way, 1 on a d1
-    print(f"\nSnapping each side's core to the table's d1, bars whose ribs stand out >= {args.amp} px "
-          "and whose core lies at least this margin from half-way (1 = on a d1)")
+    print(
+        f"\nSnapping each side's core to the table's d1, bars whose ribs stand out >= {args.amp} px "
+        "and whose core lies at least this margin from half-way (1 = on a d1)"
+    )
     print("margin   bars  right  wrong | not measured: decided  right  wrong")
     for mg in (0.3, 0.5, 0.7):
         x = d[(d.amp_px >= args.amp) & (d.margin >= mg)]
         nm = x[x.status == "not measured"]
-        print(f"{mg:5.1f}  {len(x):5d}  {(x.snap == x.true_mm).sum():5d}  {(x.snap != x.true_mm).sum():5d} | "
-              f"{len(nm):21d}  {(nm.snap == nm.true_mm).sum():5d}  {(nm.snap != nm.true_mm).sum():5d}")
-    print("\nOne edge's clear pitch against its size's spacing (2 %), by p-value (each edge a read)")
-    reads = pd.DataFrame([(p, abs(q / r.spacing - 1) <= 0.02) for r in d.itertuples()
-                          for q, p in (r.lo, r.hi) if math.isfinite(q)], columns=["p", "right"])
+        print(
+            f"{mg:5.1f}  {len(x):5d}  {(x.snap == x.true_mm).sum():5d}  {(x.snap != x.true_mm).sum():5d} | "
+            f"{len(nm):21d}  {(nm.snap == nm.true_mm).sum():5d}  {(nm.snap != nm.true_mm).sum():5d}"
+        )
+    print(
+        "\nOne edge's clear pitch against its size's spacing (2 %), by p-value (each edge a read)"
+    )
+    reads = pd.DataFrame(
+        [
+            (p, abs(q / r.spacing - 1) <= 0.02)
+            for r in d.itertuples()
+            for q, p in (r.lo, r.hi)
+            if math.isfinite(q)
+        ],
+        columns=["p", "right"],
+    )
     bins = pd.cut(reads.p, [0, 1e-12, 1e-8, 1e-6, 1e-4, 1e-2, 1.0])
-    print(pd.crosstab(reads.right.map({True: "spacing", False: "other"}).rename("pitch"), bins).to_string())
+    print(
+        pd.crosstab(
+            reads.right.map({True: "spacing", False: "other"}).rename("pitch"), bins
+        ).to_string()
+    )
 
 
 if __name__ == "__main__":

@@ -27,10 +27,16 @@ CAPTURES = [
 ]
 SLABS = {
     # one as-built mesh per slab (scene_seed): the captures look at different parts of it
-    "paper_slab": dict(scene_seed=101, deviations=Deviations(mesh_yaw_deg=3.0),
-                       appearance=Appearance(formwork="plywood", rust_fraction=0.1)),
-    "site_slab": dict(scene_seed=305, deviations=Deviations(mesh_yaw_deg=21.0, position_sigma_mm=4.0, missing=1),
-                      appearance=Appearance(formwork="film", rust_fraction=0.6, sun_elevation_deg=40)),
+    "paper_slab": dict(
+        scene_seed=101,
+        deviations=Deviations(mesh_yaw_deg=3.0),
+        appearance=Appearance(formwork="plywood", rust_fraction=0.1),
+    ),
+    "site_slab": dict(
+        scene_seed=305,
+        deviations=Deviations(mesh_yaw_deg=21.0, position_sigma_mm=4.0, missing=1),
+        appearance=Appearance(formwork="film", rust_fraction=0.6, sun_elevation_deg=40),
+    ),
 }
 
 
@@ -41,13 +47,24 @@ def main() -> None:
         if out.exists():
             shutil.rmtree(out)
         cfg = SLABS[slab]
-        cap = synth_capture(design, height_mm=height, tilt_deg=tilt, yaw_deg=yaw, target_mm=target,
-                            deviations=cfg["deviations"], appearance=cfg["appearance"], seed=seed,
-                            scene_seed=cfg["scene_seed"], name=name)
+        cap = synth_capture(
+            design,
+            height_mm=height,
+            tilt_deg=tilt,
+            yaw_deg=yaw,
+            target_mm=target,
+            deviations=cfg["deviations"],
+            appearance=cfg["appearance"],
+            seed=seed,
+            scene_seed=cfg["scene_seed"],
+            name=name,
+        )
         save_capture(cap, out, color_format="jpg")
         t = cap.truth
-        print(f"{out.relative_to(HERE)}: cover {t['cover_mm']:.2f} mm, layer distance "
-              f"{t['layer_distance_mm']:.2f} mm, {sum(b['visible'] for b in t['bars'])} visible bars")
+        print(
+            f"{out.relative_to(HERE)}: cover {t['cover_mm']:.2f} mm, layer distance "
+            f"{t['layer_distance_mm']:.2f} mm, {sum(b['visible'] for b in t['bars'])} visible bars"
+        )
 
 
 if __name__ == "__main__":

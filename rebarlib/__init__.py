@@ -47,21 +47,71 @@ __all__ = ["__version__", *_WHERE]
 #: Names the top level gave up to 0.1.0 (docs/decisions/014-public-api.md) -> their module now.
 #: Asking the top level for one says where it went.
 _MOVED = {
-    **dict.fromkeys(["Cloud", "project", "backproject", "depth_to_points", "read_intrinsics",
-                     "voxel_downsample", "remove_outliers", "prepare_cloud", "trim_edge_fattening",
-                     "rebar_mask", "registered_mask"], "rebarlib.capture"),
-    **dict.fromkeys(["Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame",
-                     "to_slab_frame", "from_slab_frame", "find_layer_split", "bar_directions",
-                     "find_bars", "paper_find_bars", "group_directions", "measure_spacings"],
-                    "rebarlib.geometry"),
-    **dict.fromkeys(["measure_diameters", "bars_from_truth", "imaginary_plane",
-                     "intersect_rays_plane", "cross_section_direction", "diameter_region",
-                     "boundary_pixels", "bar_system", "observed_width_mm", "snap_diameter"],
-                    "rebarlib.diameter"),
-    **dict.fromkeys(["SegmentationModel", "mask_from_depth", "fuse_masks", "depth_overreach_px",
-                     "trim_depth_overreach", "estimate_registration", "shift_image",
-                     "confusion_counts", "pixel_accuracy", "iou", "dice"],
-                    "rebarlib.segmentation"),
+    **dict.fromkeys(
+        [
+            "Cloud",
+            "project",
+            "backproject",
+            "depth_to_points",
+            "read_intrinsics",
+            "voxel_downsample",
+            "remove_outliers",
+            "prepare_cloud",
+            "trim_edge_fattening",
+            "rebar_mask",
+            "registered_mask",
+        ],
+        "rebarlib.capture",
+    ),
+    **dict.fromkeys(
+        [
+            "Plane",
+            "BarAxis",
+            "fit_formwork",
+            "paper_fit_formwork",
+            "plane_frame",
+            "to_slab_frame",
+            "from_slab_frame",
+            "find_layer_split",
+            "bar_directions",
+            "find_bars",
+            "paper_find_bars",
+            "group_directions",
+            "measure_spacings",
+        ],
+        "rebarlib.geometry",
+    ),
+    **dict.fromkeys(
+        [
+            "measure_diameters",
+            "bars_from_truth",
+            "imaginary_plane",
+            "intersect_rays_plane",
+            "cross_section_direction",
+            "diameter_region",
+            "boundary_pixels",
+            "bar_system",
+            "observed_width_mm",
+            "snap_diameter",
+        ],
+        "rebarlib.diameter",
+    ),
+    **dict.fromkeys(
+        [
+            "SegmentationModel",
+            "mask_from_depth",
+            "fuse_masks",
+            "depth_overreach_px",
+            "trim_depth_overreach",
+            "estimate_registration",
+            "shift_image",
+            "confusion_counts",
+            "pixel_accuracy",
+            "iou",
+            "dice",
+        ],
+        "rebarlib.segmentation",
+    ),
     **dict.fromkeys(["ScanCloud", "read_cloud", "write_cloud"], "rebarlib.cloud_io"),
 }
 
@@ -73,8 +123,10 @@ def __getattr__(name: str):
     if module is not None:
         value = getattr(importlib.import_module(module, __name__), name)
     elif name in _MOVED:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}: it is "
-                             f"{_MOVED[name]}.{name} (docs/decisions/014-public-api.md)")
+        raise AttributeError(
+            f"module {__name__!r} has no attribute {name!r}: it is "
+            f"{_MOVED[name]}.{name} (docs/decisions/014-public-api.md)"
+        )
     else:
         try:  # a sub-module (``rebarlib.geometry``), as an eager import of it would have bound
             value = importlib.import_module(f".{name}", __name__)

@@ -30,12 +30,18 @@ class Intrinsics:
         for k in ("fx", "fy"):
             v = getattr(self, k)
             if not np.isfinite(v) or v <= 0:
-                raise RebarInputError(f"intrinsics {k}: expected a positive focal length in px, got {v!r}")
+                raise RebarInputError(
+                    f"intrinsics {k}: expected a positive focal length in px, got {v!r}"
+                )
         for k in ("width", "height"):
             v = getattr(self, k)
             if int(v) != v or v <= 0:
-                raise RebarInputError(f"intrinsics {k}: expected a positive integer in px, got {v!r}")
-        if not (-self.width < self.cx < 2 * self.width and -self.height < self.cy < 2 * self.height):
+                raise RebarInputError(
+                    f"intrinsics {k}: expected a positive integer in px, got {v!r}"
+                )
+        if not (
+            -self.width < self.cx < 2 * self.width and -self.height < self.cy < 2 * self.height
+        ):
             raise RebarInputError(
                 f"intrinsics principal point ({self.cx}, {self.cy}) is far outside the "
                 f"{self.width}x{self.height} image"
@@ -50,8 +56,14 @@ class Intrinsics:
         """Intrinsics of the same camera with the image resized by ``factor``."""
         w, h = round(self.width * factor), round(self.height * factor)
         # Pixel centres at integer coordinates: centre u maps to (u + 0.5) * f - 0.5.
-        return Intrinsics(self.fx * factor, self.fy * factor, (self.cx + 0.5) * factor - 0.5,
-                          (self.cy + 0.5) * factor - 0.5, w, h)
+        return Intrinsics(
+            self.fx * factor,
+            self.fy * factor,
+            (self.cx + 0.5) * factor - 0.5,
+            (self.cy + 0.5) * factor - 0.5,
+            w,
+            h,
+        )
 
 
 #: Orbbec Gemini 2 depth intrinsics at 1280x800 (device log quoted in docs/sensors.md).
@@ -99,8 +111,9 @@ def project(points, intrinsics: Intrinsics) -> np.ndarray:
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     z = p[:, 2]
-    return np.column_stack((intrinsics.fx * p[:, 0] / z + intrinsics.cx,
-                            intrinsics.fy * p[:, 1] / z + intrinsics.cy))
+    return np.column_stack(
+        (intrinsics.fx * p[:, 0] / z + intrinsics.cx, intrinsics.fy * p[:, 1] / z + intrinsics.cy)
+    )
 
 
 def backproject(pixels, depth_mm, intrinsics: Intrinsics) -> np.ndarray:
@@ -114,14 +127,19 @@ def backproject(pixels, depth_mm, intrinsics: Intrinsics) -> np.ndarray:
     """
     uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     z = np.asarray(depth_mm, dtype=np.float64).reshape(-1)
-    return np.column_stack(((uv[:, 0] - intrinsics.cx) * z / intrinsics.fx,
-                            (uv[:, 1] - intrinsics.cy) * z / intrinsics.fy, z))
+    return np.column_stack(
+        (
+            (uv[:, 0] - intrinsics.cx) * z / intrinsics.fx,
+            (uv[:, 1] - intrinsics.cy) * z / intrinsics.fy,
+            z,
+        )
+    )
 
 
 def ray_directions(intrinsics: Intrinsics, pixels=None) -> np.ndarray:
     """Ray directions with z = 1 through pixel centres (all pixels, row-major, if none given)."""
     if pixels is None:
-        v, u = np.mgrid[0:intrinsics.height, 0:intrinsics.width]
+        v, u = np.mgrid[0 : intrinsics.height, 0 : intrinsics.width]
         pixels = np.column_stack((u.ravel(), v.ravel()))
     return backproject(pixels, np.ones(len(pixels)), intrinsics)
 
@@ -147,7 +165,8 @@ def depth_to_points(depth_mm, intrinsics: Intrinsics, *, max_depth_mm: float = 1
     d = np.asarray(depth_mm, dtype=np.float64)
     if d.shape != (intrinsics.height, intrinsics.width):
         raise RebarInputError(
-            f"depth: expected shape ({intrinsics.height}, {intrinsics.width}) from the intrinsics, got {d.shape}")
+            f"depth: expected shape ({intrinsics.height}, {intrinsics.width}) from the intrinsics, got {d.shape}"
+        )
     valid = (d > 0) & (d <= max_depth_mm) & np.isfinite(d)
     v, u = np.nonzero(valid)
     pixels = np.column_stack((u, v)).astype(np.int32)

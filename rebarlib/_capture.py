@@ -12,8 +12,15 @@ import numpy as np
 from ._camera import Intrinsics
 from ._checks import RebarInputError
 
-__all__ = ["Capture", "load_capture", "save_capture", "load_cloud", "read_intrinsics",
-           "write_intrinsics", "CAPTURE_FILES"]
+__all__ = [
+    "Capture",
+    "load_capture",
+    "save_capture",
+    "load_cloud",
+    "read_intrinsics",
+    "write_intrinsics",
+    "CAPTURE_FILES",
+]
 
 CAPTURE_FILES = ("color.png | color.jpg", "depth.png", "camera.json")
 
@@ -54,9 +61,12 @@ class Capture:
         if self.color.shape != (h, w, 3) or self.color.dtype != np.uint8:
             raise RebarInputError(
                 f"color: expected ({h}, {w}, 3) uint8 RGB from the intrinsics, "
-                f"got {self.color.shape} {self.color.dtype}")
+                f"got {self.color.shape} {self.color.dtype}"
+            )
         if self.depth_mm.shape != (h, w):
-            raise RebarInputError(f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}")
+            raise RebarInputError(
+                f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}"
+            )
 
     @property
     def name(self) -> str:
@@ -92,26 +102,45 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
     data = _read_json(path)
     for key in ("width", "height", "intrinsic_matrix"):
         if key not in data:
-            raise RebarInputError(f"{path}: missing key '{key}' (Open3D intrinsic JSON: width, height, "
-                                  "intrinsic_matrix column-major [fx,0,0, 0,fy,0, cx,cy,1])")
+            raise RebarInputError(
+                f"{path}: missing key '{key}' (Open3D intrinsic JSON: width, height, "
+                "intrinsic_matrix column-major [fx,0,0, 0,fy,0, cx,cy,1])"
+            )
     for key in ("width", "height"):
         _image_side(data[key], f"{path}: {key}")
     if data["width"] * data["height"] > MAX_IMAGE_PIXELS:
-        raise RebarInputError(f"{path}: width x height = {data['width']} x {data['height']} is over the "
-                              f"limit of {MAX_IMAGE_PIXELS / 1e6:g} megapixels per image")
+        raise RebarInputError(
+            f"{path}: width x height = {data['width']} x {data['height']} is over the "
+            f"limit of {MAX_IMAGE_PIXELS / 1e6:g} megapixels per image"
+        )
     for key in ("device", "captured_at"):
         if key in data and not isinstance(data[key], str):
             raise RebarInputError(f"{path}: {key} must be a text string, got {_short(data[key])}")
     m = data["intrinsic_matrix"]
-    if not (isinstance(m, list) and len(m) == 9
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in m)):
-        raise RebarInputError(f"{path}: intrinsic_matrix must be a list of 9 finite numbers, got {_short(m)}")
+    if not (
+        isinstance(m, list)
+        and len(m) == 9
+        and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in m
+        )
+    ):
+        raise RebarInputError(
+            f"{path}: intrinsic_matrix must be a list of 9 finite numbers, got {_short(m)}"
+        )
     K = np.array(m, dtype=np.float64).reshape(3, 3).T  # stored column-major
     if abs(K[0, 1]) > 1e-9 or abs(K[1, 0]) > 1e-9 or np.abs(K[2] - [0, 0, 1]).max() > 1e-9:
-        raise RebarInputError(f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}")
+        raise RebarInputError(
+            f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}"
+        )
     try:
-        intr = Intrinsics(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]),
-                          int(data["width"]), int(data["height"]))
+        intr = Intrinsics(
+            float(K[0, 0]),
+            float(K[1, 1]),
+            float(K[0, 2]),
+            float(K[1, 2]),
+            int(data["width"]),
+            int(data["height"]),
+        )
     except RebarInputError as exc:
         raise RebarInputError(f"{path}: {exc}") from None
     extra = {k: v for k, v in data.items() if k not in ("width", "height", "intrinsic_matrix")}
@@ -119,7 +148,9 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
         extra["depth_scale_assumed"] = True
     scale = extra.get("depth_scale_mm", DEFAULT_DEPTH_SCALE_MM)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (0 < scale <= 100):
-        raise RebarInputError(f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {_short(scale)}")
+        raise RebarInputError(
+            f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {_short(scale)}"
+        )
     extra["depth_scale_mm"] = float(scale)
     return intr, extra
 
@@ -132,8 +163,10 @@ def _short(value, n: int = 60) -> str:
 def _image_side(value, where: str) -> int:
     """A width or height from ``camera.json``: a whole number of pixels, 1 or more."""
     if isinstance(value, bool) or not isinstance(value, int):
-        raise RebarInputError(f"{where}: expected a whole number of pixels, got "
-                              f"{type(value).__name__} {_short(value)}")
+        raise RebarInputError(
+            f"{where}: expected a whole number of pixels, got "
+            f"{type(value).__name__} {_short(value)}"
+        )
     if value < 1:
         raise RebarInputError(f"{where}: expected at least 1 pixel, got {value}")
     return value
@@ -190,20 +223,30 @@ def _check_image_headers(color: Path, depth: Path, intr: Intrinsics, camera_json
     for path in (color, depth):
         w, h = sizes[path] = image_size(path)
         if w * h > MAX_IMAGE_PIXELS:
-            raise RebarInputError(f"{path}: declares {w} x {h} pixels, over the limit of "
-                                  f"{MAX_IMAGE_PIXELS / 1e6:g} megapixels per image (not decoded)")
+            raise RebarInputError(
+                f"{path}: declares {w} x {h} pixels, over the limit of "
+                f"{MAX_IMAGE_PIXELS / 1e6:g} megapixels per image (not decoded)"
+            )
     (cw, ch), (dw, dh) = sizes[color], sizes[depth]
     if (cw, ch) != (dw, dh):
-        raise RebarInputError(f"{color.parent}: colour {cw}x{ch} and depth {dw}x{dh} differ in size: "
-                              "depth must be aligned to colour")
+        raise RebarInputError(
+            f"{color.parent}: colour {cw}x{ch} and depth {dw}x{dh} differ in size: "
+            "depth must be aligned to colour"
+        )
     if (dw, dh) != (intr.width, intr.height):
-        raise RebarInputError(f"{camera_json}: says {intr.width}x{intr.height} but the images are {dw}x{dh}")
+        raise RebarInputError(
+            f"{camera_json}: says {intr.width}x{intr.height} but the images are {dw}x{dh}"
+        )
 
 
 def write_intrinsics(path, intrinsics: Intrinsics, **extra) -> None:
     K = intrinsics.matrix
-    data = {"width": intrinsics.width, "height": intrinsics.height,
-            "intrinsic_matrix": [float(x) for x in K.T.ravel()], **extra}
+    data = {
+        "width": intrinsics.width,
+        "height": intrinsics.height,
+        "intrinsic_matrix": [float(x) for x in K.T.ravel()],
+        **extra,
+    }
     Path(path).write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
 
 
@@ -222,8 +265,10 @@ def _read_truth_image(path: Path, intr: Intrinsics) -> np.ndarray:
 
     w, h = image_size(path)
     if (w, h) != (intr.width, intr.height):
-        raise RebarInputError(f"{path}: is {w}x{h}, not the capture's {intr.width}x{intr.height} "
-                              "(checked before decoding)")
+        raise RebarInputError(
+            f"{path}: is {w}x{h}, not the capture's {intr.width}x{intr.height} "
+            "(checked before decoding)"
+        )
     img = _imread(path, cv2.IMREAD_UNCHANGED)
     if img.ndim != 2:
         raise RebarInputError(f"{path}: expected a single-channel image, got shape {img.shape}")
@@ -240,14 +285,20 @@ def load_capture(path) -> Capture:
 
     folder = Path(path)
     if not folder.is_dir():
-        raise RebarInputError(f"{folder}: capture folder not found (expected a folder with "
-                              f"{', '.join(CAPTURE_FILES)})")
-    colors = [folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()]
+        raise RebarInputError(
+            f"{folder}: capture folder not found (expected a folder with "
+            f"{', '.join(CAPTURE_FILES)})"
+        )
+    colors = [
+        folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()
+    ]
     if not colors:
         raise RebarInputError(f"{folder}: no color.png or color.jpg in the capture folder")
     if len(colors) > 1:
-        raise RebarInputError(f"{folder}: holds {' and '.join(c.name for c in colors)}: which one is the "
-                              "capture's colour image is ambiguous; keep one")
+        raise RebarInputError(
+            f"{folder}: holds {' and '.join(c.name for c in colors)}: which one is the "
+            "capture's colour image is ambiguous; keep one"
+        )
     depth_path = folder / "depth.png"
     if not depth_path.is_file():
         raise RebarInputError(f"{depth_path}: file not found (16-bit depth image expected)")
@@ -265,14 +316,20 @@ def load_capture(path) -> Capture:
         raise RebarInputError(f"{colors[0]}: expected an 8-bit colour image, got {color.dtype}")
     raw = _imread(depth_path, cv2.IMREAD_UNCHANGED)
     if raw.dtype != np.uint16 or raw.ndim != 2:
-        raise RebarInputError(f"{depth_path}: expected a single-channel 16-bit PNG, got "
-                              f"{raw.dtype} with shape {raw.shape}")
+        raise RebarInputError(
+            f"{depth_path}: expected a single-channel 16-bit PNG, got "
+            f"{raw.dtype} with shape {raw.shape}"
+        )
     if color.shape[:2] != raw.shape:
-        raise RebarInputError(f"{folder}: colour {color.shape[1]}x{color.shape[0]} and depth "
-                              f"{raw.shape[1]}x{raw.shape[0]} differ in size: depth must be aligned to colour")
+        raise RebarInputError(
+            f"{folder}: colour {color.shape[1]}x{color.shape[0]} and depth "
+            f"{raw.shape[1]}x{raw.shape[0]} differ in size: depth must be aligned to colour"
+        )
     if raw.shape != (intr.height, intr.width):
-        raise RebarInputError(f"{folder / 'camera.json'}: says {intr.width}x{intr.height} but the images "
-                              f"are {raw.shape[1]}x{raw.shape[0]}")
+        raise RebarInputError(
+            f"{folder / 'camera.json'}: says {intr.width}x{intr.height} but the images "
+            f"are {raw.shape[1]}x{raw.shape[0]}"
+        )
     if not raw.any():
         raise RebarInputError(f"{depth_path}: every pixel is 0 (no depth at all)")
     depth = raw.astype(np.float64) * meta["depth_scale_mm"]
@@ -289,7 +346,9 @@ def load_capture(path) -> Capture:
     return Capture(color, depth, intr, meta, labels, bar_ids)
 
 
-def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite: bool = False) -> Path:
+def save_capture(
+    capture: Capture, path, *, color_format: str = "png", overwrite: bool = False
+) -> Path:
     """Write a capture folder that :func:`load_capture` reads back.
 
     Depth is stored as ``round(depth_mm / depth_scale_mm)`` in a 16-bit PNG; a depth already on
@@ -300,15 +359,19 @@ def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite
 
     folder = Path(path)
     if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise RebarInputError(f"{folder}: folder exists and is not empty; refusing to overwrite "
-                              "(pass overwrite=True or choose a new folder)")
+        raise RebarInputError(
+            f"{folder}: folder exists and is not empty; refusing to overwrite "
+            "(pass overwrite=True or choose a new folder)"
+        )
     if color_format not in ("png", "jpg"):
         raise RebarInputError(f"color_format: expected 'png' or 'jpg', got {color_format!r}")
     scale = capture.depth_scale_mm
     units = np.round(capture.depth_mm / scale)
     if units.max() > 65535:
-        raise RebarInputError(f"depth: {capture.depth_mm.max():.0f} mm does not fit 16 bits at "
-                              f"{scale} mm per unit; use a larger depth_scale_mm")
+        raise RebarInputError(
+            f"depth: {capture.depth_mm.max():.0f} mm does not fit 16 bits at "
+            f"{scale} mm per unit; use a larger depth_scale_mm"
+        )
     folder.mkdir(parents=True, exist_ok=True)
     bgr = cv2.cvtColor(capture.color, cv2.COLOR_RGB2BGR)
     if color_format == "png":
@@ -319,7 +382,9 @@ def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite
     extra = {k: capture.metadata[k] for k in ("device", "captured_at") if k in capture.metadata}
     write_intrinsics(folder / "camera.json", capture.intrinsics, depth_scale_mm=scale, **extra)
     if capture.truth is not None:
-        (folder / "truth.json").write_text(json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8")
+        (folder / "truth.json").write_text(
+            json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8"
+        )
     if capture.labels is not None:
         cv2.imwrite(str(folder / "labels.png"), capture.labels.astype(np.uint8))
     if capture.bar_ids is not None:

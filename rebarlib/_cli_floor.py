@@ -26,8 +26,17 @@ from ._status import FAIL, INCOMPLETE, NOT_MEASURED
 FLOOR_SUMMARY = "floor_summary.csv"
 #: Item verdicts listed as open (neither passed nor failed) in the floor summary.
 OPEN = (NOT_MEASURED, INCOMPLETE)
-FLOOR_COLUMNS = ("slab", "slab_id", "verdict", "failed_items", "open_items", "captures",
-                 "captures_without_result", "report", "reason")
+FLOOR_COLUMNS = (
+    "slab",
+    "slab_id",
+    "verdict",
+    "failed_items",
+    "open_items",
+    "captures",
+    "captures_without_result",
+    "report",
+    "reason",
+)
 #: Seed of the inspections made here (``rebar inspect``'s default), so a report can be made again.
 SEED = 0
 
@@ -41,10 +50,16 @@ def _clean(text) -> str:
 
 def add_arguments(p) -> None:
     """The floor's options on ``rebar report``'s parser."""
-    p.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="a floor folder: processes inspecting its captures (default: all cores)")
-    p.add_argument("--quiet", action="store_true",
-                   help="a floor folder: no progress bar, no line per slab")
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="a floor folder: processes inspecting its captures (default: all cores)",
+    )
+    p.add_argument(
+        "--quiet", action="store_true", help="a floor folder: no progress bar, no line per slab"
+    )
 
 
 def is_floor(folder) -> bool:
@@ -89,17 +104,21 @@ def _check_out(out: Path, slabs: list, fmt: str, *, exports: bool, force: bool) 
     for s in slabs:
         for cap in find_captures(s.folder):
             if real == cap.resolve() or cap.resolve() in real.parents:
-                raise RebarInputError(f"--out {out}: lies inside the capture folder {cap}; choose "
-                                      "a folder outside the captures")
+                raise RebarInputError(
+                    f"--out {out}: lies inside the capture folder {cap}; choose "
+                    "a folder outside the captures"
+                )
         for path in _outputs(out, s.name, fmt, exports):
             if path.is_dir():
-                raise RebarInputError(f"--out {out}: {path} is a folder; the report of slab "
-                                      f"{s.name} goes there")
+                raise RebarInputError(
+                    f"--out {out}: {path} is a folder; the report of slab {s.name} goes there"
+                )
             if path.exists() and not force:
                 raise RebarInputError(f"--out {out}: {path} exists; pass --force to replace it")
     if (out / FLOOR_SUMMARY).is_dir():
-        raise RebarInputError(f"--out {out}: {out / FLOOR_SUMMARY} is a folder; the floor "
-                              "summary goes there")
+        raise RebarInputError(
+            f"--out {out}: {out / FLOOR_SUMMARY} is a folder; the floor summary goes there"
+        )
 
 
 def _load_designs(slabs: list) -> None:
@@ -112,8 +131,9 @@ def _load_designs(slabs: list) -> None:
             s.design = load_design(s.folder / "design.toml")
             s.captures = find_captures(s.folder)
             if not s.captures:
-                raise RebarInputError(f"{s.folder}: no capture folders (sub-folders with "
-                                      "camera.json)")
+                raise RebarInputError(
+                    f"{s.folder}: no capture folders (sub-folders with camera.json)"
+                )
         except RebarInputError as exc:
             s.design, s.row = None, {"verdict": "not reported", "reason": str(exc)}
 
@@ -125,7 +145,8 @@ def _read_results(slabs: list, results_dir: Path, method: str) -> None:
     for s in (s for s in slabs if s.design is not None):
         try:
             s.results, s.missing = _cli_report.collect_results(
-                s.folder, results_dir=results_dir / s.name, design=s.design, method=method)
+                s.folder, results_dir=results_dir / s.name, design=s.design, method=method
+            )
             check = getattr(_cli_report, "check_manifests", None)
             if check is not None:
                 pairs = [(s.folder / r["capture"], r) for r in s.results]
@@ -162,13 +183,24 @@ def _judge_and_write(s: _Slab, out: Path, fmt: str, *, exports: bool, standard) 
 
     tolerances = load_tolerances(standard) if standard else None
     acc = evaluate(s.results, s.design, tolerances, missing_captures=s.missing)
-    path = build_report(s.folder, s.design, acc, out_path=_outputs(out, s.name, fmt, exports)[0],
-                        format=fmt, exports=exports)
+    path = build_report(
+        s.folder,
+        s.design,
+        acc,
+        out_path=_outputs(out, s.name, fmt, exports)[0],
+        format=fmt,
+        exports=exports,
+    )
     items = acc.items
-    s.row = {"slab_id": s.design.slab_id, "verdict": acc.verdict,
-             "failed_items": ";".join(items.loc[items["verdict"] == FAIL, "item"]),
-             "open_items": ";".join(items.loc[items["verdict"].isin(OPEN), "item"]),
-             "captures_without_result": len(s.missing), "report": path.name, "reason": ""}
+    s.row = {
+        "slab_id": s.design.slab_id,
+        "verdict": acc.verdict,
+        "failed_items": ";".join(items.loc[items["verdict"] == FAIL, "item"]),
+        "open_items": ";".join(items.loc[items["verdict"].isin(OPEN), "item"]),
+        "captures_without_result": len(s.missing),
+        "report": path.name,
+        "reason": "",
+    }
 
 
 def floor_summary_csv(slabs: list) -> str:
@@ -186,10 +218,14 @@ def _line(s: _Slab) -> str:
     r = s.row
     if r.get("verdict") == "not reported":
         return _clean(f"slab {s.name}: NOT REPORTED: {r['reason']}")
-    extra = "".join(f"; {what}: {r[key].replace(';', ', ')}" for key, what in
-                    (("failed_items", "failed"), ("open_items", "open")) if r.get(key))
-    return _clean(f"slab {s.name} ({r['slab_id']}): {r['verdict'].upper()}{extra}; "
-                  f"report {r['report']}")
+    extra = "".join(
+        f"; {what}: {r[key].replace(';', ', ')}"
+        for key, what in (("failed_items", "failed"), ("open_items", "open"))
+        if r.get(key)
+    )
+    return _clean(
+        f"slab {s.name} ({r['slab_id']}): {r['verdict'].upper()}{extra}; report {r['report']}"
+    )
 
 
 def run_floor(args) -> int:
@@ -202,15 +238,18 @@ def run_floor(args) -> int:
     if getattr(args, "jobs", None) is not None and args.jobs < 1:
         raise RebarInputError(f"--jobs {args.jobs}: expected a number of processes >= 1")
     if out.suffix.lower() in (".pdf", ".html", ".htm"):
-        raise RebarInputError(f"--out {out}: {floor} is a floor (a folder of slab folders): give a "
-                              "folder for its reports, not a file")
+        raise RebarInputError(
+            f"--out {out}: {floor} is a floor (a folder of slab folders): give a "
+            "folder for its reports, not a file"
+        )
     fmt = args.format or "pdf"
     exports = not args.no_exports
     slabs = [_Slab(p) for p in find_slabs(floor)]
     _check_out(out, slabs, fmt, exports=exports, force=bool(getattr(args, "force", False)))
     if args.results and not Path(args.results).is_dir():
-        raise RebarInputError(f"--results {args.results}: folder not found (expected "
-                              "<slab>/<capture>/result.json)")
+        raise RebarInputError(
+            f"--results {args.results}: folder not found (expected <slab>/<capture>/result.json)"
+        )
     quiet = bool(getattr(args, "quiet", False))
     with locked(out):
         _load_designs(slabs)

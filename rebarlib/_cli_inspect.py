@@ -30,37 +30,72 @@ SUMMARY_NAME = "summary.csv"
 
 
 def add_parser(sub):
-    p = sub.add_parser("inspect", help="measure cover, layer distance, bars and spacings of captures",
-                       description="Inspect RGB-D captures against a design: writes OUT/<capture>/result.json, "
-                                   "bars.csv, spacings.csv and counts.csv, prints a summary per capture and "
-                                   "writes OUT/summary.csv.")
-    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture folder(s) (as `rebar synth` writes)")
+    p = sub.add_parser(
+        "inspect",
+        help="measure cover, layer distance, bars and spacings of captures",
+        description="Inspect RGB-D captures against a design: writes OUT/<capture>/result.json, "
+        "bars.csv, spacings.csv and counts.csv, prints a summary per capture and "
+        "writes OUT/summary.csv.",
+    )
+    p.add_argument(
+        "captures", nargs="+", metavar="CAPTURE", help="capture folder(s) (as `rebar synth` writes)"
+    )
     p.add_argument("--design", required=True, help="design.toml of the slab")
-    p.add_argument("--out", required=True, metavar="DIR", help="results folder (one sub-folder per capture)")
-    p.add_argument("--method", choices=("refined", "paper"), default="refined",
-                   help="refined (default, ours) or paper (the published procedure)")
-    p.add_argument("--no-diameters", action="store_true",
-                   help="geometry only: skip the bar diameters (method.md stage 3)")
-    p.add_argument("--mask-source", choices=("fused", "model", "depth"), default=None,
-                   help="rebar mask for the diameters (default: fused for refined, model for paper)")
+    p.add_argument(
+        "--out", required=True, metavar="DIR", help="results folder (one sub-folder per capture)"
+    )
+    p.add_argument(
+        "--method",
+        choices=("refined", "paper"),
+        default="refined",
+        help="refined (default, ours) or paper (the published procedure)",
+    )
+    p.add_argument(
+        "--no-diameters",
+        action="store_true",
+        help="geometry only: skip the bar diameters (method.md stage 3)",
+    )
+    p.add_argument(
+        "--mask-source",
+        choices=("fused", "model", "depth"),
+        default=None,
+        help="rebar mask for the diameters (default: fused for refined, model for paper)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed of the RANSAC / sampling steps")
-    p.add_argument("--calibration", metavar="FILE", default=None,
-                   help="calibration file from `rebar calibrate`: its intrinsics and depth correction are "
-                        "applied, and its uncertainties replace the device profile's (docs/uncertainty.md)")
+    p.add_argument(
+        "--calibration",
+        metavar="FILE",
+        default=None,
+        help="calibration file from `rebar calibrate`: its intrinsics and depth correction are "
+        "applied, and its uncertainties replace the device profile's (docs/uncertainty.md)",
+    )
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--jobs", type=int, default=None, metavar="N",
-                       help="local worker processes (default: all cores; 1: one capture at a "
-                            "time here)")
-    where.add_argument("--dask", metavar="ADDRESS", default=None,
-                       help="run on the dask.distributed cluster whose scheduler is at ADDRESS "
-                            "(e.g. tcp://10.0.0.5:8786); its workers must see the capture "
-                            "folders at the same paths")
-    p.add_argument("--resume", action="store_true",
-                   help="skip captures whose results in OUT are whole and were made from the "
-                        "same capture files, design, method, options and rebarlib version")
-    p.add_argument("--quiet", action="store_true",
-                   help="no progress bar and no line per capture (errors and the last line "
-                        "still show)")
+    where.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default: all cores; 1: one capture at a time here)",
+    )
+    where.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        default=None,
+        help="run on the dask.distributed cluster whose scheduler is at ADDRESS "
+        "(e.g. tcp://10.0.0.5:8786); its workers must see the capture "
+        "folders at the same paths",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip captures whose results in OUT are whole and were made from the "
+        "same capture files, design, method, options and rebarlib version",
+    )
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress bar and no line per capture (errors and the last line still show)",
+    )
     return p
 
 
@@ -80,9 +115,11 @@ def summary_line(res) -> str:
     if sp is not None and len(sp) and "deviation_mm" in sp and sp["deviation_mm"].notna().any():
         dev = sp["deviation_mm"].dropna()
         worst = f", worst spacing deviation {dev.iloc[dev.abs().argmax()]:+.1f} mm"
-    return (f"{res.capture}: cover {_fmt(res.cover)}, layer distance {_fmt(res.layer_distance)}, "
-            f"top cover {_fmt(res.top_cover)}, {n_meas}/{len(bars)} bars measured, "
-            f"{0 if sp is None else len(sp)} spacings{worst} [{res.method}]")
+    return (
+        f"{res.capture}: cover {_fmt(res.cover)}, layer distance {_fmt(res.layer_distance)}, "
+        f"top cover {_fmt(res.top_cover)}, {n_meas}/{len(bars)} bars measured, "
+        f"{0 if sp is None else len(sp)} spacings{worst} [{res.method}]"
+    )
 
 
 def _is_capture_folder(path: Path) -> bool:
@@ -96,26 +133,34 @@ def _check_paths(captures, out: Path) -> list:
 
     for c in captures:
         if not c.is_dir():
-            raise RebarInputError(f"CAPTURE {c}: not a folder (expected a capture folder with depth.png, camera.json)")
+            raise RebarInputError(
+                f"CAPTURE {c}: not a folder (expected a capture folder with depth.png, camera.json)"
+            )
     names = [c.resolve().name for c in captures]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise RebarInputError(f"CAPTURE: several captures named {dup}; their results would overwrite each other "
-                              "in --out (rename the folders or inspect them into different --out folders)")
+        raise RebarInputError(
+            f"CAPTURE: several captures named {dup}; their results would overwrite each other "
+            "in --out (rename the folders or inspect them into different --out folders)"
+        )
     if SUMMARY_NAME in names:
-        raise RebarInputError(f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide "
-                              "with the batch summary")
+        raise RebarInputError(
+            f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide with the batch summary"
+        )
     check_out_folder(out, names)
     if (out / SUMMARY_NAME).is_dir():
-        raise RebarInputError(f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary "
-                              "is written there")
+        raise RebarInputError(
+            f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary is written there"
+        )
     inputs = {c.resolve() for c in captures}
     targets = [out / n for n in names]
     for c, tgt in zip(captures, targets):
         r = tgt.resolve()
         if r in inputs or _is_capture_folder(r) or any(r == p or p in r.parents for p in inputs):
-            raise RebarInputError(f"--out {out}: the results of {c} would be written into a capture folder ({tgt}); "
-                                  "choose a results folder outside the captures")
+            raise RebarInputError(
+                f"--out {out}: the results of {c} would be written into a capture folder ({tgt}); "
+                "choose a results folder outside the captures"
+            )
     return targets
 
 
@@ -145,8 +190,13 @@ def _up_to_date(target: Path, capture: Path, design_path: Path, method: str, opt
     except (OSError, ValueError):
         return None
     manifest = data.get("manifest") if isinstance(data, dict) else None
-    if manifest_problems(manifest, capture_folder=capture, design_path=design_path, method=method,
-                         version=__version__):
+    if manifest_problems(
+        manifest,
+        capture_folder=capture,
+        design_path=design_path,
+        method=method,
+        version=__version__,
+    ):
         return None
     return data if manifest.get("options") == options else None
 
@@ -154,9 +204,11 @@ def _up_to_date(target: Path, capture: Path, design_path: Path, method: str, opt
 def result_files(res, data: dict) -> dict:
     """The files of one capture's result folder, as file name -> text (``data``: the result's
     ``to_dict()`` with its ``"manifest"``)."""
-    files = {"result.json": json.dumps(data, indent=1) + "\n",
-             "bars.csv": res.bars.to_csv(index=False),
-             "spacings.csv": res.spacings.to_csv(index=False)}
+    files = {
+        "result.json": json.dumps(data, indent=1) + "\n",
+        "bars.csv": res.bars.to_csv(index=False),
+        "spacings.csv": res.spacings.to_csv(index=False),
+    }
     if res.counts is not None:
         files["counts.csv"] = res.counts.to_csv(index=False)
     return files
@@ -180,8 +232,9 @@ def progress_bar(total: int, *, quiet: bool, unit: str = "capture"):
     from tqdm import tqdm
 
     disable = quiet or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
-    return tqdm(total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True,
-                smoothing=0.1)
+    return tqdm(
+        total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True, smoothing=0.1
+    )
 
 
 def _say(bar, text: str, *, err: bool = False) -> None:
@@ -232,14 +285,24 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
     bar = progress_bar(len(todo), quiet=args.quiet)
     try:
         if len(rows) and not args.quiet:
-            _say(bar, f"{len(rows)} of {len(captures)} captures resumed: their results in {out} "
-                      "are up to date")
+            _say(
+                bar,
+                f"{len(rows)} of {len(captures)} captures resumed: their results in {out} "
+                "are up to date",
+            )
         client = args.dask
         jobs = None if client else (args.jobs or None)
-        outcomes = inspect_many([captures[i] for i in todo], design, client=client, jobs=jobs,
-                                method=args.method, diameters=not args.no_diameters,
-                                mask_source=args.mask_source, rng=args.seed,
-                                calibration=_absolute(getattr(args, "calibration", None)))
+        outcomes = inspect_many(
+            [captures[i] for i in todo],
+            design,
+            client=client,
+            jobs=jobs,
+            method=args.method,
+            diameters=not args.no_diameters,
+            mask_source=args.mask_source,
+            rng=args.seed,
+            calibration=_absolute(getattr(args, "calibration", None)),
+        )
         for o in outcomes:
             i = todo[o.index]
             name = targets[i].name
@@ -250,8 +313,9 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
                 bar.update(1)
                 continue
             data = o.result.to_dict()
-            data["manifest"] = make_manifest(captures[i], design_path, method=args.method,
-                                             options=options)
+            data["manifest"] = make_manifest(
+                captures[i], design_path, method=args.method, options=options
+            )
             write_folder_atomically(out, name, result_files(o.result, data))
             rows[i] = summary_row(name, "ok", data, o.seconds)
             if not args.quiet:
@@ -263,7 +327,9 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
     n_ok = sum(r["status"] == "ok" for r in rows.values())
     from ._terminal import clean
 
-    line = (f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, "
-            f"{failed} failed; summary: {out / SUMMARY_NAME}")
+    line = (
+        f"{len(captures)} captures: {n_ok} inspected, {len(captures) - n_ok - failed} resumed, "
+        f"{failed} failed; summary: {out / SUMMARY_NAME}"
+    )
     print(clean(line), file=sys.stderr if failed else sys.stdout)
     return 1 if failed else 0

@@ -29,25 +29,50 @@ MAX_STEM_CHARS = 80
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "report", help="write a slab's acceptance report (PDF or HTML) with CSV/JSON exports",
+        "report",
+        help="write a slab's acceptance report (PDF or HTML) with CSV/JSON exports",
         description="Judge every capture of a slab against its design.toml and the tolerance preset, "
-                    "and write the acceptance record. Next to the report: <stem>_checkpoints.csv "
-                    "and <stem>_acceptance.json.")
-    p.add_argument("slab_dir", metavar="SLAB_DIR", help="folder with design.toml and one folder per capture")
-    p.add_argument("--out", required=True,
-                   help="report file to write (e.g. out/S-101.pdf), or a folder: the report is then "
-                        "named after the slab id (out/S-101.pdf)")
-    p.add_argument("--force", action="store_true",
-                   help="replace an existing report and exports (inputs are never written over)")
-    p.add_argument("--results", metavar="DIR",
-                   help="read DIR/<capture>/result.json (from `rebar inspect --out DIR`) instead of inspecting")
-    p.add_argument("--format", choices=("pdf", "html"), default=None,
-                   help="report format (default: from the --out suffix, else pdf)")
-    p.add_argument("--standard", metavar="NAME_OR_TOML", default=None,
-                   help="tolerance preset (GB50204-2015, ACI117-318, EN13670-class1, custom) or a .toml "
-                        "file; default: the design's [slab] standard")
-    p.add_argument("--method", choices=("paper", "refined"), default="refined",
-                   help="inspection method when the captures are inspected here (default: refined)")
+        "and write the acceptance record. Next to the report: <stem>_checkpoints.csv "
+        "and <stem>_acceptance.json.",
+    )
+    p.add_argument(
+        "slab_dir", metavar="SLAB_DIR", help="folder with design.toml and one folder per capture"
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        help="report file to write (e.g. out/S-101.pdf), or a folder: the report is then "
+        "named after the slab id (out/S-101.pdf)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing report and exports (inputs are never written over)",
+    )
+    p.add_argument(
+        "--results",
+        metavar="DIR",
+        help="read DIR/<capture>/result.json (from `rebar inspect --out DIR`) instead of inspecting",
+    )
+    p.add_argument(
+        "--format",
+        choices=("pdf", "html"),
+        default=None,
+        help="report format (default: from the --out suffix, else pdf)",
+    )
+    p.add_argument(
+        "--standard",
+        metavar="NAME_OR_TOML",
+        default=None,
+        help="tolerance preset (GB50204-2015, ACI117-318, EN13670-class1, custom) or a .toml "
+        "file; default: the design's [slab] standard",
+    )
+    p.add_argument(
+        "--method",
+        choices=("paper", "refined"),
+        default="refined",
+        help="inspection method when the captures are inspected here (default: refined)",
+    )
     p.add_argument("--no-exports", action="store_true", help="do not write the CSV/JSON exports")
     _floor.add_arguments(p)  # SLAB_DIR may be a floor: a folder of slab folders
     return p
@@ -69,7 +94,10 @@ def report_paths(out, *, slab_id: str, fmt: str | None, exports: bool) -> tuple[
     fmt = fmt or ("html" if out.suffix.lower() in (".html", ".htm") else "pdf")
     paths = [out]
     if exports:
-        paths += [out.with_name(out.stem + "_checkpoints.csv"), out.with_name(out.stem + "_acceptance.json")]
+        paths += [
+            out.with_name(out.stem + "_checkpoints.csv"),
+            out.with_name(out.stem + "_acceptance.json"),
+        ]
     return out, fmt, paths
 
 
@@ -88,17 +116,25 @@ def check_outputs(paths, *, inputs=(), input_folders=(), force: bool = False) ->
         path = Path(path)
         real = path.resolve()
         if real in files:
-            raise RebarInputError(f"--out {path}: is an input of this report; refusing to write over it")
+            raise RebarInputError(
+                f"--out {path}: is an input of this report; refusing to write over it"
+            )
         inside = next((d for d in folders if real == d or d in real.parents), None)
         if inside is not None:
-            raise RebarInputError(f"--out {path}: lies inside the input folder {inside} (a capture, or its "
-                                  "results); refusing to write into it (choose a path outside)")
+            raise RebarInputError(
+                f"--out {path}: lies inside the input folder {inside} (a capture, or its "
+                "results); refusing to write into it (choose a path outside)"
+            )
         if path.is_dir():
-            raise RebarInputError(f"--out {path}: is a folder; name the report file, or give the folder "
-                                  "with a trailing / to name the report after the slab")
+            raise RebarInputError(
+                f"--out {path}: is a folder; name the report file, or give the folder "
+                "with a trailing / to name the report after the slab"
+            )
         for parent in path.absolute().parents:
             if parent.exists() and not parent.is_dir():
-                raise RebarInputError(f"--out {path}: {parent} is a file, so the report cannot be written below it")
+                raise RebarInputError(
+                    f"--out {path}: {parent} is a file, so the report cannot be written below it"
+                )
         if path.exists() and not force:
             raise RebarInputError(f"--out {path}: exists; pass --force to replace it")
 
@@ -113,15 +149,21 @@ def check_manifests(pairs: list, *, design_path) -> None:
 
     problems = []
     for folder, r in pairs:
-        for why in manifest_problems(r.get("manifest"), capture_folder=folder, design_path=design_path):
+        for why in manifest_problems(
+            r.get("manifest"), capture_folder=folder, design_path=design_path
+        ):
             problems.append(f"result of {Path(folder).name}: {why}")
     manifests = [r.get("manifest") for _, r in pairs if isinstance(r.get("manifest"), dict)]
     for key, what in (("method", "methods"), ("rebarlib_version", "rebarlib versions")):
         seen = sorted({str(m.get(key)) for m in manifests})
         if len(seen) > 1:
-            problems.append(f"the results mix {what}: {', '.join(seen)} (re-run `rebar inspect` on every capture)")
+            problems.append(
+                f"the results mix {what}: {', '.join(seen)} (re-run `rebar inspect` on every capture)"
+            )
     if problems:
-        raise RebarInputError("--results: refusing results that do not belong to this report: " + "; ".join(problems))
+        raise RebarInputError(
+            "--results: refusing results that do not belong to this report: " + "; ".join(problems)
+        )
 
 
 def _clouds(slab_dir) -> list:
@@ -149,11 +191,15 @@ def _read_result(path: Path) -> dict:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise RebarInputError(f"{path}: not a valid result.json ({exc})") from None
     if not isinstance(data, dict) or "capture" not in data or "measurements" not in data:
-        raise RebarInputError(f"{path}: not an inspection result (expected the keys 'capture' and 'measurements')")
+        raise RebarInputError(
+            f"{path}: not an inspection result (expected the keys 'capture' and 'measurements')"
+        )
     return data
 
 
-def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "refined", design_path=None):
+def collect_results(
+    slab_dir, *, results_dir=None, design=None, method: str = "refined", design_path=None
+):
     """Results of every capture of a slab, and the captures that have none (with the reason).
 
     With ``results_dir`` and ``design_path``, the results' manifests are checked against the
@@ -167,16 +213,22 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
     captures = find_captures(slab_dir)
     clouds = _clouds(slab_dir)
     if clouds and results_dir is None:
-        raise RebarInputError(f"{slab_dir}: scanned clouds ({clouds[0].name}, ...) are judged from their results: "
-                              "run `rebar inspect-cloud` and pass its output with --results DIR")
+        raise RebarInputError(
+            f"{slab_dir}: scanned clouds ({clouds[0].name}, ...) are judged from their results: "
+            "run `rebar inspect-cloud` and pass its output with --results DIR"
+        )
     captures += clouds
     if not captures:
-        raise RebarInputError(f"{slab_dir}: no capture folders (sub-folders with camera.json) in the slab folder")
+        raise RebarInputError(
+            f"{slab_dir}: no capture folders (sub-folders with camera.json) in the slab folder"
+        )
     results, missing = [], []
     if results_dir is not None:
         rdir = Path(results_dir)
         if not rdir.is_dir():
-            raise RebarInputError(f"--results {rdir}: folder not found (expected <capture>/result.json inside)")
+            raise RebarInputError(
+                f"--results {rdir}: folder not found (expected <capture>/result.json inside)"
+            )
         pairs = []
         for cap in captures:
             path = rdir / _name(cap) / "result.json"
@@ -193,8 +245,10 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
     except ModuleNotFoundError as exc:  # the geometry stage is not part of this installation
         if exc.name != "rebarlib._inspect":
             raise
-        raise RebarInputError("the inspection stage (rebarlib._inspect) is not available: run "
-                              "`rebar inspect` elsewhere and pass its output with --results DIR") from None
+        raise RebarInputError(
+            "the inspection stage (rebarlib._inspect) is not available: run "
+            "`rebar inspect` elsewhere and pass its output with --results DIR"
+        ) from None
     from ._capture import load_capture
 
     for cap in captures:
@@ -216,23 +270,36 @@ def run(args) -> int:
     design_path = slab / "design.toml" if slab.is_dir() else slab
     design = load_design(design_path)
     tolerances = _tolerances(args.standard, design, load_tolerances)
-    out, fmt, outputs = report_paths(args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports)
+    out, fmt, outputs = report_paths(
+        args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports
+    )
     captures = find_captures(slab) if slab.is_dir() else []
     if args.results and slab.is_dir():
         captures += _clouds(slab)
     result_folders = [Path(args.results) / _name(c) for c in captures] if args.results else []
-    check_outputs(outputs, inputs=[design_path, *(_result_files(args.results) if args.results else [])],
-                  input_folders=[*captures, *result_folders], force=args.force)
+    check_outputs(
+        outputs,
+        inputs=[design_path, *(_result_files(args.results) if args.results else [])],
+        input_folders=[*captures, *result_folders],
+        force=args.force,
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
-    results, missing = collect_results(slab, results_dir=args.results, design=design, method=args.method,
-                                       design_path=design_path)
+    results, missing = collect_results(
+        slab, results_dir=args.results, design=design, method=args.method, design_path=design_path
+    )
     acc = evaluate(results, design, tolerances, missing_captures=missing)
     path = build_report(slab, design, acc, out_path=out, format=fmt, exports=not args.no_exports)
     n_items = len(acc.items)
     counts = acc.items["verdict"].value_counts().to_dict()
-    print(clean(f"slab {design.slab_id}: {acc.verdict.upper()} ({len(results)} capture(s)"
-                + (f", {len(missing)} without result" if missing else "") + f"; {n_items} items: "
-                + ", ".join(f"{v} {k}" for k, v in counts.items()) + ")"))
+    print(
+        clean(
+            f"slab {design.slab_id}: {acc.verdict.upper()} ({len(results)} capture(s)"
+            + (f", {len(missing)} without result" if missing else "")
+            + f"; {n_items} items: "
+            + ", ".join(f"{v} {k}" for k, v in counts.items())
+            + ")"
+        )
+    )
     for r in acc.reasons:
         print(f"  - {clean(r)}")
     print(clean(f"report: {path}"))
@@ -250,5 +317,7 @@ def _tolerances(standard, design, load_tolerances):
     try:
         load_tolerances(design.standard)
     except RebarInputError as exc:
-        raise RebarInputError(f"{design.source}: slab.standard = {design.standard!r}: {exc}") from None
+        raise RebarInputError(
+            f"{design.source}: slab.standard = {design.standard!r}: {exc}"
+        ) from None
     return None

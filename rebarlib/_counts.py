@@ -48,19 +48,63 @@ import numpy as np
 import pandas as pd
 
 from ._camera import Intrinsics, project
-from ._status import (EXTRA, MEASURED, MISSING, NOT_EXTRA, NOT_IN_VIEW, NOT_MEASURED, OUTSIDE,
-                      PRESENT, PRESENT_NO_DEPTH)
-from ._evidence import (_add_mask, _examine, _footprints, _heights, _offset, _place_from_mask,  # noqa: F401
-                        _Row, _runs, _samples, mesh_boundary)
+from ._status import (
+    EXTRA,
+    MEASURED,
+    MISSING,
+    NOT_EXTRA,
+    NOT_IN_VIEW,
+    NOT_MEASURED,
+    OUTSIDE,
+    PRESENT,
+    PRESENT_NO_DEPTH,
+)
+from ._evidence import (  # noqa: F401 (names tests and callers reach through this module)
+    _add_mask,
+    _examine,
+    _footprints,
+    _heights,
+    _offset,
+    _place_from_mask,
+    _Row,
+    _runs,
+    _samples,
+    mesh_boundary,
+)
 from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
 
-__all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings",
-           "POSITION_COLUMNS"]
+__all__ = [
+    "CountParams",
+    "examine_positions",
+    "mesh_boundary",
+    "count_table",
+    "settle_spacings",
+    "POSITION_COLUMNS",
+]
 
 
-POSITION_COLUMNS = ["layer", "level", "kind", "offset_mm", "status", "reason", "in_view_mm", "empty_mm",
-                    "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm", "position_sigma_mm", "bar_id",
-                    "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm", "end_y_mm", "end_z_mm"]
+POSITION_COLUMNS = [
+    "layer",
+    "level",
+    "kind",
+    "offset_mm",
+    "status",
+    "reason",
+    "in_view_mm",
+    "empty_mm",
+    "occupied_mm",
+    "no_depth_mm",
+    "hidden_mm",
+    "mask_mm",
+    "position_sigma_mm",
+    "bar_id",
+    "start_x_mm",
+    "start_y_mm",
+    "start_z_mm",
+    "end_x_mm",
+    "end_y_mm",
+    "end_z_mm",
+]
 
 
 @dataclass(frozen=True)
@@ -106,7 +150,9 @@ def _lattice_index(offsets: np.ndarray, s: float) -> np.ndarray:
     """Integer lattice position of each bar: offsets referred to the row's phase (the circular
     median of offset mod spacing), rounded to spacings."""
     ang = 2 * np.pi * offsets / s
-    phase = math.atan2(float(np.median(np.sin(ang))), float(np.median(np.cos(ang)))) * s / (2 * np.pi)
+    phase = (
+        math.atan2(float(np.median(np.sin(ang))), float(np.median(np.cos(ang)))) * s / (2 * np.pi)
+    )
     return np.round((offsets - phase) / s).astype(int), phase
 
 
@@ -126,8 +172,17 @@ def _mask_along(b: BarAxis, plane: Plane, intr: Intrinsics, foot, own: int, mask
     return float(mask[v[free], u[free]].mean())
 
 
-def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_mm, intrinsics: Intrinsics,
-                      mask=None, noise_mm: float | None = None, params: CountParams | None = None):
+def examine_positions(
+    bars: list,
+    *,
+    design_spacing: dict,
+    plane: Plane,
+    depth_mm,
+    intrinsics: Intrinsics,
+    mask=None,
+    noise_mm: float | None = None,
+    params: CountParams | None = None,
+):
     """Examine every empty design position and every close pair of bars of each row.
 
     Parameters
@@ -178,19 +233,47 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
             if not meas:
                 continue
             hs = np.array([b.axis_height_mm for b in meas])
-            row = _Row(layer, level, [bars[i] for i in order], order,
-                       np.array([_offset(bars[i], n2) for i in order]), float(s), float(np.median(hs)),
-                       float(1.4826 * np.median(np.abs(hs - np.median(hs)))) if len(hs) > 2 else 1.0,
-                       float(np.median([b.radius_mm for b in meas])), bars[idx[0]].direction, n2)
+            row = _Row(
+                layer,
+                level,
+                [bars[i] for i in order],
+                order,
+                np.array([_offset(bars[i], n2) for i in order]),
+                float(s),
+                float(np.median(hs)),
+                float(1.4826 * np.median(np.abs(hs - np.median(hs)))) if len(hs) > 2 else 1.0,
+                float(np.median([b.radius_mm for b in meas])),
+                bars[idx[0]].direction,
+                n2,
+            )
             reach = _reach(boundary, layer, level, row.normal)
-            higher = [i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius]
+            higher = [
+                i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius
+            ]
             # the higher bars along this row (offset across, axis height, radius): where one
             # hides a position, they say from where it would show
-            over = [(_offset(b, n2), b.axis_height_mm, b.radius_mm) for b in bars
-                    if b.axis_height_mm > row.height + row.radius and abs(float(b.direction @ row.direction)) > 0.95]
+            over = [
+                (_offset(b, n2), b.axis_height_mm, b.radius_mm)
+                for b in bars
+                if b.axis_height_mm > row.height + row.radius
+                and abs(float(b.direction @ row.direction)) > 0.95
+            ]
             for kind, p, nb in _candidates(row, reach, plane, intr, prm):
-                rec = _judge(row, kind, p, nb, reach, plane=plane, depth=depth, intr=intr, foot=foot,
-                             higher=higher, mask=get_mask if mask is not None else None, noise=noise, prm=prm)
+                rec = _judge(
+                    row,
+                    kind,
+                    p,
+                    nb,
+                    reach,
+                    plane=plane,
+                    depth=depth,
+                    intr=intr,
+                    foot=foot,
+                    higher=higher,
+                    mask=get_mask if mask is not None else None,
+                    noise=noise,
+                    prm=prm,
+                )
                 if rec["status"] == NOT_MEASURED and rec["reason"].startswith("hidden under"):
                     rec["reason"] += _where_it_shows(row, p, over, plane)
                 if rec.pop("_bar", None) is not None:
@@ -199,8 +282,12 @@ def examine_positions(bars: list, *, design_spacing: dict, plane: Plane, depth_m
                     rec["bar_id"] = len(bars) + len(new_bars) - 1
                 rec.update(_line_ends(row, float(rec["offset_mm"]), _t_range(nb), plane))
                 rows_out.append({"layer": layer, "level": level, **rec})
-            rows_out.extend({"layer": layer, "level": level, **rec}
-                            for rec in _pairs(row, plane, intr, foot, get_mask if mask is not None else None, prm))
+            rows_out.extend(
+                {"layer": layer, "level": level, **rec}
+                for rec in _pairs(
+                    row, plane, intr, foot, get_mask if mask is not None else None, prm
+                )
+            )
     df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
     return df, new_bars, boundary
 
@@ -233,8 +320,10 @@ def _where_it_shows(row: _Row, p: float, over: list, plane: Plane) -> str:
     # one way it needs (need - |d|) / (1 - k), the other way (need + |d|) / (1 - k): the advice
     # holds either way
     move = 10.0 * math.ceil((need + abs(d)) / max(1.0 - k, 1e-6) / 10.0)
-    return (f"; a capture taken with the camera about {move:.0f} mm or more to either side across these bars "
-            "(moved, not tilted) would show it beside that bar")
+    return (
+        f"; a capture taken with the camera about {move:.0f} mm or more to either side across these bars "
+        "(moved, not tilted) would show it beside that bar"
+    )
 
 
 def _reach(boundary: dict, layer: str, level: str, n2) -> dict | None:
@@ -258,8 +347,14 @@ def _reach(boundary: dict, layer: str, level: str, n2) -> dict | None:
             el, eh = cand["edge_minus"], cand["edge_plus"]
             if flip:
                 lo, hi, el, eh = -hi, -lo, eh, el
-            return {**cand, "reach_minus_mm": lo, "reach_plus_mm": hi, "edge_minus": el, "edge_plus": eh,
-                    "proxy": f"the {other} lattice's crossing bars"}
+            return {
+                **cand,
+                "reach_minus_mm": lo,
+                "reach_plus_mm": hi,
+                "edge_minus": el,
+                "edge_plus": eh,
+                "proxy": f"the {other} lattice's crossing bars",
+            }
     return None
 
 
@@ -290,16 +385,20 @@ def _line_ends(row: _Row, p: float, t_range, plane: Plane) -> dict:
     t = np.array(t_range, float)
     plan = t[:, None] * row.direction + p * row.normal
     cam = from_slab_frame(np.column_stack((plan, np.full(2, row.height))), plane)
-    return {f"{end}_{c}_mm": round(float(cam[i, j]), 2) for i, end in enumerate(("start", "end"))
-            for j, c in enumerate("xyz")}
+    return {
+        f"{end}_{c}_mm": round(float(cam[i, j]), 2)
+        for i, end in enumerate(("start", "end"))
+        for j, c in enumerate("xyz")
+    }
 
 
 def _t_range(nb) -> tuple:
     return min(b.t0_mm for b in nb), max(b.t1_mm for b in nb)
 
 
-def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise,
-           prm) -> dict:
+def _judge(
+    row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise, prm
+) -> dict:
     """The verdict on one empty position (a ``positions`` row, with ``_bar``/``_new`` when a bar
     is placed there): outside the mesh, not in view, present (no depth), present, missing or not
     measured, in that order of tests (module docstring)."""
@@ -308,53 +407,129 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
     if kind == "end":
         side = "plus" if p > row.offsets[-1] else "minus"
         if reach is None:
-            return {**base, "status": NOT_MEASURED, "reason": "no crossing bar found: where the mesh ends cannot be "
-                    "told, so this position beyond the outermost bar is not judged"}
+            return {
+                **base,
+                "status": NOT_MEASURED,
+                "reason": "no crossing bar found: where the mesh ends cannot be "
+                "told, so this position beyond the outermost bar is not judged",
+            }
         r_edge = reach[f"reach_{side}_mm"]
         beyond = (p - r_edge) if side == "plus" else (r_edge - p)
         if beyond > prm.inside_mm:
             edge = reach[f"edge_{side}"]
-            return {**base, "status": OUTSIDE, "reason": (
-                f"the crossing bars end {beyond:.0f} mm before it"
-                + (" (the mesh's edge is in view)" if edge else " (where they leave the view or are hidden)"))}
+            return {
+                **base,
+                "status": OUTSIDE,
+                "reason": (
+                    f"the crossing bars end {beyond:.0f} mm before it"
+                    + (
+                        " (the mesh's edge is in view)"
+                        if edge
+                        else " (where they leave the view or are hidden)"
+                    )
+                ),
+            }
     row_ids = [i + 1 for i in row.index]
-    ev = _examine(row, p, _t_range(nb), plane=plane, depth=depth, intr=intr, foot=foot, row_ids=row_ids,
-                  higher=higher, noise=noise, prm=prm)
+    ev = _examine(
+        row,
+        p,
+        _t_range(nb),
+        plane=plane,
+        depth=depth,
+        intr=intr,
+        foot=foot,
+        row_ids=row_ids,
+        higher=higher,
+        noise=noise,
+        prm=prm,
+    )
     E = prm.min_evidence_mm
     seen = ev["empty_mm"] + ev["occupied_mm"]
     # the colour mask is read only where the depth leaves a verdict that needs it
-    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E)
+    needs = ev["in_view_mm"] >= E and (
+        ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E
+    )
     m = mask() if (mask is not None and needs) else None
     if m is not None:
         ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
-    rec = {**base, **{k: round(ev[k], 1) for k in ("in_view_mm", "empty_mm", "occupied_mm", "no_depth_mm",
-                                                    "hidden_mm", "mask_mm")}}
+    rec = {
+        **base,
+        **{
+            k: round(ev[k], 1)
+            for k in (
+                "in_view_mm",
+                "empty_mm",
+                "occupied_mm",
+                "no_depth_mm",
+                "hidden_mm",
+                "mask_mm",
+            )
+        },
+    }
     if ev["in_view_mm"] < E:
-        return {**rec, "status": NOT_IN_VIEW, "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})"}
+        return {
+            **rec,
+            "status": NOT_IN_VIEW,
+            "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})",
+        }
     has_mask = "_shows" in ev
     if ev["occupied_mm"] >= E and ev["occupied_mm"] >= 0.5 * seen:
         share = ev["mask_occupied_share"]
         if has_mask and share >= prm.min_share:
-            return _present(row, p, ev, ev["_state"] == 2, plane, intr, prm, rec, PRESENT,
-                            f"points at the bar's height along {ev['occupied_mm']:.0f} mm and the colour mask "
-                            "along it: a bar the fit did not take")
-        return {**rec, "status": NOT_MEASURED, "reason": (
-            f"points at the bar's height along {ev['occupied_mm']:.0f} mm, but "
-            + ("the colour mask does not show a bar there (another object?)" if has_mask else "no colour mask"))}
+            return _present(
+                row,
+                p,
+                ev,
+                ev["_state"] == 2,
+                plane,
+                intr,
+                prm,
+                rec,
+                PRESENT,
+                f"points at the bar's height along {ev['occupied_mm']:.0f} mm and the colour mask "
+                "along it: a bar the fit did not take",
+            )
+        return {
+            **rec,
+            "status": NOT_MEASURED,
+            "reason": (
+                f"points at the bar's height along {ev['occupied_mm']:.0f} mm, but "
+                + (
+                    "the colour mask does not show a bar there (another object?)"
+                    if has_mask
+                    else "no colour mask"
+                )
+            ),
+        }
     if ev["empty_mm"] >= E and ev["occupied_mm"] <= prm.max_share * seen:
         if not has_mask:
-            return {**rec, "status": NOT_MEASURED, "reason": (
-                f"the depth shows the support and nothing at the bar's height along {ev['empty_mm']:.0f} mm, "
-                "but no colour mask was available to confirm it")}
+            return {
+                **rec,
+                "status": NOT_MEASURED,
+                "reason": (
+                    f"the depth shows the support and nothing at the bar's height along {ev['empty_mm']:.0f} mm, "
+                    "but no colour mask was available to confirm it"
+                ),
+            }
         share = ev["mask_empty_share"]
         if share <= prm.max_share:
-            return {**rec, "status": MISSING, "reason": (
-                f"empty: the {'formwork' if row.level == 'bottom' and row.layer == 'lower' else 'support'} "
-                f"is seen with depth and nothing at the bar's height along {ev['empty_mm']:.0f} mm of the "
-                f"corridor (± {s / 2:.0f} mm), and the colour mask shows no bar there")}
-        return {**rec, "status": NOT_MEASURED, "reason": (
-            f"the depth shows the corridor empty along {ev['empty_mm']:.0f} mm, but the colour mask shows a bar "
-            f"on {share:.0%} of it")}
+            return {
+                **rec,
+                "status": MISSING,
+                "reason": (
+                    f"empty: the {'formwork' if row.level == 'bottom' and row.layer == 'lower' else 'support'} "
+                    f"is seen with depth and nothing at the bar's height along {ev['empty_mm']:.0f} mm of the "
+                    f"corridor (± {s / 2:.0f} mm), and the colour mask shows no bar there"
+                ),
+            }
+        return {
+            **rec,
+            "status": NOT_MEASURED,
+            "reason": (
+                f"the depth shows the corridor empty along {ev['empty_mm']:.0f} mm, but the colour mask shows a bar "
+                f"on {share:.0%} of it"
+            ),
+        }
     if ev["no_depth_mm"] >= E:
         share = ev["mask_nodepth_share"]
         sel = ev["_nd"] & ev["_shows"] if has_mask else None
@@ -362,35 +537,95 @@ def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foo
             return _present(row, p, ev, sel, plane, intr, prm, rec, PRESENT_NO_DEPTH, "")
     if ev["no_depth_mm"] >= E and ev["no_depth_mm"] >= ev["hidden_mm"]:
         share = ev["mask_nodepth_share"]
-        return {**rec, "status": NOT_MEASURED, "reason": (
-            f"no depth along {ev['no_depth_mm']:.0f} mm of it"
-            + (f", and the colour mask shows a bar on only {share:.0%} of that" if has_mask and math.isfinite(share)
-               else "" if has_mask else " and no colour mask"))}
+        return {
+            **rec,
+            "status": NOT_MEASURED,
+            "reason": (
+                f"no depth along {ev['no_depth_mm']:.0f} mm of it"
+                + (
+                    f", and the colour mask shows a bar on only {share:.0%} of that"
+                    if has_mask and math.isfinite(share)
+                    else ""
+                    if has_mask
+                    else " and no colour mask"
+                )
+            ),
+        }
     if ev["hidden_mm"] >= ev["no_depth_mm"] and ev["hidden_mm"] > 0:
-        return {**rec, "status": NOT_MEASURED, "reason": (
-            f"hidden under another bar along {ev['hidden_mm']:.0f} mm; only {ev['empty_mm']:.0f} mm seen empty")}
-    return {**rec, "status": NOT_MEASURED, "reason": (
-        f"too little evidence: {ev['empty_mm']:.0f} mm seen empty, {ev['occupied_mm']:.0f} mm occupied, "
-        f"{ev['no_depth_mm']:.0f} mm without depth (needs {E:.0f} mm of one)")}
+        return {
+            **rec,
+            "status": NOT_MEASURED,
+            "reason": (
+                f"hidden under another bar along {ev['hidden_mm']:.0f} mm; only {ev['empty_mm']:.0f} mm seen empty"
+            ),
+        }
+    return {
+        **rec,
+        "status": NOT_MEASURED,
+        "reason": (
+            f"too little evidence: {ev['empty_mm']:.0f} mm seen empty, {ev['occupied_mm']:.0f} mm occupied, "
+            f"{ev['no_depth_mm']:.0f} mm without depth (needs {E:.0f} mm of one)"
+        ),
+    }
 
 
-def _present(row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str,
-             why: str) -> dict:
+def _present(
+    row: _Row,
+    p: float,
+    ev: dict,
+    sel: np.ndarray,
+    plane,
+    intr,
+    prm,
+    rec: dict,
+    status: str,
+    why: str,
+) -> dict:
     """A position found holding a bar: the bar placed on the mask's centre line over the slices
     ``sel`` at its level's height, status "not measured" (its axis is not fitted to points)."""
-    off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
+    off, sd, t0, t1 = _place_from_mask(
+        row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm
+    )
     ok = sd <= prm.max_position_sigma_mm
-    how = (f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
-           + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured") + ")")
+    how = (
+        f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
+        + (
+            ""
+            if ok
+            else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured"
+        )
+        + ")"
+    )
     reason = ("no depth on it: " if status == PRESENT_NO_DEPTH else why + "; ") + how
     ref = row.bars[0]
-    bar = BarAxis(layer=row.layer, direction=ref.direction.copy(), offset_mm=float(off), slope=0.0,
-                  centre_h_mm=row.height, h_slope=0.0, t0_mm=t0, t1_mm=t1, radius_mm=row.radius, n_points=0,
-                  rms_mm=math.nan, point_index=np.zeros(0, int), group=ref.group, level=row.level,
-                  status=NOT_MEASURED, reason=reason)
+    bar = BarAxis(
+        layer=row.layer,
+        direction=ref.direction.copy(),
+        offset_mm=float(off),
+        slope=0.0,
+        centre_h_mm=row.height,
+        h_slope=0.0,
+        t0_mm=t0,
+        t1_mm=t1,
+        radius_mm=row.radius,
+        n_points=0,
+        rms_mm=math.nan,
+        point_index=np.zeros(0, int),
+        group=ref.group,
+        level=row.level,
+        status=NOT_MEASURED,
+        reason=reason,
+    )
     bar = replace(bar, axis_se_mm=float(sd))
-    return {**rec, "status": status, "reason": reason, "position_sigma_mm": round(sd, 2), "offset_mm": round(off, 1),
-            "_bar": True, "_new": bar}
+    return {
+        **rec,
+        "status": status,
+        "reason": reason,
+        "position_sigma_mm": round(sd, 2),
+        "offset_mm": round(off, 1),
+        "_bar": True,
+        "_new": bar,
+    }
 
 
 def _pairs(row: _Row, plane, intr, foot, mask, prm):
@@ -408,37 +643,72 @@ def _pairs(row: _Row, plane, intr, foot, mask, prm):
         others = [int(k) for k in twins if k != k_extra]
         k_twin = min(others, key=lambda k: abs(row.offsets[k] - row.offsets[k_extra]))
         a, b = row.bars[k_extra], row.bars[k_twin]
-        base = {"kind": "pair", "offset_mm": round(float(row.offsets[k_extra]), 1), "bar_id": row.index[k_extra],
-                "position_sigma_mm": math.nan, "in_view_mm": math.nan, "empty_mm": math.nan, "occupied_mm": math.nan,
-                "no_depth_mm": math.nan, "hidden_mm": math.nan, "mask_mm": math.nan}
+        base = {
+            "kind": "pair",
+            "offset_mm": round(float(row.offsets[k_extra]), 1),
+            "bar_id": row.index[k_extra],
+            "position_sigma_mm": math.nan,
+            "in_view_mm": math.nan,
+            "empty_mm": math.nan,
+            "occupied_mm": math.nan,
+            "no_depth_mm": math.nan,
+            "hidden_mm": math.nan,
+            "mask_mm": math.nan,
+        }
         gap = abs(float(row.offsets[k_extra] - row.offsets[k_twin]))
         overlap = min(a.t1_mm, b.t1_mm) - max(a.t0_mm, b.t0_mm)
         shorter = min(a.t1_mm - a.t0_mm, b.t1_mm - b.t0_mm)
         what = f"bars {row.index[k_extra]} and {row.index[k_twin]}, {gap:.0f} mm apart on one design position"
         if overlap < prm.overlap_fraction * shorter or overlap < prm.min_evidence_mm:
-            yield {**base, "status": NOT_EXTRA, "reason": (
-                f"{what}, side by side over {max(overlap, 0):.0f} mm only: a lap or a loose piece, not an extra bar")}
+            yield {
+                **base,
+                "status": NOT_EXTRA,
+                "reason": (
+                    f"{what}, side by side over {max(overlap, 0):.0f} mm only: a lap or a loose piece, not an extra bar"
+                ),
+            }
             continue
         weak = [(row.index[k], x) for x, k in ((a, k_extra), (b, k_twin)) if x.status != MEASURED]
         if weak:
             # the position has its bar; the other is no evidence of an extra one
-            yield {**base, "status": NOT_EXTRA, "reason": (
-                f"{what}: bar {weak[0][0]} is not a measured bar ({weak[0][1].reason[:80]}), so it is no "
-                "evidence of an extra bar")}
+            yield {
+                **base,
+                "status": NOT_EXTRA,
+                "reason": (
+                    f"{what}: bar {weak[0][0]} is not a measured bar ({weak[0][1].reason[:80]}), so it is no "
+                    "evidence of an extra bar"
+                ),
+            }
             continue
         m_img = mask() if mask is not None else None
         if m_img is None:
-            yield {**base, "status": NOT_MEASURED, "reason": f"{what}: no colour mask to confirm an extra bar"}
+            yield {
+                **base,
+                "status": NOT_MEASURED,
+                "reason": f"{what}: no colour mask to confirm an extra bar",
+            }
             continue
-        shares = [_mask_along(x, plane, intr, foot, row.index[k] + 1, m_img)
-                  for x, k in ((a, k_extra), (b, k_twin))]
+        shares = [
+            _mask_along(x, plane, intr, foot, row.index[k] + 1, m_img)
+            for x, k in ((a, k_extra), (b, k_twin))
+        ]
         if all(math.isfinite(x) and x >= prm.min_share for x in shares):
-            yield {**base, "status": EXTRA, "reason": (
-                f"{what}, both fitted to points at bar height over {overlap:.0f} mm, the colour mask along both "
-                f"({shares[0]:.0%}, {shares[1]:.0%})")}
+            yield {
+                **base,
+                "status": EXTRA,
+                "reason": (
+                    f"{what}, both fitted to points at bar height over {overlap:.0f} mm, the colour mask along both "
+                    f"({shares[0]:.0%}, {shares[1]:.0%})"
+                ),
+            }
         else:
-            yield {**base, "status": NOT_MEASURED, "reason": (
-                f"{what}: the colour mask runs along only {min(shares):.0%} of one of them")}
+            yield {
+                **base,
+                "status": NOT_MEASURED,
+                "reason": (
+                    f"{what}: the colour mask runs along only {min(shares):.0%} of one of them"
+                ),
+            }
 
 
 # ----------------------------------------------------------------------------------------------
@@ -454,33 +724,74 @@ def count_table(bars: list, positions: pd.DataFrame, design_spacing: dict) -> pd
         for level in LEVELS:
             found = sum(1 for b in bars if b.layer == layer and b.level == level)
             s = design_spacing.get((layer, level))
-            pos = (positions[(positions["layer"] == layer) & (positions["level"] == level)]
-                   if len(positions) else positions)
+            pos = (
+                positions[(positions["layer"] == layer) & (positions["level"] == level)]
+                if len(positions)
+                else positions
+            )
             st = pos["status"].value_counts().to_dict() if len(pos) else {}
             if not found or s is None:
-                rows.append({"layer": layer, "level": level, "found": found, "expected": None, "missing": None,
-                             "extra": None, "not_measured": None, "outside": None,
-                             "evidence": "no bar found" if not found else "no design spacing"})
+                rows.append(
+                    {
+                        "layer": layer,
+                        "level": level,
+                        "found": found,
+                        "expected": None,
+                        "missing": None,
+                        "extra": None,
+                        "not_measured": None,
+                        "outside": None,
+                        "evidence": "no bar found" if not found else "no design spacing",
+                    }
+                )
                 continue
             missing, extra = int(st.get(MISSING, 0)), int(st.get(EXTRA, 0))
             nm = int(st.get(NOT_MEASURED, 0))
             parts = [f"{found} found"]
-            for key, label in ((PRESENT_NO_DEPTH, "placed from the colour mask (no depth)"),
-                               (PRESENT, "seen but not fitted"), (MISSING, "missing (seen empty)"),
-                               (EXTRA, "extra"), (NOT_MEASURED, "not measured"), (NOT_EXTRA, "laps/short pieces"),
-                               (OUTSIDE, "beyond the mesh's edge")):
+            for key, label in (
+                (PRESENT_NO_DEPTH, "placed from the colour mask (no depth)"),
+                (PRESENT, "seen but not fitted"),
+                (MISSING, "missing (seen empty)"),
+                (EXTRA, "extra"),
+                (NOT_MEASURED, "not measured"),
+                (NOT_EXTRA, "laps/short pieces"),
+                (OUTSIDE, "beyond the mesh's edge"),
+            ):
                 if st.get(key):
                     parts.append(f"{st[key]} {label}")
-            rows.append({"layer": layer, "level": level, "found": found, "expected": found - extra + missing,
-                         "missing": missing, "extra": extra, "not_measured": nm,
-                         "outside": int(st.get(OUTSIDE, 0)), "evidence": ", ".join(parts)})
-    df = pd.DataFrame(rows, columns=["layer", "level", "found", "expected", "missing", "extra", "not_measured",
-                                     "outside", "evidence"])
+            rows.append(
+                {
+                    "layer": layer,
+                    "level": level,
+                    "found": found,
+                    "expected": found - extra + missing,
+                    "missing": missing,
+                    "extra": extra,
+                    "not_measured": nm,
+                    "outside": int(st.get(OUTSIDE, 0)),
+                    "evidence": ", ".join(parts),
+                }
+            )
+    df = pd.DataFrame(
+        rows,
+        columns=[
+            "layer",
+            "level",
+            "found",
+            "expected",
+            "missing",
+            "extra",
+            "not_measured",
+            "outside",
+            "evidence",
+        ],
+    )
     return df
 
 
-def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
-                    params: CountParams | None = None) -> pd.DataFrame:
+def settle_spacings(
+    spacings: pd.DataFrame, bars: list, positions: pd.DataFrame, params: CountParams | None = None
+) -> pd.DataFrame:
     """The spacing table once the positions are known.
 
     - A spacing to a bar placed from the colour mask (no depth) is measured between the two
@@ -496,8 +807,11 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
     placed = {}
     if len(positions):
         for rec in positions.to_dict(orient="records"):
-            if rec["status"] in (PRESENT_NO_DEPTH, PRESENT) and rec["bar_id"] is not None \
-                    and not pd.isna(rec["bar_id"]):
+            if (
+                rec["status"] in (PRESENT_NO_DEPTH, PRESENT)
+                and rec["bar_id"] is not None
+                and not pd.isna(rec["bar_id"])
+            ):
                 placed[int(rec["bar_id"])] = float(rec["position_sigma_mm"])
     for i, s in out.iterrows():
         a, b = int(s["bar_a"]), int(s["bar_b"])
@@ -505,31 +819,55 @@ def settle_spacings(spacings: pd.DataFrame, bars: list, positions: pd.DataFrame,
         if (a in placed or b in placed) and s["status"] != MEASURED:
             others = [x for x in (a, b) if x not in placed]
             sig = [placed[x] for x in (a, b) if x in placed]
-            if all(bars[x].status == MEASURED for x in others) and max(sig) <= prm.max_position_sigma_mm:
+            if (
+                all(bars[x].status == MEASURED for x in others)
+                and max(sig) <= prm.max_position_sigma_mm
+            ):
                 val = _pair_spacing(bars[a], bars[b])
                 out.loc[i, "spacing_mm"] = val
                 out.loc[i, "deviation_mm"] = val - ds if np.isfinite(ds) else np.nan
                 out.loc[i, "status"] = MEASURED
-                out.loc[i, "reason"] = (f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from "
-                                        f"the colour mask (± {max(sig):.1f} mm across)")
+                out.loc[i, "reason"] = (
+                    f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from "
+                    f"the colour mask (± {max(sig):.1f} mm across)"
+                )
                 s = out.loc[i]
         if s["status"] != MEASURED or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
             continue
-        pos = positions[(positions["layer"] == s["layer"]) & (positions["level"] == s["level"])
-                        & (positions["kind"] == "gap")] if len(positions) else positions
+        pos = (
+            positions[
+                (positions["layer"] == s["layer"])
+                & (positions["level"] == s["level"])
+                & (positions["kind"] == "gap")
+            ]
+            if len(positions)
+            else positions
+        )
         n2 = next(x.normal2d for x in bars if x.layer == s["layer"] and x.level == s["level"])
         lo, hi = sorted((_offset(bars[a], n2), _offset(bars[b], n2)))
         # the empty positions between the two (a bar placed there is one of the two, or splits
         # the gap: it is no empty position)
         q = 0.25 * ds
-        inner = (pos[(pos["offset_mm"] > lo + q) & (pos["offset_mm"] < hi - q)
-                     & ~pos["status"].isin([PRESENT, PRESENT_NO_DEPTH])] if len(pos) else pos)
+        inner = (
+            pos[
+                (pos["offset_mm"] > lo + q)
+                & (pos["offset_mm"] < hi - q)
+                & ~pos["status"].isin([PRESENT, PRESENT_NO_DEPTH])
+            ]
+            if len(pos)
+            else pos
+        )
         if len(inner) and (inner["status"] == MISSING).all():
             continue
-        why = "; ".join(str(x) for x in inner["reason"]) if len(inner) else "its positions were not examined"
+        why = (
+            "; ".join(str(x) for x in inner["reason"])
+            if len(inner)
+            else "its positions were not examined"
+        )
         out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
         out.loc[i, "status"] = NOT_MEASURED
-        out.loc[i, "reason"] = (f"{s['spacing_mm']:.0f} mm gap with a bar position between that could not be "
-                                f"judged ({why}), so it is not one spacing")
+        out.loc[i, "reason"] = (
+            f"{s['spacing_mm']:.0f} mm gap with a bar position between that could not be "
+            f"judged ({why}), so it is not one spacing"
+        )
     return out
-

@@ -28,7 +28,7 @@ RULE_TEXT = {
     "simple": "simple acceptance (ILAC-G8 w = 0): the measured value against the limit, as the code is written",
     "guarded": "guarded acceptance (ILAC-G8 w = U): each limit narrowed by the expanded uncertainty U (k = 2)",
     "shared risk": "shared risk (JCGM 106 §8.3.3): the measured value against the limit, the risk of a wrong "
-                   "decision near a limit shared by agreement",
+    "decision near a limit shared by agreement",
 }
 PROVEN = (WITHIN, BEYOND)
 WITHIN_NP, BEYOND_NP = WITHIN_NOT_PROVEN, BEYOND_NOT_PROVEN
@@ -47,7 +47,9 @@ def check_rule(value, where: str) -> str:
     key = " ".join(str(value).lower().replace("_", " ").replace("-", " ").split())
     key = {"simple acceptance": "simple", "guarded acceptance": "guarded"}.get(key, key)
     if key not in DECISION_RULES:
-        raise RebarInputError(f"{where}: decision_rule: expected one of {list(DECISION_RULES)}, got {value!r}")
+        raise RebarInputError(
+            f"{where}: decision_rule: expected one of {list(DECISION_RULES)}, got {value!r}"
+        )
     return key
 
 
@@ -89,11 +91,14 @@ def decide(accepted: bool, deviation: float, minus, plus, U, k: float) -> tuple:
     >>> decide(True, 0.0, 3.0, 3.0, 1.0, 2.0)
     ('within', 0.0)
     """
-    inside = (minus is None or deviation >= -minus - 1e-9) and (plus is None or deviation <= plus + 1e-9)
+    inside = (minus is None or deviation >= -minus - 1e-9) and (
+        plus is None or deviation <= plus + 1e-9
+    )
     if U is None or not math.isfinite(U):
         return ("within" if accepted else "beyond"), None
-    straddles = ((minus is not None and deviation - U < -minus < deviation + U)
-                 or (plus is not None and deviation - U < plus < deviation + U))
+    straddles = (minus is not None and deviation - U < -minus < deviation + U) or (
+        plus is not None and deviation - U < plus < deviation + U
+    )
     word = "within" if inside else "beyond"
     decision = f"{word}, not proven" if straddles else word
     p = p_within(deviation, minus, plus, U / k)
@@ -134,13 +139,23 @@ def risk_summary(checkpoints, rule: str, k: float) -> dict:
         else:
             rej += r
             worst_r = max(worst_r, r)
-    worst_case = {"simple": "a value accepted on the limit has up to 50 % chance of being out of tolerance",
-                  "shared risk": "a value accepted on the limit has up to 50 % chance of being out of tolerance, "
-                                 "a value rejected just beyond it as much chance of being within (shared)",
-                  "guarded": f"a value accepted at the guarded limit has about {100 * (1 - _phi(k)):.1f} % chance "
-                             "of being out of tolerance; values within the limit by less than U are rejected"}[rule]
-    return {"rule": rule, "rule_text": RULE_TEXT[rule], "k": k, "within_not_proven": n_np[WITHIN_NP],
-            "beyond_not_proven": n_np[BEYOND_NP], "checkpoints_with_u": n_risk,
-            "expected_false_accepts": round(acc, 3), "expected_false_rejects": round(rej, 3),
-            "max_false_accept": round(worst_a, 3), "max_false_reject": round(worst_r, 3),
-            "worst_case": worst_case}
+    worst_case = {
+        "simple": "a value accepted on the limit has up to 50 % chance of being out of tolerance",
+        "shared risk": "a value accepted on the limit has up to 50 % chance of being out of tolerance, "
+        "a value rejected just beyond it as much chance of being within (shared)",
+        "guarded": f"a value accepted at the guarded limit has about {100 * (1 - _phi(k)):.1f} % chance "
+        "of being out of tolerance; values within the limit by less than U are rejected",
+    }[rule]
+    return {
+        "rule": rule,
+        "rule_text": RULE_TEXT[rule],
+        "k": k,
+        "within_not_proven": n_np[WITHIN_NP],
+        "beyond_not_proven": n_np[BEYOND_NP],
+        "checkpoints_with_u": n_risk,
+        "expected_false_accepts": round(acc, 3),
+        "expected_false_rejects": round(rej, 3),
+        "max_false_accept": round(worst_a, 3),
+        "max_false_reject": round(worst_r, 3),
+        "worst_case": worst_case,
+    }

@@ -14,8 +14,15 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict", "DESIGN_KEYS",
-           "DEFAULT_BAR_SYSTEM"]
+__all__ = [
+    "BarSet",
+    "Lattice",
+    "Design",
+    "load_design",
+    "design_from_dict",
+    "DESIGN_KEYS",
+    "DEFAULT_BAR_SYSTEM",
+]
 
 #: Bar-size standard of a design that names none (``bar_system``), and of every function that
 #: takes a ``system``: GB 1499.2, the Chinese standard the method was developed under.
@@ -32,8 +39,18 @@ SURFACES = ("deformed", "plain")
 #: A module that reads a new key adds it here.
 DESIGN_KEYS = {
     "": {"slab", "design", "tolerances"},
-    "slab": {"id", "element", "location", "standard", "project", "drawing", "contractor", "record",
-             "lot", "bar_system"},
+    "slab": {
+        "id",
+        "element",
+        "location",
+        "standard",
+        "project",
+        "drawing",
+        "contractor",
+        "record",
+        "lot",
+        "bar_system",
+    },
     "design": {"cover_mm", "layer_distance_mm", "thickness_mm", "lower", "upper", "bar_system"},
     "lattice": {"diameter_mm", "spacing_mm", "surface", *LEVELS},
     "level": {"diameter_mm", "spacing_mm", "surface"},
@@ -48,7 +65,9 @@ def _check_keys(table: dict, kind: str, where: str) -> None:
             continue
         near = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.6)
         hint = f"did you mean '{near[0]}'? " if near else ""
-        raise RebarInputError(f"{where}: unknown key '{key}'; {hint}expected one of {sorted(known)}")
+        raise RebarInputError(
+            f"{where}: unknown key '{key}'; {hint}expected one of {sorted(known)}"
+        )
 
 
 def _table(data: dict, key: str, where: str, *, required: bool) -> dict:
@@ -59,8 +78,10 @@ def _table(data: dict, key: str, where: str, *, required: bool) -> dict:
         return {}
     value = data[key]
     if not isinstance(value, dict):
-        raise RebarInputError(f"{where}: [{key}] must be a table (a [{key}] header with keys under it), "
-                              f"got {type(value).__name__} {_short(value)}")
+        raise RebarInputError(
+            f"{where}: [{key}] must be a table (a [{key}] header with keys under it), "
+            f"got {type(value).__name__} {_short(value)}"
+        )
     return value
 
 
@@ -73,7 +94,9 @@ def _text(table: dict, key: str, where: str, default: str) -> str:
     """An optional text value of ``table`` (a string; numbers are accepted as their text)."""
     v = table.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (str, int, float)):
-        raise RebarInputError(f"{where}.{key}: expected a text string, got {type(v).__name__} {_short(v)}")
+        raise RebarInputError(
+            f"{where}.{key}: expected a text string, got {type(v).__name__} {_short(v)}"
+        )
     return str(v)
 
 
@@ -144,21 +167,27 @@ def _number(table: dict, key: str, where: str, *, lo: float, hi: float):
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise RebarInputError(f"{where}.{key}: expected a number in mm, got {v!r}")
     if not (lo <= v <= hi):
-        raise RebarInputError(f"{where}.{key}: {v!r} mm is outside the plausible range {lo:g}..{hi:g} mm")
+        raise RebarInputError(
+            f"{where}.{key}: {v!r} mm is outside the plausible range {lo:g}..{hi:g} mm"
+        )
     return float(v)
 
 
 def _lattice(table: dict, where: str) -> Lattice:
     if not isinstance(table, dict):
-        raise RebarInputError(f"{where}: expected a table with diameter_mm and spacing_mm, "
-                              f"got {type(table).__name__} {_short(table)}")
+        raise RebarInputError(
+            f"{where}: expected a table with diameter_mm and spacing_mm, "
+            f"got {type(table).__name__} {_short(table)}"
+        )
     _check_keys(table, "lattice", where)
     sets = {}
     for lvl in LEVELS:
         sub = table.get(lvl, {})
         if not isinstance(sub, dict):
-            raise RebarInputError(f"{where}.{lvl}: expected a table with diameter_mm and/or spacing_mm, "
-                                  f"got {type(sub).__name__} {_short(sub)}")
+            raise RebarInputError(
+                f"{where}.{lvl}: expected a table with diameter_mm and/or spacing_mm, "
+                f"got {type(sub).__name__} {_short(sub)}"
+            )
         _check_keys(sub, "level", f"{where}.{lvl}")
         values = []
         for key, lo, hi in (("diameter_mm", 4, 60), ("spacing_mm", 30, 1000)):
@@ -168,7 +197,9 @@ def _lattice(table: dict, where: str) -> Lattice:
                 values.append(_number(table, key, where, lo=lo, hi=hi))
         surface = sub.get("surface", table.get("surface", "deformed"))
         if surface not in SURFACES:
-            raise RebarInputError(f"{where}.{lvl}.surface: expected one of {SURFACES}, got {surface!r}")
+            raise RebarInputError(
+                f"{where}.{lvl}.surface: expected one of {SURFACES}, got {surface!r}"
+            )
         sets[lvl] = BarSet(*values, surface=surface)
     return Lattice(**sets)
 
@@ -185,19 +216,25 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     (14.0, 129.0)
     """
     if not isinstance(data, dict):
-        raise RebarInputError(f"{source}: expected the tables [slab] and [design], got {type(data).__name__}")
+        raise RebarInputError(
+            f"{source}: expected the tables [slab] and [design], got {type(data).__name__}"
+        )
     _check_keys(data, "", source)
     slab = _table(data, "slab", source, required=False)
     des = data.get("design")
     if not isinstance(des, dict):
-        raise RebarInputError(f"{source}: missing table [design] with cover_mm and layer_distance_mm")
+        raise RebarInputError(
+            f"{source}: missing table [design] with cover_mm and layer_distance_mm"
+        )
     _check_keys(slab, "slab", f"{source}: slab")
     _check_keys(des, "design", f"{source}: design")
     tolerances = _table(data, "tolerances", source, required=False)
     where = f"{source}: design"
     for layer in ("lower", "upper"):
         if layer not in des:
-            raise RebarInputError(f"{source}: missing table [design.{layer}] with diameter_mm and spacing_mm")
+            raise RebarInputError(
+                f"{source}: missing table [design.{layer}] with diameter_mm and spacing_mm"
+            )
     lower = _lattice(des["lower"], f"{source}: design.lower")
     upper = _lattice(des["upper"], f"{source}: design.upper")
     cover = _number(des, "cover_mm", where, lo=5, hi=200)
@@ -205,27 +242,42 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     if layer_distance < lower.thickness_mm:
         raise RebarInputError(
             f"{where}.layer_distance_mm: {layer_distance:g} mm is less than the lower lattice's "
-            f"thickness ({lower.thickness_mm:g} mm): the lattices would intersect")
+            f"thickness ({lower.thickness_mm:g} mm): the lattices would intersect"
+        )
     thickness = des.get("thickness_mm")
     if thickness is not None:
         thickness = _number(des, "thickness_mm", where, lo=50, hi=3000)
         if thickness <= cover + layer_distance + upper.thickness_mm:
             raise RebarInputError(
                 f"{where}.thickness_mm: {thickness:g} mm leaves no top cover over the upper lattice "
-                f"(top of upper bars at {cover + layer_distance + upper.thickness_mm:g} mm)")
+                f"(top of upper bars at {cover + layer_distance + upper.thickness_mm:g} mm)"
+            )
     sid = slab.get("id", "")
     if not isinstance(sid, str) or not sid.strip():
         raise RebarInputError(f"{source}: [slab] needs an 'id' string (e.g. id = \"S-101\")")
     sw = f"{source}: slab"
     for key in ("project", "drawing", "contractor", "record", "lot"):
         _text(slab, key, sw, "")
-    bar_sys = (_text(des, "bar_system", where, "") if "bar_system" in des
-               else _text(slab, "bar_system", sw, DEFAULT_BAR_SYSTEM))
+    bar_sys = (
+        _text(des, "bar_system", where, "")
+        if "bar_system" in des
+        else _text(slab, "bar_system", sw, DEFAULT_BAR_SYSTEM)
+    )
     return Design(
-        slab_id=sid, cover_mm=cover, layer_distance_mm=layer_distance, lower=lower, upper=upper,
-        thickness_mm=thickness, element=_text(slab, "element", sw, "slab"),
-        location=_text(slab, "location", sw, ""), standard=_text(slab, "standard", sw, "GB50204-2015"),
-        bar_system=bar_sys, slab=dict(slab), tolerances=dict(tolerances), source=source)
+        slab_id=sid,
+        cover_mm=cover,
+        layer_distance_mm=layer_distance,
+        lower=lower,
+        upper=upper,
+        thickness_mm=thickness,
+        element=_text(slab, "element", sw, "slab"),
+        location=_text(slab, "location", sw, ""),
+        standard=_text(slab, "standard", sw, "GB50204-2015"),
+        bar_system=bar_sys,
+        slab=dict(slab),
+        tolerances=dict(tolerances),
+        source=source,
+    )
 
 
 def load_design(path) -> Design:

@@ -58,8 +58,9 @@ def _plan_ends(b: BarAxis) -> np.ndarray:
     return b.plan_point(np.array([b.t0_mm, b.t1_mm]))
 
 
-def _end_seen(b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: Intrinsics,
-              tol_mm: float) -> bool:
+def _end_seen(
+    b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: Intrinsics, tol_mm: float
+) -> bool:
     """Does bar ``b`` really end at ``t_end``? Where it would continue (2-6 radii beyond, at its
     top), at least two pixels in the image show something lower than its underside and none
     shows something at its height: had it continued, it would have been seen there. (Pixels
@@ -71,7 +72,13 @@ def _end_seen(b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: 
     cam = from_slab_frame(pts, plane)
     uv = np.round(project(cam, intr)).astype(int)
     H, W = depth.shape
-    inside = (uv[:, 0] >= 3) & (uv[:, 0] < W - 3) & (uv[:, 1] >= 3) & (uv[:, 1] < H - 3) & (cam[:, 2] > 0)
+    inside = (
+        (uv[:, 0] >= 3)
+        & (uv[:, 0] < W - 3)
+        & (uv[:, 1] >= 3)
+        & (uv[:, 1] < H - 3)
+        & (cam[:, 2] > 0)
+    )
     if inside.sum() < 2:
         return False
     u, v = uv[inside, 0], uv[inside, 1]
@@ -88,8 +95,9 @@ def _heights(u, v, z, plane: Plane, intr: Intrinsics) -> np.ndarray:
     return plane.height(backproject(np.column_stack((u, v)), z, intr))
 
 
-def mesh_boundary(bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
-                  noise_mm: float = 1.0) -> dict:
+def mesh_boundary(
+    bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics, noise_mm: float = 1.0
+) -> dict:
     """Where each lattice's mesh ends in the capture, from where its bars end.
 
     For each lattice and direction group, the extent across the group's bars covered by the
@@ -104,8 +112,10 @@ def mesh_boundary(bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
     tol = max(3.0 * noise_mm, 2.0)
     out = {}
     for layer in LAYERS:
-        groups = {lv: [b for b in bars if b.layer == layer and b.level == lv and b.t1_mm > b.t0_mm]
-                  for lv in LEVELS}
+        groups = {
+            lv: [b for b in bars if b.layer == layer and b.level == lv and b.t1_mm > b.t0_mm]
+            for lv in LEVELS
+        }
         info = {}
         for lv, other in (("bottom", "top"), ("top", "bottom")):
             rows, cross = groups[lv], groups[other]
@@ -125,10 +135,15 @@ def mesh_boundary(bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics,
                     else:
                         edge_lo.append((e, seen))
                         lo = min(lo, e)
-            info[lv] = {"direction": rows[0].direction.round(6).tolist(), "normal": n2.round(6).tolist(),
-                        "reach_minus_mm": round(lo, 1), "reach_plus_mm": round(hi, 1),
-                        "edge_minus": _edge(edge_lo, lo, min), "edge_plus": _edge(edge_hi, hi, max),
-                        "n_crossing": len(cross)}
+            info[lv] = {
+                "direction": rows[0].direction.round(6).tolist(),
+                "normal": n2.round(6).tolist(),
+                "reach_minus_mm": round(lo, 1),
+                "reach_plus_mm": round(hi, 1),
+                "edge_minus": _edge(edge_lo, lo, min),
+                "edge_plus": _edge(edge_hi, hi, max),
+                "n_crossing": len(cross),
+            }
         out[layer] = {**info, "corners_camera_mm": _corners(info, groups, plane)}
     return out
 
@@ -152,8 +167,12 @@ def _corners(info: dict, groups: dict, plane: Plane):
         return None
     h = float(np.median([x.underside_mm for x in groups["bottom"]]))
     pts = []
-    for ca, cb in ((a["reach_minus_mm"], b["reach_minus_mm"]), (a["reach_plus_mm"], b["reach_minus_mm"]),
-                   (a["reach_plus_mm"], b["reach_plus_mm"]), (a["reach_minus_mm"], b["reach_plus_mm"])):
+    for ca, cb in (
+        (a["reach_minus_mm"], b["reach_minus_mm"]),
+        (a["reach_plus_mm"], b["reach_minus_mm"]),
+        (a["reach_plus_mm"], b["reach_plus_mm"]),
+        (a["reach_minus_mm"], b["reach_plus_mm"]),
+    ):
         xy = np.linalg.solve(A, np.array([ca, cb]))
         pts.append([xy[0], xy[1], h])
     return from_slab_frame(np.array(pts), plane).round(2).tolist()
@@ -182,7 +201,9 @@ def _offset(b: BarAxis, n2) -> float:
     return float(b.plan_point(b.t_mid) @ n2)
 
 
-def _samples(row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane: Plane, intr: Intrinsics):
+def _samples(
+    row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane: Plane, intr: Intrinsics
+):
     """Pixels (T, C, 2 int) and in-image flags of the plan grid (t along, p + c across) at
     height ``h``."""
     plan = t[:, None, None] * row.direction + (p + c)[None, :, None] * row.normal
@@ -201,7 +222,9 @@ def _runs(flags: np.ndarray) -> list:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm):
+def _examine(
+    row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm
+):
     """The depth's evidence at plan offset ``p`` of ``row``: a dict of lengths (mm) and the
     per-slice states (:func:`_add_mask` adds the colour mask's)."""
     s, r = row.spacing, row.radius
@@ -217,7 +240,9 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
     # found bars higher than this level hide the spot; lower ones are its support, judged by depth
     other = np.isin(owner, higher) & ~own_row & inside
     z = depth[v, u]
-    h = np.where(z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
+    h = np.where(
+        z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan
+    )
     margin = max(0.35 * r, 3.0 * noise)
     band_lo = row.height - r + margin
     band_hi = top + max(3.0 * noise, 2.0)
@@ -252,12 +277,27 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
             hd = sum(hidden[k, a:b].sum() for a, b in long) * step
             cause_nd[k], cause_hid[k] = nd >= r, hd >= r
     L = prm.step_mm
-    ev = {"in_view_mm": float(in_view.sum() * L), "empty_mm": float((state == 1).sum() * L),
-          "occupied_mm": float((state == 2).sum() * L), "no_depth_mm": float((in_view & cause_nd).sum() * L),
-          "hidden_mm": float((in_view & cause_hid).sum() * L), "mask_mm": 0.0, "mask_empty_share": math.nan,
-          "mask_nodepth_share": math.nan, "mask_occupied_share": math.nan, "centre": math.nan,
-          "centre_sigma": math.nan, "t_mask": None}
-    ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = state, in_view & cause_nd, t, c, in_view
+    ev = {
+        "in_view_mm": float(in_view.sum() * L),
+        "empty_mm": float((state == 1).sum() * L),
+        "occupied_mm": float((state == 2).sum() * L),
+        "no_depth_mm": float((in_view & cause_nd).sum() * L),
+        "hidden_mm": float((in_view & cause_hid).sum() * L),
+        "mask_mm": 0.0,
+        "mask_empty_share": math.nan,
+        "mask_nodepth_share": math.nan,
+        "mask_occupied_share": math.nan,
+        "centre": math.nan,
+        "centre_sigma": math.nan,
+        "t_mask": None,
+    }
+    ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = (
+        state,
+        in_view & cause_nd,
+        t,
+        c,
+        in_view,
+    )
     return ev
 
 
@@ -282,16 +322,20 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
             shows[k] = True
             centre[k] = 0.5 * (c[a] + c[b - 1])
     ev["mask_mm"] = float(shows.sum() * L)
-    for key, sel in (("mask_empty_share", state == 1), ("mask_nodepth_share", ev["_nd"]),
-                     ("mask_occupied_share", state == 2)):
+    for key, sel in (
+        ("mask_empty_share", state == 1),
+        ("mask_nodepth_share", ev["_nd"]),
+        ("mask_occupied_share", state == 2),
+    ):
         if sel.sum():
             ev[key] = float(shows[sel].mean())
     ev["_shows"], ev["_centre"] = shows, centre
     return ev
 
 
-def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, intr: Intrinsics,
-                     prm) -> tuple:
+def _place_from_mask(
+    row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, intr: Intrinsics, prm
+) -> tuple:
     """Centre line of the mask over the slices ``sel``: (plan offset, its standard uncertainty,
     t0, t1)."""
     cen = ev["_centre"][sel]
@@ -312,7 +356,5 @@ def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plan
     # registration to the depth image hold to about half a pixel, here in mm across
     f = 0.5 * (intr.fx + intr.fy)
     sd_mask = 0.5 * float(cam[2]) / f
-    sd = math.sqrt(sd_centre ** 2 + (row.height_sd * slope) ** 2 + sd_mask ** 2)
+    sd = math.sqrt(sd_centre**2 + (row.height_sd * slope) ** 2 + sd_mask**2)
     return p + med, sd, float(t.min()), float(t.max())
-
-

@@ -21,8 +21,15 @@ from ._checks import RebarInputError
 from ._design import Design
 from ._results import InspectionResult, Measurement
 
-__all__ = ["inspect", "prepare_cloud", "rebar_mask", "registered_mask", "trim_edge_fattening",
-           "METHODS", "MASK_SOURCES"]
+__all__ = [
+    "inspect",
+    "prepare_cloud",
+    "rebar_mask",
+    "registered_mask",
+    "trim_edge_fattening",
+    "METHODS",
+    "MASK_SOURCES",
+]
 
 METHODS = ("refined", "paper")
 #: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
@@ -67,8 +74,9 @@ MIN_CAMERA_HEIGHT_MM = 150.0
 MIN_BAR_PX = 2.0
 
 
-def facing_up(capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2,
-              min_cos: float = 0.5) -> np.ndarray:
+def facing_up(
+    capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2, min_cos: float = 0.5
+) -> np.ndarray:
     """Which of ``pixels`` (N, 2) see a surface facing up, away from the formwork: the normal
     from the depth image (cross product of the neighbours ``step_px`` away) makes an angle under
     60° (``min_cos``) with the plane's normal. Pixels without the neighbours' depth: False."""
@@ -117,18 +125,24 @@ def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | No
 
 def _check(capture, design, method):
     if not isinstance(capture, Capture):
-        raise RebarInputError("capture: expected a rebarlib.Capture (use rebarlib.load_capture), "
-                              f"got {type(capture).__name__}")
+        raise RebarInputError(
+            "capture: expected a rebarlib.Capture (use rebarlib.load_capture), "
+            f"got {type(capture).__name__}"
+        )
     if not isinstance(design, Design):
-        raise RebarInputError("design: expected a rebarlib.Design (use rebarlib.load_design), "
-                              f"got {type(design).__name__}")
+        raise RebarInputError(
+            "design: expected a rebarlib.Design (use rebarlib.load_design), "
+            f"got {type(design).__name__}"
+        )
     if method not in METHODS:
         raise RebarInputError(f"method: expected one of {METHODS}, got {method!r}")
     if not np.any(capture.depth_mm > 0):
         raise RebarInputError(f"capture {capture.name!r}: the depth image has no valid pixel")
 
 
-def _check_camera_height(capture: Capture, design: Design, height_mm: float, *, formwork: bool) -> None:
+def _check_camera_height(
+    capture: Capture, design: Design, height_mm: float, *, formwork: bool
+) -> None:
     """Refuse a capture whose formwork (else its median depth) lies nearer or farther from the
     camera than any capture could be measured from: its depth unit is almost surely wrong."""
     thinnest = min(design.lattice(la).level(lv).diameter_mm for la in G.LAYERS for lv in G.LEVELS)
@@ -141,7 +155,8 @@ def _check_camera_height(capture: Capture, design: Design, height_mm: float, *, 
     raise RebarInputError(
         f"{where}: depth_scale_mm looks wrong: {what} would be {height_mm:.0f} mm from the camera "
         f"(depth_scale_mm = {capture.depth_scale_mm:g}; plausible: {MIN_CAMERA_HEIGHT_MM:.0f} to {far:.0f} mm, "
-        f"where the thinnest bar, {thinnest:g} mm, still spans {MIN_BAR_PX:g} px)")
+        f"where the thinnest bar, {thinnest:g} mm, still spans {MIN_BAR_PX:g} px)"
+    )
 
 
 def _formwork_found(plane: G.Plane, h: np.ndarray, inliers: np.ndarray) -> tuple[bool, float]:
@@ -165,13 +180,18 @@ def _formwork_of(capture: Capture, design: Design, rng) -> tuple[G.Plane, bool, 
     thr = max(3.0, min(0.4 * design.cover_mm, 10.0))
     ref, inl = G.fit_formwork(points, threshold_mm=thr, rng=rng)
     found, below = _formwork_found(ref, ref.height(points), inl)
-    _check_camera_height(capture, design, ref.offset_mm if found else float(np.median(points[:, 2])), formwork=found)
+    _check_camera_height(
+        capture, design, ref.offset_mm if found else float(np.median(points[:, 2])), formwork=found
+    )
     return ref, found, below
 
 
 def _same_plane(a: G.Plane, b: G.Plane, band_mm: float) -> bool:
     """Normals within 2° and offsets within ``band_mm``."""
-    return float(np.dot(a.normal, b.normal)) > math.cos(math.radians(2.0)) and abs(a.offset_mm - b.offset_mm) < band_mm
+    return (
+        float(np.dot(a.normal, b.normal)) > math.cos(math.radians(2.0))
+        and abs(a.offset_mm - b.offset_mm) < band_mm
+    )
 
 
 def _camera_pose(plane: G.Plane) -> dict:
@@ -185,7 +205,9 @@ def _design_spacing(design: Design) -> dict:
 
 def _radii(design: Design, layer: str) -> dict:
     lat = design.lattice(layer)
-    from .diameter.barsizes import barset_width_mm  # a plain bar (surface = "plain") is seen at its diameter
+    from .diameter.barsizes import (
+        barset_width_mm,
+    )  # a plain bar (surface = "plain") is seen at its diameter
 
     return {lv: barset_width_mm(lat.level(lv), design.bar_system) / 2 for lv in G.LEVELS}
 
@@ -211,8 +233,17 @@ def _default_model():
     return SegmentationModel.default(threads=MODEL_THREADS)
 
 
-def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
-               soft: bool = False, tiled: bool = False, bar_width_px=None) -> np.ndarray:
+def rebar_mask(
+    capture: Capture,
+    *,
+    source: str = "fused",
+    plane=None,
+    model=None,
+    rng=None,
+    soft: bool = False,
+    tiled: bool = False,
+    bar_width_px=None,
+) -> np.ndarray:
     """The rebar mask of a capture for the diameter stage: (H, W) bool, or float32 with ``soft``.
 
     ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
@@ -230,12 +261,30 @@ def rebar_mask(capture: Capture, *, source: str = "fused", plane=None, model=Non
     The mask is the colour image's, as it comes; :func:`registered_mask` also moves it onto the
     depth image where the two are misregistered.
     """
-    return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
-                 bar_width_px=bar_width_px, register=False)[0]
+    return _mask(
+        capture,
+        source=source,
+        plane=plane,
+        model=model,
+        rng=rng,
+        soft=soft,
+        tiled=tiled,
+        bar_width_px=bar_width_px,
+        register=False,
+    )[0]
 
 
-def registered_mask(capture: Capture, *, source: str = "fused", plane=None, model=None, rng=None,
-                    soft: bool = False, tiled: bool = False, bar_width_px=None):
+def registered_mask(
+    capture: Capture,
+    *,
+    source: str = "fused",
+    plane=None,
+    model=None,
+    rng=None,
+    soft: bool = False,
+    tiled: bool = False,
+    bar_width_px=None,
+):
     """:func:`rebar_mask` on the depth image's pixels: ``(mask, capture, registration)``.
 
     The colour image's bars are registered to the depth image's
@@ -249,8 +298,17 @@ def registered_mask(capture: Capture, *, source: str = "fused", plane=None, mode
     its mask first, ``segmentation.depth_overreach_px``), or None for the "depth" source
     (nothing to register).
     """
-    return _mask(capture, source=source, plane=plane, model=model, rng=rng, soft=soft, tiled=tiled,
-                 bar_width_px=bar_width_px, register=True)
+    return _mask(
+        capture,
+        source=source,
+        plane=plane,
+        model=model,
+        rng=rng,
+        soft=soft,
+        tiled=tiled,
+        bar_width_px=bar_width_px,
+        register=True,
+    )
 
 
 def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.ndarray:
@@ -290,8 +348,15 @@ def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.nd
 
 
 def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
-    from .segmentation import (depth_overreach_px, estimate_registration, fuse_masks,
-                               mask_from_depth, shift_image, soft_mask, trim_depth_overreach)
+    from .segmentation import (
+        depth_overreach_px,
+        estimate_registration,
+        fuse_masks,
+        mask_from_depth,
+        shift_image,
+        soft_mask,
+        trim_depth_overreach,
+    )
 
     if source not in MASK_SOURCES:
         raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
@@ -300,7 +365,9 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
         return (depth.astype(np.float32) if soft else depth), capture, None
     model = model or _default_model()
     proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
-    depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
+    depth = (
+        mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
+    )
     valid = capture.depth_mm > 0
     colour = proba > model.threshold
     reach = 0
@@ -315,9 +382,12 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
     if register:
         du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
         applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
-        registration = {"shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
-                        "correlation": round(cc, 4) if math.isfinite(cc) else None,
-                        "applied": applied, "depth_overreach_px": reach}
+        registration = {
+            "shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
+            "correlation": round(cc, 4) if math.isfinite(cc) else None,
+            "applied": applied,
+            "depth_overreach_px": reach,
+        }
         if applied:
             proba = shift_image(proba, du, dv)
             colour = proba > model.threshold
@@ -339,14 +409,27 @@ def widest_bar_px(capture: Capture, design: Design) -> float:
     z = capture.depth_mm[capture.depth_mm > 0]
     if z.size == 0:
         return math.nan
-    widest = max(observed_width_mm(design.lattice(layer).level(level).diameter_mm, system=design.bar_system)
-                 for layer in ("lower", "upper") for level in ("bottom", "top"))
+    widest = max(
+        observed_width_mm(design.lattice(layer).level(level).diameter_mm, system=design.bar_system)
+        for layer in ("lower", "upper")
+        for level in ("bottom", "top")
+    )
     return float(widest * capture.intrinsics.fx / np.percentile(z, 1))
 
 
-def inspect(capture: Capture, design: Design, *, method: str = "refined", diameters: bool = True,
-            mask=None, mask_source: str | None = None, register: bool = True, edge_trim_px=None,
-            rng=None, calibration=None) -> InspectionResult:
+def inspect(
+    capture: Capture,
+    design: Design,
+    *,
+    method: str = "refined",
+    diameters: bool = True,
+    mask=None,
+    mask_source: str | None = None,
+    register: bool = True,
+    edge_trim_px=None,
+    rng=None,
+    calibration=None,
+) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
 
     Parameters
@@ -383,17 +466,27 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
     InspectionResult; bars carry their fitted points in ``result.bar_points`` (bar_id -> Cloud).
     """
     _check(capture, design, method)
-    if edge_trim_px is not None and (isinstance(edge_trim_px, bool)
-                                     or not isinstance(edge_trim_px, int) or edge_trim_px < 0):
-        raise RebarInputError("edge_trim_px: expected None or a whole number of pixels >= 0, "
-                              f"got {edge_trim_px!r}")
+    if edge_trim_px is not None and (
+        isinstance(edge_trim_px, bool) or not isinstance(edge_trim_px, int) or edge_trim_px < 0
+    ):
+        raise RebarInputError(
+            f"edge_trim_px: expected None or a whole number of pixels >= 0, got {edge_trim_px!r}"
+        )
     rng = np.random.default_rng(rng)
     capture, cal = _calibrated(capture, calibration)
     if method == "paper":
         res = _inspect_paper(capture, design, rng)
         if diameters:
-            _add_diameters(res, capture, design, method=method, mask=mask,
-                           mask_source=mask_source or "model", register=False, rng=rng)
+            _add_diameters(
+                res,
+                capture,
+                design,
+                method=method,
+                mask=mask,
+                mask_source=mask_source or "model",
+                register=False,
+                rng=rng,
+            )
         return _budget(_note_inputs(res, capture), capture, design, cal)
     # the geometry may be fitted again on a trimmed depth: it then draws the same random numbers
     rng_again = copy.deepcopy(rng)
@@ -414,13 +507,23 @@ def inspect(capture: Capture, design: Design, *, method: str = "refined", diamet
             again.timings_s["first_fit"] = round(sum(first.timings_s.values()), 6)
             return again
 
-        res = _add_diameters(res, capture, design, method=method, mask=mask,
-                             mask_source=mask_source or "fused", register=register, rng=rng,
-                             refit=refit if edge_trim_px is None else None)
+        res = _add_diameters(
+            res,
+            capture,
+            design,
+            method=method,
+            mask=mask,
+            mask_source=mask_source or "fused",
+            register=register,
+            rng=rng,
+            refit=refit if edge_trim_px is None else None,
+        )
     if trim:
         res.extras["edge_trim_px"] = trim
-        res.notes.append(f"edge fattening: the nearer surface's last {trim} px at every "
-                         "occluding edge of the depth image left out before the bars were fitted")
+        res.notes.append(
+            f"edge fattening: the nearer surface's last {trim} px at every "
+            "occluding edge of the depth image left out before the bars were fitted"
+        )
     return _budget(_note_inputs(res, capture), capture, design, cal)
 
 
@@ -440,15 +543,22 @@ def _budget(res: InspectionResult, capture: Capture, design: Design, cal) -> Ins
 
     if cal is not None:
         res.extras["calibration"] = {**cal.to_dict(), "file": cal.source, "summary": cal.summary()}
-    return apply_budget(res, design, device=capture.metadata.get("device"), calibration=cal,
-                        intrinsics=capture.intrinsics)
+    return apply_budget(
+        res,
+        design,
+        device=capture.metadata.get("device"),
+        calibration=cal,
+        intrinsics=capture.intrinsics,
+    )
 
 
 def _note_inputs(res: InspectionResult, capture: Capture) -> InspectionResult:
     """Notes on what the capture's files left to a default."""
     if capture.metadata.get("depth_scale_assumed"):
-        res.notes.append(f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit "
-                         "was assumed")
+        res.notes.append(
+            f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit "
+            "was assumed"
+        )
     return res
 
 
@@ -458,8 +568,18 @@ def _trimmed(capture: Capture, px: int) -> Capture:
     return dataclasses.replace(capture, depth_mm=trim_edge_fattening(capture.depth_mm, px))
 
 
-def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register,
-                   rng, refit=None) -> InspectionResult:
+def _add_diameters(
+    res: InspectionResult,
+    capture: Capture,
+    design: Design,
+    *,
+    method,
+    mask,
+    mask_source,
+    register,
+    rng,
+    refit=None,
+) -> InspectionResult:
     """``res`` with the diameter columns; ``refit(px)``: ``res`` fitted again on the depth
     trimmed by ``px`` (:func:`trim_edge_fattening`), called where the mask step measures an
     over-reach of the depth's bars beyond the colour's."""
@@ -476,13 +596,23 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
         refined = method == "refined"
         # the refined method also undoes a colour-depth misregistration (registered_mask); the
         # paper's takes the images as they come
-        mask, capture, reg = _mask(capture, source=mask_source, plane=plane, model=None, rng=rng, soft=refined,
-                                   tiled=refined, bar_width_px=widest_bar_px(capture, design) if refined else None,
-                                   register=register)
+        mask, capture, reg = _mask(
+            capture,
+            source=mask_source,
+            plane=plane,
+            model=None,
+            rng=rng,
+            soft=refined,
+            tiled=refined,
+            bar_width_px=widest_bar_px(capture, design) if refined else None,
+            register=register,
+        )
     else:
         mask = np.asarray(mask)
         if mask.shape != capture.depth_mm.shape:
-            raise RebarInputError(f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}")
+            raise RebarInputError(
+                f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}"
+            )
     t_mask = time.perf_counter() - t
     reach = (reg or {}).get("depth_overreach_px") or 0
     if refit is not None and reach:
@@ -503,21 +633,29 @@ def _add_diameters(res: InspectionResult, capture: Capture, design: Design, *, m
 
 def _note_registration(res: InspectionResult, reg: dict) -> None:
     if reg.get("depth_overreach_px"):
-        res.notes.append(f"the depth image's bars reach {reg['depth_overreach_px']} px beyond "
-                         "the colour image's on every side (edge fattening): left out of the mask "
-                         "the diameters are read on")
+        res.notes.append(
+            f"the depth image's bars reach {reg['depth_overreach_px']} px beyond "
+            "the colour image's on every side (edge fattening): left out of the mask "
+            "the diameters are read on"
+        )
     if reg["shift_px"] is None:
-        res.notes.append("colour-depth registration could not be estimated (too few bars seen by both): "
-                         "the colour image was taken as aligned to the depth image")
+        res.notes.append(
+            "colour-depth registration could not be estimated (too few bars seen by both): "
+            "the colour image was taken as aligned to the depth image"
+        )
         return
     du, dv = reg["shift_px"]
     size = math.hypot(du, dv)
     if reg["applied"]:
-        res.notes.append(f"the depth image lies ({du:+.1f}, {dv:+.1f}) px from the colour image: the colour "
-                         "image was moved onto it before the bars' diameters were measured")
+        res.notes.append(
+            f"the depth image lies ({du:+.1f}, {dv:+.1f}) px from the colour image: the colour "
+            "image was moved onto it before the bars' diameters were measured"
+        )
     if size > REGISTRATION_WARN_PX:
-        res.notes.append(f"colour and depth misregistered by {size:.1f} px: check the camera's "
-                         "depth-to-colour alignment")
+        res.notes.append(
+            f"colour and depth misregistered by {size:.1f} px: check the camera's "
+            "depth-to-colour alignment"
+        )
 
 
 def _paper_top_cover(design: Design, upper_top: Measurement) -> Measurement:
@@ -542,8 +680,12 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     T["cloud"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    plane, inl = G.paper_fit_formwork(cloud.points, threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
-                                      max_trials=PAPER_PLANE_TRIALS, rng=rng)
+    plane, inl = G.paper_fit_formwork(
+        cloud.points,
+        threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
+        max_trials=PAPER_PLANE_TRIALS,
+        rng=rng,
+    )
     has_formwork = ref_found and _same_plane(ref_plane, plane, PAPER_T1_FACTOR * design.cover_mm)
     T["plane"] = time.perf_counter() - t
 
@@ -559,10 +701,14 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     notes = ["paper method: cover = m1 - 1.2 d_lower, layer distance = m2 - m1 (method.md stage 1)"]
     cover, layer_distance, upper_top = _paper_heights(q, lower, design, rng, notes)
     if not has_formwork:
-        why = (f"no formwork visible in the capture: {below:.0%} of the points lie under the best plane "
-               "(heights above it would be heights above the bars)")
+        why = (
+            f"no formwork visible in the capture: {below:.0%} of the points lie under the best plane "
+            "(heights above it would be heights above the bars)"
+        )
         cover = Measurement.not_measured(why)
-        layer_distance = Measurement.not_measured(why + "; the paper's layer split t2 is a height above the formwork")
+        layer_distance = Measurement.not_measured(
+            why + "; the paper's layer split t2 is a height above the formwork"
+        )
         upper_top = Measurement.not_measured(why)
         notes.append(why)
     T["cover"] = time.perf_counter() - t
@@ -577,13 +723,22 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
     counts = G.count_bars(bars, design_spacing=_design_spacing(design))
     T["spacing"] = time.perf_counter() - t
 
-    res = InspectionResult(capture=capture.name, method="paper", cover=cover, layer_distance=layer_distance,
-                           upper_top=upper_top, top_cover=_paper_top_cover(design, upper_top),
-                           bars=G.bars_table(bars, plane), spacings=spacings, counts=counts,
-                           formwork={**plane.to_dict(), "found": bool(has_formwork)},
-                           camera=_camera_pose(plane) if has_formwork else {},
-                           timings_s=T, notes=notes,
-                           extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))})
+    res = InspectionResult(
+        capture=capture.name,
+        method="paper",
+        cover=cover,
+        layer_distance=layer_distance,
+        upper_top=upper_top,
+        top_cover=_paper_top_cover(design, upper_top),
+        bars=G.bars_table(bars, plane),
+        spacings=spacings,
+        counts=counts,
+        formwork={**plane.to_dict(), "found": bool(has_formwork)},
+        camera=_camera_pose(plane) if has_formwork else {},
+        timings_s=T,
+        notes=notes,
+        extras={"layer_split_mm": PAPER_T2_MM, "n_points": int(len(cloud))},
+    )
     res.bar_points = {i: c for i, c in enumerate(clouds)}
     return res
 
@@ -600,18 +755,24 @@ def _paper_heights(q, lower, design: Design, rng, notes: list) -> tuple:
     else:
         s1 = ql[rng.choice(len(ql), min(PAPER_SAMPLE, len(ql)), replace=False), 2]
         m1 = float(s1.mean())
-        cover = Measurement(m1 - PAPER_COVER_FACTOR * d_low, float(s1.std() / math.sqrt(len(s1))), len(s1))
+        cover = Measurement(
+            m1 - PAPER_COVER_FACTOR * d_low, float(s1.std() / math.sqrt(len(s1))), len(s1)
+        )
     if len(qu) == 0 or m1 is None:
         layer_distance = Measurement.not_measured("no point of one of the lattices")
         upper_top = Measurement.not_measured("no point of the upper lattice")
     else:
         s2 = qu[rng.choice(len(qu), min(PAPER_SAMPLE, len(qu)), replace=False), 2]
-        layer_distance = Measurement(float(s2.mean()) - m1, float(math.hypot(s1.std() / math.sqrt(len(s1)),
-                                                                             s2.std() / math.sqrt(len(s2)))),
-                                     len(s1) + len(s2))
+        layer_distance = Measurement(
+            float(s2.mean()) - m1,
+            float(math.hypot(s1.std() / math.sqrt(len(s1)), s2.std() / math.sqrt(len(s2)))),
+            len(s1) + len(s2),
+        )
         upper_top = Measurement(float(np.percentile(qu[:, 2], 99)), None, len(qu))
-        notes.append("paper method: top of the upper lattice is the 99th percentile of the upper heights "
-                     "(the paper does not measure it)")
+        notes.append(
+            "paper method: top of the upper lattice is the 99th percentile of the upper heights "
+            "(the paper does not measure it)"
+        )
     return cover, layer_distance, upper_top
 
 
@@ -625,8 +786,9 @@ def _paper_bars(q, lower, rest, cloud, design: Design, rng) -> tuple:
             continue
         d = design.lattice(lname).bottom.diameter_mm
         # t4: slightly more than half the design diameter (method.md): 0.5 d + 1 mm
-        found = G.paper_find_bars(q[idx], layer=lname, threshold_mm=0.5 * d + 1.0, max_trials=PAPER_LINE_TRIALS,
-                                  rng=rng)
+        found = G.paper_find_bars(
+            q[idx], layer=lname, threshold_mm=0.5 * d + 1.0, max_trials=PAPER_LINE_TRIALS, rng=rng
+        )
         found = G.group_directions(found, rng=rng)
         found = G.assign_levels(found)
         for b in found:

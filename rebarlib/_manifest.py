@@ -59,14 +59,22 @@ def make_manifest(capture_folder, design_path, *, method: str, options: dict | N
     }
 
 
-def manifest_problems(manifest: dict | None, *, capture_folder=None, design_path=None,
-                      method: str | None = None, version: str | None = None) -> list:
+def manifest_problems(
+    manifest: dict | None,
+    *,
+    capture_folder=None,
+    design_path=None,
+    method: str | None = None,
+    version: str | None = None,
+) -> list:
     """Differences between a stored manifest and the inputs at hand, as sentences.
 
     Each keyword left None is not compared. An empty list means the result belongs to them.
     """
     if not isinstance(manifest, dict):
-        return ["it has no manifest (written by an older rebarlib or by hand): re-run `rebar inspect`"]
+        return [
+            "it has no manifest (written by an older rebarlib or by hand): re-run `rebar inspect`"
+        ]
     out = []
     if capture_folder is not None:
         cap = Path(capture_folder).resolve()

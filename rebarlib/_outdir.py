@@ -22,8 +22,15 @@ from pathlib import Path
 
 from ._checks import RebarInputError
 
-__all__ = ["LOCK_NAME", "check_out_folder", "locked", "write_folder_atomically",
-           "write_file_atomically", "tidy", "reserved_name"]
+__all__ = [
+    "LOCK_NAME",
+    "check_out_folder",
+    "locked",
+    "write_folder_atomically",
+    "write_file_atomically",
+    "tidy",
+    "reserved_name",
+]
 
 LOCK_NAME = ".rebar.lock"
 _TMP, _OLD = ".tmp-", ".old-"
@@ -45,16 +52,21 @@ def check_out_folder(out: Path, names=(), *, option: str = "--out") -> None:
         raise RebarInputError(f"{option} {out}: exists and is not a folder")
     for parent in out.absolute().parents:
         if parent.exists() and not parent.is_dir():
-            raise RebarInputError(f"{option} {out}: {parent} is a file, so no folder can be made "
-                                  "below it")
+            raise RebarInputError(
+                f"{option} {out}: {parent} is a file, so no folder can be made below it"
+            )
     for name in names:
         target = out / name
         if reserved_name(name):
-            raise RebarInputError(f"{option} {out}: a result folder cannot be called {name!r} "
-                                  "(the name of the folder's lock or temporary files)")
+            raise RebarInputError(
+                f"{option} {out}: a result folder cannot be called {name!r} "
+                "(the name of the folder's lock or temporary files)"
+            )
         if target.exists() and not target.is_dir():
-            raise RebarInputError(f"{option} {out}: {target} exists and is not a folder; move it "
-                                  "away or choose another --out")
+            raise RebarInputError(
+                f"{option} {out}: {target} exists and is not a folder; move it "
+                "away or choose another --out"
+            )
 
 
 def _holder(path: Path) -> str:
@@ -72,8 +84,9 @@ def locked(out: Path, *, option: str = "--out"):
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise RebarInputError(f"{option} {out}: cannot create the folder "
-                              f"({exc.strerror})") from None
+        raise RebarInputError(
+            f"{option} {out}: cannot create the folder ({exc.strerror})"
+        ) from None
     path = out / LOCK_NAME
     fd = _acquire(path, option=option, out=out)
     try:
@@ -96,15 +109,18 @@ def _acquire(path: Path, *, option: str, out: Path) -> int:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise RebarInputError(f"{option} {out}: cannot write into the folder "
-                                  f"({exc.strerror})") from None
+            raise RebarInputError(
+                f"{option} {out}: cannot write into the folder ({exc.strerror})"
+            ) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise RebarInputError(f"{option} {out}: another rebar run is writing into this "
-                                  f"folder{_holder(path)}; wait for it to end or choose another "
-                                  "--out") from None
+            raise RebarInputError(
+                f"{option} {out}: another rebar run is writing into this "
+                f"folder{_holder(path)}; wait for it to end or choose another "
+                "--out"
+            ) from None
         # the holder before us may have removed the file between our open and our lock: the
         # lock is only ours if it is on the file that is there now
         try:
@@ -120,8 +136,10 @@ def _acquire_by_create(path: Path, *, option: str, out: Path) -> int:  # pragma:
     try:
         return os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
     except FileExistsError:
-        raise RebarInputError(f"{option} {out}: another rebar run is writing into this "
-                              f"folder{_holder(path)} (if none is, delete {path})") from None
+        raise RebarInputError(
+            f"{option} {out}: another rebar run is writing into this "
+            f"folder{_holder(path)} (if none is, delete {path})"
+        ) from None
 
 
 def tidy(out: Path) -> None:
@@ -131,7 +149,7 @@ def tidy(out: Path) -> None:
         if p.name.startswith(_TMP):
             _remove(p)
         elif p.name.startswith(_OLD) and p.is_dir():
-            name = p.name[len(_OLD):].rsplit("-", 1)[0]
+            name = p.name[len(_OLD) :].rsplit("-", 1)[0]
             if name and not (Path(out) / name).exists():
                 os.rename(p, Path(out) / name)
             else:

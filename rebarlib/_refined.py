@@ -21,9 +21,20 @@ from ._camera import Cloud
 from ._capture import Capture
 from ._checks import RebarInputError
 from ._design import Design
-from ._inspect import (MIN_BAR_LENGTH_MM, MIN_LATTICE_POINTS, STRIDE, _camera_pose, _check_camera_height,
-                       _design_spacing, _formwork_found, _mean_measure, _radii, facing_up, prepare_cloud,
-                       registered_mask)
+from ._inspect import (
+    MIN_BAR_LENGTH_MM,
+    MIN_LATTICE_POINTS,
+    STRIDE,
+    _camera_pose,
+    _check_camera_height,
+    _design_spacing,
+    _formwork_found,
+    _mean_measure,
+    _radii,
+    facing_up,
+    prepare_cloud,
+    registered_mask,
+)
 from ._results import InspectionResult, Measurement
 from ._status import MEASURED
 
@@ -53,7 +64,9 @@ class _Lattices:
     names: list
 
 
-def inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | None = None) -> InspectionResult:
+def inspect_refined(
+    capture: Capture, design: Design, rng, mask_cache: dict | None = None
+) -> InspectionResult:
     """The refined method's result for one capture (no diameters: :func:`rebarlib.inspect`
     adds them). ``mask_cache``: a dict the colour mask is kept in between calls."""
     T, notes = {}, []
@@ -83,13 +96,26 @@ def inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | No
 
     plane = ground.plane
     table = G.bars_table(bars, plane, points=[c.points for c in bar_clouds])
-    res = InspectionResult(capture=capture.name, method="refined", cover=cover, layer_distance=layer_distance,
-                           upper_top=upper_top, top_cover=top_cover, bars=table, spacings=spacings, counts=counts,
-                           formwork={**plane.to_dict(), "found": bool(ground.found)},
-                           camera=_camera_pose(plane) if ground.found else {},
-                           timings_s=T, notes=notes,
-                           extras={"layer_split_mm": lat.split, "n_points": int(len(cloud)),
-                                   "mesh_boundary": boundary})
+    res = InspectionResult(
+        capture=capture.name,
+        method="refined",
+        cover=cover,
+        layer_distance=layer_distance,
+        upper_top=upper_top,
+        top_cover=top_cover,
+        bars=table,
+        spacings=spacings,
+        counts=counts,
+        formwork={**plane.to_dict(), "found": bool(ground.found)},
+        camera=_camera_pose(plane) if ground.found else {},
+        timings_s=T,
+        notes=notes,
+        extras={
+            "layer_split_mm": lat.split,
+            "n_points": int(len(cloud)),
+            "mesh_boundary": boundary,
+        },
+    )
     res.positions = positions
     res.bar_points = {i: c for i, c in enumerate(bar_clouds)}
     return res
@@ -103,11 +129,17 @@ def _ground(capture: Capture, design: Design, cloud, rng, notes: list) -> _Groun
     h = plane.height(cloud.points)
     sigma = plane.noise_mm or 1.0
     has_formwork, below = _formwork_found(plane, h, inl)
-    _check_camera_height(capture, design, plane.offset_mm if has_formwork else float(np.median(cloud.points[:, 2])),
-                         formwork=has_formwork)
+    _check_camera_height(
+        capture,
+        design,
+        plane.offset_mm if has_formwork else float(np.median(cloud.points[:, 2])),
+        formwork=has_formwork,
+    )
     if not has_formwork:
-        notes.append(f"no formwork plane: {below:.0%} of the points lie under the best plane; cover not measured, "
-                     "heights are relative to the lowest bars")
+        notes.append(
+            f"no formwork plane: {below:.0%} of the points lie under the best plane; cover not measured, "
+            "heights are relative to the lowest bars"
+        )
         # a reference plane parallel to the lattice, under every point
         lowest = float(np.percentile(h, 0.5))
         plane = G.Plane(plane.normal, plane.offset_mm - lowest, 0, None)
@@ -139,9 +171,11 @@ def _above_formwork(design: Design, ground: _Ground, notes: list) -> np.ndarray:
         high = h[bar_sel] > top_limit
         if high.any():
             if high.mean() > 0.01:
-                notes.append(f"{high.mean():.0%} of the points above the formwork lie more than "
-                             f"{top_limit - design.upper_top_mm:.0f} mm above the design's top of the mesh "
-                             f"({design.upper_top_mm:.0f} mm): left out as not rebar (an edge form, an object)")
+                notes.append(
+                    f"{high.mean():.0%} of the points above the formwork lie more than "
+                    f"{top_limit - design.upper_top_mm:.0f} mm above the design's top of the mesh "
+                    f"({design.upper_top_mm:.0f} mm): left out as not rebar (an edge form, an object)"
+                )
             bar_sel = bar_sel[~high]
     return bar_sel
 
@@ -164,8 +198,10 @@ def _lattices(capture: Capture, design: Design, cloud, ground: _Ground, notes: l
             clear = design.layer_distance_mm - design.lower.thickness_mm
             split = G.find_layer_split(q[up, 2], min_gap_mm=max(6.0, 0.5 * clear))
             if split is not None:
-                notes.append(f"layer split at {split:.0f} mm found on the upward-facing points only: vertical "
-                             "surfaces (an edge form, a wall) fill the band between the lattices")
+                notes.append(
+                    f"layer split at {split:.0f} mm found on the upward-facing points only: vertical "
+                    "surfaces (an edge form, a wall) fill the band between the lattices"
+                )
     layer_of = G.split_layers(q[:, 2], split_mm=split)
     layer_names = ["lower", "upper"]
     if len(q) < MIN_LATTICE_POINTS:
@@ -175,9 +211,13 @@ def _lattices(capture: Capture, design: Design, cloud, ground: _Ground, notes: l
     elif split is None:
         # one lattice: which one, from the design heights (only meaningful over formwork)
         lo = float(np.percentile(q[:, 2], 2))
-        is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(lo - design.cover_mm)
+        is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(
+            lo - design.cover_mm
+        )
         layer_names = ["upper" if is_upper else "lower"]
-        notes.append(f"one lattice only ({layer_names[0]}): no empty band between lattices in the heights")
+        notes.append(
+            f"one lattice only ({layer_names[0]}): no empty band between lattices in the heights"
+        )
     return _Lattices(bar_sel, q, split, layer_of, layer_names)
 
 
@@ -196,22 +236,43 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
         radii = _radii(design, lname)
         # direction groups do not know their level yet: fit with the larger radius first, then
         # refit each group with its level's radius once the levels are known
-        found = G.find_bars(lat.q[sel], layer=lname, radius_mm=max(radii.values()),
-                            min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, camera=camera, rng=rng)
+        found = G.find_bars(
+            lat.q[sel],
+            layer=lname,
+            radius_mm=max(radii.values()),
+            min_length_mm=MIN_BAR_LENGTH_MM,
+            pitch_mm=pitch,
+            camera=camera,
+            rng=rng,
+        )
         found = G.assign_levels(found)
         if radii["bottom"] != radii["top"]:
             rad_by_group = {b.group: radii[b.level] for b in found}
-            found = G.assign_levels(G.find_bars(lat.q[sel], layer=lname, radius_mm=rad_by_group,
-                                                min_length_mm=MIN_BAR_LENGTH_MM, pitch_mm=pitch, camera=camera,
-                                                rng=rng))
+            found = G.assign_levels(
+                G.find_bars(
+                    lat.q[sel],
+                    layer=lname,
+                    radius_mm=rad_by_group,
+                    min_length_mm=MIN_BAR_LENGTH_MM,
+                    pitch_mm=pitch,
+                    camera=camera,
+                    rng=rng,
+                )
+            )
         found = G.flag_border_cut(found, lat.q[sel], plane=plane, intrinsics=K)
         for b in found:
             bar_clouds.append(cloud.subset(lat.sel[sel[b.point_index]]))
         bars.extend(found)
     # a second look, at full resolution, at the positions of each row where no bar was found
-    more, more_clouds = G.find_missed_bars(bars, depth_mm=capture.depth_mm, intrinsics=K, plane=plane,
-                                           design_spacing=_design_spacing(design), noise_mm=plane.noise_mm,
-                                           min_length_mm=MIN_BAR_LENGTH_MM)
+    more, more_clouds = G.find_missed_bars(
+        bars,
+        depth_mm=capture.depth_mm,
+        intrinsics=K,
+        plane=plane,
+        design_spacing=_design_spacing(design),
+        noise_mm=plane.noise_mm,
+        min_length_mm=MIN_BAR_LENGTH_MM,
+    )
     return bars + more, bar_clouds + more_clouds
 
 
@@ -221,7 +282,11 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
     plane, has_formwork, sigma = ground.plane, ground.found, ground.sigma
 
     def undersides(layer, level):
-        return [b.underside_mm for b in bars if b.layer == layer and b.level == level and b.status == MEASURED]
+        return [
+            b.underside_mm
+            for b in bars
+            if b.layer == layer and b.level == level and b.status == MEASURED
+        ]
 
     def npts(layer, level):
         return sum(b.n_points for b in bars if b.layer == layer and b.level == level)
@@ -230,40 +295,60 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
     unclear = {la: _levels_unclear(bars, la) for la in G.LAYERS}
     lower_u = undersides("lower", "bottom")
     if not has_formwork:
-        cover = Measurement.not_measured("no formwork visible in the capture (no plane with nothing beneath it)")
+        cover = Measurement.not_measured(
+            "no formwork visible in the capture (no plane with nothing beneath it)"
+        )
     elif unclear["lower"]:
         cover = Measurement.not_measured(unclear["lower"], npts("lower", "bottom"))
     elif not lower_u:
-        cover = Measurement.not_measured("no bar of the lower lattice's bottom level was measured",
-                                         npts("lower", "bottom"))
+        cover = Measurement.not_measured(
+            "no bar of the lower lattice's bottom level was measured", npts("lower", "bottom")
+        )
     else:
-        cover = _mean_measure(lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom"))
+        cover = _mean_measure(
+            lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom")
+        )
     upper_u = undersides("upper", "bottom")
     if unclear["lower"] or unclear["upper"]:
         layer_distance = Measurement.not_measured(unclear["lower"] or unclear["upper"])
     elif lower_u and upper_u:
         lm = _mean_measure(lower_u, what="lower bar")
         um = _mean_measure(upper_u, what="upper bar")
-        layer_distance = Measurement(um.value_mm - lm.value_mm, math.hypot(lm.uncertainty_mm, um.uncertainty_mm),
-                                     npts("lower", "bottom") + npts("upper", "bottom"))
+        layer_distance = Measurement(
+            um.value_mm - lm.value_mm,
+            math.hypot(lm.uncertainty_mm, um.uncertainty_mm),
+            npts("lower", "bottom") + npts("upper", "bottom"),
+        )
     else:
         which = "upper" if not upper_u else "lower"
-        layer_distance = Measurement.not_measured(f"no bar of the {which} lattice's bottom level was measured")
-    tops = [b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == MEASURED]
+        layer_distance = Measurement.not_measured(
+            f"no bar of the {which} lattice's bottom level was measured"
+        )
+    tops = [
+        b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == MEASURED
+    ]
     if not has_formwork:
         upper_top = Measurement.not_measured("no formwork visible: heights have no reference")
     elif unclear["upper"]:
         upper_top = Measurement.not_measured(unclear["upper"], npts("upper", "top"))
     else:
-        upper_top = (_mean_measure(tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top"))
-                     if tops else Measurement.not_measured("no bar of the upper lattice's top level was measured"))
+        upper_top = (
+            _mean_measure(
+                tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top")
+            )
+            if tops
+            else Measurement.not_measured("no bar of the upper lattice's top level was measured")
+        )
     return cover, layer_distance, upper_top, _top_cover(design, upper_top)
 
 
-def _positions(capture: Capture, design: Design, bars: list, plane: G.Plane, mask_cache: dict | None) -> tuple:
+def _positions(
+    capture: Capture, design: Design, bars: list, plane: G.Plane, mask_cache: dict | None
+) -> tuple:
     """Every empty design position and every close pair examined on evidence (docs/verdicts.md):
     (positions, the bars placed where only the colour shows one, the mesh's boundary). The
     colour mask is computed only when a verdict needs it, and kept in ``mask_cache``."""
+
     def count_mask():
         if mask_cache is not None and "model" in mask_cache:
             return mask_cache["model"]
@@ -272,8 +357,15 @@ def _positions(capture: Capture, design: Design, bars: list, plane: G.Plane, mas
             mask_cache["model"] = m
         return m
 
-    return C.examine_positions(bars, design_spacing=_design_spacing(design), plane=plane, depth_mm=capture.depth_mm,
-                               intrinsics=capture.intrinsics, mask=count_mask, noise_mm=plane.noise_mm)
+    return C.examine_positions(
+        bars,
+        design_spacing=_design_spacing(design),
+        plane=plane,
+        depth_mm=capture.depth_mm,
+        intrinsics=capture.intrinsics,
+        mask=count_mask,
+        noise_mm=plane.noise_mm,
+    )
 
 
 def _levels_unclear(bars: list, layer: str) -> str:
@@ -289,13 +381,19 @@ def _levels_unclear(bars: list, layer: str) -> str:
     levels = {b.level for b in bars if b.layer == layer and b.status == MEASURED}
     if not levels or levels == {"bottom", "top"}:
         return ""
-    return (f"bars of the {layer} lattice were measured in one direction only: whether they are its "
-            "bottom or its top level cannot be told (too few depth points on the other direction's bars)")
+    return (
+        f"bars of the {layer} lattice were measured in one direction only: whether they are its "
+        "bottom or its top level cannot be told (too few depth points on the other direction's bars)"
+    )
 
 
 def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
     if design.thickness_mm is None:
         return Measurement.not_measured("the design gives no slab thickness")
     if not upper_top.ok:
-        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
-    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)
+        return Measurement.not_measured(
+            f"top of the upper lattice not measured ({upper_top.reason})"
+        )
+    return Measurement(
+        design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points
+    )

@@ -13,15 +13,31 @@ import numpy as np
 from ._camera import project
 from ._checks import RebarInputError
 from ._design import Design
-from ._status import (BEYOND, BEYOND_MAX, FAIL, HIDDEN, INCOMPLETE, MISSING, NOT_CHECKED,
-                      NOT_MEASURED, PASS)
+from ._status import (
+    BEYOND,
+    BEYOND_MAX,
+    FAIL,
+    HIDDEN,
+    INCOMPLETE,
+    MISSING,
+    NOT_CHECKED,
+    NOT_MEASURED,
+    PASS,
+)
 from .acceptance import is_true
 
 #: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
-BAR_COLOURS = {PASS: "#1b9e77", FAIL: "#d62728", INCOMPLETE: "#e7c21f", NOT_CHECKED: "#f0a30a",
-               HIDDEN: "#7f3fbf"}
+BAR_COLOURS = {
+    PASS: "#1b9e77",
+    FAIL: "#d62728",
+    INCOMPLETE: "#e7c21f",
+    NOT_CHECKED: "#f0a30a",
+    HIDDEN: "#7f3fbf",
+}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
-IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
+IMAGE_WIDTH_PX = (
+    720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
+)
 
 
 def _image_data_uri(path: Path) -> tuple[str, float]:
@@ -91,9 +107,20 @@ def _image_overlay(bars: list, verdicts: dict, intrinsics) -> list:
         m = intrinsics.width / 60
         lx = float(np.clip(x0 + t * (x1 - x0), 0.9 * m, intrinsics.width - 0.9 * m))
         ly = float(np.clip(y0 + t * (y1 - y0), 0.62 * m, intrinsics.height - 0.62 * m))
-        out.append({"x0": x0, "y0": y0, "x1": x1, "y1": y1, "lx": lx, "ly": ly,
-                    "id": str(rec.get("bar_id")), "colour": BAR_COLOURS[HIDDEN if hidden else v],
-                    "hidden": hidden, "verdict": HIDDEN if hidden else v})
+        out.append(
+            {
+                "x0": x0,
+                "y0": y0,
+                "x1": x1,
+                "y1": y1,
+                "lx": lx,
+                "ly": ly,
+                "id": str(rec.get("bar_id")),
+                "colour": BAR_COLOURS[HIDDEN if hidden else v],
+                "hidden": hidden,
+                "verdict": HIDDEN if hidden else v,
+            }
+        )
     return out
 
 
@@ -114,8 +141,15 @@ def _plan_basis(normal):
     return e1, e2
 
 
-def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, design: Design,
-               positions: list | None = None, boundary: dict | None = None) -> dict | None:
+def _plan_view(
+    bars: list,
+    spacings: list,
+    acc_rows: dict,
+    formwork: dict,
+    design: Design,
+    positions: list | None = None,
+    boundary: dict | None = None,
+) -> dict | None:
     """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing; with
     ``positions`` (the result's examined positions) the missing and unjudged positions, with
     ``boundary`` (``extras["mesh_boundary"]``) each lattice's outline in the view."""
@@ -135,11 +169,22 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         # Bar ids at the far end of the bottom level and the near end of the top level, so the
         # ids of crossing directions sit on different sides of the drawing.
         lab = b + 0.07 * (b - a) if level == "bottom" else a - 0.07 * (b - a)
-        segs.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "id": str(rec.get("bar_id")),
-                     "lx": lab[0], "ly": lab[1],
-                     "layer": layer, "level": level, "width": width,
-                     "colour": LAYER_COLOURS.get(layer, "#555"),
-                     "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN})
+        segs.append(
+            {
+                "x0": a[0],
+                "y0": a[1],
+                "x1": b[0],
+                "y1": b[1],
+                "id": str(rec.get("bar_id")),
+                "lx": lab[0],
+                "ly": lab[1],
+                "layer": layer,
+                "level": level,
+                "width": width,
+                "colour": LAYER_COLOURS.get(layer, "#555"),
+                "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN,
+            }
+        )
     if not segs:
         return None
     marks = []
@@ -149,18 +194,34 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         if ax is None or status not in (MISSING, NOT_MEASURED):
             continue
         a, b = (np.array([p @ e1, p @ e2]) for p in ax)
-        marks.append({"x0": a[0], "y0": a[1], "x1": b[0], "y1": b[1], "missing": status == MISSING,
-                      "text": "missing" if status == MISSING else "?", "lx": (a[0] + b[0]) / 2,
-                      "ly": (a[1] + b[1]) / 2})
+        marks.append(
+            {
+                "x0": a[0],
+                "y0": a[1],
+                "x1": b[0],
+                "y1": b[1],
+                "missing": status == MISSING,
+                "text": "missing" if status == MISSING else "?",
+                "lx": (a[0] + b[0]) / 2,
+                "ly": (a[1] + b[1]) / 2,
+            }
+        )
     outlines = []
     for layer, info in (boundary or {}).items():
         corners = (info or {}).get("corners_camera_mm") if isinstance(info, dict) else None
         if corners:
             pts2 = [(float(np.asarray(c) @ e1), float(np.asarray(c) @ e2)) for c in corners]
-            outlines.append({"points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2),
-                             "colour": LAYER_COLOURS.get(layer, "#555")})
-    pts = np.array([[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs]
-                   + [[s["lx"], s["ly"]] for s in segs])
+            outlines.append(
+                {
+                    "points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2),
+                    "colour": LAYER_COLOURS.get(layer, "#555"),
+                }
+            )
+    pts = np.array(
+        [[s["x0"], s["y0"]] for s in segs]
+        + [[s["x1"], s["y1"]] for s in segs]
+        + [[s["lx"], s["ly"]] for s in segs]
+    )
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     span = max(float((hi - lo).max()), 1.0)
     pad = 0.06 * span
@@ -177,17 +238,43 @@ def _plan_view(bars: list, spacings: list, acc_rows: dict, formwork: dict, desig
         d = b[1] - b[0]
         pb = b[0] + np.clip((pa - b[0]) @ d / max(d @ d, 1e-9), 0, 1) * d
         mid = (pa + pb) / 2
-        key = (rec.get("capture"), str(rec.get("bar_a")), str(rec.get("bar_b")), rec.get("layer"), rec.get("level"))
+        key = (
+            rec.get("capture"),
+            str(rec.get("bar_a")),
+            str(rec.get("bar_b")),
+            rec.get("layer"),
+            rec.get("level"),
+        )
         status = acc_rows.get(key, "")
         v = rec.get("spacing_mm")
-        labels.append({"x": mid[0], "y": mid[1], "x0": pa[0], "y0": pa[1], "x1": pb[0], "y1": pb[1],
-                       "text": "n/m" if v is None else f"{v:.0f}", "bad": status in (BEYOND, BEYOND_MAX),
-                       "layer": rec.get("layer")})
-    return {"segments": segs, "labels": labels, "marks": marks, "outlines": outlines,
-            "x": lo[0] - pad, "y": lo[1] - pad,
-            # An extra strip at the bottom holds the scale bar, clear of the bar ids.
-            "w": (hi - lo)[0] + 2 * pad, "h": (hi - lo)[1] + 3 * pad, "font": span / 45,
-            "scale_mm": _scale_bar(span), "sx": lo[0], "sy": hi[1] + pad * 2.0}
+        labels.append(
+            {
+                "x": mid[0],
+                "y": mid[1],
+                "x0": pa[0],
+                "y0": pa[1],
+                "x1": pb[0],
+                "y1": pb[1],
+                "text": "n/m" if v is None else f"{v:.0f}",
+                "bad": status in (BEYOND, BEYOND_MAX),
+                "layer": rec.get("layer"),
+            }
+        )
+    return {
+        "segments": segs,
+        "labels": labels,
+        "marks": marks,
+        "outlines": outlines,
+        "x": lo[0] - pad,
+        "y": lo[1] - pad,
+        # An extra strip at the bottom holds the scale bar, clear of the bar ids.
+        "w": (hi - lo)[0] + 2 * pad,
+        "h": (hi - lo)[1] + 3 * pad,
+        "font": span / 45,
+        "scale_mm": _scale_bar(span),
+        "sx": lo[0],
+        "sy": hi[1] + pad * 2.0,
+    }
 
 
 def _scale_bar(span: float) -> float:

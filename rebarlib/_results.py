@@ -40,8 +40,13 @@ class Measurement:
 
     def to_dict(self) -> dict:
         """The measurement as JSON-ready Python (values rounded to 0.001 mm, NaN as None)."""
-        return {"value_mm": _num(self.value_mm), "uncertainty_mm": _num(self.uncertainty_mm),
-                "n_points": int(self.n_points), "status": self.status, "reason": self.reason}
+        return {
+            "value_mm": _num(self.value_mm),
+            "uncertainty_mm": _num(self.uncertainty_mm),
+            "n_points": int(self.n_points),
+            "status": self.status,
+            "reason": self.reason,
+        }
 
 
 def _num(x, digits: int | None = 3):
@@ -120,7 +125,9 @@ class InspectionResult:
     #: every examined bar position: empty design positions and close pairs (``_counts``)
     positions: object = None  # pandas.DataFrame
     formwork: dict = field(default_factory=dict)  # normal, offset_mm, n_inliers (camera frame)
-    camera: dict = field(default_factory=dict)  # height_mm, tilt_deg of the camera over the formwork
+    camera: dict = field(
+        default_factory=dict
+    )  # height_mm, tilt_deg of the camera over the formwork
     timings_s: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     extras: dict = field(default_factory=dict)  # later stages (diameter, mask) put summaries here
@@ -130,16 +137,27 @@ class InspectionResult:
     def to_dict(self) -> dict:
         """The result as written to ``result.json`` (docs/formats.md); ``bar_points`` is left out."""
         return {
-            "capture": self.capture, "method": self.method,
-            "cover_mm": _num(self.cover.value_mm), "layer_distance_mm": _num(self.layer_distance.value_mm),
-            "upper_top_mm": _num(self.upper_top.value_mm), "top_cover_mm": _num(self.top_cover.value_mm),
-            "measurements": {"cover": self.cover.to_dict(), "layer_distance": self.layer_distance.to_dict(),
-                             "upper_top": self.upper_top.to_dict(), "top_cover": self.top_cover.to_dict()},
-            "formwork": self.formwork, "camera": self.camera,
-            "bars": table_records(self.bars), "spacings": table_records(self.spacings),
-            "counts": table_records(self.counts), "positions": table_records(self.positions),
+            "capture": self.capture,
+            "method": self.method,
+            "cover_mm": _num(self.cover.value_mm),
+            "layer_distance_mm": _num(self.layer_distance.value_mm),
+            "upper_top_mm": _num(self.upper_top.value_mm),
+            "top_cover_mm": _num(self.top_cover.value_mm),
+            "measurements": {
+                "cover": self.cover.to_dict(),
+                "layer_distance": self.layer_distance.to_dict(),
+                "upper_top": self.upper_top.to_dict(),
+                "top_cover": self.top_cover.to_dict(),
+            },
+            "formwork": self.formwork,
+            "camera": self.camera,
+            "bars": table_records(self.bars),
+            "spacings": table_records(self.spacings),
+            "counts": table_records(self.counts),
+            "positions": table_records(self.positions),
             "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
-            "notes": list(self.notes), "extras": self.extras,
+            "notes": list(self.notes),
+            "extras": self.extras,
         }
 
     def to_json(self, **kw) -> str:

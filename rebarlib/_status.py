@@ -12,11 +12,29 @@ Examples
 from __future__ import annotations
 
 __all__ = [
-    "MEASURED", "NOT_MEASURED", "HIDDEN",
-    "MISSING", "PRESENT", "PRESENT_NO_DEPTH", "OUTSIDE", "NOT_IN_VIEW", "EXTRA", "NOT_EXTRA",
-    "WITHIN", "BEYOND", "BEYOND_MAX", "EXCLUDED", "WITHIN_NOT_PROVEN", "BEYOND_NOT_PROVEN",
-    "PASS", "FAIL", "INCOMPLETE", "NOT_CHECKED",
-    "ACCEPTED", "REJECTED", "SLAB_INCOMPLETE",
+    "MEASURED",
+    "NOT_MEASURED",
+    "HIDDEN",
+    "MISSING",
+    "PRESENT",
+    "PRESENT_NO_DEPTH",
+    "OUTSIDE",
+    "NOT_IN_VIEW",
+    "EXTRA",
+    "NOT_EXTRA",
+    "WITHIN",
+    "BEYOND",
+    "BEYOND_MAX",
+    "EXCLUDED",
+    "WITHIN_NOT_PROVEN",
+    "BEYOND_NOT_PROVEN",
+    "PASS",
+    "FAIL",
+    "INCOMPLETE",
+    "NOT_CHECKED",
+    "ACCEPTED",
+    "REJECTED",
+    "SLAB_INCOMPLETE",
 ]
 
 # A measurement, a bar, a spacing (``status``) and a bar's diameter (``diameter_status``);

@@ -21,15 +21,34 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["ItemTolerance", "LotRule", "Tolerances", "load_tolerances", "list_presets", "preset_path",
-           "PRESETS_DIR", "DEFAULT_PRESET"]
+__all__ = [
+    "ItemTolerance",
+    "LotRule",
+    "Tolerances",
+    "load_tolerances",
+    "list_presets",
+    "preset_path",
+    "PRESETS_DIR",
+    "DEFAULT_PRESET",
+]
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 DEFAULT_PRESET = "GB50204-2015"
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
-_ITEM_KEYS = {"minus_mm", "plus_mm", "minus_bars", "plus_bars", "minus_fraction_of_design",
-              "plus_by_thickness_mm", "lot_rule", "clause", "interpretation", "confirmed", "note"}
+_ITEM_KEYS = {
+    "minus_mm",
+    "plus_mm",
+    "minus_bars",
+    "plus_bars",
+    "minus_fraction_of_design",
+    "plus_by_thickness_mm",
+    "lot_rule",
+    "clause",
+    "interpretation",
+    "confirmed",
+    "note",
+}
 _RULE_KEYS = {"min_pass_ratio", "max_factor", "text", "clause", "interpretation", "confirmed"}
 _BASE_ITEMS = ("cover", "layer_distance", "spacing", "bar_size", "bar_count", "top_cover")
 
@@ -37,6 +56,7 @@ _BASE_ITEMS = ("cover", "layer_distance", "spacing", "bar_size", "bar_count", "t
 # --------------------------------------------------------------------------------------------
 # Tolerances as data
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class ItemTolerance:
@@ -73,8 +93,10 @@ class ItemTolerance:
         if self.plus_by_thickness_mm:
             h, p = np.asarray(self.plus_by_thickness_mm, dtype=float).T
             plus = float(np.interp(thickness_mm if thickness_mm is not None else h[0], h, p))
-        return (None if minus is None else round(float(minus), 3),
-                None if plus is None else round(float(plus), 3))
+        return (
+            None if minus is None else round(float(minus), 3),
+            None if plus is None else round(float(plus), 3),
+        )
 
     def text(self, design_value: float | None = None, *, thickness_mm: float | None = None) -> str:
         """The limits as printed: ``±3 mm``, ``-10 / +12 mm``, ``-10 mm (no upper limit)``.
@@ -138,13 +160,17 @@ class Tolerances:
         base = "spacing" if key.startswith("spacing_") else key
         if base in self.items:
             return replace(self.items[base], item=key)
-        raise RebarInputError(f"tolerances {self.name!r} ({self.source}): no item {key!r}; "
-                              f"it has {sorted(self.items)}")
+        raise RebarInputError(
+            f"tolerances {self.name!r} ({self.source}): no item {key!r}; "
+            f"it has {sorted(self.items)}"
+        )
 
     def rule(self, name: str) -> LotRule:
         if name not in self.lot_rules:
-            raise RebarInputError(f"tolerances {self.name!r} ({self.source}): lot rule {name!r} is not "
-                                  f"defined; it has {sorted(self.lot_rules)}")
+            raise RebarInputError(
+                f"tolerances {self.name!r} ({self.source}): lot rule {name!r} is not "
+                f"defined; it has {sorted(self.lot_rules)}"
+            )
         return self.lot_rules[name]
 
     def with_overrides(self, table: dict, *, source: str = "design.toml") -> "Tolerances":
@@ -177,7 +203,9 @@ class Tolerances:
                 continue
             if isinstance(value, dict):
                 if key not in item_names:
-                    raise RebarInputError(f"{where}: unknown item; expected one of {sorted(item_names)}")
+                    raise RebarInputError(
+                        f"{where}: unknown item; expected one of {sorted(item_names)}"
+                    )
                 base = self.item(key)
                 items[key] = _item_from_table(key, {**_item_as_table(base), **value}, where)
                 continue
@@ -186,22 +214,32 @@ class Tolerances:
                 raise RebarInputError(
                     f"{where}: unknown key; expected <item>_mm, <item>_minus_mm, <item>_plus_mm, "
                     f"<item>_lot_rule or <rule>_min_pass_ratio / <rule>_max_factor with item in "
-                    f"{sorted(item_names)} and rule in {sorted(rules)}")
+                    f"{sorted(item_names)} and rule in {sorted(rules)}"
+                )
             if field_ in ("min_pass_ratio", "max_factor"):
-                v = _override_number(value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0)
+                v = _override_number(
+                    value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0
+                )
                 r = replace(rules[item], **{field_: v})
                 # The preset's wording no longer describes the rule: print what applies now.
-                text = f"{r.name}: at least {r.min_pass_ratio:.0%} of checkpoints within tolerance" + (
-                    f" and none beyond {r.max_factor:g} x the tolerance" if r.max_factor else "")
+                text = (
+                    f"{r.name}: at least {r.min_pass_ratio:.0%} of checkpoints within tolerance"
+                    + (f" and none beyond {r.max_factor:g} x the tolerance" if r.max_factor else "")
+                )
                 rules[item] = replace(r, text=text + f" (overridden in {Path(source).name})")
                 continue
             base = items.get(item) or self.item(item)
             if field_ == "lot_rule":
                 if value not in rules:
-                    raise RebarInputError(f"{where}: lot rule {value!r} is not defined; "
-                                          f"expected one of {sorted(rules)}")
-                items[item] = replace(base, lot_rule=value, clause=f"{base.clause} — lot rule {value!r} set in "
-                                      f"{Path(source).name}")
+                    raise RebarInputError(
+                        f"{where}: lot rule {value!r} is not defined; "
+                        f"expected one of {sorted(rules)}"
+                    )
+                items[item] = replace(
+                    base,
+                    lot_rule=value,
+                    clause=f"{base.clause} — lot rule {value!r} set in {Path(source).name}",
+                )
                 continue
             v = _override_number(value, where, lo=0.0, hi=1000.0)
             changes = {"minus": v, "plus": v} if field_ == "both" else {field_: v}
@@ -209,16 +247,34 @@ class Tolerances:
                 changes["minus_fraction_of_design"] = None
             if "plus" in changes:
                 changes["plus_by_thickness_mm"] = None
-            items[item] = replace(base, clause=f"{base.clause} — overridden in {Path(source).name}"
-                                  if "overridden" not in base.clause else base.clause, **changes)
-        return replace(self, items=items, lot_rules=rules, decision_rule=rule_name,
-                       overrides=self.overrides + tuple(f"{k} = {v!r}" for k, v in table.items()))
+            items[item] = replace(
+                base,
+                clause=f"{base.clause} — overridden in {Path(source).name}"
+                if "overridden" not in base.clause
+                else base.clause,
+                **changes,
+            )
+        return replace(
+            self,
+            items=items,
+            lot_rules=rules,
+            decision_rule=rule_name,
+            overrides=self.overrides + tuple(f"{k} = {v!r}" for k, v in table.items()),
+        )
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "standard": self.standard, "edition": self.edition,
-                "source": self.source, "overrides": list(self.overrides), "decision_rule": self.decision_rule,
-                "items": {k: _item_as_table(v) for k, v in self.items.items()},
-                "lot_rules": {k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()}}
+        return {
+            "name": self.name,
+            "standard": self.standard,
+            "edition": self.edition,
+            "source": self.source,
+            "overrides": list(self.overrides),
+            "decision_rule": self.decision_rule,
+            "items": {k: _item_as_table(v) for k, v in self.items.items()},
+            "lot_rules": {
+                k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()
+            },
+        }
 
 
 def _split_override(key: str, item_names: set, rule_names: set):
@@ -226,8 +282,15 @@ def _split_override(key: str, item_names: set, rule_names: set):
         for f in ("min_pass_ratio", "max_factor"):
             if key == f"{rule}_{f}":
                 return rule, f
-    for suffix, f in (("_minus_mm", "minus"), ("_plus_mm", "plus"), ("_minus_bars", "minus"),
-                      ("_plus_bars", "plus"), ("_lot_rule", "lot_rule"), ("_mm", "both"), ("_bars", "both")):
+    for suffix, f in (
+        ("_minus_mm", "minus"),
+        ("_plus_mm", "plus"),
+        ("_minus_bars", "minus"),
+        ("_plus_bars", "plus"),
+        ("_lot_rule", "lot_rule"),
+        ("_mm", "both"),
+        ("_bars", "both"),
+    ):
         if key.endswith(suffix) and key[: -len(suffix)] in item_names:
             return key[: -len(suffix)], f
     return None, None
@@ -242,6 +305,7 @@ def _override_number(value, where: str, *, lo: float, hi: float) -> float:
 def _tol_text(minus, plus, unit="mm") -> str:
     def f(x):
         return f"{x:g}"
+
     if minus is None and plus is None:
         return "no limit"
     if minus is None:
@@ -255,22 +319,35 @@ def _tol_text(minus, plus, unit="mm") -> str:
 
 def _item_as_table(t: ItemTolerance) -> dict:
     unit = "bars" if t.unit == "bars" else "mm"
-    out = {f"minus_{unit}": t.minus, f"plus_{unit}": t.plus, "lot_rule": t.lot_rule, "clause": t.clause,
-           "interpretation": t.interpretation, "confirmed": t.confirmed, "note": t.note,
-           "minus_fraction_of_design": t.minus_fraction_of_design,
-           "plus_by_thickness_mm": [list(p) for p in t.plus_by_thickness_mm] if t.plus_by_thickness_mm else None}
+    out = {
+        f"minus_{unit}": t.minus,
+        f"plus_{unit}": t.plus,
+        "lot_rule": t.lot_rule,
+        "clause": t.clause,
+        "interpretation": t.interpretation,
+        "confirmed": t.confirmed,
+        "note": t.note,
+        "minus_fraction_of_design": t.minus_fraction_of_design,
+        "plus_by_thickness_mm": [list(p) for p in t.plus_by_thickness_mm]
+        if t.plus_by_thickness_mm
+        else None,
+    }
     return {k: v for k, v in out.items() if v is not None}
 
 
 def _item_from_table(key: str, table: dict, where: str) -> ItemTolerance:
     unknown = set(table) - _ITEM_KEYS
     if unknown:
-        raise RebarInputError(f"{where}: unknown keys {sorted(unknown)}; expected some of {sorted(_ITEM_KEYS)}")
+        raise RebarInputError(
+            f"{where}: unknown keys {sorted(unknown)}; expected some of {sorted(_ITEM_KEYS)}"
+        )
     unit = "bars" if key == "bar_count" else "mm"
     nums = {}
     for side in ("minus", "plus"):
         v = table.get(f"{side}_{unit}")
-        nums[side] = None if v is None else _override_number(v, f"{where}.{side}_{unit}", lo=0, hi=1000)
+        nums[side] = (
+            None if v is None else _override_number(v, f"{where}.{side}_{unit}", lo=0, hi=1000)
+        )
     frac = table.get("minus_fraction_of_design")
     if frac is not None:
         frac = _override_number(frac, f"{where}.minus_fraction_of_design", lo=0, hi=1)
@@ -278,19 +355,34 @@ def _item_from_table(key: str, table: dict, where: str) -> ItemTolerance:
     if pbt is not None:
         try:
             arr = np.asarray(pbt, dtype=float)
-            ok = arr.ndim == 2 and arr.shape[1] == 2 and len(arr) >= 1 and np.all(np.diff(arr[:, 0]) > 0)
+            ok = (
+                arr.ndim == 2
+                and arr.shape[1] == 2
+                and len(arr) >= 1
+                and np.all(np.diff(arr[:, 0]) > 0)
+            )
         except (TypeError, ValueError):
             ok = False
         if not ok:
-            raise RebarInputError(f"{where}.plus_by_thickness_mm: expected [[h_mm, plus_mm], ...] with increasing h")
+            raise RebarInputError(
+                f"{where}.plus_by_thickness_mm: expected [[h_mm, plus_mm], ...] with increasing h"
+            )
         pbt = tuple(tuple(float(x) for x in p) for p in arr)
     if "lot_rule" not in table:
         raise RebarInputError(f"{where}: missing 'lot_rule' (the name of a [lot_rules.*] table)")
-    return ItemTolerance(item=key, minus=nums["minus"], plus=nums["plus"], lot_rule=str(table["lot_rule"]),
-                         unit=unit, clause=str(table.get("clause", "")),
-                         interpretation=bool(table.get("interpretation", False)),
-                         confirmed=bool(table.get("confirmed", True)), note=str(table.get("note", "")),
-                         minus_fraction_of_design=frac, plus_by_thickness_mm=pbt)
+    return ItemTolerance(
+        item=key,
+        minus=nums["minus"],
+        plus=nums["plus"],
+        lot_rule=str(table["lot_rule"]),
+        unit=unit,
+        clause=str(table.get("clause", "")),
+        interpretation=bool(table.get("interpretation", False)),
+        confirmed=bool(table.get("confirmed", True)),
+        note=str(table.get("note", "")),
+        minus_fraction_of_design=frac,
+        plus_by_thickness_mm=pbt,
+    )
 
 
 def _norm(name: str) -> str:
@@ -338,10 +430,14 @@ def preset_path(name: str) -> Path:
     table = _preset_table()
     match = [path for path, spellings in table.values() if _norm(str(name)) in spellings]
     if len(match) != 1:
-        listed = "; ".join(f"{n} (also: {', '.join(_aliases(p))})" if _aliases(p) else n
-                           for n, (p, _) in sorted(table.items()))
-        raise RebarInputError(f"tolerances: unknown preset {str(name)!r}; expected one of: {listed}; "
-                              "or a path to a .toml tolerance file")
+        listed = "; ".join(
+            f"{n} (also: {', '.join(_aliases(p))})" if _aliases(p) else n
+            for n, (p, _) in sorted(table.items())
+        )
+        raise RebarInputError(
+            f"tolerances: unknown preset {str(name)!r}; expected one of: {listed}; "
+            "or a path to a .toml tolerance file"
+        )
     return match[0]
 
 
@@ -383,21 +479,42 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
     for name, table in (data.get("lot_rules") or {}).items():
         unknown = set(table) - _RULE_KEYS
         if unknown or "min_pass_ratio" not in table:
-            raise RebarInputError(f"{where}: lot_rules.{name}: needs min_pass_ratio; unknown keys {sorted(unknown)}")
+            raise RebarInputError(
+                f"{where}: lot_rules.{name}: needs min_pass_ratio; unknown keys {sorted(unknown)}"
+            )
         mf = table.get("max_factor")
         rules[name] = LotRule(
-            name, _override_number(table["min_pass_ratio"], f"{where}: lot_rules.{name}.min_pass_ratio", lo=0, hi=1),
-            None if mf is None else _override_number(mf, f"{where}: lot_rules.{name}.max_factor", lo=1, hi=100),
-            str(table.get("text", "")), str(table.get("clause", "")),
-            bool(table.get("interpretation", False)), bool(table.get("confirmed", True)))
-    items = {k: _item_from_table(k, v, f"{where}: items.{k}") for k, v in (data.get("items") or {}).items()}
+            name,
+            _override_number(
+                table["min_pass_ratio"], f"{where}: lot_rules.{name}.min_pass_ratio", lo=0, hi=1
+            ),
+            None
+            if mf is None
+            else _override_number(mf, f"{where}: lot_rules.{name}.max_factor", lo=1, hi=100),
+            str(table.get("text", "")),
+            str(table.get("clause", "")),
+            bool(table.get("interpretation", False)),
+            bool(table.get("confirmed", True)),
+        )
+    items = {
+        k: _item_from_table(k, v, f"{where}: items.{k}")
+        for k, v in (data.get("items") or {}).items()
+    }
     missing = [k for k in _BASE_ITEMS if k not in items]
     if missing:
         raise RebarInputError(f"{where}: missing [items.*] tables for {missing}")
     for k, v in items.items():
         if v.lot_rule not in rules:
-            raise RebarInputError(f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table")
-    return Tolerances(name=str(data.get("name", path.stem)), standard=str(data.get("standard", path.stem)),
-                      edition=str(data.get("edition", "")), items=items, lot_rules=rules,
-                      title=str(data.get("title", "")), source=where,
-                      decision_rule=check_rule(data.get("decision_rule", "simple"), where))
+            raise RebarInputError(
+                f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table"
+            )
+    return Tolerances(
+        name=str(data.get("name", path.stem)),
+        standard=str(data.get("standard", path.stem)),
+        edition=str(data.get("edition", "")),
+        items=items,
+        lot_rules=rules,
+        title=str(data.get("title", "")),
+        source=where,
+        decision_rule=check_rule(data.get("decision_rule", "simple"), where),
+    )

@@ -17,14 +17,50 @@ import pandas as pd
 from ._checks import RebarInputError
 from ._decision import BEYOND_NP, WITHIN_NP, decide, decide_size, risk_summary
 from ._design import Design
-from ._status import (ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, FAIL, HIDDEN, INCOMPLETE, MEASURED,
-                      NOT_CHECKED, NOT_MEASURED, PASS, REJECTED, SLAB_INCOMPLETE, WITHIN)
-# the tolerances live in their own module; their names stay importable from here
-from ._tolerances import (DEFAULT_PRESET, PRESETS_DIR, ItemTolerance, LotRule, Tolerances,  # noqa: F401
-                          _tol_text, list_presets, load_tolerances, preset_path)
+from ._results import table_records
+from ._status import (
+    ACCEPTED,
+    BEYOND,
+    BEYOND_MAX,
+    EXCLUDED,
+    FAIL,
+    HIDDEN,
+    INCOMPLETE,
+    MEASURED,
+    NOT_CHECKED,
+    NOT_MEASURED,
+    PASS,
+    REJECTED,
+    SLAB_INCOMPLETE,
+    WITHIN,
+)
 
-__all__ = ["ItemTolerance", "LotRule", "Tolerances", "Acceptance", "load_tolerances",
-           "list_presets", "evaluate", "design_top_cover_mm", "PRESETS_DIR", "CHECKPOINT_COLUMNS", "ITEM_COLUMNS"]
+# the tolerances live in their own module; their names stay importable from here
+from ._tolerances import (  # noqa: F401
+    DEFAULT_PRESET,
+    PRESETS_DIR,
+    ItemTolerance,
+    LotRule,
+    Tolerances,
+    _tol_text,
+    list_presets,
+    load_tolerances,
+    preset_path,
+)
+
+__all__ = [
+    "ItemTolerance",
+    "LotRule",
+    "Tolerances",
+    "Acceptance",
+    "load_tolerances",
+    "list_presets",
+    "evaluate",
+    "design_top_cover_mm",
+    "PRESETS_DIR",
+    "CHECKPOINT_COLUMNS",
+    "ITEM_COLUMNS",
+]
 
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
 #: The flag a Chinese record sheet prints next to a checkpoint beyond its tolerance.
@@ -36,17 +72,54 @@ _EPS = 1e-6
 COVERAGE_K = 2.0
 
 CHECKPOINT_COLUMNS = [
-    "item", "label", "capture", "layer", "level", "what", "unit", "design_value", "measured_value",
-    "deviation", "uncertainty", "tolerance", "tol_minus", "tol_plus", "status", "flag", "reason",
-    "expanded_uncertainty", "decision", "risk"]
+    "item",
+    "label",
+    "capture",
+    "layer",
+    "level",
+    "what",
+    "unit",
+    "design_value",
+    "measured_value",
+    "deviation",
+    "uncertainty",
+    "tolerance",
+    "tol_minus",
+    "tol_plus",
+    "status",
+    "flag",
+    "reason",
+    "expanded_uncertainty",
+    "decision",
+    "risk",
+]
 ITEM_COLUMNS = [
-    "item", "label", "unit", "design_value", "design_text", "tolerance", "checkpoints", "measured",
-    "passed", "pass_ratio", "worst_deviation", "beyond", "beyond_max", "not_measured", "excluded",
-    "verdict", "reason", "rule", "clause", "not_proven"]
+    "item",
+    "label",
+    "unit",
+    "design_value",
+    "design_text",
+    "tolerance",
+    "checkpoints",
+    "measured",
+    "passed",
+    "pass_ratio",
+    "worst_deviation",
+    "beyond",
+    "beyond_max",
+    "not_measured",
+    "excluded",
+    "verdict",
+    "reason",
+    "rule",
+    "clause",
+    "not_proven",
+]
 
 # --------------------------------------------------------------------------------------------
 # Evaluation
 # --------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Acceptance:
@@ -77,12 +150,17 @@ class Acceptance:
         return self.verdict == ACCEPTED
 
     def to_dict(self) -> dict:
-        return {"verdict": self.verdict, "reasons": list(self.reasons),
-                "standard": self.tolerances.standard, "tolerances": self.tolerances.to_dict(),
-                "missing_captures": [{"capture": c, "reason": r} for c, r in self.missing_captures],
-                "notes": list(self.notes), "items": _records(self.items),
-                "decision": self.decision_summary(),
-                "checkpoints": _records(self.checkpoints)}
+        return {
+            "verdict": self.verdict,
+            "reasons": list(self.reasons),
+            "standard": self.tolerances.standard,
+            "tolerances": self.tolerances.to_dict(),
+            "missing_captures": [{"capture": c, "reason": r} for c, r in self.missing_captures],
+            "notes": list(self.notes),
+            "items": table_records(self.items, digits=None),
+            "decision": self.decision_summary(),
+            "checkpoints": table_records(self.checkpoints, digits=None),
+        }
 
     def decision_summary(self) -> dict:
         """The decision rule, the checkpoints it left "not proven" and the false accept / false
@@ -94,20 +172,14 @@ class Acceptance:
         return json.dumps(self.to_dict(), indent=kw.pop("indent", 1), ensure_ascii=False, **kw)
 
 
-def _records(df) -> list:
-    out = []
-    for rec in df.to_dict(orient="records"):
-        out.append({k: (None if isinstance(v, float) and not math.isfinite(v) else
-                        v.item() if isinstance(v, np.generic) else v) for k, v in rec.items()})
-    return out
-
-
 def _result_dict(r, i: int) -> dict:
     if hasattr(r, "to_dict") and hasattr(r, "capture"):
         r = r.to_dict()
     if not isinstance(r, dict) or "capture" not in r or "measurements" not in r:
-        raise RebarInputError(f"results[{i}]: expected an InspectionResult or its to_dict()/result.json "
-                              "(keys 'capture', 'measurements', 'bars', 'spacings', 'counts')")
+        raise RebarInputError(
+            f"results[{i}]: expected an InspectionResult or its to_dict()/result.json "
+            "(keys 'capture', 'measurements', 'bars', 'spacings', 'counts')"
+        )
     return r
 
 
@@ -190,8 +262,11 @@ def _size_text(d, system: str) -> str:
 
 
 def _labels(design: Design) -> dict:
-    out = {"cover": "Cover (formwork to lower bars)", "layer_distance": "Layer distance (lower to upper mesh)",
-           "top_cover": "Top cover (predicted from thickness)"}
+    out = {
+        "cover": "Cover (formwork to lower bars)",
+        "layer_distance": "Layer distance (lower to upper mesh)",
+        "top_cover": "Top cover (predicted from thickness)",
+    }
     for la in LAYERS:
         for lv in LEVELS:
             out[f"spacing_{la}_{lv}"] = f"Spacing, {la} mesh, {lv} bars"
@@ -238,8 +313,12 @@ def design_top_cover_mm(design: Design) -> float | None:
     from .diameter.barsizes import rib_envelope_mm
 
     upper = design.upper
-    top = (design.cover_mm + design.layer_distance_mm + rib_envelope_mm(upper.bottom.diameter_mm)
-           + rib_envelope_mm(upper.top.diameter_mm))
+    top = (
+        design.cover_mm
+        + design.layer_distance_mm
+        + rib_envelope_mm(upper.bottom.diameter_mm)
+        + rib_envelope_mm(upper.top.diameter_mm)
+    )
     return round(design.thickness_mm - top, 3)
 
 
@@ -287,8 +366,10 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
     res = [_result_dict(r, i) for i, r in enumerate(results)]
     tol = load_tolerances(design.standard if tolerances is None else tolerances)
     tol = tol.with_overrides(design.tolerances, source=design.source or "design")
-    missing = tuple((m, "no inspection result") if isinstance(m, str) else (str(m[0]), str(m[1]))
-                    for m in missing_captures)
+    missing = tuple(
+        (m, "no inspection result") if isinstance(m, str) else (str(m[0]), str(m[1]))
+        for m in missing_captures
+    )
     sheet = _Sheet(tol, _labels(design), design.thickness_mm)
     # a bar is checked over at least the length a bar position needs to be judged in view
     from ._counts import CountParams
@@ -301,15 +382,32 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
         bars = _table(r, "bars")
         _size_checkpoints(sheet, bars, cap, design, in_view_mm)
         _count_checkpoints(sheet, r, cap)
-        bar_rows += [{"capture": cap, "bar_id": rec.get("bar_id"), "layer": rec.get("layer"),
-                      "level": rec.get("level")} for rec in (bars.to_dict(orient="records") if len(bars) else [])]
+        bar_rows += [
+            {
+                "capture": cap,
+                "bar_id": rec.get("bar_id"),
+                "layer": rec.get("layer"),
+                "level": rec.get("level"),
+            }
+            for rec in (bars.to_dict(orient="records") if len(bars) else [])
+        ]
     cp = pd.DataFrame(sheet.rows, columns=CHECKPOINT_COLUMNS)
-    items = pd.DataFrame([_item_row(k, cp[cp["item"] == k], design, tol, sheet.labels)
-                          for k in _item_order(design)], columns=ITEM_COLUMNS)
+    items = pd.DataFrame(
+        [_item_row(k, cp[cp["item"] == k], design, tol, sheet.labels) for k in _item_order(design)],
+        columns=ITEM_COLUMNS,
+    )
     verdict, reasons = _slab_verdict(items, missing, n_results=len(res))
-    return Acceptance(checkpoints=cp, items=items, bars=_bar_verdicts(bar_rows, cp), verdict=verdict,
-                      reasons=tuple(reasons), tolerances=tol, results=tuple(res),
-                      missing_captures=missing, notes=tuple(_notes(cp, design.thickness_mm, in_view_mm)))
+    return Acceptance(
+        checkpoints=cp,
+        items=items,
+        bars=_bar_verdicts(bar_rows, cp),
+        verdict=verdict,
+        reasons=tuple(reasons),
+        tolerances=tol,
+        results=tuple(res),
+        missing_captures=missing,
+        notes=tuple(_notes(cp, design.thickness_mm, in_view_mm)),
+    )
 
 
 class _Sheet:
@@ -320,8 +418,23 @@ class _Sheet:
         self.tol, self.labels, self.thickness = tol, labels, thickness_mm
         self.rows: list = []
 
-    def add(self, item, capture, layer, level, what, design_value, measured, uncertainty=None, *,
-            status=None, reason="", deviation=None, confidence=None, flag=None):
+    def add(
+        self,
+        item,
+        capture,
+        layer,
+        level,
+        what,
+        design_value,
+        measured,
+        uncertainty=None,
+        *,
+        status=None,
+        reason="",
+        deviation=None,
+        confidence=None,
+        flag=None,
+    ):
         tol = self.tol
         t = tol.item(_tol_key(item))
         minus, plus = t.limits(design_value, thickness_mm=self.thickness)
@@ -333,38 +446,74 @@ class _Sheet:
                 status = NOT_MEASURED
             else:
                 deviation = measured - design_value if deviation is None else deviation
-                status, flag_, decision, risk = _judge_with_rule(item, deviation, minus, plus, rule.max_factor,
-                                                                 U, confidence, tol.decision_rule)
-        self.rows.append({
-            "item": item, "label": self.labels[item], "capture": capture, "layer": layer, "level": level,
-            "what": what, "unit": t.unit, "design_value": design_value, "measured_value": measured,
-            "deviation": None if deviation is None else round(deviation, 3),
-            "uncertainty": uncertainty, "tolerance": _tol_text(minus, plus, t.unit),
-            "tol_minus": minus, "tol_plus": plus, "status": status,
-            "flag": flag_ if flag is None else flag, "reason": reason,
-            "expanded_uncertainty": None if U is None else round(U, 3),
-            "decision": decision or (status if status in (WITHIN, BEYOND, BEYOND_MAX) else None),
-            "risk": risk})
+                status, flag_, decision, risk = _judge_with_rule(
+                    item, deviation, minus, plus, rule.max_factor, U, confidence, tol.decision_rule
+                )
+        self.rows.append(
+            {
+                "item": item,
+                "label": self.labels[item],
+                "capture": capture,
+                "layer": layer,
+                "level": level,
+                "what": what,
+                "unit": t.unit,
+                "design_value": design_value,
+                "measured_value": measured,
+                "deviation": None if deviation is None else round(deviation, 3),
+                "uncertainty": uncertainty,
+                "tolerance": _tol_text(minus, plus, t.unit),
+                "tol_minus": minus,
+                "tol_plus": plus,
+                "status": status,
+                "flag": flag_ if flag is None else flag,
+                "reason": reason,
+                "expanded_uncertainty": None if U is None else round(U, 3),
+                "decision": decision
+                or (status if status in (WITHIN, BEYOND, BEYOND_MAX) else None),
+                "risk": risk,
+            }
+        )
 
 
 def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> None:
     """Cover, layer distance and top cover (one checkpoint per capture), and every spacing."""
     meas = r.get("measurements") or {}
-    for item in ("cover", "layer_distance") + (("top_cover",) if sheet.thickness is not None else ()):
+    for item in ("cover", "layer_distance") + (
+        ("top_cover",) if sheet.thickness is not None else ()
+    ):
         m = meas.get(item) or {}
         ok = m.get("status", MEASURED) == MEASURED and _num(m.get("value_mm")) is not None
-        sheet.add(item, cap, "", "", "capture", _design_value(item, design),
-                  _num(m.get("value_mm")) if ok else None, _num(m.get("uncertainty_mm")),
-                  reason="" if ok else (m.get("reason") or "not in the result"))
+        sheet.add(
+            item,
+            cap,
+            "",
+            "",
+            "capture",
+            _design_value(item, design),
+            _num(m.get("value_mm")) if ok else None,
+            _num(m.get("uncertainty_mm")),
+            reason="" if ok else (m.get("reason") or "not in the result"),
+        )
     for la, lv, item, dv, rec in _group_records(_table(r, "spacings"), "spacing", design):
         v = _num(rec.get("spacing_mm"))
         ok = rec.get("status", MEASURED) == MEASURED and v is not None
-        sheet.add(item, cap, la, lv, f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
-                  _num(rec.get("design_spacing_mm")) or dv, v if ok else None, _num(rec.get("uncertainty_mm")),
-                  reason="" if ok else (rec.get("reason") or "spacing not measured"))
+        sheet.add(
+            item,
+            cap,
+            la,
+            lv,
+            f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
+            _num(rec.get("design_spacing_mm")) or dv,
+            v if ok else None,
+            _num(rec.get("uncertainty_mm")),
+            reason="" if ok else (rec.get("reason") or "spacing not measured"),
+        )
 
 
-def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Design, in_view_mm: float) -> None:
+def _size_checkpoints(
+    sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Design, in_view_mm: float
+) -> None:
     """One bar-size checkpoint per bar: its snapped size against the design's, or excluded
     (hidden under nearer bars; too little of it in view and not sized), or not measured."""
     has_diam = len(bars) and ("nominal_mm" in bars.columns or "diameter_status" in bars.columns)
@@ -372,8 +521,17 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
         what = f"bar {rec.get('bar_id')}"
         ddv = _num(rec.get("design_diameter_mm")) or dv
         if is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN:
-            sheet.add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
-                      reason=rec.get("diameter_reason") or "hidden under crossing bars")
+            sheet.add(
+                item,
+                cap,
+                la,
+                lv,
+                what,
+                ddv,
+                None,
+                status=EXCLUDED,
+                reason=rec.get("diameter_reason") or "hidden under crossing bars",
+            )
             continue
         nominal = _num(rec.get("nominal_mm"))
         ok = has_diam and rec.get("diameter_status", MEASURED) == MEASURED and nominal is not None
@@ -381,20 +539,44 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
         if has_diam and not ok and seen_mm is not None and seen_mm < in_view_mm:
             # a bar the capture shows over less than a bar position needs to be judged in view
             # (docs/verdicts.md): outside what this capture inspects, as such a position is
-            sheet.add(item, cap, la, lv, what, ddv, None, status=EXCLUDED,
-                      reason=f"not in view: only {seen_mm:.0f} mm of it in the capture (a bar is checked "
-                             f"over at least {in_view_mm:.0f} mm); "
-                             + (rec.get("diameter_reason") or "diameter not measured"))
+            sheet.add(
+                item,
+                cap,
+                la,
+                lv,
+                what,
+                ddv,
+                None,
+                status=EXCLUDED,
+                reason=f"not in view: only {seen_mm:.0f} mm of it in the capture (a bar is checked "
+                f"over at least {in_view_mm:.0f} mm); "
+                + (rec.get("diameter_reason") or "diameter not measured"),
+            )
             continue
-        reason = "" if ok else (rec.get("diameter_reason") or
-                                ("diameter stage not run" if not has_diam else "diameter not measured"))
+        reason = (
+            ""
+            if ok
+            else (
+                rec.get("diameter_reason")
+                or ("diameter stage not run" if not has_diam else "diameter not measured")
+            )
+        )
         # the width's standard uncertainty (refined); the paper's vote has none: its spread
         # (with the systematic terms where the uncertainty budget gave them)
         u = _num(rec.get("width_uncertainty_mm"))
         u = u if u is not None else _num(rec.get("width_sigma_mm"))
-        sheet.add(item, cap, la, lv, what, ddv, nominal if ok else None,
-                  u if u is not None else _num(rec.get("width_spread_mm")), reason=reason,
-                  confidence=_num(rec.get("budget_confidence")))
+        sheet.add(
+            item,
+            cap,
+            la,
+            lv,
+            what,
+            ddv,
+            nominal if ok else None,
+            u if u is not None else _num(rec.get("width_spread_mm")),
+            reason=reason,
+            confidence=_num(rec.get("budget_confidence")),
+        )
 
 
 def _count_checkpoints(sheet: _Sheet, r: dict, cap: str) -> None:
@@ -404,15 +586,27 @@ def _count_checkpoints(sheet: _Sheet, r: dict, cap: str) -> None:
     for la in LAYERS:
         for lv in LEVELS:
             item = f"bar_count_{la}_{lv}"
-            sub = counts[(counts["layer"] == la) & (counts["level"] == lv)] if len(counts) else counts
+            sub = (
+                counts[(counts["layer"] == la) & (counts["level"] == lv)] if len(counts) else counts
+            )
             if not len(sub):
-                sheet.add(item, cap, la, lv, "count", None, None,
-                          reason="no bar count for this direction in the result")
+                sheet.add(
+                    item,
+                    cap,
+                    la,
+                    lv,
+                    "count",
+                    None,
+                    None,
+                    reason="no bar count for this direction in the result",
+                )
                 continue
             rec = sub.iloc[0].to_dict()
             found, expected = _num(rec.get("found")), _num(rec.get("expected"))
             if found is None or expected is None:
-                sheet.add(item, cap, la, lv, "count", expected, None, reason="bar count not measured")
+                sheet.add(
+                    item, cap, la, lv, "count", expected, None, reason="bar count not measured"
+                )
                 continue
             n_miss = int(_num(rec.get("missing")) or 0)
             n_extra = int(_num(rec.get("extra")) or 0)
@@ -422,12 +616,30 @@ def _count_checkpoints(sheet: _Sheet, r: dict, cap: str) -> None:
             bad = (minus is not None and n_miss > minus) or (plus is not None and n_extra > plus)
             what = f"{n_miss} missing, {n_extra} extra" + (f" ({seen})" if seen else "")
             if not bad and n_open:
-                sheet.add(item, cap, la, lv, what, expected, None,
-                          reason=f"{n_open} bar position(s) could not be judged: "
-                                 + _open_positions(_table(r, "positions"), la, lv))
+                sheet.add(
+                    item,
+                    cap,
+                    la,
+                    lv,
+                    what,
+                    expected,
+                    None,
+                    reason=f"{n_open} bar position(s) could not be judged: "
+                    + _open_positions(_table(r, "positions"), la, lv),
+                )
                 continue
-            sheet.add(item, cap, la, lv, what, expected, found, status=BEYOND if bad else WITHIN,
-                      deviation=found - expected, flag="*" if bad else "")
+            sheet.add(
+                item,
+                cap,
+                la,
+                lv,
+                what,
+                expected,
+                found,
+                status=BEYOND if bad else WITHIN,
+                deviation=found - expected,
+                flag="*" if bad else "",
+            )
 
 
 def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
@@ -439,10 +651,14 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     n_view = int(excluded["reason"].astype(str).str.startswith("not in view").sum())
     n_hidden = len(excluded) - n_view
     if n_hidden:
-        notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
+        notes.append(
+            f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check."
+        )
     if n_view:
-        notes.append(f"{n_view} bar(s) with less than {in_view_mm:.0f} mm in view are excluded from the "
-                     "bar-size check (another capture shows them).")
+        notes.append(
+            f"{n_view} bar(s) with less than {in_view_mm:.0f} mm in view are excluded from the "
+            "bar-size check (another capture shows them)."
+        )
     return notes
 
 
@@ -450,9 +666,15 @@ def _open_positions(positions: pd.DataFrame, layer: str, level: str) -> str:
     """The reasons of the positions of one direction that were neither found nor judged."""
     if not len(positions) or "status" not in positions:
         return "see the result's positions table"
-    sel = positions[(positions["layer"] == layer) & (positions["level"] == level)
-                    & (positions["status"] == NOT_MEASURED)]
-    return "; ".join(f"at {float(o):.0f} mm: {r}" for o, r in zip(sel["offset_mm"], sel["reason"])) or "–"
+    sel = positions[
+        (positions["layer"] == layer)
+        & (positions["level"] == level)
+        & (positions["status"] == NOT_MEASURED)
+    ]
+    return (
+        "; ".join(f"at {float(o):.0f} mm: {r}" for o, r in zip(sel["offset_mm"], sel["reason"]))
+        or "–"
+    )
 
 
 def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, labels: dict) -> dict:
@@ -464,7 +686,11 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
     n, n_meas = len(counted), len(measured)
     passed = int((measured["status"] == WITHIN).sum())
     n_beyond_max = int((measured["status"] == BEYOND_MAX).sum())
-    n_not_proven = int(measured["decision"].isin([WITHIN_NP, BEYOND_NP]).sum()) if "decision" in measured else 0
+    n_not_proven = (
+        int(measured["decision"].isin([WITHIN_NP, BEYOND_NP]).sum())
+        if "decision" in measured
+        else 0
+    )
     n_nm = n - n_meas
     ratio = passed / n_meas if n_meas else None
     worst = None
@@ -501,14 +727,28 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
         design_text = f"{dv:g} mm"
     labels_txt = t.labels
     rule_txt = rule.text or f"≥ {rule.min_pass_ratio:.0%} within tolerance"
-    return {"item": key, "label": labels[key], "unit": t.unit, "design_value": dv, "design_text": design_text,
-            "tolerance": t.text(dv, thickness_mm=design.thickness_mm), "checkpoints": n, "measured": n_meas,
-            "passed": passed, "pass_ratio": None if ratio is None else round(ratio, 4),
-            "worst_deviation": None if worst is None else round(worst, 3), "beyond": n_meas - passed,
-            "beyond_max": n_beyond_max, "not_measured": n_nm, "excluded": len(cp) - n,
-            "verdict": verdict, "reason": reason, "not_proven": n_not_proven,
-            "rule": rule_txt + (f" ({labels_txt})" if labels_txt else ""),
-            "clause": t.clause + (f" — {t.note}" if t.note else "")}
+    return {
+        "item": key,
+        "label": labels[key],
+        "unit": t.unit,
+        "design_value": dv,
+        "design_text": design_text,
+        "tolerance": t.text(dv, thickness_mm=design.thickness_mm),
+        "checkpoints": n,
+        "measured": n_meas,
+        "passed": passed,
+        "pass_ratio": None if ratio is None else round(ratio, 4),
+        "worst_deviation": None if worst is None else round(worst, 3),
+        "beyond": n_meas - passed,
+        "beyond_max": n_beyond_max,
+        "not_measured": n_nm,
+        "excluded": len(cp) - n,
+        "verdict": verdict,
+        "reason": reason,
+        "not_proven": n_not_proven,
+        "rule": rule_txt + (f" ({labels_txt})" if labels_txt else ""),
+        "clause": t.clause + (f" — {t.note}" if t.note else ""),
+    }
 
 
 def _slab_verdict(items: pd.DataFrame, missing: tuple, *, n_results: int):

@@ -21,8 +21,17 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Outcome", "inspect_many", "inspect_pairs", "inspect_one", "summary_row",
-           "summary_table", "SUMMARY_COLUMNS", "default_jobs", "WORKER_THREADS"]
+__all__ = [
+    "Outcome",
+    "inspect_many",
+    "inspect_pairs",
+    "inspect_one",
+    "summary_row",
+    "summary_table",
+    "SUMMARY_COLUMNS",
+    "default_jobs",
+    "WORKER_THREADS",
+]
 
 #: Threads of the segmentation model (onnxruntime) and of OpenCV in a batch worker: one task,
 #: one core. The results do not depend on it (``benchmarks/bench_batch.py --check``).
@@ -61,8 +70,15 @@ class Outcome:
 
 
 #: Columns of a batch's summary (``OUT/summary.csv``, :func:`summary_table`).
-SUMMARY_COLUMNS = ("capture", "status", "cover_mm", "layer_distance_mm",
-                   "worst_spacing_deviation_mm", "seconds", "reason")
+SUMMARY_COLUMNS = (
+    "capture",
+    "status",
+    "cover_mm",
+    "layer_distance_mm",
+    "worst_spacing_deviation_mm",
+    "seconds",
+    "reason",
+)
 
 
 def _worst_deviation(spacings):
@@ -71,17 +87,23 @@ def _worst_deviation(spacings):
     return max(devs, key=abs) if devs else None
 
 
-def summary_row(name: str, status: str, data: dict | None = None, seconds=None,
-                reason: str = "") -> dict:
+def summary_row(
+    name: str, status: str, data: dict | None = None, seconds=None, reason: str = ""
+) -> dict:
     """One row of a batch summary from a result dict (``InspectionResult.to_dict()`` or a
     ``result.json``): cover, layer distance, the spacing deviation largest in size (signed),
     mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed)."""
     data = data or {}
     sec = "" if seconds is None else f"{seconds:.2f}"
-    return {"capture": name, "status": status, "cover_mm": data.get("cover_mm"),
-            "layer_distance_mm": data.get("layer_distance_mm"),
-            "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")),
-            "seconds": sec, "reason": reason}
+    return {
+        "capture": name,
+        "status": status,
+        "cover_mm": data.get("cover_mm"),
+        "layer_distance_mm": data.get("layer_distance_mm"),
+        "worst_spacing_deviation_mm": _worst_deviation(data.get("spacings")),
+        "seconds": sec,
+        "reason": reason,
+    }
 
 
 def summary_table(outcomes):
@@ -89,8 +111,16 @@ def summary_table(outcomes):
     in the order of the captures."""
     import pandas as pd
 
-    rows = [summary_row(o.capture, "ok" if o.ok else "failed", o.result.to_dict() if o.ok else None,
-                        o.seconds, o.error or "") for o in sorted(outcomes, key=lambda o: o.index)]
+    rows = [
+        summary_row(
+            o.capture,
+            "ok" if o.ok else "failed",
+            o.result.to_dict() if o.ok else None,
+            o.seconds,
+            o.error or "",
+        )
+        for o in sorted(outcomes, key=lambda o: o.index)
+    ]
     table = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
     table["seconds"] = pd.to_numeric(table["seconds"])
     return table
@@ -140,8 +170,9 @@ def _configure_threads(threads) -> None:
     _configured_threads = threads
 
 
-def inspect_one(index: int, capture, design, inspect_kw: dict | None = None, *,
-                threads=None) -> Outcome:
+def inspect_one(
+    index: int, capture, design, inspect_kw: dict | None = None, *, threads=None
+) -> Outcome:
     """Load and inspect one capture; never raises for a failure of that capture.
 
     Parameters
@@ -179,22 +210,27 @@ def _check_args(design, jobs, client, inspect_kw):
     if isinstance(design, (str, os.PathLike)):
         design = load_design(design)
     if not isinstance(design, Design):
-        raise RebarInputError("design: expected a rebarlib.Design or a design.toml path, "
-                              f"got {type(design).__name__}")
+        raise RebarInputError(
+            f"design: expected a rebarlib.Design or a design.toml path, got {type(design).__name__}"
+        )
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise RebarInputError(f"jobs: expected a whole number of processes >= 1, got {jobs!r}")
     if jobs is not None and client is not None:
-        raise RebarInputError("jobs: give either jobs (local processes) or client (a dask "
-                              "cluster), not both")
+        raise RebarInputError(
+            "jobs: give either jobs (local processes) or client (a dask cluster), not both"
+        )
     rng = inspect_kw.get("rng")
     if rng is not None and (isinstance(rng, bool) or not isinstance(rng, int)):
-        raise RebarInputError("rng: a batch inspects every capture with the same whole-number "
-                              f"seed, got {type(rng).__name__}")
+        raise RebarInputError(
+            "rng: a batch inspects every capture with the same whole-number "
+            f"seed, got {type(rng).__name__}"
+        )
     return design
 
 
-def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = False, progress=None,
-                 **inspect_kw):
+def inspect_many(
+    captures, design, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw
+):
     """Inspect many captures; yield one :class:`Outcome` per capture as each is done.
 
     Parameters
@@ -233,8 +269,9 @@ def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = Fa
     return _drive([(c, design) for c in captures], client, jobs, ordered, progress, inspect_kw)
 
 
-def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None,
-                  **inspect_kw):
+def inspect_pairs(
+    pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw
+):
     """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once."""
     pairs = [(c, _check_args(d, jobs, client, inspect_kw)) for c, d in pairs]
     return _drive(pairs, client, jobs, ordered, progress, inspect_kw)
@@ -292,9 +329,11 @@ def _in_processes(items, jobs, inspect_kw):
     ctx = multiprocessing.get_context("spawn")
     todo = iter(items)
     running = {}
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
-                             initargs=(WORKER_THREADS,)) as pool:
+    with ProcessPoolExecutor(
+        max_workers=jobs, mp_context=ctx, initializer=_init_worker, initargs=(WORKER_THREADS,)
+    ) as pool:
         try:
+
             def submit(i, c, d):
                 fut = pool.submit(inspect_one, i, c, d, inspect_kw, threads=WORKER_THREADS)
                 running[fut] = (i, c)
@@ -336,8 +375,10 @@ def _on_dask(items, client, inspect_kw):
         client = Client(str(client), set_as_default=False)
     try:
         # folders go as absolute paths: the workers' working folder is not the caller's
-        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d)
-                 for i, c, d in items]
+        items = [
+            (i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d)
+            for i, c, d in items
+        ]
         width = max(2, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
         todo = iter(items)
         designs = {}  # each design sent to the workers once
@@ -346,8 +387,9 @@ def _on_dask(items, client, inspect_kw):
         def submit(i, c, d):
             if id(d) not in designs:
                 designs[id(d)] = client.scatter(d, broadcast=True)
-            fut = client.submit(inspect_one, i, c, designs[id(d)], inspect_kw,
-                                threads=WORKER_THREADS, pure=False)
+            fut = client.submit(
+                inspect_one, i, c, designs[id(d)], inspect_kw, threads=WORKER_THREADS, pure=False
+            )
             running[fut.key] = (i, c)
             return fut
 

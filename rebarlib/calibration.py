@@ -29,7 +29,14 @@ from ._camera import Intrinsics
 from ._capture import Capture
 from ._checks import RebarInputError
 
-__all__ = ["Calibration", "calibrate", "apply_calibration", "load_calibration", "find_board", "calibration_id"]
+__all__ = [
+    "Calibration",
+    "calibrate",
+    "apply_calibration",
+    "load_calibration",
+    "find_board",
+    "calibration_id",
+]
 
 FORMAT = "rebarlib calibration 1"
 #: At least this many captures must show the whole board.
@@ -81,22 +88,45 @@ class Calibration:
 
     def summary(self) -> str:
         """One line for the report: "calibrated on <date> from N board captures (...)"."""
-        return (f"calibrated on {self.calibrated_on or 'an unrecorded date'} from {self.n_captures} board captures"
-                f" (depth scale {self.depth_scale * 100:+.2f} ± {self.u_depth_scale * 100:.2f} %, offset "
-                f"{self.depth_offset_mm:+.1f} ± {self.u_depth_offset_mm:.1f} mm, fx {self.intrinsics.fx:.1f} ± "
-                f"{self.u_intrinsics[0]:.1f} px)")
+        return (
+            f"calibrated on {self.calibrated_on or 'an unrecorded date'} from {self.n_captures} board captures"
+            f" (depth scale {self.depth_scale * 100:+.2f} ± {self.u_depth_scale * 100:.2f} %, offset "
+            f"{self.depth_offset_mm:+.1f} ± {self.u_depth_offset_mm:.1f} mm, fx {self.intrinsics.fx:.1f} ± "
+            f"{self.u_intrinsics[0]:.1f} px)"
+        )
 
     def to_dict(self) -> dict:
         K = self.intrinsics
-        return {"format": FORMAT, "device": self.device, "calibrated_on": self.calibrated_on,
-                "captures": list(self.captures), "board": self.board,
-                "intrinsics": {"fx": K.fx, "fy": K.fy, "cx": K.cx, "cy": K.cy, "width": K.width, "height": K.height},
-                "u_intrinsics_px": dict(zip(("fx", "fy", "cx", "cy"), (float(u) for u in self.u_intrinsics))),
-                "depth": {"model": "measured = (1 + scale) * true + offset_mm", "scale": self.depth_scale,
-                          "offset_mm": self.depth_offset_mm, "u_scale": self.u_depth_scale,
-                          "u_offset_mm": self.u_depth_offset_mm, "r_scale_offset": self.r_scale_offset,
-                          "range_mm": list(self.depth_range_mm), "rms_mm": self.depth_rms_mm},
-                "reprojection_rms_px": self.reprojection_rms_px, "n_captures": self.n_captures}
+        return {
+            "format": FORMAT,
+            "device": self.device,
+            "calibrated_on": self.calibrated_on,
+            "captures": list(self.captures),
+            "board": self.board,
+            "intrinsics": {
+                "fx": K.fx,
+                "fy": K.fy,
+                "cx": K.cx,
+                "cy": K.cy,
+                "width": K.width,
+                "height": K.height,
+            },
+            "u_intrinsics_px": dict(
+                zip(("fx", "fy", "cx", "cy"), (float(u) for u in self.u_intrinsics))
+            ),
+            "depth": {
+                "model": "measured = (1 + scale) * true + offset_mm",
+                "scale": self.depth_scale,
+                "offset_mm": self.depth_offset_mm,
+                "u_scale": self.u_depth_scale,
+                "u_offset_mm": self.u_depth_offset_mm,
+                "r_scale_offset": self.r_scale_offset,
+                "range_mm": list(self.depth_range_mm),
+                "rms_mm": self.depth_rms_mm,
+            },
+            "reprojection_rms_px": self.reprojection_rms_px,
+            "n_captures": self.n_captures,
+        }
 
     def save(self, path) -> Path:
         """Write the calibration as JSON (refuses to overwrite a capture's files)."""
@@ -116,22 +146,48 @@ def load_calibration(path) -> Calibration:
     try:
         d = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise RebarInputError(f"--calibration {path}: not a readable calibration JSON file: {exc}") from None
+        raise RebarInputError(
+            f"--calibration {path}: not a readable calibration JSON file: {exc}"
+        ) from None
     if not isinstance(d, dict) or d.get("format") != FORMAT:
-        raise RebarInputError(f"--calibration {path}: expected a file written by `rebar calibrate` "
-                              f"(\"format\": \"{FORMAT}\")")
+        raise RebarInputError(
+            f"--calibration {path}: expected a file written by `rebar calibrate` "
+            f'("format": "{FORMAT}")'
+        )
     try:
         K, u, dep = d["intrinsics"], d["u_intrinsics_px"], d["depth"]
-        vals = [float(dep[k]) for k in ("scale", "offset_mm", "u_scale", "u_offset_mm", "r_scale_offset")]
-        if not all(math.isfinite(v) for v in vals) or not -0.5 < vals[0] < 0.5 or min(vals[2:4]) < 0:
+        vals = [
+            float(dep[k])
+            for k in ("scale", "offset_mm", "u_scale", "u_offset_mm", "r_scale_offset")
+        ]
+        if (
+            not all(math.isfinite(v) for v in vals)
+            or not -0.5 < vals[0] < 0.5
+            or min(vals[2:4]) < 0
+        ):
             raise ValueError("depth scale, offset or their uncertainties out of range")
-        intr = Intrinsics(float(K["fx"]), float(K["fy"]), float(K["cx"]), float(K["cy"]),
-                          int(K["width"]), int(K["height"]))
-        return Calibration(intr, tuple(float(u[k]) for k in ("fx", "fy", "cx", "cy")), *vals,
-                           tuple(float(x) for x in dep.get("range_mm", (0, 0))),
-                           float(d.get("reprojection_rms_px", math.nan)), float(dep.get("rms_mm", math.nan)),
-                           int(d.get("n_captures", 0)), dict(d.get("board") or {}), str(d.get("device", "")),
-                           str(d.get("calibrated_on", "")), tuple(d.get("captures") or ()), source=str(path))
+        intr = Intrinsics(
+            float(K["fx"]),
+            float(K["fy"]),
+            float(K["cx"]),
+            float(K["cy"]),
+            int(K["width"]),
+            int(K["height"]),
+        )
+        return Calibration(
+            intr,
+            tuple(float(u[k]) for k in ("fx", "fy", "cx", "cy")),
+            *vals,
+            tuple(float(x) for x in dep.get("range_mm", (0, 0))),
+            float(d.get("reprojection_rms_px", math.nan)),
+            float(dep.get("rms_mm", math.nan)),
+            int(d.get("n_captures", 0)),
+            dict(d.get("board") or {}),
+            str(d.get("device", "")),
+            str(d.get("calibrated_on", "")),
+            tuple(d.get("captures") or ()),
+            source=str(path),
+        )
     except (KeyError, TypeError, ValueError, RebarInputError) as exc:
         raise RebarInputError(f"--calibration {path}: malformed calibration file ({exc})") from None
 
@@ -151,8 +207,10 @@ def apply_calibration(capture: Capture, calibration: Calibration) -> Capture:
     cal = load_calibration(calibration)
     K, k = capture.intrinsics, cal.intrinsics
     if (K.width, K.height) != (k.width, k.height):
-        raise RebarInputError(f"calibration {cal.source or ''}: made for {k.width}x{k.height} images, the capture "
-                              f"{capture.name!r} is {K.width}x{K.height}")
+        raise RebarInputError(
+            f"calibration {cal.source or ''}: made for {k.width}x{k.height} images, the capture "
+            f"{capture.name!r} is {K.width}x{K.height}"
+        )
     return dataclasses.replace(capture, intrinsics=k, depth_mm=cal.correct_depth(capture.depth_mm))
 
 
@@ -173,8 +231,13 @@ def find_board(capture: Capture, cols: int, rows: int):
 
 def _object_points(cols: int, rows: int, square_mm: float) -> np.ndarray:
     j, i = np.mgrid[0:rows, 0:cols]
-    return np.column_stack(((i.ravel() - (cols - 1) / 2) * square_mm, (j.ravel() - (rows - 1) / 2) * square_mm,
-                            np.zeros(cols * rows))).astype(np.float32)
+    return np.column_stack(
+        (
+            (i.ravel() - (cols - 1) / 2) * square_mm,
+            (j.ravel() - (rows - 1) / 2) * square_mm,
+            np.zeros(cols * rows),
+        )
+    ).astype(np.float32)
 
 
 def _board_depth_pairs(capture: Capture, corners, K: Intrinsics, rvec, tvec):
@@ -202,7 +265,12 @@ def _line(pairs):
     zm = np.concatenate([p[1] for p in pairs])
     A = np.column_stack((zt, np.ones_like(zt)))
     (a, b), *_ = np.linalg.lstsq(A, zm, rcond=None)
-    return a - 1.0, b, float(np.sqrt(np.mean((zm - (a * zt + b)) ** 2))), (float(zt.min()), float(zt.max()))
+    return (
+        a - 1.0,
+        b,
+        float(np.sqrt(np.mean((zm - (a * zt + b)) ** 2))),
+        (float(zt.min()), float(zt.max())),
+    )
 
 
 def _estimate(found, obj, K0: Intrinsics, flags) -> dict:
@@ -211,18 +279,40 @@ def _estimate(found, obj, K0: Intrinsics, flags) -> dict:
 
     size = (K0.width, K0.height)
     rms, Kmat, _, rvecs, tvecs, std_in, _, _ = cv2.calibrateCameraExtended(
-        [obj] * len(found), [c.reshape(-1, 1, 2) for _, c in found], size, K0.matrix.copy(), np.zeros(5),
-        flags=flags)
-    K = Intrinsics(float(Kmat[0, 0]), float(Kmat[1, 1]), float(Kmat[0, 2]), float(Kmat[1, 2]), *size)
+        [obj] * len(found),
+        [c.reshape(-1, 1, 2) for _, c in found],
+        size,
+        K0.matrix.copy(),
+        np.zeros(5),
+        flags=flags,
+    )
+    K = Intrinsics(
+        float(Kmat[0, 0]), float(Kmat[1, 1]), float(Kmat[0, 2]), float(Kmat[1, 2]), *size
+    )
     pairs = [_board_depth_pairs(cap, c, K, r, t) for (cap, c), r, t in zip(found, rvecs, tvecs)]
     s, o, rms_d, zrange = _line(pairs)
-    return {"K": K, "std": np.asarray(std_in, float).ravel()[:4], "rms": float(rms), "pairs": pairs,
-            "scale": float(s), "offset": float(o), "rms_depth": rms_d, "range": zrange,
-            "vector": np.array([K.fx, K.fy, K.cx, K.cy, s, o])}
+    return {
+        "K": K,
+        "std": np.asarray(std_in, float).ravel()[:4],
+        "rms": float(rms),
+        "pairs": pairs,
+        "scale": float(s),
+        "offset": float(o),
+        "rms_depth": rms_d,
+        "range": zrange,
+        "vector": np.array([K.fx, K.fy, K.cx, K.cy, s, o]),
+    }
 
 
-def calibrate(captures, *, cols: int, rows: int, square_mm: float, device: str | None = None,
-              fix_aspect: bool = False) -> Calibration:
+def calibrate(
+    captures,
+    *,
+    cols: int,
+    rows: int,
+    square_mm: float,
+    device: str | None = None,
+    fix_aspect: bool = False,
+) -> Calibration:
     """Calibrate intrinsics and depth from captures of a flat checkerboard.
 
     Parameters
@@ -252,26 +342,40 @@ def calibrate(captures, *, cols: int, rows: int, square_mm: float, device: str |
         if c is not None:
             found.append((cap, c))
     if len(found) < MIN_CAPTURES:
-        raise RebarInputError(f"captures: a {cols}x{rows} board was found in {len(found)} of {len(captures)} "
-                              f"captures (not in {missing}); at least {MIN_CAPTURES} are needed")
+        raise RebarInputError(
+            f"captures: a {cols}x{rows} board was found in {len(found)} of {len(captures)} "
+            f"captures (not in {missing}); at least {MIN_CAPTURES} are needed"
+        )
     K0 = found[0][0].intrinsics
     size = (K0.width, K0.height)
     for cap, _ in found:
         if (cap.intrinsics.width, cap.intrinsics.height) != size:
-            raise RebarInputError(f"capture {cap.name!r}: {cap.intrinsics.width}x{cap.intrinsics.height}, "
-                                  f"the others are {size[0]}x{size[1]}: calibrate one image size at a time")
+            raise RebarInputError(
+                f"capture {cap.name!r}: {cap.intrinsics.width}x{cap.intrinsics.height}, "
+                f"the others are {size[0]}x{size[1]}: calibrate one image size at a time"
+            )
     obj = _object_points(int(cols), int(rows), float(square_mm))
-    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3
-             | cv2.CALIB_ZERO_TANGENT_DIST | (cv2.CALIB_FIX_ASPECT_RATIO if fix_aspect else 0))
+    flags = (
+        cv2.CALIB_USE_INTRINSIC_GUESS
+        | cv2.CALIB_FIX_K1
+        | cv2.CALIB_FIX_K2
+        | cv2.CALIB_FIX_K3
+        | cv2.CALIB_ZERO_TANGENT_DIST
+        | (cv2.CALIB_FIX_ASPECT_RATIO if fix_aspect else 0)
+    )
     est = _estimate(found, obj, K0, flags)
     if sum(len(p[0]) for p in est["pairs"]) < 100:
-        raise RebarInputError("captures: fewer than 100 pixels with depth on the board; is the depth image empty?")
+        raise RebarInputError(
+            "captures: fewer than 100 pixels with depth on the board; is the depth image empty?"
+        )
     # jackknife over captures (one left out at a time, the whole estimate made again): each
     # capture's pose error is shared by all its corners and pixels, which neither OpenCV's
     # standard deviations nor a pooled fit see; the focal length's error reaches the depth
     # scale through the poses, and the jackknife carries that along
     n = len(found)
-    loo = np.array([_estimate(found[:i] + found[i + 1:], obj, K0, flags)["vector"] for i in range(n)])
+    loo = np.array(
+        [_estimate(found[:i] + found[i + 1 :], obj, K0, flags)["vector"] for i in range(n)]
+    )
     dev = loo - loo.mean(axis=0)
     cov = (n - 1) / n * dev.T @ dev
     u = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -281,7 +385,20 @@ def calibrate(captures, *, cols: int, rows: int, square_mm: float, device: str |
     K, s, o = est["K"], est["scale"], est["offset"]
     rms, rms_d, zrange = est["rms"], est["rms_depth"], est["range"]
     dev_name = device if device is not None else str(found[0][0].metadata.get("device", ""))
-    return Calibration(K, u_K, float(s), float(o), u_s, u_o, r,
-                       (round(zrange[0], 1), round(zrange[1], 1)), float(rms), rms_d, n,
-                       {"cols": int(cols), "rows": int(rows), "square_mm": float(square_mm)}, dev_name,
-                       _dt.date.today().isoformat(), tuple(names))
+    return Calibration(
+        K,
+        u_K,
+        float(s),
+        float(o),
+        u_s,
+        u_o,
+        r,
+        (round(zrange[0], 1), round(zrange[1], 1)),
+        float(rms),
+        rms_d,
+        n,
+        {"cols": int(cols), "rows": int(rows), "square_mm": float(square_mm)},
+        dev_name,
+        _dt.date.today().isoformat(),
+        tuple(names),
+    )

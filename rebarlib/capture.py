@@ -30,7 +30,21 @@ from ._capture import Capture, load_capture, read_intrinsics, save_capture
 from ._cloud import remove_outliers, voxel_downsample
 from ._inspect import prepare_cloud, rebar_mask, registered_mask, trim_edge_fattening
 
-__all__ = ["Capture", "load_capture", "save_capture", "read_intrinsics", "Intrinsics", "GEMINI2",
-           "project", "backproject", "depth_to_points", "Cloud", "voxel_downsample",
-           "remove_outliers", "prepare_cloud", "trim_edge_fattening", "rebar_mask",
-           "registered_mask"]
+__all__ = [
+    "Capture",
+    "load_capture",
+    "save_capture",
+    "read_intrinsics",
+    "Intrinsics",
+    "GEMINI2",
+    "project",
+    "backproject",
+    "depth_to_points",
+    "Cloud",
+    "voxel_downsample",
+    "remove_outliers",
+    "prepare_cloud",
+    "trim_edge_fattening",
+    "rebar_mask",
+    "registered_mask",
+]

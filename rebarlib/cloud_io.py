@@ -58,12 +58,15 @@ class ScanCloud:
 
     def subset(self, index) -> ScanCloud:
         """The cloud restricted to ``index`` (indices or a boolean mask), fields included."""
-        return replace(self, points=self.points[index], fields={k: v[index] for k, v in self.fields.items()})
+        return replace(
+            self, points=self.points[index], fields={k: v[index] for k, v in self.fields.items()}
+        )
 
 
 # ----------------------------------------------------------------------------------------------
 # Reading
 # ----------------------------------------------------------------------------------------------
+
 
 def cloud_files(folder) -> list:
     """The point cloud files directly in ``folder`` (by suffix), sorted by name."""
@@ -96,8 +99,10 @@ def read_cloud(path, *, units: str, recentre: bool = True) -> ScanCloud:
     suffix = p.suffix.lower()
     reader = _READERS.get(suffix)
     if reader is None:
-        raise RebarInputError(f"{p}: unknown point cloud format {suffix!r} "
-                              f"(expected one of {', '.join(CLOUD_SUFFIXES)})")
+        raise RebarInputError(
+            f"{p}: unknown point cloud format {suffix!r} "
+            f"(expected one of {', '.join(CLOUD_SUFFIXES)})"
+        )
     try:
         xyz, fields = reader(p)
     except RebarInputError:
@@ -110,7 +115,9 @@ def read_cloud(path, *, units: str, recentre: bool = True) -> ScanCloud:
 def _finish(xyz, fields, *, units, source, recentre) -> ScanCloud:
     xyz = np.asarray(xyz, np.float64)
     if xyz.ndim != 2 or xyz.shape[1] != 3 or len(xyz) == 0:
-        raise RebarInputError(f"{source}: expected a non-empty cloud of x, y, z points, got shape {xyz.shape}")
+        raise RebarInputError(
+            f"{source}: expected a non-empty cloud of x, y, z points, got shape {xyz.shape}"
+        )
     ok = np.all(np.isfinite(xyz), axis=1)
     xyz = xyz[ok]
     fields = {k: np.asarray(v)[ok] for k, v in fields.items() if len(v) == len(ok)}
@@ -125,19 +132,29 @@ def _finish(xyz, fields, *, units, source, recentre) -> ScanCloud:
 def _check_units(xyz, units, source) -> None:
     extent = float(np.ptp(xyz, axis=0).max())
     if units == "mm" and 0 < extent < 10:
-        warnings.warn(f"{source}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)",
-                      stacklevel=4)
+        warnings.warn(
+            f"{source}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)",
+            stacklevel=4,
+        )
     if units == "m" and extent > 100:
-        warnings.warn(f"{source}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)",
-                      stacklevel=4)
+        warnings.warn(
+            f"{source}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)",
+            stacklevel=4,
+        )
 
 
 def _colour_fields(names, get) -> dict:
     """``colors`` (N, 3) in 0..1 from red/green/blue (or r/g/b) columns, else {}."""
-    for trio in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
+    for trio in (
+        ("red", "green", "blue"),
+        ("r", "g", "b"),
+        ("diffuse_red", "diffuse_green", "diffuse_blue"),
+    ):
         if all(t in names for t in trio):
             rgb = np.column_stack([np.asarray(get(t), np.float64) for t in trio])
-            top = 65535.0 if rgb.max(initial=0) > 255 else (255.0 if rgb.max(initial=0) > 1 else 1.0)
+            top = (
+                65535.0 if rgb.max(initial=0) > 255 else (255.0 if rgb.max(initial=0) > 1 else 1.0)
+            )
             return {"colors": rgb / top}
     return {}
 
@@ -153,23 +170,53 @@ def _structured_fields(arr, skip=("x", "y", "z")) -> tuple[np.ndarray, dict]:
     fields = _colour_fields(col, lambda t: arr[col[t]])
     used = set(skip)
     if fields:
-        used |= {t for t in ("red", "green", "blue", "r", "g", "b", "diffuse_red", "diffuse_green",
-                             "diffuse_blue") if t in col}
+        used |= {
+            t
+            for t in (
+                "red",
+                "green",
+                "blue",
+                "r",
+                "g",
+                "b",
+                "diffuse_red",
+                "diffuse_green",
+                "diffuse_blue",
+            )
+            if t in col
+        }
     for trio in (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z")):
         if all(t in col for t in trio):
             fields["normals"] = np.column_stack([arr[col[t]].astype(np.float64) for t in trio])
             used |= set(trio)
     for n in names:
         if n not in used and arr[col[n]].ndim == 1:
-            fields["intensity" if n in ("scalar_intensity", "reflectance") else n] = np.asarray(arr[col[n]])
+            fields["intensity" if n in ("scalar_intensity", "reflectance") else n] = np.asarray(
+                arr[col[n]]
+            )
     return xyz, fields
 
 
 # --- PLY ----------------------------------------------------------------------------------------
 
-_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+_PLY_TYPES = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+}
 
 
 def _read_ply(p: Path):
@@ -199,15 +246,17 @@ def _read_ply(p: Path):
             if name == "vertex":
                 break
             if count and fmt != "ascii":
-                raise RebarInputError(f"{p}: PLY element '{name}' precedes the vertices (not supported)")
+                raise RebarInputError(
+                    f"{p}: PLY element '{name}' precedes the vertices (not supported)"
+                )
         else:
             raise RebarInputError(f"{p}: PLY file has no 'vertex' element")
         if any(t is None for _, t in props):
             raise RebarInputError(f"{p}: PLY vertices with list properties are not supported")
         if fmt == "ascii":
-            skip = sum(c for n, c, _ in elements[:[e[0] for e in elements].index("vertex")])
+            skip = sum(c for n, c, _ in elements[: [e[0] for e in elements].index("vertex")])
             data = np.loadtxt(f, max_rows=count, skiprows=skip, ndmin=2)
-            arr = np.rec.fromarrays(data.T[:len(props)], names=[n for n, _ in props])
+            arr = np.rec.fromarrays(data.T[: len(props)], names=[n for n, _ in props])
         else:
             order = {"binary_little_endian": "<", "binary_big_endian": ">"}.get(fmt)
             if order is None:
@@ -218,6 +267,7 @@ def _read_ply(p: Path):
 
 
 # --- PCD ----------------------------------------------------------------------------------------
+
 
 def _read_pcd(p: Path):
     with open(p, "rb") as f:
@@ -238,13 +288,17 @@ def _read_pcd(p: Path):
         counts = [int(c) for c in head.get("COUNT", ["1"] * len(names))]
         n = int(head["POINTS"][0])
         kind = head["DATA"][0].lower()
-        dtype = np.dtype([(nm, f"<{t.lower()}{s}", () if c == 1 else (c,))
-                          for nm, s, t, c in zip(names, sizes, types, counts)])
+        dtype = np.dtype(
+            [
+                (nm, f"<{t.lower()}{s}", () if c == 1 else (c,))
+                for nm, s, t, c in zip(names, sizes, types, counts)
+            ]
+        )
         if kind == "ascii":
             rows = np.loadtxt(f, ndmin=2, max_rows=n)
             cols, k = [], 0
-            for (nm, s, t, c) in zip(names, sizes, types, counts):
-                cols.append(rows[:, k].astype(f"<{t.lower()}{s}") if c == 1 else rows[:, k:k + c])
+            for nm, s, t, c in zip(names, sizes, types, counts):
+                cols.append(rows[:, k].astype(f"<{t.lower()}{s}") if c == 1 else rows[:, k : k + c])
                 k += c
             arr = np.rec.fromarrays(cols, dtype=dtype)
         elif kind == "binary":
@@ -260,13 +314,13 @@ def _read_pcd(p: Path):
 def _pcd_compressed(buf: bytes, dtype, n):
     """PCL's binary_compressed: LZF of the fields stored column by column."""
     comp, raw = np.frombuffer(buf[:8], "<u4")
-    data = _lzf_decompress(buf[8:8 + int(comp)], int(raw))
+    data = _lzf_decompress(buf[8 : 8 + int(comp)], int(raw))
     out = np.empty(n, dtype)
     k = 0
     for name in dtype.names:
         sub = dtype[name]
         size = sub.itemsize * n
-        out[name] = np.frombuffer(data[k:k + size], sub.base).reshape(out[name].shape)
+        out[name] = np.frombuffer(data[k : k + size], sub.base).reshape(out[name].shape)
         k += size
     return out
 
@@ -281,7 +335,7 @@ def _lzf_decompress(src: bytes, size: int) -> bytes:
         i += 1
         if ctrl < 32:
             ln = ctrl + 1
-            out[o:o + ln] = src[i:i + ln]
+            out[o : o + ln] = src[i : i + ln]
             i += ln
             o += ln
         else:
@@ -307,8 +361,11 @@ def _unpack_pcd_rgb(arr):
     key = next((arr.dtype.names[i] for i, n in enumerate(names) if n in ("rgb", "rgba")), None)
     if key is None:
         return arr
-    packed = np.ascontiguousarray(arr[key]).view(np.uint32) if arr[key].dtype.itemsize == 4 else \
-        arr[key].astype(np.uint32)
+    packed = (
+        np.ascontiguousarray(arr[key]).view(np.uint32)
+        if arr[key].dtype.itemsize == 4
+        else arr[key].astype(np.uint32)
+    )
     rest = [n for n in arr.dtype.names if n != key]
     cols = [arr[n] for n in rest] + [(packed >> 16) & 255, (packed >> 8) & 255, packed & 255]
     return np.rec.fromarrays(cols, names=rest + ["red", "green", "blue"])
@@ -331,8 +388,16 @@ def _read_text(p: Path):
         skip = 1  # Leica PTS: the first line is the point count
     elif toks and not all(_NUMBER.match(t) for t in toks):
         skip, names = 1, [t.strip().lower() for t in toks]
-    df = pd.read_csv(p, sep=sep, header=None, skiprows=skip, comment="#", dtype=np.float64,
-                     on_bad_lines="skip", engine="c")
+    df = pd.read_csv(
+        p,
+        sep=sep,
+        header=None,
+        skiprows=skip,
+        comment="#",
+        dtype=np.float64,
+        on_bad_lines="skip",
+        engine="c",
+    )
     a = df.to_numpy()
     if a.ndim != 2 or a.shape[1] < 3:
         raise RebarInputError(f"{p}: expected at least three columns x, y, z")
@@ -350,10 +415,14 @@ def _text_names(a) -> list:
     rest = a[:, 3:]
 
     def is_rgb(c):
-        return np.all((c >= 0) & (c <= 255)) and np.allclose(c, np.round(c)) and c.max(initial=0) > 1
+        return (
+            np.all((c >= 0) & (c <= 255)) and np.allclose(c, np.round(c)) and c.max(initial=0) > 1
+        )
 
     names = ["x", "y", "z"]
-    if extra in (1, 4, 7) or (extra == 3 and not is_rgb(rest[:, :3]) and np.abs(rest[:, :3]).max() > 1.0):
+    if extra in (1, 4, 7) or (
+        extra == 3 and not is_rgb(rest[:, :3]) and np.abs(rest[:, :3]).max() > 1.0
+    ):
         names.append("intensity")
         rest = rest[:, 1:]
         extra -= 1
@@ -368,6 +437,7 @@ def _text_names(a) -> list:
 
 
 # --- NPZ (numpy / Open3D exports) -------------------------------------------------------------
+
 
 def _read_npz(p: Path):
     with np.load(p, allow_pickle=False) as z:
@@ -386,11 +456,14 @@ def _read_npz(p: Path):
 
 # --- LAS / LAZ ----------------------------------------------------------------------------------
 
+
 def _read_las(p: Path):
     try:
         import laspy
     except ImportError:  # pragma: no cover - a declared dependency
-        raise RebarInputError(f"{p}: reading LAS/LAZ needs the 'laspy' package (and 'lazrs' for LAZ)") from None
+        raise RebarInputError(
+            f"{p}: reading LAS/LAZ needs the 'laspy' package (and 'lazrs' for LAZ)"
+        ) from None
     try:
         las = laspy.read(str(p))
     except laspy.errors.LaspyException as exc:
@@ -407,6 +480,7 @@ def _read_las(p: Path):
 
 # --- E57 ----------------------------------------------------------------------------------------
 
+
 def _read_e57(p: Path):
     try:
         import pye57
@@ -415,13 +489,19 @@ def _read_e57(p: Path):
     e57 = pye57.E57(str(p))
     xyz_all, fields_all = [], []
     for i in range(e57.scan_count):
-        scan = e57.read_scan(i, ignore_missing_fields=True, intensity=True, colors=True, transform=True)
-        xyz_all.append(np.column_stack([scan["cartesianX"], scan["cartesianY"], scan["cartesianZ"]]))
+        scan = e57.read_scan(
+            i, ignore_missing_fields=True, intensity=True, colors=True, transform=True
+        )
+        xyz_all.append(
+            np.column_stack([scan["cartesianX"], scan["cartesianY"], scan["cartesianZ"]])
+        )
         f = {}
         if "intensity" in scan:
             f["intensity"] = np.asarray(scan["intensity"])
         if "colorRed" in scan:
-            f["colors"] = np.column_stack([scan["colorRed"], scan["colorGreen"], scan["colorBlue"]]) / 255.0
+            f["colors"] = (
+                np.column_stack([scan["colorRed"], scan["colorGreen"], scan["colorBlue"]]) / 255.0
+            )
         f["station"] = np.full(len(xyz_all[-1]), i, np.int32)
         fields_all.append(f)
     if not xyz_all:
@@ -430,13 +510,24 @@ def _read_e57(p: Path):
     return np.vstack(xyz_all), {k: np.concatenate([f[k] for f in fields_all]) for k in keys}
 
 
-_READERS = {".ply": _read_ply, ".pcd": _read_pcd, ".xyz": _read_text, ".pts": _read_text, ".csv": _read_text,
-            ".txt": _read_text, ".npz": _read_npz, ".las": _read_las, ".laz": _read_las, ".e57": _read_e57}
+_READERS = {
+    ".ply": _read_ply,
+    ".pcd": _read_pcd,
+    ".xyz": _read_text,
+    ".pts": _read_text,
+    ".csv": _read_text,
+    ".txt": _read_text,
+    ".npz": _read_npz,
+    ".las": _read_las,
+    ".laz": _read_las,
+    ".e57": _read_e57,
+}
 
 
 # ----------------------------------------------------------------------------------------------
 # Writing (synthetic scans and tests)
 # ----------------------------------------------------------------------------------------------
+
 
 def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     """Write ``cloud`` (its absolute coordinates) to ``path`` in the format its suffix names,
@@ -449,7 +540,9 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     xyz = cloud.absolute_mm / UNIT_SCALE[units]
     inten = cloud.fields.get("intensity")
     rgb = cloud.fields.get("colors")
-    rgb8 = None if rgb is None else np.clip(np.round(np.asarray(rgb) * 255), 0, 255).astype(np.uint8)
+    rgb8 = (
+        None if rgb is None else np.clip(np.round(np.asarray(rgb) * 255), 0, 255).astype(np.uint8)
+    )
     if suffix == ".ply":
         _write_ply(p, xyz, inten, rgb8, cloud.fields.get("normals"))
     elif suffix == ".pcd":
@@ -464,8 +557,10 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     elif suffix == ".e57":
         _write_e57(p, xyz, inten)
     else:
-        raise RebarInputError(f"{p}: unknown point cloud format {suffix!r} (expected one of "
-                              f"{', '.join(CLOUD_SUFFIXES)})")
+        raise RebarInputError(
+            f"{p}: unknown point cloud format {suffix!r} (expected one of "
+            f"{', '.join(CLOUD_SUFFIXES)})"
+        )
     return p
 
 
@@ -495,11 +590,23 @@ def _write_ply(p, xyz, inten, rgb8, normals=None):
 
 def _write_pcd(p, xyz, inten):
     fields = ["x", "y", "z"] + (["intensity"] if inten is not None else [])
-    arr = np.column_stack([xyz] + ([np.asarray(inten, float)] if inten is not None else [])).astype("<f8")
+    arr = np.column_stack([xyz] + ([np.asarray(inten, float)] if inten is not None else [])).astype(
+        "<f8"
+    )
     k = len(fields)
-    head = ["# .PCD v0.7", "VERSION 0.7", "FIELDS " + " ".join(fields), "SIZE " + " ".join(["8"] * k),
-            "TYPE " + " ".join(["F"] * k), "COUNT " + " ".join(["1"] * k), f"WIDTH {len(xyz)}", "HEIGHT 1",
-            "VIEWPOINT 0 0 0 1 0 0 0", f"POINTS {len(xyz)}", "DATA binary"]
+    head = [
+        "# .PCD v0.7",
+        "VERSION 0.7",
+        "FIELDS " + " ".join(fields),
+        "SIZE " + " ".join(["8"] * k),
+        "TYPE " + " ".join(["F"] * k),
+        "COUNT " + " ".join(["1"] * k),
+        f"WIDTH {len(xyz)}",
+        "HEIGHT 1",
+        "VIEWPOINT 0 0 0 1 0 0 0",
+        f"POINTS {len(xyz)}",
+        "DATA binary",
+    ]
     with open(p, "wb") as f:
         f.write(("\n".join(head) + "\n").encode("ascii"))
         f.write(arr.tobytes())
@@ -518,8 +625,14 @@ def _write_text(p, xyz, inten, rgb8, suffix):
         if suffix == ".pts":
             f.write(f"{len(a)}\n")
         elif suffix == ".csv":
-            f.write(",".join(["x", "y", "z"] + ["intensity"] * (inten is not None)
-                             + ["red", "green", "blue"] * (rgb8 is not None)) + "\n")
+            f.write(
+                ",".join(
+                    ["x", "y", "z"]
+                    + ["intensity"] * (inten is not None)
+                    + ["red", "green", "blue"] * (rgb8 is not None)
+                )
+                + "\n"
+            )
         np.savetxt(f, a, fmt=fmt, delimiter=delim)
 
 

@@ -11,15 +11,23 @@ __all__ = ["paper_design", "site_design", "examples_dir", "example_slab", "examp
 
 _PAPER = {
     "slab": {"id": "PAPER", "location": "laboratory mesh (the paper's experiment)"},
-    "design": {"cover_mm": 20, "layer_distance_mm": 85, "thickness_mm": 180,
-               "lower": {"diameter_mm": 14, "spacing_mm": 200},
-               "upper": {"diameter_mm": 12, "spacing_mm": 200}},
+    "design": {
+        "cover_mm": 20,
+        "layer_distance_mm": 85,
+        "thickness_mm": 180,
+        "lower": {"diameter_mm": 14, "spacing_mm": 200},
+        "upper": {"diameter_mm": 12, "spacing_mm": 200},
+    },
 }
 _SITE = {
     "slab": {"id": "SITE", "location": "site-like slab (the paper's site capture)"},
-    "design": {"cover_mm": 15, "layer_distance_mm": 54, "thickness_mm": 110,
-               "lower": {"diameter_mm": 8, "spacing_mm": 150},
-               "upper": {"diameter_mm": 8, "spacing_mm": 150}},
+    "design": {
+        "cover_mm": 15,
+        "layer_distance_mm": 54,
+        "thickness_mm": 110,
+        "lower": {"diameter_mm": 8, "spacing_mm": 150},
+        "upper": {"diameter_mm": 8, "spacing_mm": 150},
+    },
 }
 
 
@@ -31,7 +39,10 @@ def paper_design(*, cover_mm: float = 20, **design_overrides) -> Design:
     >>> paper_design(cover_mm=15).cover_mm
     15.0
     """
-    data = {"slab": dict(_PAPER["slab"]), "design": {**_PAPER["design"], "cover_mm": cover_mm, **design_overrides}}
+    data = {
+        "slab": dict(_PAPER["slab"]),
+        "design": {**_PAPER["design"], "cover_mm": cover_mm, **design_overrides},
+    }
     return design_from_dict(data, source="paper_design()")
 
 
@@ -45,8 +56,10 @@ def examples_dir() -> Path:
     """The ``examples/`` folder of a source checkout."""
     path = Path(__file__).resolve().parent.parent / "examples"
     if not path.is_dir():
-        raise RebarInputError(f"{path}: the examples folder ships with the source checkout; "
-                              "clone the repository to use the sample captures")
+        raise RebarInputError(
+            f"{path}: the examples folder ships with the source checkout; "
+            "clone the repository to use the sample captures"
+        )
     return path
 
 

@@ -17,20 +17,43 @@ from pathlib import Path
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import DEFAULT_BAR_SYSTEM, Design
-from ._report_figures import (BAR_COLOURS, LAYER_COLOURS, _image_data_uri, _image_overlay,
-                              _plan_view)
+from ._report_figures import BAR_COLOURS, LAYER_COLOURS, _image_data_uri, _image_overlay, _plan_view
 from ._results import table_records
 from ._status import ACCEPTED, EXCLUDED, NOT_CHECKED, NOT_MEASURED, REJECTED, SLAB_INCOMPLETE
 from .acceptance import COVERAGE_K, Acceptance
 
-__all__ = ["build_report", "report_context", "render_html", "templates_dir", "write_exports",
-           "safe_url_fetcher", "find_captures", "BAR_COLOURS"]
+__all__ = [
+    "build_report",
+    "report_context",
+    "render_html",
+    "templates_dir",
+    "write_exports",
+    "safe_url_fetcher",
+    "find_captures",
+    "BAR_COLOURS",
+]
 
-_BAR_KEYS = ("bar_id", "layer", "level", "plan_angle_deg", "visible_length_mm", "n_points", "width_median_mm",
-             "width_spread_mm", "nominal_mm", "confidence", "design_diameter_mm", "diameter_status",
-             "diameter_reason", "one_sided_share")
-VERDICT_TEXT = {ACCEPTED: "ACCEPTED", REJECTED: "NOT ACCEPTED (rejected)",
-                SLAB_INCOMPLETE: "NOT ACCEPTED (incomplete: not everything could be judged)"}
+_BAR_KEYS = (
+    "bar_id",
+    "layer",
+    "level",
+    "plan_angle_deg",
+    "visible_length_mm",
+    "n_points",
+    "width_median_mm",
+    "width_spread_mm",
+    "nominal_mm",
+    "confidence",
+    "design_diameter_mm",
+    "diameter_status",
+    "diameter_reason",
+    "one_sided_share",
+)
+VERDICT_TEXT = {
+    ACCEPTED: "ACCEPTED",
+    REJECTED: "NOT ACCEPTED (rejected)",
+    SLAB_INCOMPLETE: "NOT ACCEPTED (incomplete: not everything could be judged)",
+}
 #: Longest text a design file's field (slab id, location, project, ...) is printed with; a longer
 #: one is cut there with an ellipsis (the exports keep it whole). A 14 000-character id once made
 #: the PDF take minutes to lay out; 200 characters fill three lines of the identification table.
@@ -59,12 +82,14 @@ def templates_dir() -> Path:
     raise RebarInputError(
         f"report templates not found: no report.html.j2 in {candidates[0]} or {candidates[1]} "
         "(the report needs rebarlib's templates/ folder: use a source checkout, or a build that "
-        "ships templates/ as package data)")
+        "ships templates/ as package data)"
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # Safety: what weasyprint may load
 # --------------------------------------------------------------------------------------------
+
 
 def safe_url_fetcher(allowed_dir=None, *, refused=None):
     """A weasyprint URL fetcher that serves only ``data:`` URIs and files inside ``allowed_dir``.
@@ -84,12 +109,15 @@ def safe_url_fetcher(allowed_dir=None, *, refused=None):
                 return super().fetch(url, headers)
             if scheme == "file":
                 from urllib.request import url2pathname
-                path = Path(url2pathname(url.split("?")[0].split("#")[0][len("file:"):])).resolve()
+
+                path = Path(url2pathname(url.split("?")[0].split("#")[0][len("file:") :])).resolve()
                 if path.is_relative_to(root) and path.is_file():
                     return super().fetch(url, headers)
             if refused is not None:
                 refused.append(url)
-            raise ValueError(f"refused to load {url!r}: the report loads only its own template assets")
+            raise ValueError(
+                f"refused to load {url!r}: the report loads only its own template assets"
+            )
 
     return _ProjectOnlyFetcher(allowed_protocols=("data", "file"), allow_redirects=False)
 
@@ -97,6 +125,7 @@ def safe_url_fetcher(allowed_dir=None, *, refused=None):
 # --------------------------------------------------------------------------------------------
 # Slab folders
 # --------------------------------------------------------------------------------------------
+
 
 def find_captures(slab_dir) -> list:
     """Capture folders of a slab folder (sub-folders holding a ``camera.json``), sorted by name.
@@ -109,7 +138,9 @@ def find_captures(slab_dir) -> list:
     """
     slab = Path(slab_dir)
     if not slab.is_dir():
-        raise RebarInputError(f"{slab}: slab folder not found (expected design.toml and capture folders)")
+        raise RebarInputError(
+            f"{slab}: slab folder not found (expected design.toml and capture folders)"
+        )
     return sorted(p for p in slab.iterdir() if p.is_dir() and (p / "camera.json").is_file())
 
 
@@ -138,6 +169,7 @@ def _capture_info(folder: Path | None) -> dict:
 # Context and rendering
 # --------------------------------------------------------------------------------------------
 
+
 def _fmt(v, nd: int = 1, unit: str = "") -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
@@ -157,15 +189,22 @@ def _signed(v, nd: int = 1) -> str:
 
 
 def _pct(v) -> str:
-    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{100 * float(v):.0f} %"
+    return (
+        "–"
+        if v is None or (isinstance(v, float) and not math.isfinite(v))
+        else f"{100 * float(v):.0f} %"
+    )
 
 
 def _no_image_text(result: dict, has_folder: bool) -> str:
     """Why a capture's section shows no colour image (a scanned cloud has none: its plan view does)."""
     if (result.get("extras") or {}).get("cloud") is not None:
         return "a scanned point cloud has no colour image; the plan view below shows its bars"
-    return "colour image or camera.json unreadable" if has_folder else \
-        "no capture folder with a colour image and camera.json"
+    return (
+        "colour image or camera.json unreadable"
+        if has_folder
+        else "no capture folder with a colour image and camera.json"
+    )
 
 
 def _capture_folders(source) -> tuple[Path | None, dict]:
@@ -186,19 +225,25 @@ def _camera_basis(r: dict) -> str:
     if not inp:
         return "not recorded (the result has no uncertainty budget: the uncertainties are the fits' alone)"
     text = f"factory calibration, device profile {inp.get('name')}"
-    return text + (" (no profile matched the device: conservative default)" if inp.get("default_profile") else "")
+    return text + (
+        " (no profile matched the device: conservative default)"
+        if inp.get("default_profile")
+        else ""
+    )
 
 
 def _decision_context(acceptance: Acceptance) -> dict:
     """The decision rule and what it implied on this slab, in words for the methods section."""
     d = acceptance.decision_summary()
     pct = lambda x: f"{100 * x:.1f} %"  # noqa: E731
-    d["text"] = (f"{d['within_not_proven']} checkpoint(s) within tolerance but not proven (the interval "
-                 f"± U reaches over a limit), {d['beyond_not_proven']} beyond but not proven. Over the "
-                 f"{d['checkpoints_with_u']} checkpoints with an uncertainty, the expected number of false "
-                 f"accepts is {d['expected_false_accepts']:.2f} (largest single chance "
-                 f"{pct(d['max_false_accept'])}) and of false rejects {d['expected_false_rejects']:.2f} "
-                 f"(largest {pct(d['max_false_reject'])}), for a normal error of standard deviation U / k.")
+    d["text"] = (
+        f"{d['within_not_proven']} checkpoint(s) within tolerance but not proven (the interval "
+        f"± U reaches over a limit), {d['beyond_not_proven']} beyond but not proven. Over the "
+        f"{d['checkpoints_with_u']} checkpoints with an uncertainty, the expected number of false "
+        f"accepts is {d['expected_false_accepts']:.2f} (largest single chance "
+        f"{pct(d['max_false_accept'])}) and of false rejects {d['expected_false_rejects']:.2f} "
+        f"(largest {pct(d['max_false_reject'])}), for a normal error of standard deviation U / k."
+    )
     return d
 
 
@@ -211,8 +256,10 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     from . import __version__
 
     if not isinstance(acceptance, Acceptance):
-        raise RebarInputError(f"acceptance: expected an Acceptance from rebarlib.acceptance.evaluate, "
-                              f"got {type(acceptance).__name__}")
+        raise RebarInputError(
+            f"acceptance: expected an Acceptance from rebarlib.acceptance.evaluate, "
+            f"got {type(acceptance).__name__}"
+        )
     slab_dir, folders = _capture_folders(source)
     results = list(acceptance.results)
     if not isinstance(source, (str, Path)) and source is not None:
@@ -247,26 +294,44 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     record = str(slab.get("record", "")) or f"{design.slab_id}-{now:%Y%m%d}"
     return {
         "title": f"Rebar inspection record — slab {design.slab_id}",
-        "record": record, "record_generated": not slab.get("record"),
-        "project": slab.get("project", ""), "slab_id": design.slab_id, "element": design.element,
-        "location": design.location, "drawing": slab.get("drawing", ""),
-        "contractor": slab.get("contractor", ""), "lot": str(slab.get("lot", "")),
-        "standard": tol.standard, "edition": tol.edition, "preset": tol.name,
-        "preset_title": tol.title, "overrides": list(tol.overrides), "design_source": design.source,
+        "record": record,
+        "record_generated": not slab.get("record"),
+        "project": slab.get("project", ""),
+        "slab_id": design.slab_id,
+        "element": design.element,
+        "location": design.location,
+        "drawing": slab.get("drawing", ""),
+        "contractor": slab.get("contractor", ""),
+        "lot": str(slab.get("lot", "")),
+        "standard": tol.standard,
+        "edition": tol.edition,
+        "preset": tol.name,
+        "preset_title": tol.title,
+        "overrides": list(tol.overrides),
+        "design_source": design.source,
         "capture_dates": ", ".join(sorted(dates)) or "not recorded in the capture files",
-        "devices": ", ".join(sorted(devices)) or "not recorded", "software": f"rebarlib {__version__}",
-        "report_date": f"{now:%Y-%m-%d %H:%M}", "n_captures": len(results),
+        "devices": ", ".join(sorted(devices)) or "not recorded",
+        "software": f"rebarlib {__version__}",
+        "report_date": f"{now:%Y-%m-%d %H:%M}",
+        "n_captures": len(results),
         "missing_captures": [{"capture": c, "reason": r} for c, r in acceptance.missing_captures],
         "design": _design_context(design),
         "verdict": acceptance.verdict,
         "verdict_text": VERDICT_TEXT.get(acceptance.verdict, acceptance.verdict),
-        "rules": rules, "max_factor_text": _max_factor_text(tol), "reasons": list(acceptance.reasons),
+        "rules": rules,
+        "max_factor_text": _max_factor_text(tol),
+        "reasons": list(acceptance.reasons),
         "notes": list(acceptance.notes),
-        "items": items, "checkpoints": checkpoints, "checkpoint_rows": checkpoint_rows,
-        "captures": captures, "uncertainty": _uncertainty_rows(cp),
-        "not_measured": _not_measured_rows(checkpoints), "decision": _decision_context(acceptance),
+        "items": items,
+        "checkpoints": checkpoints,
+        "checkpoint_rows": checkpoint_rows,
+        "captures": captures,
+        "uncertainty": _uncertainty_rows(cp),
+        "not_measured": _not_measured_rows(checkpoints),
+        "decision": _decision_context(acceptance),
         "methods": sorted({str(r.get("method", "")) for r in results if r.get("method")}),
-        "colours": BAR_COLOURS, "layer_colours": LAYER_COLOURS,
+        "colours": BAR_COLOURS,
+        "layer_colours": LAYER_COLOURS,
     }
 
 
@@ -281,8 +346,9 @@ def _spacing_status(cp) -> dict:
     return status_of
 
 
-def _capture_context(r: dict, info: dict, folders: dict, acceptance: Acceptance, status_of: dict,
-                     design: Design) -> dict:
+def _capture_context(
+    r: dict, info: dict, folders: dict, acceptance: Acceptance, status_of: dict, design: Design
+) -> dict:
     """One capture's section: its image with the bars drawn on it, its plan view, its bars with
     their verdicts, its measurements and how the camera was placed and calibrated."""
     name = str(r["capture"])
@@ -295,21 +361,36 @@ def _capture_context(r: dict, info: dict, folders: dict, acceptance: Acceptance,
     if info.get("color") is not None and info.get("intrinsics") is not None:
         uri, _ = _image_data_uri(info["color"])
         K = info["intrinsics"]
-        image = {"uri": uri, "width": K.width, "height": K.height,
-                 "bars": _image_overlay(bars, verdicts, K), "font": K.width / 60,
-                 "stroke": K.width / 320}
+        image = {
+            "uri": uri,
+            "width": K.width,
+            "height": K.height,
+            "bars": _image_overlay(bars, verdicts, K),
+            "font": K.width / 60,
+            "stroke": K.width / 320,
+        }
     for b in bars:
         b["verdict"] = verdicts.get(str(b.get("bar_id")), NOT_CHECKED)
         for key in _BAR_KEYS:  # the template prints every column; absent = not in the result
             b.setdefault(key, None)
     cam = r.get("camera") or {}
     return {
-        "name": name, "method": r.get("method", ""), "image": image,
+        "name": name,
+        "method": r.get("method", ""),
+        "image": image,
         "image_missing": "" if image else _no_image_text(r, name in folders),
-        "plan": _plan_view(bars, spacings, status_of, r.get("formwork") or {}, design,
-                           positions=r.get("positions") or [],
-                           boundary=(r.get("extras") or {}).get("mesh_boundary")),
-        "bars": bars, "measurements": _measurement_rows(r), "notes": list(r.get("notes") or []),
+        "plan": _plan_view(
+            bars,
+            spacings,
+            status_of,
+            r.get("formwork") or {},
+            design,
+            positions=r.get("positions") or [],
+            boundary=(r.get("extras") or {}).get("mesh_boundary"),
+        ),
+        "bars": bars,
+        "measurements": _measurement_rows(r),
+        "notes": list(r.get("notes") or []),
         "height": _fmt(cam.get("height_mm"), 0, "mm"),
         "tilt": _fmt(cam.get("tilt_deg"), 1) + ("°" if cam.get("tilt_deg") is not None else ""),
         "device": meta.get("device", "not recorded"),
@@ -323,13 +404,23 @@ def _measurement_rows(r: dict) -> list:
     """Cover, layer distance, top of the upper bars and top cover of one result, as printed."""
     meas = r.get("measurements") or {}
     rows = []
-    for key, label in (("cover", "Cover"), ("layer_distance", "Layer distance"),
-                       ("upper_top", "Top of upper bars above formwork"),
-                       ("top_cover", "Top cover (predicted)")):
+    for key, label in (
+        ("cover", "Cover"),
+        ("layer_distance", "Layer distance"),
+        ("upper_top", "Top of upper bars above formwork"),
+        ("top_cover", "Top cover (predicted)"),
+    ):
         m = meas.get(key) or {}
-        rows.append({"label": label, "value": _fmt(m.get("value_mm"), 1, "mm"),
-                     "u": _fmt(m.get("uncertainty_mm"), 1, "mm"), "n": m.get("n_points", ""),
-                     "status": m.get("status", NOT_MEASURED), "reason": m.get("reason", "")})
+        rows.append(
+            {
+                "label": label,
+                "value": _fmt(m.get("value_mm"), 1, "mm"),
+                "u": _fmt(m.get("uncertainty_mm"), 1, "mm"),
+                "n": m.get("n_points", ""),
+                "status": m.get("status", NOT_MEASURED),
+                "reason": m.get("reason", ""),
+            }
+        )
     return rows
 
 
@@ -345,13 +436,21 @@ def _item_rows(acceptance: Acceptance) -> tuple[list, list]:
         it["rule_no"] = [(r["rule"], r["clause"]) for r in rules].index(key) + 1
         unit = "bars" if it["unit"] == "bars" else "mm"
         w = it["worst_deviation"]
-        it["worst_text"] = "–" if w is None else (
-            f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
+        it["worst_text"] = (
+            "–"
+            if w is None
+            else (f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
+        )
         it["ratio_text"] = _pct(it["pass_ratio"])
-        it["extra_text"] = ", ".join(t for t in (f"+{it['not_measured']} n/m" if it["not_measured"] else "",
-                                                 f"+{it['excluded']} hidden" if it["excluded"] else "",
-                                                 f"{it['not_proven']} not proven" if it.get("not_proven") else "")
-                                     if t)
+        it["extra_text"] = ", ".join(
+            t
+            for t in (
+                f"+{it['not_measured']} n/m" if it["not_measured"] else "",
+                f"+{it['excluded']} hidden" if it["excluded"] else "",
+                f"{it['not_proven']} not proven" if it.get("not_proven") else "",
+            )
+            if t
+        )
     return items, rules
 
 
@@ -363,45 +462,77 @@ def _uncertainty_rows(cp) -> list:
         sub = cp[(cp["item"] == key) & cp["uncertainty"].notna()]
         if len(sub):
             u = sub["uncertainty"].astype(float)
-            uncertainty.append({"label": sub["label"].iloc[0], "text":
-                                f"{u.median():.1f} mm (median over {len(u)} capture(s), max {u.max():.1f} mm)"})
+            uncertainty.append(
+                {
+                    "label": sub["label"].iloc[0],
+                    "text": f"{u.median():.1f} mm (median over {len(u)} capture(s), max {u.max():.1f} mm)",
+                }
+            )
     u_sp = cp[cp["item"].str.startswith("spacing") & cp["uncertainty"].notna()]
     if len(u_sp):
         u = u_sp["uncertainty"].astype(float)
-        uncertainty.append({"label": "Spacing (each gap's standard uncertainty)",
-                            "text": f"{u.median():.1f} mm (median over {len(u)} gaps, max {u.max():.1f} mm)"})
+        uncertainty.append(
+            {
+                "label": "Spacing (each gap's standard uncertainty)",
+                "text": f"{u.median():.1f} mm (median over {len(u)} gaps, max {u.max():.1f} mm)",
+            }
+        )
     for row in uncertainty:
         row["text"] += f"; expanded U = {COVERAGE_K:g} u (k = {COVERAGE_K:g})"
     u_bar = cp[cp["item"].str.startswith("bar_size") & cp["uncertainty"].notna()]
     if len(u_bar):
-        uncertainty.append({"label": "Bar width (each bar's standard uncertainty; its spread along the bar "
-                                     "where the method gives none)",
-                            "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
-                                    f"(median over {len(u_bar)} bars)"})
+        uncertainty.append(
+            {
+                "label": "Bar width (each bar's standard uncertainty; its spread along the bar "
+                "where the method gives none)",
+                "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
+                f"(median over {len(u_bar)} bars)",
+            }
+        )
     return uncertainty
 
 
 def _not_measured_rows(checkpoints: list) -> list:
     """What was not measured, one row per (item, reason) with where (so that the section stays
     readable on a large slab)."""
-    not_measured = [{"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
-                    for c in checkpoints if c["status"] == NOT_MEASURED]
+    not_measured = [
+        {"label": c["label"], "capture": c["capture"], "what": c["what"], "reason": c["reason"]}
+        for c in checkpoints
+        if c["status"] == NOT_MEASURED
+    ]
     nm_grouped = {}
     for c in not_measured:
         key = (c["label"], c["reason"])
         nm_grouped.setdefault(key, []).append(f"{c['capture']}: {c['what']}")
-    return [{"label": k[0], "reason": k[1],
-             "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
-             "n": len(v)} for k, v in nm_grouped.items()]
+    return [
+        {
+            "label": k[0],
+            "reason": k[1],
+            "where": ", ".join(v[:6]) + (f" … (+{len(v) - 6})" if len(v) > 6 else ""),
+            "n": len(v),
+        }
+        for k, v in nm_grouped.items()
+    ]
 
 
 def _design_context(design: Design) -> dict:
     """The design values the report's identification table prints."""
-    return {"cover": design.cover_mm, "layer_distance": design.layer_distance_mm,
-            "thickness": design.thickness_mm, "bar_system": design.bar_system,
-            "meshes": [{"layer": la, "level": lv, "d": design.lattice(la).level(lv).diameter_mm,
-                        "s": design.lattice(la).level(lv).spacing_mm}
-                       for la in ("lower", "upper") for lv in ("bottom", "top")]}
+    return {
+        "cover": design.cover_mm,
+        "layer_distance": design.layer_distance_mm,
+        "thickness": design.thickness_mm,
+        "bar_system": design.bar_system,
+        "meshes": [
+            {
+                "layer": la,
+                "level": lv,
+                "d": design.lattice(la).level(lv).diameter_mm,
+                "s": design.lattice(la).level(lv).spacing_mm,
+            }
+            for la in ("lower", "upper")
+            for lv in ("bottom", "top")
+        ],
+    }
 
 
 def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
@@ -418,7 +549,11 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
             vals = []
             for c in (c for c in cps if c["capture"] == cap):
                 if c["status"] == EXCLUDED:
-                    v = "not in view" if str(c.get("reason", "")).startswith("not in view") else "hidden"
+                    v = (
+                        "not in view"
+                        if str(c.get("reason", "")).startswith("not in view")
+                        else "hidden"
+                    )
                 elif c["status"] == NOT_MEASURED:
                     v = "n/m"
                 elif it["item"].startswith("bar_size"):
@@ -427,12 +562,29 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
                     v = f"{c['measured_text']} of {c['design_text']}"
                 else:
                     v = c["deviation_text"]
-                vals.append({"text": v, "flag": c["flag"], "bad": bool(c["flag"]),
-                             "open": c["status"] in (NOT_MEASURED, EXCLUDED)})
+                vals.append(
+                    {
+                        "text": v,
+                        "flag": c["flag"],
+                        "bad": bool(c["flag"]),
+                        "open": c["status"] in (NOT_MEASURED, EXCLUDED),
+                    }
+                )
             caps.append({"capture": cap, "vals": vals})
-        rows.append({"label": it["label"], "tolerance": it["tolerance"], "caps": caps,
-                     "kind": ("measured size" if it["item"].startswith("bar_size") else
-                              "found of expected" if it["item"].startswith("bar_count") else "deviation, mm")})
+        rows.append(
+            {
+                "label": it["label"],
+                "tolerance": it["tolerance"],
+                "caps": caps,
+                "kind": (
+                    "measured size"
+                    if it["item"].startswith("bar_size")
+                    else "found of expected"
+                    if it["item"].startswith("bar_count")
+                    else "deviation, mm"
+                ),
+            }
+        )
     return rows
 
 
@@ -454,9 +606,13 @@ def _size(v, system=DEFAULT_BAR_SYSTEM) -> str:
 def _env():
     import jinja2
 
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(templates_dir())),
-                             autoescape=True, trim_blocks=True, lstrip_blocks=True,
-                             undefined=jinja2.StrictUndefined)
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        undefined=jinja2.StrictUndefined,
+    )
     env.filters.update(fmt=_fmt, signed=_signed, pct=_pct, cls=_css_class, size=_size)
     return env
 
@@ -482,8 +638,13 @@ def _limited(design: Design) -> Design:
     from dataclasses import replace
 
     slab = {k: limit_text(v) if isinstance(v, str) else v for k, v in design.slab.items()}
-    return replace(design, slab_id=limit_text(design.slab_id), element=limit_text(design.element),
-                   location=limit_text(design.location), slab=slab)
+    return replace(
+        design,
+        slab_id=limit_text(design.slab_id),
+        element=limit_text(design.element),
+        location=limit_text(design.location),
+        slab=slab,
+    )
 
 
 def render_html(context: dict) -> str:
@@ -503,7 +664,11 @@ def render_html(context: dict) -> str:
         if c.get("plan"):
             p = c["plan"]
             # Page content is 184 mm wide; at most 80 mm high keeps image and plan on one page.
-            c["plan"] = {**p, "uri": _svg_uri(plan.render(plan=p)), "display_mm": min(184.0, 80.0 * p["w"] / p["h"])}
+            c["plan"] = {
+                **p,
+                "uri": _svg_uri(plan.render(plan=p)),
+                "display_mm": min(184.0, 80.0 * p["w"] / p["h"]),
+            }
         captures.append(c)
     return env.get_template("report.html.j2").render(**{**context, "captures": captures})
 
@@ -519,8 +684,16 @@ def write_exports(acceptance: Acceptance, out_path) -> list:
     return [csv_path, json_path]
 
 
-def build_report(slab_dir_or_results, design: Design, acceptance: Acceptance, *, out_path,
-                 format: str = "pdf", exports: bool = True, now=None) -> Path:
+def build_report(
+    slab_dir_or_results,
+    design: Design,
+    acceptance: Acceptance,
+    *,
+    out_path,
+    format: str = "pdf",
+    exports: bool = True,
+    now=None,
+) -> Path:
     """Write the slab's acceptance report.
 
     Parameters
@@ -549,8 +722,9 @@ def build_report(slab_dir_or_results, design: Design, acceptance: Acceptance, *,
         import weasyprint
 
         root = templates_dir()
-        weasyprint.HTML(string=html, base_url=str(root) + "/",
-                        url_fetcher=safe_url_fetcher(root)).write_pdf(str(out))
+        weasyprint.HTML(
+            string=html, base_url=str(root) + "/", url_fetcher=safe_url_fetcher(root)
+        ).write_pdf(str(out))
     if exports:
         write_exports(acceptance, out)
     return out

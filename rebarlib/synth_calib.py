@@ -32,15 +32,23 @@ class Checkerboard:
     margin_mm: float = 40.0
 
     def __post_init__(self):
-        if int(self.cols) != self.cols or int(self.rows) != self.rows or min(self.cols, self.rows) < 3:
-            raise RebarInputError(f"board: expected at least 3 x 3 inner corners, got {self.cols} x {self.rows}")
+        if (
+            int(self.cols) != self.cols
+            or int(self.rows) != self.rows
+            or min(self.cols, self.rows) < 3
+        ):
+            raise RebarInputError(
+                f"board: expected at least 3 x 3 inner corners, got {self.cols} x {self.rows}"
+            )
         if not self.square_mm > 0:
-            raise RebarInputError(f"board square: expected a positive size in mm, got {self.square_mm!r}")
+            raise RebarInputError(
+                f"board square: expected a positive size in mm, got {self.square_mm!r}"
+            )
 
     def object_points(self) -> np.ndarray:
         """(rows * cols, 3) float32 inner corners on the board (mm, z = 0), centred on the board,
         in OpenCV's order (row by row, ``cols`` per row)."""
-        j, i = np.mgrid[0:self.rows, 0:self.cols]
+        j, i = np.mgrid[0 : self.rows, 0 : self.cols]
         x = (i.ravel() - (self.cols - 1) / 2) * self.square_mm
         y = (j.ravel() - (self.rows - 1) / 2) * self.square_mm
         return np.column_stack((x, y, np.zeros_like(x))).astype(np.float32)
@@ -51,7 +59,9 @@ class Checkerboard:
         half_h = (self.rows + 1) * self.square_mm / 2
         on_board = (np.abs(x) <= half_w + self.margin_mm) & (np.abs(y) <= half_h + self.margin_mm)
         in_pattern = (np.abs(x) < half_w) & (np.abs(y) < half_h)
-        parity = (np.floor((x + half_w) / self.square_mm) + np.floor((y + half_h) / self.square_mm)) % 2
+        parity = (
+            np.floor((x + half_w) / self.square_mm) + np.floor((y + half_h) / self.square_mm)
+        ) % 2
         out = np.where(in_pattern & (parity == 0), 0.08, 0.85)
         return np.where(on_board, out, np.nan)
 
@@ -66,9 +76,16 @@ def _board_hits(pose: CameraPose, lens: Intrinsics, pixels=None):
     return p[:, 0], p[:, 1], t
 
 
-def render_board(pose: CameraPose, *, board: Checkerboard = Checkerboard(), intrinsics: Intrinsics = GEMINI2,
-                 sensor: SensorModel | None = None, rng=None, samples: int = 3,
-                 name: str = "board") -> Capture:
+def render_board(
+    pose: CameraPose,
+    *,
+    board: Checkerboard = Checkerboard(),
+    intrinsics: Intrinsics = GEMINI2,
+    sensor: SensorModel | None = None,
+    rng=None,
+    samples: int = 3,
+    name: str = "board",
+) -> Capture:
     """One RGB-D capture of ``board`` seen from ``pose`` through ``sensor``.
 
     The colour of a pixel is the mean over ``samples`` x ``samples`` rays spread over it (so
@@ -89,22 +106,42 @@ def render_board(pose: CameraPose, *, board: Checkerboard = Checkerboard(), intr
         for dx in off:
             x, y, _ = _board_hits(pose, lens, np.column_stack(((u + dx).ravel(), (v + dy).ravel())))
             acc += np.nan_to_num(board.reflectance(x, y), nan=0.25)
-    grey = acc / samples ** 2
+    grey = acc / samples**2
     img = np.clip(grey ** (1 / 1.8) * 255 + rng.normal(0, 1.5, grey.shape), 0, 255).astype(np.uint8)
     color = np.repeat(img.reshape(H, W, 1), 3, axis=2)
     x, y, t = _board_hits(pose, lens)
     on = np.isfinite(board.reflectance(x, y)) & np.isfinite(t)
     z_true = np.where(on, t, 0.0).reshape(H, W)
-    depth = _sensor_depth(z_true, None, None, None, pose, lens, replace(sensor, projector_shadow=False),
-                          None, rng, None)
-    truth = {"kind": "checkerboard", "cols": board.cols, "rows": board.rows, "square_mm": board.square_mm,
-             "rotation_world_to_camera": pose.rotation.round(10).tolist(),
-             "centre_world_mm": pose.centre.round(4).tolist(),
-             "true_intrinsics": [lens.fx, lens.fy, lens.cx, lens.cy],
-             "depth_scale_error": sensor.depth_scale_error, "depth_offset_mm": sensor.depth_offset_mm,
-             "focal_error": sensor.focal_error}
-    meta = {"depth_scale_mm": sensor.depth_scale_mm, "device": "rebarlib synthetic (Gemini-2-like)",
-            "name": name, "truth": truth}
+    depth = _sensor_depth(
+        z_true,
+        None,
+        None,
+        None,
+        pose,
+        lens,
+        replace(sensor, projector_shadow=False),
+        None,
+        rng,
+        None,
+    )
+    truth = {
+        "kind": "checkerboard",
+        "cols": board.cols,
+        "rows": board.rows,
+        "square_mm": board.square_mm,
+        "rotation_world_to_camera": pose.rotation.round(10).tolist(),
+        "centre_world_mm": pose.centre.round(4).tolist(),
+        "true_intrinsics": [lens.fx, lens.fy, lens.cx, lens.cy],
+        "depth_scale_error": sensor.depth_scale_error,
+        "depth_offset_mm": sensor.depth_offset_mm,
+        "focal_error": sensor.focal_error,
+    }
+    meta = {
+        "depth_scale_mm": sensor.depth_scale_mm,
+        "device": "rebarlib synthetic (Gemini-2-like)",
+        "name": name,
+        "truth": truth,
+    }
     return Capture(color, depth, intrinsics, meta)
 
 
@@ -136,10 +173,25 @@ def _tilted_pose(distance_mm: float, tilt_deg: float, axis_deg: float) -> Camera
     return CameraPose(rotation, -axis_world * distance_mm)
 
 
-def board_captures(sensor: SensorModel, *, n: int = 6, board: Checkerboard = Checkerboard(),
-                   intrinsics: Intrinsics = GEMINI2, seed: int = 0, **pose_kw) -> list:
+def board_captures(
+    sensor: SensorModel,
+    *,
+    n: int = 6,
+    board: Checkerboard = Checkerboard(),
+    intrinsics: Intrinsics = GEMINI2,
+    seed: int = 0,
+    **pose_kw,
+) -> list:
     """``n`` captures of ``board`` (:func:`board_poses`), each rendered through ``sensor``."""
     rngs = np.random.SeedSequence(seed).spawn(n)
-    return [render_board(p, board=board, intrinsics=intrinsics, sensor=sensor, rng=np.random.default_rng(r),
-                         name=f"board_{i:02d}")
-            for i, (p, r) in enumerate(zip(board_poses(n, **pose_kw), rngs))]
+    return [
+        render_board(
+            p,
+            board=board,
+            intrinsics=intrinsics,
+            sensor=sensor,
+            rng=np.random.default_rng(r),
+            name=f"board_{i:02d}",
+        )
+        for i, (p, r) in enumerate(zip(board_poses(n, **pose_kw), rngs))
+    ]

@@ -32,8 +32,17 @@ from ._design import Design
 from .cloud_io import ScanCloud, write_cloud
 from .synth import Deviations, SlabScene, make_scene
 
-__all__ = ["ScannerModel", "Station", "ScanTruth", "ring_stations", "scan_scene", "synth_scan",
-           "export_scan", "frame_rotation", "score_scan"]
+__all__ = [
+    "ScannerModel",
+    "Station",
+    "ScanTruth",
+    "ring_stations",
+    "scan_scene",
+    "synth_scan",
+    "export_scan",
+    "frame_rotation",
+    "score_scan",
+]
 
 LABEL_FORMWORK, LABEL_OTHER, LABEL_NOISE = -1, -2, -3
 
@@ -67,8 +76,9 @@ class Station:
     position_mm: tuple
 
 
-def ring_stations(n: int = 3, *, distance_mm: float = 2500.0, height_mm: float = 1500.0,
-                  start_deg: float = 20.0) -> list:
+def ring_stations(
+    n: int = 3, *, distance_mm: float = 2500.0, height_mm: float = 1500.0, start_deg: float = 20.0
+) -> list:
     """``n`` stations evenly round the mesh, ``distance_mm`` from its centre in plan, at ``height_mm``."""
     out = []
     for k in range(n):
@@ -101,8 +111,10 @@ class ScanTruth:
 
     def bars(self, layer: str, level: str) -> list:
         """The bars of one set, in order across their direction."""
-        return sorted((b for b in self.scene.bars if b.layer == layer and b.level == level),
-                      key=lambda b: b.offset_mm)
+        return sorted(
+            (b for b in self.scene.bars if b.layer == layer and b.level == level),
+            key=lambda b: b.offset_mm,
+        )
 
     def spacings(self, layer: str, level: str) -> np.ndarray:
         """True centre-to-centre spacings of adjacent bars of one set."""
@@ -127,18 +139,32 @@ class ScanTruth:
         bars = []
         for b in self.scene.bars:
             ends = np.asarray(b.axis)[[0, -1]] @ self.rotation.T + self.origin_mm
-            bars.append({"id": int(b.id), "layer": b.layer, "level": b.level, "index": int(b.index),
-                         "start_mm": [round(float(v), 3) for v in ends[0]],
-                         "end_mm": [round(float(v), 3) for v in ends[1]],
-                         "nominal_mm": float(b.nominal_mm), "envelope_mm": float(b.envelope_mm),
-                         "scanned_mm": float(self.scanned_mm.get(b.id, 0.0))})
+            bars.append(
+                {
+                    "id": int(b.id),
+                    "layer": b.layer,
+                    "level": b.level,
+                    "index": int(b.index),
+                    "start_mm": [round(float(v), 3) for v in ends[0]],
+                    "end_mm": [round(float(v), 3) for v in ends[1]],
+                    "nominal_mm": float(b.nominal_mm),
+                    "envelope_mm": float(b.envelope_mm),
+                    "scanned_mm": float(self.scanned_mm.get(b.id, 0.0)),
+                }
+            )
         sets = [(la, lv) for la in ("lower", "upper") for lv in ("bottom", "top")]
-        return {"bars": bars,
-                "spacings_mm": {f"{la}/{lv}": [round(float(v), 3) for v in self.spacings(la, lv)] for la, lv in sets},
-                "layer_distance_mm": round(self.layer_distance_mm, 3),
-                "cover_mm": round(self.cover_mm, 3) if self.formwork else None,
-                "formwork_in_scan": bool(self.formwork), "region_mm": list(self.region),
-                "rotation": self.rotation.round(12).tolist(), "origin_mm": self.origin_mm.tolist()}
+        return {
+            "bars": bars,
+            "spacings_mm": {
+                f"{la}/{lv}": [round(float(v), 3) for v in self.spacings(la, lv)] for la, lv in sets
+            },
+            "layer_distance_mm": round(self.layer_distance_mm, 3),
+            "cover_mm": round(self.cover_mm, 3) if self.formwork else None,
+            "formwork_in_scan": bool(self.formwork),
+            "region_mm": list(self.region),
+            "rotation": self.rotation.round(12).tolist(),
+            "origin_mm": self.origin_mm.tolist(),
+        }
 
     def to_world(self, p) -> np.ndarray:
         """File-frame points (mm, before re-centring) back to the world frame."""
@@ -161,7 +187,9 @@ def _station_rays(pos, region, top_mm, scanner: ScannerModel):
         az_grid = np.arange(az.min(), az.max(), scanner.step_az_deg)
         el_grid = np.arange(el.min(), el.max(), scanner.step_el_deg)
     A, E = np.meshgrid(np.radians(az_grid), np.radians(el_grid), indexing="ij")
-    d = np.column_stack([(np.cos(E) * np.cos(A)).ravel(), (np.cos(E) * np.sin(A)).ravel(), np.sin(E).ravel()])
+    d = np.column_stack(
+        [(np.cos(E) * np.cos(A)).ravel(), (np.cos(E) * np.sin(A)).ravel(), np.sin(E).ravel()]
+    )
     return d
 
 
@@ -175,8 +203,15 @@ def _geometry(scene: SlabScene, formwork: bool):
     return geo, S._Caster(geo), S
 
 
-def scan_scene(scene: SlabScene, stations, scanner: ScannerModel | None = None, *, formwork: bool = True,
-               region=None, rng=None) -> tuple[np.ndarray, ScanTruth, dict]:
+def scan_scene(
+    scene: SlabScene,
+    stations,
+    scanner: ScannerModel | None = None,
+    *,
+    formwork: bool = True,
+    region=None,
+    rng=None,
+) -> tuple[np.ndarray, ScanTruth, dict]:
     """Scan ``scene`` from ``stations``: world-frame points (mm), the truth and per-point fields.
 
     Parameters
@@ -209,9 +244,18 @@ def scan_scene(scene: SlabScene, stations, scanner: ScannerModel | None = None, 
         station_of.append(np.full(len(p), k, np.int16))
     points = np.vstack(pts)
     labels = np.concatenate(labels)
-    truth = ScanTruth(scene, labels, _scanned_lengths(scene, points, labels, region), region, formwork)
-    return points, truth, {"intensity": np.concatenate(inten), "station": np.concatenate(station_of),
-                           "normals": np.vstack(normals)}
+    truth = ScanTruth(
+        scene, labels, _scanned_lengths(scene, points, labels, region), region, formwork
+    )
+    return (
+        points,
+        truth,
+        {
+            "intensity": np.concatenate(inten),
+            "station": np.concatenate(station_of),
+            "normals": np.vstack(normals),
+        },
+    )
 
 
 def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
@@ -225,12 +269,22 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     idx = np.flatnonzero(keep)
     t, o, cos_i, nrm = t[idx], obj[idx], cos_inc[idx], normal[idx]
     kind, bar = geo.obj_kind[o], geo.obj_bar[o]
-    label = np.where(kind == S.K_BAR, bar, np.where(kind == S.K_FORMWORK, LABEL_FORMWORK, LABEL_OTHER))
+    label = np.where(
+        kind == S.K_BAR, bar, np.where(kind == S.K_FORMWORK, LABEL_FORMWORK, LABEL_OTHER)
+    )
     true_p = pos + d[idx] * t[:, None]
     x0, x1, y0, y1 = region
-    inside = (true_p[:, 0] >= x0) & (true_p[:, 0] <= x1) & (true_p[:, 1] >= y0) & (true_p[:, 1] <= y1)
-    idx, t, label, cos_i, true_p, nrm = (idx[inside], t[inside], label[inside], cos_i[inside], true_p[inside],
-                                         nrm[inside])
+    inside = (
+        (true_p[:, 0] >= x0) & (true_p[:, 0] <= x1) & (true_p[:, 1] >= y0) & (true_p[:, 1] <= y1)
+    )
+    idx, t, label, cos_i, true_p, nrm = (
+        idx[inside],
+        t[inside],
+        label[inside],
+        cos_i[inside],
+        true_p[inside],
+        nrm[inside],
+    )
     rng_t = t.copy()
     # mixed pixels: a grazing return on a bar averages the bar with what lies behind it
     graze = np.flatnonzero((label >= 0) & (cos_i < 0.3) & (rng.random(len(t)) < sc.mixed_fraction))
@@ -248,7 +302,10 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     label[out] = LABEL_NOISE
     rng_t = rng_t + rng.normal(0.0, sc.range_sigma_mm, len(t))
     points = pos + d[idx] * rng_t[:, None]
-    inten = np.clip(cos_i * 4.0e6 / np.maximum(t, 100.0) ** 2 * np.where(label >= 0, 0.6, 1.0), 0, 1) * 1000
+    inten = (
+        np.clip(cos_i * 4.0e6 / np.maximum(t, 100.0) ** 2 * np.where(label >= 0, 0.6, 1.0), 0, 1)
+        * 1000
+    )
     return points, label.astype(np.int32), inten, nrm
 
 
@@ -265,14 +322,23 @@ def _scanned_lengths(scene: SlabScene, points, labels, region) -> dict:
     return out
 
 
-def synth_scan(design: Design, *, stations=None, scanner: ScannerModel | None = None,
-               deviations: Deviations | None = None, formwork: bool = True, region=None,
-               rng=None) -> tuple[np.ndarray, ScanTruth, dict]:
+def synth_scan(
+    design: Design,
+    *,
+    stations=None,
+    scanner: ScannerModel | None = None,
+    deviations: Deviations | None = None,
+    formwork: bool = True,
+    region=None,
+    rng=None,
+) -> tuple[np.ndarray, ScanTruth, dict]:
     """A scanned cloud of a synthetic mesh of ``design``: ``(points, truth, fields)`` in the world
     frame (z up, formwork at z = 0). Default stations: three round the mesh, 2.5 m off, 1.5 m up."""
     rng = np.random.default_rng(rng)
     scene = make_scene(design, deviations or Deviations(), rng=rng)
-    return scan_scene(scene, stations or ring_stations(), scanner, formwork=formwork, region=region, rng=rng)
+    return scan_scene(
+        scene, stations or ring_stations(), scanner, formwork=formwork, region=region, rng=rng
+    )
 
 
 def frame_rotation(up: str) -> np.ndarray:
@@ -295,8 +361,17 @@ def frame_rotation(up: str) -> np.ndarray:
     return np.eye(3) + K + K @ K  # Rodrigues with sin = 1, cos = 0
 
 
-def export_scan(path, points, truth: ScanTruth, fields: dict | None = None, *, units: str = "m",
-                up: str = "+z", origin_mm=(0.0, 0.0, 0.0), truth_json: bool = False) -> ScanTruth:
+def export_scan(
+    path,
+    points,
+    truth: ScanTruth,
+    fields: dict | None = None,
+    *,
+    units: str = "m",
+    up: str = "+z",
+    origin_mm=(0.0, 0.0, 0.0),
+    truth_json: bool = False,
+) -> ScanTruth:
     """Write a synthetic scan to ``path`` (format by suffix) in ``units``, with the file's up axis
     ``up`` and its origin moved so that the world origin lands at ``origin_mm`` (e.g. 20 m to one
     side, or georeferenced offsets). Returns the truth with the frame change recorded; with
@@ -314,7 +389,9 @@ def export_scan(path, points, truth: ScanTruth, fields: dict | None = None, *, u
         import json
         from pathlib import Path
 
-        Path(f"{path}.truth.json").write_text(json.dumps(truth.to_dict(), indent=1) + "\n", encoding="utf-8")
+        Path(f"{path}.truth.json").write_text(
+            json.dumps(truth.to_dict(), indent=1) + "\n", encoding="utf-8"
+        )
     return truth
 
 
@@ -328,15 +405,19 @@ def score_scan(result, truth: ScanTruth, *, min_scanned_mm: float = 100.0) -> di
     (``spacing_errors``, mm) and the cover and layer distance errors (mm, None if not measured).
     """
     res = result.to_dict() if hasattr(result, "to_dict") else result
-    offset = np.asarray((res.get("extras") or {}).get("cloud", {}).get("offset_mm", [0, 0, 0]), float)
+    offset = np.asarray(
+        (res.get("extras") or {}).get("cloud", {}).get("offset_mm", [0, 0, 0]), float
+    )
     design = truth.scene.design
     matched, phantoms, missed, scanned = {}, 0, 0, 0
     found_ids = set()
     for rec in res["bars"]:
         la, lv = rec["layer"], rec["level"]
         true = truth.bars(la, lv)
-        mid = 0.5 * (np.array([rec["start_x_mm"], rec["start_y_mm"], rec["start_z_mm"]])
-                     + np.array([rec["end_x_mm"], rec["end_y_mm"], rec["end_z_mm"]]))
+        mid = 0.5 * (
+            np.array([rec["start_x_mm"], rec["start_y_mm"], rec["start_z_mm"]])
+            + np.array([rec["end_x_mm"], rec["end_y_mm"], rec["end_z_mm"]])
+        )
         w = truth.to_world(mid + offset)
         best = min(true, key=lambda b: abs(_across(b, w)), default=None)
         tol = 0.4 * design.lattice(la).level(lv).spacing_mm
@@ -357,10 +438,16 @@ def score_scan(result, truth: ScanTruth, *, min_scanned_mm: float = 100.0) -> di
         errors.append(float(sp["spacing_mm"]) - abs(b.offset_mm - a.offset_mm))
     m = res["measurements"]
     ld, cv = m["layer_distance"]["value_mm"], m["cover"]["value_mm"]
-    return {"scanned": scanned, "found": len(found_ids), "missed": missed, "phantoms": phantoms,
-            "spacing_errors": errors, "spacing_max_abs_err_mm": max((abs(e) for e in errors), default=None),
-            "layer_distance_err_mm": None if ld is None else ld - truth.layer_distance_mm,
-            "cover_err_mm": None if cv is None or not truth.formwork else cv - truth.cover_mm}
+    return {
+        "scanned": scanned,
+        "found": len(found_ids),
+        "missed": missed,
+        "phantoms": phantoms,
+        "spacing_errors": errors,
+        "spacing_max_abs_err_mm": max((abs(e) for e in errors), default=None),
+        "layer_distance_err_mm": None if ld is None else ld - truth.layer_distance_mm,
+        "cover_err_mm": None if cv is None or not truth.formwork else cv - truth.cover_mm,
+    }
 
 
 def _across(bar, p) -> float:

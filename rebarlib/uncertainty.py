@@ -22,11 +22,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .diameter.barsizes import ENVELOPE_SIGMA_MM, observed_width_mm, rib_height_mm, snap_diameter
+from ._design import DEFAULT_BAR_SYSTEM
 from ._results import InspectionResult, Measurement
 from .devices import device_for, load_device
 
-__all__ = ["COVERAGE_K", "Inputs", "Term", "inputs_for", "height_terms", "length_terms", "width_terms",
-           "combine", "apply_budget"]
+__all__ = [
+    "COVERAGE_K",
+    "Inputs",
+    "Term",
+    "inputs_for",
+    "height_terms",
+    "length_terms",
+    "width_terms",
+    "combine",
+    "apply_budget",
+]
 
 #: Coverage factor of every expanded uncertainty U = k u printed (about 95 % for a normal error).
 COVERAGE_K = 2.0
@@ -71,8 +81,14 @@ class Term:
     contribution_mm: float
 
     def to_dict(self) -> dict:
-        return {"term": self.name, "kind": self.kind, "u_input": _r(self.u_input), "unit": self.unit,
-                "sensitivity": _r(self.sensitivity), "contribution_mm": _r(self.contribution_mm)}
+        return {
+            "term": self.name,
+            "kind": self.kind,
+            "u_input": _r(self.u_input),
+            "unit": self.unit,
+            "sensitivity": _r(self.sensitivity),
+            "contribution_mm": _r(self.contribution_mm),
+        }
 
 
 def _r(x, nd=6):
@@ -94,20 +110,44 @@ def inputs_for(device: str | None = None, *, profile=None, calibration=None) -> 
     if calibration is not None:
         c = calibration
         K = c.intrinsics
-        return Inputs("calibration", c.source or "calibration", c.u_depth_scale, c.u_depth_offset_mm, 0.0,
-                      max(c.u_intrinsics[0] / K.fx, c.u_intrinsics[1] / K.fy), max(c.u_intrinsics[2:4]), reg)
+        return Inputs(
+            "calibration",
+            c.source or "calibration",
+            c.u_depth_scale,
+            c.u_depth_offset_mm,
+            0.0,
+            max(c.u_intrinsics[0] / K.fx, c.u_intrinsics[1] / K.fy),
+            max(c.u_intrinsics[2:4]),
+            reg,
+        )
     lim = prof.depth_limits()
-    return Inputs("device profile", prof.name, lim["scale"] / _SQRT3, lim["offset_mm"] / _SQRT3,
-                  lim["quad_mm_per_m2"] / _SQRT3, prof.focal_percent / 100 / _SQRT3,
-                  prof.principal_point_px / _SQRT3, reg, default_profile=not matched or prof.is_default)
+    return Inputs(
+        "device profile",
+        prof.name,
+        lim["scale"] / _SQRT3,
+        lim["offset_mm"] / _SQRT3,
+        lim["quad_mm_per_m2"] / _SQRT3,
+        prof.focal_percent / 100 / _SQRT3,
+        prof.principal_point_px / _SQRT3,
+        reg,
+        default_profile=not matched or prof.is_default,
+    )
 
 
 def _t(name, u, unit, c, kind="systematic") -> Term:
     return Term(name, kind, float(u), unit, float(c), abs(float(c) * float(u)))
 
 
-def height_terms(h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
-                 envelope_mm=0.0, rib_mm=0.0) -> list:
+def height_terms(
+    h_mm: float,
+    u_random_mm: float,
+    inp: Inputs,
+    *,
+    depth_mm: float,
+    tilt_deg: float,
+    envelope_mm=0.0,
+    rib_mm=0.0,
+) -> list:
     """Budget of a height above the formwork (or a difference of two) whose seen part, the
     depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
     value plus the assumed envelope, which :func:`apply_budget` passes).
@@ -127,7 +167,9 @@ def height_terms(h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: floa
         _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
         _t("depth scale", inp.u_scale, "1", h),
         _t("depth offset", inp.u_offset_mm, "mm", 0.0),
-        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0),
+        _t(
+            "depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0
+        ),
         _t("focal length", inp.u_focal, "1", h * s2),
         _t("principal point", inp.u_pp_px, "px", 0.0),
         _t("rib envelope (spread between mills)", envelope_mm, "mm", 1.0 if envelope_mm else 0.0),
@@ -135,8 +177,15 @@ def height_terms(h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: floa
     ]
 
 
-def length_terms(L_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
-                 focal_px: float) -> list:
+def length_terms(
+    L_mm: float,
+    u_random_mm: float,
+    inp: Inputs,
+    *,
+    depth_mm: float,
+    tilt_deg: float,
+    focal_px: float,
+) -> list:
     """Budget of a length across the line of sight (a spacing), ``L_mm`` long, at ``depth_mm``.
 
     Lateral coordinates are ``z (u - c) / f``: a depth scale error s changes a length by ``s L``,
@@ -151,20 +200,37 @@ def length_terms(L_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: floa
         _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
         _t("depth scale", inp.u_scale, "1", L),
         _t("depth offset", inp.u_offset_mm, "mm", L / z),
-        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", z / 1000.0 * L / 1000.0),
+        _t(
+            "depth non-linearity (stereo k z²)",
+            inp.u_quad_mm_per_m2,
+            "mm/m²",
+            z / 1000.0 * L / 1000.0,
+        ),
         _t("focal length", inp.u_focal, "1", L),
         _t("principal point", inp.u_pp_px, "px", L * math.sin(t) * math.cos(t) / focal_px),
     ]
 
 
-def width_terms(w_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float,
-                focal_px: float, registration_px: float) -> list:
+def width_terms(
+    w_mm: float,
+    u_random_mm: float,
+    inp: Inputs,
+    *,
+    depth_mm: float,
+    tilt_deg: float,
+    focal_px: float,
+    registration_px: float,
+) -> list:
     """Budget of a bar's width: a length (:func:`length_terms`) plus the colour-depth
     registration: the mask's edges come from the colour image and its extent from the depth, so
     a residual shift of ``registration_px`` widens or narrows the mask on one side by up to that
     (sensitivity: the pixel's size at ``depth_mm``)."""
-    terms = length_terms(w_mm, u_random_mm, inp, depth_mm=depth_mm, tilt_deg=tilt_deg, focal_px=focal_px)
-    return terms + [_t("colour-depth registration", registration_px / _SQRT3, "px", depth_mm / focal_px)]
+    terms = length_terms(
+        w_mm, u_random_mm, inp, depth_mm=depth_mm, tilt_deg=tilt_deg, focal_px=focal_px
+    )
+    return terms + [
+        _t("colour-depth registration", registration_px / _SQRT3, "px", depth_mm / focal_px)
+    ]
 
 
 def combine(terms) -> float:
@@ -175,13 +241,18 @@ def combine(terms) -> float:
     >>> combine([_t("a", 0.3, "mm", 1.0), _t("b", 0.004, "1", 100.0)])
     0.5
     """
-    return float(math.sqrt(sum(t.contribution_mm ** 2 for t in terms)))
+    return float(math.sqrt(sum(t.contribution_mm**2 for t in terms)))
 
 
 def _budget_dict(terms, value) -> dict:
     u = combine(terms)
-    return {"value_mm": _r(value, 3), "u_mm": _r(u, 4), "k": COVERAGE_K, "U_mm": _r(COVERAGE_K * u, 4),
-            "terms": [t.to_dict() for t in terms]}
+    return {
+        "value_mm": _r(value, 3),
+        "u_mm": _r(u, 4),
+        "k": COVERAGE_K,
+        "U_mm": _r(COVERAGE_K * u, 4),
+        "terms": [t.to_dict() for t in terms],
+    }
 
 
 def _working_depth(res: InspectionResult) -> float:
@@ -207,8 +278,9 @@ def _with_u(m: Measurement, u: float) -> Measurement:
     return replace(m, uncertainty_mm=u) if m.ok else m
 
 
-def apply_budget(res: InspectionResult, design, *, device: str | None = None, calibration=None,
-                 intrinsics=None) -> InspectionResult:
+def apply_budget(
+    res: InspectionResult, design, *, device: str | None = None, calibration=None, intrinsics=None
+) -> InspectionResult:
     """Put the systematic terms into ``res``'s uncertainties (in place; returns ``res``).
 
     - cover, layer distance, top of the upper bars and top cover: ``uncertainty_mm`` becomes the
@@ -226,7 +298,7 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
     z = _working_depth(res)
     tilt = float((res.camera or {}).get("tilt_deg") or 0.0)
     f = float(intrinsics.fx) if intrinsics is not None else 616.0
-    system = getattr(design, "bar_system", "GB1499.2")
+    system = getattr(design, "bar_system", DEFAULT_BAR_SYSTEM)
 
     def deformed(layer):
         return getattr(design.lattice(layer).bottom, "surface", "deformed") != "plain"
@@ -245,17 +317,30 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
         return rib_height_mm(observed_width_mm(d, system=system), system=system)
 
     geo = {"depth_mm": z, "tilt_deg": tilt}
-    out = {"k": COVERAGE_K, "inputs": inp.to_dict(), "working_depth_mm": round(z, 1), "tilt_deg": round(tilt, 2),
-           "measurements": {}}
-    specs = {"cover": dict(envelope_mm=env("lower"), rib_mm=rib("lower")),
-             # the assumed shape moves both lattices' undersides the same way, in proportion to
-             # their rib heights: in their difference only the difference of the rib heights is left
-             "layer_distance": dict(envelope_mm=math.hypot(env("lower"), env("upper")),
-                                    rib_mm=abs(rib("lower") - rib("upper"))),
-             "upper_top": {}}
+    out = {
+        "k": COVERAGE_K,
+        "inputs": inp.to_dict(),
+        "working_depth_mm": round(z, 1),
+        "tilt_deg": round(tilt, 2),
+        "measurements": {},
+    }
+    specs = {
+        "cover": dict(envelope_mm=env("lower"), rib_mm=rib("lower")),
+        # the assumed shape moves both lattices' undersides the same way, in proportion to
+        # their rib heights: in their difference only the difference of the rib heights is left
+        "layer_distance": dict(
+            envelope_mm=math.hypot(env("lower"), env("upper")),
+            rib_mm=abs(rib("lower") - rib("upper")),
+        ),
+        "upper_top": {},
+    }
     # what the camera sees of an underside is the bar's top: the depth errors act on the height
     # of that top, the assumed envelope is subtracted after (upper top: seen as it is)
-    seen = {"cover": envelope("lower"), "layer_distance": envelope("upper") - envelope("lower"), "upper_top": 0.0}
+    seen = {
+        "cover": envelope("lower"),
+        "layer_distance": envelope("upper") - envelope("lower"),
+        "upper_top": 0.0,
+    }
     for key, extra in specs.items():
         m = getattr(res, key)
         if not m.ok:
@@ -266,15 +351,19 @@ def apply_budget(res: InspectionResult, design, *, device: str | None = None, ca
     if res.top_cover.ok and res.upper_top.ok:
         # top cover = design thickness - top of the upper bars: the same budget
         res.top_cover = _with_u(res.top_cover, res.upper_top.uncertainty_mm)
-        out["measurements"]["top_cover"] = {**out["measurements"]["upper_top"],
-                                            "value_mm": _r(res.top_cover.value_mm, 3)}
+        out["measurements"]["top_cover"] = {
+            **out["measurements"]["upper_top"],
+            "value_mm": _r(res.top_cover.value_mm, 3),
+        }
     res.spacings = _spacing_budget(res, inp, z, tilt, f, out)
     res.bars = _width_budget(res, inp, z, tilt, f, system, out)
     res.extras["uncertainty"] = out
     if inp.default_profile:
-        res.notes.append(f"device {device or '(none named)'!r} matches no device profile: the uncertainty budget "
-                         "uses the conservative default (3 % depth scale, 1 % focal length); calibrate the "
-                         "camera (rebar calibrate) for smaller uncertainties")
+        res.notes.append(
+            f"device {device or '(none named)'!r} matches no device profile: the uncertainty budget "
+            "uses the conservative default (3 % depth scale, 1 % focal length); calibrate the "
+            "camera (rebar calibrate) for smaller uncertainties"
+        )
     return res
 
 
@@ -300,10 +389,18 @@ def _spacing_budget(res, inp, z, tilt, f, out):
             continue
         a, b = (se.get(rec["bar_a"], math.nan), se.get(rec["bar_b"], math.nan))
         u_rand = math.hypot(*(x if np.isfinite(x) else 0.5 for x in (a, b)))
-        zz = np.nanmean([_bar_depth(bars, rec["bar_a"]), _bar_depth(bars, rec["bar_b"])]) if len(bars) else z
-        terms = length_terms(v, u_rand, inp, depth_mm=zz if np.isfinite(zz) else z, tilt_deg=tilt, focal_px=f)
+        zz = (
+            np.nanmean([_bar_depth(bars, rec["bar_a"]), _bar_depth(bars, rec["bar_b"])])
+            if len(bars)
+            else z
+        )
+        terms = length_terms(
+            v, u_rand, inp, depth_mm=zz if np.isfinite(zz) else z, tilt_deg=tilt, focal_px=f
+        )
         us.append(combine(terms))
-        rows.append({"bar_a": int(rec["bar_a"]), "bar_b": int(rec["bar_b"]), **_budget_dict(terms, v)})
+        rows.append(
+            {"bar_a": int(rec["bar_a"]), "bar_b": int(rec["bar_b"]), **_budget_dict(terms, v)}
+        )
     sp["uncertainty_mm"] = np.asarray(us, float)
     out["spacings"] = rows
     return sp
@@ -324,8 +421,15 @@ def _width_budget(res, inp, z, tilt, f, system, out):
             confs.append(math.nan)
             continue
         zb = (rec["start_z_mm"] + rec["end_z_mm"]) / 2
-        terms = width_terms(w, u0, inp, depth_mm=zb if np.isfinite(zb) else z, tilt_deg=tilt, focal_px=f,
-                            registration_px=reg)
+        terms = width_terms(
+            w,
+            u0,
+            inp,
+            depth_mm=zb if np.isfinite(zb) else z,
+            tilt_deg=tilt,
+            focal_px=f,
+            registration_px=reg,
+        )
         u = combine(terms)
         us.append(u)
         confs.append(snap_diameter(w, system=system, sigma_mm=u)[1])
@@ -341,4 +445,6 @@ def profile_text(inp: Inputs) -> str:
     ..." or "calibrated: FILE"."""
     if inp.source == "calibration":
         return f"calibrated ({inp.name})"
-    return f"factory calibration, device profile {inp.name}" + (" (no profile matched)" if inp.default_profile else "")
+    return f"factory calibration, device profile {inp.name}" + (
+        " (no profile matched)" if inp.default_profile else ""
+    )

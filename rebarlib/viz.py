@@ -11,9 +11,20 @@ import numpy as np
 from ._camera import Intrinsics, project
 from ._status import MEASURED
 
-__all__ = ["cloud_figure", "image_figure", "overlay_mask", "draw_axes", "decimate",
-           "LAYER_COLORS", "plane_mesh_trace", "axis_traces", "table_axes", "draw_bar_table", "plan_figure",
-           "hex_rgb"]
+__all__ = [
+    "cloud_figure",
+    "image_figure",
+    "overlay_mask",
+    "draw_axes",
+    "decimate",
+    "LAYER_COLORS",
+    "plane_mesh_trace",
+    "axis_traces",
+    "table_axes",
+    "draw_bar_table",
+    "plan_figure",
+    "hex_rgb",
+]
 
 #: Colours used everywhere for the two lattices and the formwork.
 LAYER_COLORS = {"formwork": "#b0a48c", "lower": "#1f77b4", "upper": "#d62728", "noise": "#999999"}
@@ -33,8 +44,16 @@ def decimate(n: int, max_points: int, *, rng=None) -> np.ndarray:
     return np.sort(rng.choice(n, max_points, replace=False))
 
 
-def cloud_figure(points, *, groups=None, colors=None, max_points: int = 30_000, title: str = "",
-                 marker_size: float = 1.5, rng=0):
+def cloud_figure(
+    points,
+    *,
+    groups=None,
+    colors=None,
+    max_points: int = 30_000,
+    title: str = "",
+    marker_size: float = 1.5,
+    rng=0,
+):
     """A 3-D scatter of ``points`` (N, 3) mm, decimated to ``max_points`` to stay light.
 
     ``groups`` : (N,) labels (str or int); each group is its own trace, coloured from ``colors``
@@ -48,19 +67,37 @@ def cloud_figure(points, *, groups=None, colors=None, max_points: int = 30_000, 
     pts = pts[idx]
     fig = go.Figure()
     if groups is None:
-        fig.add_trace(go.Scatter3d(x=pts[:, 0], y=-pts[:, 1], z=-pts[:, 2], mode="markers",
-                                   marker=dict(size=marker_size, color=-pts[:, 2], colorscale="Viridis"),
-                                   name="points"))
+        fig.add_trace(
+            go.Scatter3d(
+                x=pts[:, 0],
+                y=-pts[:, 1],
+                z=-pts[:, 2],
+                mode="markers",
+                marker=dict(size=marker_size, color=-pts[:, 2], colorscale="Viridis"),
+                name="points",
+            )
+        )
     else:
         g = np.asarray(groups)[idx]
         for label in sorted(set(g.tolist()), key=str):
             sel = g == label
             kw = {} if colors is None or label not in colors else {"color": colors[label]}
-            fig.add_trace(go.Scatter3d(x=pts[sel, 0], y=-pts[sel, 1], z=-pts[sel, 2], mode="markers",
-                                       marker=dict(size=marker_size, **kw), name=str(label)))
-    fig.update_layout(title=title, scene=dict(aspectmode="data", xaxis_title="x mm", yaxis_title="-y mm",
-                                              zaxis_title="-z mm"), margin=dict(l=0, r=0, t=40, b=0),
-                      legend=dict(itemsizing="constant"))
+            fig.add_trace(
+                go.Scatter3d(
+                    x=pts[sel, 0],
+                    y=-pts[sel, 1],
+                    z=-pts[sel, 2],
+                    mode="markers",
+                    marker=dict(size=marker_size, **kw),
+                    name=str(label),
+                )
+            )
+    fig.update_layout(
+        title=title,
+        scene=dict(aspectmode="data", xaxis_title="x mm", yaxis_title="-y mm", zaxis_title="-z mm"),
+        margin=dict(l=0, r=0, t=40, b=0),
+        legend=dict(itemsizing="constant"),
+    )
     return fig
 
 
@@ -70,9 +107,17 @@ def axis_traces(starts, ends, *, names=None, color="black", width=5):
 
     traces = []
     for i, (a, b) in enumerate(zip(np.asarray(starts, float), np.asarray(ends, float))):
-        traces.append(go.Scatter3d(x=[a[0], b[0]], y=[-a[1], -b[1]], z=[-a[2], -b[2]], mode="lines",
-                                   line=dict(color=color, width=width), showlegend=False,
-                                   name=str(names[i]) if names is not None else f"axis {i}"))
+        traces.append(
+            go.Scatter3d(
+                x=[a[0], b[0]],
+                y=[-a[1], -b[1]],
+                z=[-a[2], -b[2]],
+                mode="lines",
+                line=dict(color=color, width=width),
+                showlegend=False,
+                name=str(names[i]) if names is not None else f"axis {i}",
+            )
+        )
     return traces
 
 
@@ -89,9 +134,20 @@ def plane_mesh_trace(normal, offset_mm, points, *, color=LAYER_COLORS["formwork"
     u /= np.linalg.norm(u)
     v = np.cross(n, u)
     r = float(np.ptp(pts, axis=0).max()) / 2
-    corners = np.array([centre + r * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
-    return go.Mesh3d(x=corners[:, 0], y=-corners[:, 1], z=-corners[:, 2], i=[0, 0], j=[1, 2], k=[2, 3],
-                     color=color, opacity=opacity, name="formwork plane")
+    corners = np.array(
+        [centre + r * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    )
+    return go.Mesh3d(
+        x=corners[:, 0],
+        y=-corners[:, 1],
+        z=-corners[:, 2],
+        i=[0, 0],
+        j=[1, 2],
+        k=[2, 3],
+        color=color,
+        opacity=opacity,
+        name="formwork plane",
+    )
 
 
 def image_figure(rgb, *, title: str = "", width: int = 800):
@@ -101,8 +157,9 @@ def image_figure(rgb, *, title: str = "", width: int = 800):
     img = np.asarray(rgb)
     h, w = img.shape[:2]
     fig = go.Figure(go.Image(z=img))
-    fig.update_layout(title=title, width=width, height=int(width * h / w) + 60,
-                      margin=dict(l=0, r=0, t=40, b=0))
+    fig.update_layout(
+        title=title, width=width, height=int(width * h / w) + 60, margin=dict(l=0, r=0, t=40, b=0)
+    )
     return fig
 
 
@@ -123,8 +180,9 @@ def overlay_mask(rgb, mask, *, color=(255, 0, 0), alpha: float = 0.5) -> np.ndar
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def draw_axes(rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=None,
-              thickness: int = 2) -> np.ndarray:
+def draw_axes(
+    rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=None, thickness: int = 2
+) -> np.ndarray:
     """``rgb`` with bar axes (camera-frame end points, mm) projected and drawn, optionally labelled.
 
     ``colors`` : one RGB tuple per axis (default red).
@@ -140,10 +198,26 @@ def draw_axes(rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=
         cv2.line(out, p, q, col, thickness, cv2.LINE_AA)
         if labels is not None:
             m = ((a[i] + b[i]) / 2).astype(int)
-            cv2.putText(out, str(labels[i]), (int(m[0]) + 4, int(m[1]) - 4), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.5, (255, 255, 255), 3, cv2.LINE_AA)
-            cv2.putText(out, str(labels[i]), (int(m[0]) + 4, int(m[1]) - 4), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.5, col, 1, cv2.LINE_AA)
+            cv2.putText(
+                out,
+                str(labels[i]),
+                (int(m[0]) + 4, int(m[1]) - 4),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.5,
+                (255, 255, 255),
+                3,
+                cv2.LINE_AA,
+            )
+            cv2.putText(
+                out,
+                str(labels[i]),
+                (int(m[0]) + 4, int(m[1]) - 4),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.5,
+                col,
+                1,
+                cv2.LINE_AA,
+            )
     return out
 
 
@@ -156,7 +230,7 @@ def hex_rgb(color: str) -> tuple:
     (255, 128, 0)
     """
     c = color.lstrip("#")
-    return tuple(int(c[i:i + 2], 16) for i in (0, 2, 4))
+    return tuple(int(c[i : i + 2], 16) for i in (0, 2, 4))
 
 
 def table_axes(bars) -> tuple[np.ndarray, np.ndarray]:
@@ -187,19 +261,40 @@ def plan_figure(bars, spacings=None, *, title: str = "plan view"):
     fig = go.Figure()
     starts, ends = table_axes(bars)
     mids = {}
-    for (rec, a, b) in zip(bars.itertuples(), starts, ends):
-        fig.add_trace(go.Scatter(x=[a[0], b[0]], y=[a[1], b[1]], mode="lines",
-                                 line=dict(color=LAYER_COLORS.get(rec.layer, "black"),
-                                           width=4 if rec.layer == "upper" else 3,
-                                           dash="solid" if getattr(rec, "status", MEASURED) == MEASURED else "dot"),
-                                 name=f"bar {rec.bar_id} ({rec.layer} {rec.level})", showlegend=False))
+    for rec, a, b in zip(bars.itertuples(), starts, ends):
+        fig.add_trace(
+            go.Scatter(
+                x=[a[0], b[0]],
+                y=[a[1], b[1]],
+                mode="lines",
+                line=dict(
+                    color=LAYER_COLORS.get(rec.layer, "black"),
+                    width=4 if rec.layer == "upper" else 3,
+                    dash="solid" if getattr(rec, "status", MEASURED) == MEASURED else "dot",
+                ),
+                name=f"bar {rec.bar_id} ({rec.layer} {rec.level})",
+                showlegend=False,
+            )
+        )
         mids[rec.bar_id] = (a + b) / 2
     if spacings is not None:
         for s in spacings.itertuples():
             if s.bar_a in mids and s.bar_b in mids and np.isfinite(s.spacing_mm):
                 m = (mids[s.bar_a] + mids[s.bar_b]) / 2
-                fig.add_annotation(x=m[0], y=m[1], text=f"{s.spacing_mm:.1f}", showarrow=False,
-                                   font=dict(size=10, color=LAYER_COLORS.get(s.layer, "black")))
-    fig.update_layout(title=title, xaxis_title="x mm", yaxis_title="y mm", width=700, height=600,
-                      yaxis=dict(scaleanchor="x", autorange="reversed"), margin=dict(l=40, r=20, t=40, b=40))
+                fig.add_annotation(
+                    x=m[0],
+                    y=m[1],
+                    text=f"{s.spacing_mm:.1f}",
+                    showarrow=False,
+                    font=dict(size=10, color=LAYER_COLORS.get(s.layer, "black")),
+                )
+    fig.update_layout(
+        title=title,
+        xaxis_title="x mm",
+        yaxis_title="y mm",
+        width=700,
+        height=600,
+        yaxis=dict(scaleanchor="x", autorange="reversed"),
+        margin=dict(l=40, r=20, t=40, b=40),
+    )
     return fig

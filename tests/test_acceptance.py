@@ -11,8 +11,13 @@ import pytest
 
 from rebarlib import RebarInputError, design_from_dict
 from rebarlib._results import InspectionResult, Measurement
-from rebarlib.acceptance import (Acceptance, design_top_cover_mm, evaluate, list_presets,
-                                 load_tolerances)
+from rebarlib.acceptance import (
+    Acceptance,
+    design_top_cover_mm,
+    evaluate,
+    list_presets,
+    load_tolerances,
+)
 
 GB_COVER_MM = 3.0  # GB 50204-2015 Table 5.5.3, slab cover ±3
 GB_SPACING_MM = 10.0  # main bars spacing ±10
@@ -24,22 +29,42 @@ LAYERS = (("lower", "bottom"), ("lower", "top"), ("upper", "bottom"), ("upper", 
 
 
 def _design(**tolerances):
-    data = {"slab": {"id": "T-1", "standard": "GB50204-2015"},
-            "design": {"cover_mm": 20, "layer_distance_mm": 85, "thickness_mm": 180,
-                       "lower": {"diameter_mm": 14, "spacing_mm": 200},
-                       "upper": {"diameter_mm": 12, "spacing_mm": 200}}}
+    data = {
+        "slab": {"id": "T-1", "standard": "GB50204-2015"},
+        "design": {
+            "cover_mm": 20,
+            "layer_distance_mm": 85,
+            "thickness_mm": 180,
+            "lower": {"diameter_mm": 14, "spacing_mm": 200},
+            "upper": {"diameter_mm": 12, "spacing_mm": 200},
+        },
+    }
     if tolerances:
         data["tolerances"] = tolerances
     return design_from_dict(data, source="test design")
 
 
 def _m(value, status="measured", reason=""):
-    return {"value_mm": value, "uncertainty_mm": None if value is None else 0.5, "n_points": 100,
-            "status": status, "reason": reason}
+    return {
+        "value_mm": value,
+        "uncertainty_mm": None if value is None else 0.5,
+        "n_points": 100,
+        "status": status,
+        "reason": reason,
+    }
 
 
-def _result(name="A", *, cover=20.0, layer_distance=85.0, top_cover=None, spacing_devs=(0.0,),
-            bars=None, counts=None, design=None):
+def _result(
+    name="A",
+    *,
+    cover=20.0,
+    layer_distance=85.0,
+    top_cover=None,
+    spacing_devs=(0.0,),
+    bars=None,
+    counts=None,
+    design=None,
+):
     """A result dict; every direction gets the spacing deviations ``spacing_devs`` (mm)."""
     design = design or _design()
     top = design_top_cover_mm(design) if top_cover is None else top_cover
@@ -47,22 +72,53 @@ def _result(name="A", *, cover=20.0, layer_distance=85.0, top_cover=None, spacin
     for la, lv in LAYERS:
         for i, dev in enumerate(spacing_devs):
             v = None if dev is None else DESIGN_SPACING_MM + dev
-            spacings.append({"layer": la, "level": lv, "bar_a": f"{la[0]}{lv[0]}{i}",
-                             "bar_b": f"{la[0]}{lv[0]}{i + 1}", "spacing_mm": v,
-                             "design_spacing_mm": DESIGN_SPACING_MM,
-                             "deviation_mm": None if dev is None else dev,
-                             "status": "measured" if dev is not None else "not measured",
-                             "reason": "" if dev is not None else "bar b occluded"})
+            spacings.append(
+                {
+                    "layer": la,
+                    "level": lv,
+                    "bar_a": f"{la[0]}{lv[0]}{i}",
+                    "bar_b": f"{la[0]}{lv[0]}{i + 1}",
+                    "spacing_mm": v,
+                    "design_spacing_mm": DESIGN_SPACING_MM,
+                    "deviation_mm": None if dev is None else dev,
+                    "status": "measured" if dev is not None else "not measured",
+                    "reason": "" if dev is not None else "bar b occluded",
+                }
+            )
     if bars is None:
-        bars = [{"bar_id": f"{la[0]}{lv[0]}", "layer": la, "level": lv, "nominal_mm": 14.0 if la == "lower" else 12.0,
-                 "diameter_status": "measured", "diameter_reason": "", "hidden": False,
-                 "design_diameter_mm": 14.0 if la == "lower" else 12.0} for la, lv in LAYERS]
+        bars = [
+            {
+                "bar_id": f"{la[0]}{lv[0]}",
+                "layer": la,
+                "level": lv,
+                "nominal_mm": 14.0 if la == "lower" else 12.0,
+                "diameter_status": "measured",
+                "diameter_reason": "",
+                "hidden": False,
+                "design_diameter_mm": 14.0 if la == "lower" else 12.0,
+            }
+            for la, lv in LAYERS
+        ]
     if counts is None:
-        counts = [{"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0} for la, lv in LAYERS]
-    return {"capture": name, "method": "test",
-            "measurements": {"cover": _m(cover), "layer_distance": _m(layer_distance),
-                             "upper_top": _m(None, "not measured", "n/a"), "top_cover": _m(top)},
-            "bars": bars, "spacings": spacings, "counts": counts, "formwork": {}, "camera": {}}
+        counts = [
+            {"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0}
+            for la, lv in LAYERS
+        ]
+    return {
+        "capture": name,
+        "method": "test",
+        "measurements": {
+            "cover": _m(cover),
+            "layer_distance": _m(layer_distance),
+            "upper_top": _m(None, "not measured", "n/a"),
+            "top_cover": _m(top),
+        },
+        "bars": bars,
+        "spacings": spacings,
+        "counts": counts,
+        "formwork": {},
+        "camera": {},
+    }
 
 
 def _verdict(acc: Acceptance, item: str) -> str:
@@ -84,8 +140,14 @@ def test_presets_are_data_with_clauses_and_labels():
     assert gb.item("spacing_lower_top").limits() == (GB_SPACING_MM, GB_SPACING_MM)
     assert gb.item("layer_distance").limits() == (GB_LAYER_MM, GB_LAYER_MM)
     assert gb.item("layer_distance").interpretation  # 排距 row used for a slab: labelled
-    assert (gb.rule("general").min_pass_ratio, gb.rule("general").max_factor) == (GENERAL_RATIO, None)
-    assert (gb.rule("cover").min_pass_ratio, gb.rule("cover").max_factor) == (COVER_RATIO, MAX_FACTOR)
+    assert (gb.rule("general").min_pass_ratio, gb.rule("general").max_factor) == (
+        GENERAL_RATIO,
+        None,
+    )
+    assert (gb.rule("cover").min_pass_ratio, gb.rule("cover").max_factor) == (
+        COVER_RATIO,
+        MAX_FACTOR,
+    )
     assert not load_tolerances("aci").item("spacing").confirmed  # ±76 mm from secondary sources
 
 
@@ -137,15 +199,18 @@ def test_general_rule_exactly_80_percent(n_within, verdict):
     assert row["verdict"] == verdict
 
 
-@pytest.mark.parametrize("dev, status, flag", [
-    (GB_COVER_MM, "within", ""),  # on the limit is within
-    (-GB_COVER_MM, "within", ""),
-    (GB_COVER_MM + 0.01, "beyond", "*"),
-    (MAX_FACTOR * GB_COVER_MM, "beyond", "*"),  # exactly 1.5x is not beyond 1.5x
-    (-MAX_FACTOR * GB_COVER_MM, "beyond", "*"),
-    (MAX_FACTOR * GB_COVER_MM + 0.01, "beyond max", "#"),
-    (-MAX_FACTOR * GB_COVER_MM - 0.01, "beyond max", "#"),
-])
+@pytest.mark.parametrize(
+    "dev, status, flag",
+    [
+        (GB_COVER_MM, "within", ""),  # on the limit is within
+        (-GB_COVER_MM, "within", ""),
+        (GB_COVER_MM + 0.01, "beyond", "*"),
+        (MAX_FACTOR * GB_COVER_MM, "beyond", "*"),  # exactly 1.5x is not beyond 1.5x
+        (-MAX_FACTOR * GB_COVER_MM, "beyond", "*"),
+        (MAX_FACTOR * GB_COVER_MM + 0.01, "beyond max", "#"),
+        (-MAX_FACTOR * GB_COVER_MM - 0.01, "beyond max", "#"),
+    ],
+)
 def test_cover_checkpoint_status_and_flag(dev, status, flag):
     acc = evaluate([_result(cover=20.0 + dev)], _design())
     cp = acc.checkpoints.set_index("item").loc["cover"]
@@ -153,11 +218,14 @@ def test_cover_checkpoint_status_and_flag(dev, status, flag):
     assert cp["deviation"] == pytest.approx(dev, abs=1e-9)
 
 
-@pytest.mark.parametrize("devs, verdict", [
-    ([0.0] * 9 + [MAX_FACTOR * GB_COVER_MM], "pass"),  # 90 % within, the other exactly at 1.5x
-    ([0.0] * 9 + [MAX_FACTOR * GB_COVER_MM + 0.01], "fail"),  # 90 %, but one beyond 1.5x
-    ([0.0] * 8 + [GB_COVER_MM + 1] * 2, "fail"),  # 80 % < 90 %
-])
+@pytest.mark.parametrize(
+    "devs, verdict",
+    [
+        ([0.0] * 9 + [MAX_FACTOR * GB_COVER_MM], "pass"),  # 90 % within, the other exactly at 1.5x
+        ([0.0] * 9 + [MAX_FACTOR * GB_COVER_MM + 0.01], "fail"),  # 90 %, but one beyond 1.5x
+        ([0.0] * 8 + [GB_COVER_MM + 1] * 2, "fail"),  # 80 % < 90 %
+    ],
+)
 def test_cover_rule_90_percent_and_nothing_beyond_1_5x(devs, verdict):
     acc = evaluate([_result(f"C{i}", cover=20.0 + d) for i, d in enumerate(devs)], _design())
     assert _verdict(acc, "cover") == verdict
@@ -195,14 +263,51 @@ def test_missing_capture_makes_the_slab_incomplete():
 
 def test_bar_sizes_wrong_unmeasured_and_hidden():
     bars = [
-        {"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured"},
-        {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": 12.0, "diameter_status": "measured"},
-        {"bar_id": 3, "layer": "lower", "level": "top", "nominal_mm": None, "diameter_status": "not measured",
-         "diameter_reason": "too few sections"},
-        {"bar_id": 4, "layer": "upper", "level": "bottom", "nominal_mm": None, "diameter_status": "hidden",
-         "diameter_reason": "under crossing bars", "hidden": True},
-        {"bar_id": 5, "layer": "upper", "level": "bottom", "nominal_mm": 12.0, "diameter_status": "measured"},
-        {"bar_id": 6, "layer": "upper", "level": "top", "nominal_mm": 12.0, "diameter_status": "measured"},
+        {
+            "bar_id": 1,
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 14.0,
+            "diameter_status": "measured",
+        },
+        {
+            "bar_id": 2,
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 12.0,
+            "diameter_status": "measured",
+        },
+        {
+            "bar_id": 3,
+            "layer": "lower",
+            "level": "top",
+            "nominal_mm": None,
+            "diameter_status": "not measured",
+            "diameter_reason": "too few sections",
+        },
+        {
+            "bar_id": 4,
+            "layer": "upper",
+            "level": "bottom",
+            "nominal_mm": None,
+            "diameter_status": "hidden",
+            "diameter_reason": "under crossing bars",
+            "hidden": True,
+        },
+        {
+            "bar_id": 5,
+            "layer": "upper",
+            "level": "bottom",
+            "nominal_mm": 12.0,
+            "diameter_status": "measured",
+        },
+        {
+            "bar_id": 6,
+            "layer": "upper",
+            "level": "top",
+            "nominal_mm": 12.0,
+            "diameter_status": "measured",
+        },
     ]
     acc = evaluate([_result(bars=bars)], _design())
     items = acc.items.set_index("item")
@@ -223,12 +328,28 @@ def test_a_bar_barely_in_view_is_left_to_another_capture_not_left_open():
     # excluded ("not checked"); the same with 400 mm in view keeps the item open; a short bar
     # that was sized is judged as any other
     def bars(seen_mm, nominal=None):
-        return [{"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
-                 "diameter_status": "measured", "visible_length_mm": 800.0},
-                {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": nominal,
-                 "diameter_status": "measured" if nominal else "not measured", "visible_length_mm": seen_mm,
-                 "diameter_reason": "" if nominal else "too few clean cross-sections (0 of 25; most lost at "
-                                                       "the image border)"}]
+        return [
+            {
+                "bar_id": 1,
+                "layer": "lower",
+                "level": "bottom",
+                "nominal_mm": 14.0,
+                "diameter_status": "measured",
+                "visible_length_mm": 800.0,
+            },
+            {
+                "bar_id": 2,
+                "layer": "lower",
+                "level": "bottom",
+                "nominal_mm": nominal,
+                "diameter_status": "measured" if nominal else "not measured",
+                "visible_length_mm": seen_mm,
+                "diameter_reason": ""
+                if nominal
+                else "too few clean cross-sections (0 of 25; most lost at the image border)",
+            },
+        ]
+
     acc = evaluate([_result(bars=bars(60.0))], _design())
     row = acc.items.set_index("item").loc["bar_size_lower_bottom"]
     assert (row["verdict"], row["excluded"], row["measured"]) == ("pass", 1, 1)
@@ -245,12 +366,30 @@ def test_a_bar_barely_in_view_is_left_to_another_capture_not_left_open():
 
 def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
     # bar "lb0" has a spacing within tolerance but its size could not be measured: not "pass"
-    bars = [{"bar_id": "lb0", "layer": "lower", "level": "bottom", "nominal_mm": None,
-             "diameter_status": "not measured", "diameter_reason": "ambiguous"},
-            {"bar_id": "lb1", "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
-             "diameter_status": "measured"},
-            {"bar_id": "lb2", "layer": "lower", "level": "bottom", "nominal_mm": 14.0,
-             "diameter_status": "measured"}]
+    bars = [
+        {
+            "bar_id": "lb0",
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": None,
+            "diameter_status": "not measured",
+            "diameter_reason": "ambiguous",
+        },
+        {
+            "bar_id": "lb1",
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 14.0,
+            "diameter_status": "measured",
+        },
+        {
+            "bar_id": "lb2",
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 14.0,
+            "diameter_status": "measured",
+        },
+    ]
     acc = evaluate([_result(bars=bars, spacing_devs=(0.0, None))], _design())
     bv = acc.bars.set_index("bar_id")["verdict"]
     # lb1's spacing to lb2 was not measured: that belongs to the pair, listed among the checkpoints
@@ -258,10 +397,26 @@ def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
 
 
 def test_bar_size_uncertainty_is_the_width_sigma_else_the_spread():
-    bars = [{"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured",
-             "width_spread_mm": 0.4, "width_sigma_mm": 0.25},
-            {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured",
-             "width_spread_mm": 0.4, "width_sigma_mm": None}]  # the paper's method: no σ, its spread
+    bars = [
+        {
+            "bar_id": 1,
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 14.0,
+            "diameter_status": "measured",
+            "width_spread_mm": 0.4,
+            "width_sigma_mm": 0.25,
+        },
+        {
+            "bar_id": 2,
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 14.0,
+            "diameter_status": "measured",
+            "width_spread_mm": 0.4,
+            "width_sigma_mm": None,
+        },
+    ]  # the paper's method: no σ, its spread
     cp = evaluate([_result(bars=bars)], _design()).checkpoints
     u = cp[cp["item"] == "bar_size_lower_bottom"].set_index("what")["uncertainty"]
     assert (u["bar 1"], u["bar 2"]) == (0.25, 0.4)
@@ -277,11 +432,26 @@ def test_no_diameter_stage_means_bar_size_not_measured():
 
 
 def test_missing_bars_fail_the_count():
-    counts = [{"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0} for la, lv in LAYERS]
-    counts[1] = {"layer": "lower", "level": "top", "found": 4, "expected": 5, "missing": 1, "extra": 0}
+    counts = [
+        {"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0}
+        for la, lv in LAYERS
+    ]
+    counts[1] = {
+        "layer": "lower",
+        "level": "top",
+        "found": 4,
+        "expected": 5,
+        "missing": 1,
+        "extra": 0,
+    }
     acc = evaluate([_result(counts=counts)], _design())
     cp = acc.checkpoints.set_index("item").loc["bar_count_lower_top"]
-    assert (cp["status"], cp["flag"], cp["deviation"], cp["what"]) == ("beyond", "*", -1, "1 missing, 0 extra")
+    assert (cp["status"], cp["flag"], cp["deviation"], cp["what"]) == (
+        "beyond",
+        "*",
+        -1,
+        "1 missing, 0 extra",
+    )
     assert _verdict(acc, "bar_count_lower_top") == "fail"
     assert _verdict(acc, "bar_count_upper_top") == "pass"
     allowed = evaluate([_result(counts=counts)], _design(bar_count_minus_bars=1))
@@ -291,9 +461,17 @@ def test_missing_bars_fail_the_count():
 def test_top_cover_is_checked_only_with_a_thickness():
     acc = evaluate([_result(top_cover=design_top_cover_mm(_design()) - 2.0)], _design())
     assert _verdict(acc, "top_cover") == "pass"
-    thin = design_from_dict({"slab": {"id": "T"}, "design": {
-        "cover_mm": 20, "layer_distance_mm": 85, "lower": {"diameter_mm": 14, "spacing_mm": 200},
-        "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    thin = design_from_dict(
+        {
+            "slab": {"id": "T"},
+            "design": {
+                "cover_mm": 20,
+                "layer_distance_mm": 85,
+                "lower": {"diameter_mm": 14, "spacing_mm": 200},
+                "upper": {"diameter_mm": 12, "spacing_mm": 200},
+            },
+        }
+    )
     acc = evaluate([_result(design=thin)], thin)
     assert "top_cover" not in set(acc.items["item"])
     assert any("thickness" in n for n in acc.notes)
@@ -303,9 +481,16 @@ def test_inspection_result_objects_and_dicts_agree():
     d = _design()
     rd = _result(cover=21.5, spacing_devs=(3.0, -12.0))
     res = InspectionResult(
-        capture="A", method="test", cover=Measurement(21.5, 0.5, 100), layer_distance=Measurement(85.0, 0.5, 100),
-        upper_top=Measurement.not_measured("n/a"), top_cover=Measurement(design_top_cover_mm(d), 0.5, 100),
-        bars=pd.DataFrame(rd["bars"]), spacings=pd.DataFrame(rd["spacings"]), counts=pd.DataFrame(rd["counts"]))
+        capture="A",
+        method="test",
+        cover=Measurement(21.5, 0.5, 100),
+        layer_distance=Measurement(85.0, 0.5, 100),
+        upper_top=Measurement.not_measured("n/a"),
+        top_cover=Measurement(design_top_cover_mm(d), 0.5, 100),
+        bars=pd.DataFrame(rd["bars"]),
+        spacings=pd.DataFrame(rd["spacings"]),
+        counts=pd.DataFrame(rd["counts"]),
+    )
     a, b = evaluate([res], d), evaluate([rd], d)
     cols = ["item", "checkpoints", "passed", "pass_ratio", "worst_deviation", "verdict"]
     pd.testing.assert_frame_equal(a.items[cols], b.items[cols])

@@ -13,13 +13,45 @@ import rebarlib
 
 #: The workflow and the types it reads and returns: the whole top level.
 TOP_LEVEL = {
-    "load_capture", "save_capture", "load_cloud", "load_design", "design_from_dict", "inspect",
-    "inspect_cloud", "inspect_many", "evaluate", "load_tolerances", "list_presets", "build_report",
-    "Capture", "Design", "Lattice", "BarSet", "Intrinsics", "InspectionResult", "Measurement",
-    "Acceptance", "Tolerances", "RebarInputError", "GEMINI2", "__version__",
+    "load_capture",
+    "save_capture",
+    "load_cloud",
+    "load_design",
+    "design_from_dict",
+    "inspect",
+    "inspect_cloud",
+    "inspect_many",
+    "evaluate",
+    "load_tolerances",
+    "list_presets",
+    "build_report",
+    "Capture",
+    "Design",
+    "Lattice",
+    "BarSet",
+    "Intrinsics",
+    "InspectionResult",
+    "Measurement",
+    "Acceptance",
+    "Tolerances",
+    "RebarInputError",
+    "GEMINI2",
+    "__version__",
 }
-STAGES = ["capture", "geometry", "segmentation", "diameter", "acceptance", "report", "synth",
-          "viz", "scan", "cloud_io", "batch", "data"]
+STAGES = [
+    "capture",
+    "geometry",
+    "segmentation",
+    "diameter",
+    "acceptance",
+    "report",
+    "synth",
+    "viz",
+    "scan",
+    "cloud_io",
+    "batch",
+    "data",
+]
 
 
 def test_the_top_level_is_the_workflow():
@@ -50,16 +82,20 @@ def test_unknown_names_are_attribute_errors():
 
 
 def test_import_loads_no_heavy_library():
-    code = ("import sys, rebarlib; rebarlib.__version__; "
-            "print(sorted(m for m in ('numpy', 'pandas', 'open3d', 'cv2', 'onnxruntime')"
-            " if m in sys.modules))")
+    code = (
+        "import sys, rebarlib; rebarlib.__version__; "
+        "print(sorted(m for m in ('numpy', 'pandas', 'open3d', 'cv2', 'onnxruntime')"
+        " if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 
 
 def test_the_runtime_does_not_import_the_simulator():
-    code = ("import sys, rebarlib; rebarlib.inspect; rebarlib.evaluate; rebarlib.build_report; "
-            "rebarlib.inspect_many; rebarlib.inspect_cloud; import rebarlib.capture; "
-            "print([m for m in sys.modules if 'synth' in m])")
+    code = (
+        "import sys, rebarlib; rebarlib.inspect; rebarlib.evaluate; rebarlib.build_report; "
+        "rebarlib.inspect_many; rebarlib.inspect_cloud; import rebarlib.capture; "
+        "print([m for m in sys.modules if 'synth' in m])"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

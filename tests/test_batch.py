@@ -52,16 +52,27 @@ def _summary(out: Path) -> list:
 # inspect_many
 # ------------------------------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_inspect_many_reports_a_failure_and_goes_on(tmp_path):
     bad = _broken_capture(tmp_path)
     a, b = example_capture("paper_slab", "A_400"), example_capture("paper_slab", "B_500")
     seen = []
+
     def progress(outcome, done, total):
         seen.append((outcome.capture, done, total))
 
-    outcomes = list(inspect_many([a, bad, b], PAPER_DESIGN, jobs=1, ordered=True, diameters=False,
-                                 rng=0, progress=progress))
+    outcomes = list(
+        inspect_many(
+            [a, bad, b],
+            PAPER_DESIGN,
+            jobs=1,
+            ordered=True,
+            diameters=False,
+            rng=0,
+            progress=progress,
+        )
+    )
     assert [o.capture for o in outcomes] == ["A_400", "broken", "B_500"]
     assert [o.index for o in outcomes] == [0, 1, 2]
     assert [o.ok for o in outcomes] == [True, False, True]
@@ -122,14 +133,30 @@ def test_inspect_many_in_processes_gives_the_results_of_one_process(tmp_path):
 # rebar inspect: summary, failures, resume
 # ------------------------------------------------------------------------------------------------
 
+
 def _inspect(caps, out, *extra):
-    return main(["inspect", *map(str, caps), "--design", str(DESIGN_TOML), "--out", str(out),
-                 "--no-diameters", "--jobs", "1", *extra])
+    return main(
+        [
+            "inspect",
+            *map(str, caps),
+            "--design",
+            str(DESIGN_TOML),
+            "--out",
+            str(out),
+            "--no-diameters",
+            "--jobs",
+            "1",
+            *extra,
+        ]
+    )
 
 
 def test_cli_batch_summary_manifest_and_a_failed_capture(tmp_path, capsys):
-    caps = [example_capture("paper_slab", "A_400"), _broken_capture(tmp_path),
-            example_capture("paper_slab", "D_500")]
+    caps = [
+        example_capture("paper_slab", "A_400"),
+        _broken_capture(tmp_path),
+        example_capture("paper_slab", "D_500"),
+    ]
     out = tmp_path / "out"
     assert _inspect(caps, out) == 1  # one capture failed: status 1, the others written
     captured = capsys.readouterr()
@@ -172,10 +199,26 @@ def test_cli_resume_keeps_only_results_of_the_same_inputs(tmp_path, capsys):
     assert _inspect([a, b], out, "--resume", "--seed", "1") == 0
     assert [r["status"] for r in _summary(out)] == ["ok", "ok"]
     other = tmp_path / "design.toml"
-    other.write_text(DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n",
-                     encoding="utf-8")
-    assert main(["inspect", str(a), "--design", str(other), "--out", str(out), "--no-diameters",
-                 "--seed", "1", "--resume"]) == 0
+    other.write_text(
+        DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n", encoding="utf-8"
+    )
+    assert (
+        main(
+            [
+                "inspect",
+                str(a),
+                "--design",
+                str(other),
+                "--out",
+                str(out),
+                "--no-diameters",
+                "--seed",
+                "1",
+                "--resume",
+            ]
+        )
+        == 0
+    )
     assert [r["status"] for r in _summary(out)] == ["ok"]
     # a result without a manifest (an older rebarlib) or with a missing table is not resumed
     data = json.loads((out / "A_400" / "result.json").read_text(encoding="utf-8"))
@@ -190,6 +233,7 @@ def test_cli_resume_keeps_only_results_of_the_same_inputs(tmp_path, capsys):
 # ------------------------------------------------------------------------------------------------
 # rebar inspect: output paths, lock, atomic writing
 # ------------------------------------------------------------------------------------------------
+
 
 @pytest.fixture
 def no_compute(monkeypatch):
@@ -260,6 +304,7 @@ def test_tidy_puts_back_a_result_moved_aside_by_a_killed_run(tmp_path):
 # dask.distributed: a real scheduler and two workers on this machine
 # ------------------------------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_dask_cluster_gives_the_local_results(tmp_path, capsys):
     distributed = pytest.importorskip("distributed")
@@ -268,11 +313,23 @@ def test_dask_cluster_gives_the_local_results(tmp_path, capsys):
     caps.append(_broken_capture(tmp_path))
     local, remote = tmp_path / "local", tmp_path / "dask"
     assert _inspect(caps, local) == 1
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, host="127.0.0.1") as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
+    ) as cluster:
         assert len(cluster.workers) == 2
-        rc = main(["inspect", *map(str, caps), "--design", str(DESIGN_TOML), "--out", str(remote),
-                   "--no-diameters", "--dask", cluster.scheduler_address])
+        rc = main(
+            [
+                "inspect",
+                *map(str, caps),
+                "--design",
+                str(DESIGN_TOML),
+                "--out",
+                str(remote),
+                "--no-diameters",
+                "--dask",
+                cluster.scheduler_address,
+            ]
+        )
         with distributed.Client(cluster.scheduler_address) as client:
             ran_on = client.run(lambda: os.getpid())
     assert rc == 1 and len(set(ran_on.values()) - {os.getpid()}) == 2
@@ -294,6 +351,7 @@ def test_outcome_ok():
 # rebar report over a floor: a folder of slab folders
 # ------------------------------------------------------------------------------------------------
 
+
 @pytest.fixture
 def floor(tmp_path):
     """A floor of two slabs: the paper slab (its captures linked) and one whose design is broken."""
@@ -308,11 +366,35 @@ def floor(tmp_path):
 
 def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys):
     res = tmp_path / "res"
-    assert main(["inspect", str(floor / "S1" / "A_400"), "--design", str(DESIGN_TOML),
-                 "--out", str(res / "S1"), "--no-diameters", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "inspect",
+                str(floor / "S1" / "A_400"),
+                "--design",
+                str(DESIGN_TOML),
+                "--out",
+                str(res / "S1"),
+                "--no-diameters",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     out = tmp_path / "reports"
-    rc = main(["report", str(floor), "--results", str(res), "--out", str(out), "--format", "html",
-               "--quiet"])
+    rc = main(
+        [
+            "report",
+            str(floor),
+            "--results",
+            str(res),
+            "--out",
+            str(out),
+            "--format",
+            "html",
+            "--quiet",
+        ]
+    )
     assert rc == 1  # S2 could not be reported; S1 was
     rows = {r["slab"]: r for r in _summary_of(out / "floor_summary.csv")}
     assert list(rows) == ["S1", "S2"]
@@ -324,8 +406,9 @@ def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys)
     # only A_400 was inspected
     assert s1["captures"] == "4" and s1["captures_without_result"] == "3"
     failed = [i["item"] for i in saved["items"] if i["verdict"] == "fail"]
-    still_open = [i["item"] for i in saved["items"]
-                  if i["verdict"] in ("not measured", "incomplete")]
+    still_open = [
+        i["item"] for i in saved["items"] if i["verdict"] in ("not measured", "incomplete")
+    ]
     assert s1["failed_items"].split(";") == (failed or [""])
     assert s1["open_items"].split(";") == (still_open or [""])
     assert rows["S2"]["verdict"] == "not reported" and "S2/design.toml" in rows["S2"]["reason"]

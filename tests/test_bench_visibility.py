@@ -18,9 +18,17 @@ def _bar(i, layer, level, v_or_u, along="u", half_px=10, z=Z, extent=(40, 600)):
     else:
         p0, p1 = (v_or_u, a), (v_or_u, b)
     to3d = lambda p: [(p[0] - CX) * z / F, (p[1] - CY) * z / F, z]  # noqa: E731
-    return {"id": i, "layer": layer, "level": level, "visible": True, "diameter_mm": 10.0,
-            "envelope_mm": 10.0, "visible_start_mm": to3d(p0), "visible_end_mm": to3d(p1),
-            "_px": (p0, p1, half_px, along)}
+    return {
+        "id": i,
+        "layer": layer,
+        "level": level,
+        "visible": True,
+        "diameter_mm": 10.0,
+        "envelope_mm": 10.0,
+        "visible_start_mm": to3d(p0),
+        "visible_end_mm": to3d(p1),
+        "_px": (p0, p1, half_px, along),
+    }
 
 
 def _capture(bars, order):
@@ -30,9 +38,9 @@ def _capture(bars, order):
     for i in order:
         (u0, v0), (u1, v1), r, along = by[i]["_px"]
         if along == "u":
-            ids[max(v0 - r, 0):v0 + r + 1, u0:u1 + 1] = i + 1
+            ids[max(v0 - r, 0) : v0 + r + 1, u0 : u1 + 1] = i + 1
         else:
-            ids[v0:v1 + 1, max(u0 - r, 0):u0 + r + 1] = i + 1
+            ids[v0 : v1 + 1, max(u0 - r, 0) : u0 + r + 1] = i + 1
     intr = SimpleNamespace(fx=F, fy=F, cx=CX, cy=CY, width=W, height=H)
     return SimpleNamespace(bar_ids=ids, intrinsics=intr, truth={"bars": bars})
 

@@ -39,11 +39,16 @@ def cal(boards):
 @pytest.mark.slow
 def test_calibration_recovers_the_known_errors(cal):
     true_fx = GEMINI2.fx * (1 + FOCAL)
-    assert abs(cal.depth_scale - SCALE) <= max(3 * cal.u_depth_scale, 2e-4) and abs(cal.depth_scale - SCALE) < 1.5e-3
+    assert (
+        abs(cal.depth_scale - SCALE) <= max(3 * cal.u_depth_scale, 2e-4)
+        and abs(cal.depth_scale - SCALE) < 1.5e-3
+    )
     assert abs(cal.depth_offset_mm - OFFSET) <= max(3 * cal.u_depth_offset_mm, 0.2)
     assert abs(cal.depth_offset_mm - OFFSET) < 1.0
-    for est, true, u in ((cal.intrinsics.fx, true_fx, cal.u_intrinsics[0]),
-                         (cal.intrinsics.fy, true_fx, cal.u_intrinsics[1])):
+    for est, true, u in (
+        (cal.intrinsics.fx, true_fx, cal.u_intrinsics[0]),
+        (cal.intrinsics.fy, true_fx, cal.u_intrinsics[1]),
+    ):
         assert abs(est - true) <= 3 * u and abs(est / true - 1) < 2e-3
     assert abs(cal.intrinsics.cx - GEMINI2.cx) <= max(3 * cal.u_intrinsics[2], 1.0)
     assert abs(cal.intrinsics.cy - GEMINI2.cy) <= max(3 * cal.u_intrinsics[3], 1.0)
@@ -98,11 +103,17 @@ def test_calibration_file_round_trip_and_cli(tmp_path, boards, cal):
     for b in boards[:5]:
         folders.append(str(save_capture(b, tmp_path / b.name)))
     out = tmp_path / "cal" / "camera_cal.json"
-    assert main(["calibrate", *folders, "--board", "9x6", "--square-mm", "40", "--out", str(out)]) == 0
+    assert (
+        main(["calibrate", *folders, "--board", "9x6", "--square-mm", "40", "--out", str(out)]) == 0
+    )
     back = load_calibration(out)
     assert back.n_captures == 5 and abs(back.depth_scale - SCALE) < 2e-3
     d = json.loads(out.read_text())
-    assert d["format"] == "rebarlib calibration 1" and d["board"] == {"cols": 9, "rows": 6, "square_mm": 40.0}
+    assert d["format"] == "rebarlib calibration 1" and d["board"] == {
+        "cols": 9,
+        "rows": 6,
+        "square_mm": 40.0,
+    }
     # the saved file reads back as the object that wrote it
     p = cal.save(tmp_path / "again.json")
     assert load_calibration(p).to_dict() == cal.to_dict()
@@ -116,7 +127,12 @@ def test_bad_inputs_are_refused(tmp_path, capsys):
     bad.write_text("not json")
     with pytest.raises(RebarInputError, match="not a readable calibration"):
         load_calibration(bad)
-    assert main(["calibrate", str(tmp_path), "--board", "nine", "--square-mm", "40", "--out", "x.json"]) == 2
+    assert (
+        main(
+            ["calibrate", str(tmp_path), "--board", "nine", "--square-mm", "40", "--out", "x.json"]
+        )
+        == 2
+    )
     assert "COLSxROWS" in capsys.readouterr().err
     with pytest.raises(RebarInputError, match="3 x 3"):
         Checkerboard(cols=2, rows=6)
@@ -143,7 +159,11 @@ def test_focal_error_renders_through_the_true_lens():
     assert s.true_intrinsics(K) == K
     e = replace(s, focal_error=0.01).true_intrinsics(K)
     assert e.fx == pytest.approx(K.fx * 1.01) and (e.cx, e.cy) == (K.cx, K.cy)
-    cap = render_board(CameraPose.looking_down(500.0), intrinsics=K, sensor=replace(s, depth_scale_error=0.02,
-                                                                                      depth_offset_mm=3.0), rng=0)
+    cap = render_board(
+        CameraPose.looking_down(500.0),
+        intrinsics=K,
+        sensor=replace(s, depth_scale_error=0.02, depth_offset_mm=3.0),
+        rng=0,
+    )
     z = cap.depth_mm[cap.depth_mm > 0]
     assert np.allclose(z, 500.0 * 1.02 + 3.0, atol=1e-6) and math.isfinite(z.mean())

@@ -15,7 +15,9 @@ SMALL = GEMINI2.scaled(0.25)
 
 @pytest.fixture(scope="module")
 def capture(paper_design):
-    return synth_capture(paper_design, height_mm=500, tilt_deg=8, intrinsics=SMALL, seed=3, name="c1")
+    return synth_capture(
+        paper_design, height_mm=500, tilt_deg=8, intrinsics=SMALL, seed=3, name="c1"
+    )
 
 
 @pytest.fixture()
@@ -72,9 +74,14 @@ def test_missing_folder(tmp_path):
         load_capture(tmp_path / "nope")
 
 
-@pytest.mark.parametrize("name, match", [("depth.png", "depth.png: file not found"),
-                                         ("camera.json", "camera.json: file not found"),
-                                         ("color.png", "no color.png")])
+@pytest.mark.parametrize(
+    "name, match",
+    [
+        ("depth.png", "depth.png: file not found"),
+        ("camera.json", "camera.json: file not found"),
+        ("color.png", "no color.png"),
+    ],
+)
 def test_missing_file(saved, name, match):
     (saved / name).unlink()
     with pytest.raises(RebarInputError, match=match):
@@ -102,13 +109,19 @@ def test_depth_all_zero(saved):
         load_capture(saved)
 
 
-@pytest.mark.parametrize("edit, match", [
-    (lambda d: d.pop("intrinsic_matrix"), "missing key 'intrinsic_matrix'"),
-    (lambda d: d.update(intrinsic_matrix=[0, 0, 0, 0, 100, 0, 10, 10, 1]), "fx"),
-    (lambda d: d.update(intrinsic_matrix=[100, 5, 0, 0, 100, 0, 10, 10, 1]), "not a pinhole matrix"),
-    (lambda d: d.update(depth_scale_mm=-1), "depth_scale_mm"),
-    (lambda d: d.update(width=999), "says 999x"),
-])
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda d: d.pop("intrinsic_matrix"), "missing key 'intrinsic_matrix'"),
+        (lambda d: d.update(intrinsic_matrix=[0, 0, 0, 0, 100, 0, 10, 10, 1]), "fx"),
+        (
+            lambda d: d.update(intrinsic_matrix=[100, 5, 0, 0, 100, 0, 10, 10, 1]),
+            "not a pinhole matrix",
+        ),
+        (lambda d: d.update(depth_scale_mm=-1), "depth_scale_mm"),
+        (lambda d: d.update(width=999), "says 999x"),
+    ],
+)
 def test_bad_intrinsics(saved, edit, match):
     path = saved / "camera.json"
     data = json.loads(path.read_text())

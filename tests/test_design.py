@@ -39,21 +39,29 @@ def test_the_documented_design_file_loads(tmp_path):
 
 
 def test_per_direction_overrides():
-    data = {**PAPER_DESIGN, "design": {**PAPER_DESIGN["design"],
-                                       "lower": {"diameter_mm": 14, "spacing_mm": 200, "top": {"spacing_mm": 150}}}}
+    data = {
+        **PAPER_DESIGN,
+        "design": {
+            **PAPER_DESIGN["design"],
+            "lower": {"diameter_mm": 14, "spacing_mm": 200, "top": {"spacing_mm": 150}},
+        },
+    }
     d = design_from_dict(data)
     assert d.lower.bottom.spacing_mm == 200 and d.lower.top.spacing_mm == 150
 
 
-@pytest.mark.parametrize("path, value, match", [
-    (("design", "cover_mm"), None, "missing required key 'cover_mm'"),
-    (("design", "cover_mm"), -3, "cover_mm: -3 mm is outside"),
-    (("design", "cover_mm"), "twenty", "cover_mm: expected a number"),
-    (("design", "layer_distance_mm"), 20, "lattices would intersect"),
-    (("design", "thickness_mm"), 120, "leaves no top cover"),
-    (("design", "lower"), None, r"missing table \[design.lower\]"),
-    (("slab", "id"), None, "needs an 'id'"),
-])
+@pytest.mark.parametrize(
+    "path, value, match",
+    [
+        (("design", "cover_mm"), None, "missing required key 'cover_mm'"),
+        (("design", "cover_mm"), -3, "cover_mm: -3 mm is outside"),
+        (("design", "cover_mm"), "twenty", "cover_mm: expected a number"),
+        (("design", "layer_distance_mm"), 20, "lattices would intersect"),
+        (("design", "thickness_mm"), 120, "leaves no top cover"),
+        (("design", "lower"), None, r"missing table \[design.lower\]"),
+        (("slab", "id"), None, "needs an 'id'"),
+    ],
+)
 def test_bad_values_are_named(path, value, match):
     import copy
 

@@ -22,8 +22,15 @@ from rebarlib.geometry.scoring import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
 from rebarlib.data import example_capture, example_slab, paper_design
-from rebarlib.synth import (CameraPose, Deviations, SensorModel, make_scene, misregister, render_capture,
-                            synth_capture)
+from rebarlib.synth import (
+    CameraPose,
+    Deviations,
+    SensorModel,
+    make_scene,
+    misregister,
+    render_capture,
+    synth_capture,
+)
 
 K_HALF = GEMINI2.scaled(0.5)
 COVER_TOL_MM = 0.8  # cover, half resolution
@@ -57,14 +64,24 @@ def _assert_bars_ok(res, cap, *, allow_missed=0):
 # Captures (rendered once per module)
 # ------------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def hard():
     """Yawed mesh, 20° tilt, spacing varying bar to bar, one bar missing in view, bars cut by the
     image border, lower bars partly hidden under upper bars."""
     dev = Deviations(mesh_yaw_deg=37.0, position_sigma_mm=5.0, missing=1)
     design = paper_design()
-    cap = synth_capture(design, height_mm=500, tilt_deg=20, yaw_deg=15, deviations=dev, intrinsics=K_HALF,
-                        seed=4, scene_seed=11, name="hard")
+    cap = synth_capture(
+        design,
+        height_mm=500,
+        tilt_deg=20,
+        yaw_deg=15,
+        deviations=dev,
+        intrinsics=K_HALF,
+        seed=4,
+        scene_seed=11,
+        name="hard",
+    )
     return cap, design, inspect(cap, design, rng=0)
 
 
@@ -92,6 +109,7 @@ def _bare(cap: Capture) -> Capture:
 # Hard cases
 # ------------------------------------------------------------------------------------------------
 
+
 def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
     cap, design, res = hard
     t = cap.truth
@@ -104,15 +122,23 @@ def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
         assert m.n_points > 100 and 0 < m.uncertainty_mm < 1.0
     # the camera pose over the formwork
     assert abs(res.camera["tilt_deg"] - 20.0) < 0.5
-    assert abs(res.camera["height_mm"] - t["camera"]["height_mm"]) < 2.0 if "height_mm" in t["camera"] else True
+    assert (
+        abs(res.camera["height_mm"] - t["camera"]["height_mm"]) < 2.0
+        if "height_mm" in t["camera"]
+        else True
+    )
     assert abs(abs(np.dot(res.formwork["normal"], t["formwork_plane"]["normal"])) - 1) < 1e-4
 
 
 def test_every_visible_bar_found_once_with_its_level(hard):
     cap, _, res = hard
     # preconditions of the hard case: bars cut by the image border, lower bars partly hidden
-    cut = [b for b in _visible_measurable(cap) if b["visible_length_mm"] < 0.95 * np.linalg.norm(
-        np.subtract(b["axis_end_mm"], b["axis_start_mm"]))]
+    cut = [
+        b
+        for b in _visible_measurable(cap)
+        if b["visible_length_mm"]
+        < 0.95 * np.linalg.norm(np.subtract(b["axis_end_mm"], b["axis_start_mm"]))
+    ]
     assert len(cut) >= 10
     assert len(_visible_measurable(cap, layer="lower")) >= 6
     s = _assert_bars_ok(res, cap)
@@ -124,20 +150,30 @@ def test_every_visible_bar_found_once_with_its_level(hard):
         assert abs(d - 90) < 2.0
 
 
-@pytest.mark.parametrize("mesh_yaw_deg,height_mm,tilt_deg", [
-    (0.0, 400, 0.0), (45.0, 600, 12.0), (90.0, 500, 6.0)])
+@pytest.mark.parametrize(
+    "mesh_yaw_deg,height_mm,tilt_deg", [(0.0, 400, 0.0), (45.0, 600, 12.0), (90.0, 500, 6.0)]
+)
 def test_any_yaw_straight_or_diagonal(mesh_yaw_deg, height_mm, tilt_deg):
     """Bars parallel to the image axes (0°, 90°, no tilt) and diagonal (45°) alike."""
     design = paper_design(cover_mm=25)
-    cap = synth_capture(design, height_mm=height_mm, tilt_deg=tilt_deg, deviations=Deviations(
-        mesh_yaw_deg=mesh_yaw_deg), intrinsics=K_HALF, seed=int(mesh_yaw_deg) + 7, name="yaw")
+    cap = synth_capture(
+        design,
+        height_mm=height_mm,
+        tilt_deg=tilt_deg,
+        deviations=Deviations(mesh_yaw_deg=mesh_yaw_deg),
+        intrinsics=K_HALF,
+        seed=int(mesh_yaw_deg) + 7,
+        name="yaw",
+    )
     res = inspect(cap, design, diameters=False, rng=0)
     t = cap.truth
     assert abs(res.cover.value_mm - t["cover_mm"]) <= COVER_TOL_MM
     assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
     s = _assert_bars_ok(res, cap)
     assert s["found"] == s["measurable"]
-    assert len(s["spacing_errors_mm"]) >= 4 and np.abs(s["spacing_errors_mm"]).max() <= SPACING_TOL_MM
+    assert (
+        len(s["spacing_errors_mm"]) >= 4 and np.abs(s["spacing_errors_mm"]).max() <= SPACING_TOL_MM
+    )
 
 
 def test_spacing_varying_bar_to_bar(hard):
@@ -148,8 +184,17 @@ def test_spacing_varying_bar_to_bar(hard):
     err = s["spacing_errors_mm"]
     assert len(err) >= 8 and np.abs(err).max() <= SPACING_TOL_MM
     sp = res.spacings
-    assert list(sp.columns[:9]) == ["layer", "level", "bar_a", "bar_b", "spacing_mm", "design_spacing_mm",
-                                    "deviation_mm", "status", "reason"]
+    assert list(sp.columns[:9]) == [
+        "layer",
+        "level",
+        "bar_a",
+        "bar_b",
+        "spacing_mm",
+        "design_spacing_mm",
+        "deviation_mm",
+        "status",
+        "reason",
+    ]
     ok = sp[sp["status"] == MEASURED]
     assert np.allclose(ok["deviation_mm"], ok["spacing_mm"] - ok["design_spacing_mm"])
     assert (ok["design_spacing_mm"] == 200).all()
@@ -161,8 +206,11 @@ def test_no_spacing_measured_across_a_hidden_bar(hard):
     that are adjacent in the mesh."""
     cap, _, res = hard
     seen = {(b["layer"], b["level"], b["index"]) for b in measurable_bars(cap)}
-    hidden = [b for b in cap.truth["bars"] if not b["visible"]
-              and {(b["layer"], b["level"], b["index"] + k) for k in (-1, 1)} <= seen]
+    hidden = [
+        b
+        for b in cap.truth["bars"]
+        if not b["visible"] and {(b["layer"], b["level"], b["index"] + k) for k in (-1, 1)} <= seen
+    ]
     assert hidden  # precondition: a hidden bar between two measurable ones
     s = score_result(res, cap)
     assert s["spacings_unscored"] == 0
@@ -185,26 +233,47 @@ def test_missing_bar_counted(hard):
     assert len(miss) == 1
     key = (miss[0]["layer"], miss[0]["level"])
     c = res.counts.set_index(["layer", "level"])
-    assert list(res.counts.columns) == ["layer", "level", "found", "expected", "missing", "extra", "not_measured",
-                                        "outside", "evidence"]
+    assert list(res.counts.columns) == [
+        "layer",
+        "level",
+        "found",
+        "expected",
+        "missing",
+        "extra",
+        "not_measured",
+        "outside",
+        "evidence",
+    ]
     # A bar is missing only on evidence of an empty position (docs/verdicts.md). Here the upper
     # bar of its direction lies over the empty position in the image: a bar within tolerance of
     # its place could hide under it, so the position is "not measured (hidden)", never accepted.
     pos = res.positions
-    at = pos[(pos["layer"] == key[0]) & (pos["level"] == key[1]) & pos["status"].isin(["missing", "not measured"])]
+    at = pos[
+        (pos["layer"] == key[0])
+        & (pos["level"] == key[1])
+        & pos["status"].isin(["missing", "not measured"])
+    ]
     assert int(c.loc[key, "missing"]) == 1 or (
-        int(c.loc[key, "not_measured"]) >= 1 and any("hidden" in r for r in at["reason"]))
+        int(c.loc[key, "not_measured"]) >= 1 and any("hidden" in r for r in at["reason"])
+    )
     for k in c.index:
         if k != key:
             assert int(c.loc[k, "missing"]) == 0
         assert int(c.loc[k, "extra"]) == 0
 
 
-
 # Captures of the geometry benchmark (full resolution, realistic sensor) with a bar the thinned
 # cloud of the bar search misses: (cover, height, tilt, mesh yaw, camera yaw, seed, truth bar id)
 SECOND_LOOK = {
-    "lower bar seen as slivers beside the upper bar above it": (15, 600, 5, 157.4924, 76.7366, 278041, 7),
+    "lower bar seen as slivers beside the upper bar above it": (
+        15,
+        600,
+        5,
+        157.4924,
+        76.7366,
+        278041,
+        7,
+    ),
     "bar cut to 7 cm by the image corner": (25, 600, 15, 18.1010, 100.6264, 702891, 8),
 }
 SECOND_LOOK_AXIS_TOL_MM = 3.0  # plan offset of the found axis from the true axis
@@ -215,8 +284,15 @@ SECOND_LOOK_AXIS_TOL_MM = 3.0  # plan offset of the found axis from the true axi
 def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
     cover, h, tilt, mesh_yaw, cam_yaw, seed, bar = SECOND_LOOK[case]
     design = paper_design(cover_mm=cover)
-    cap = synth_capture(design, height_mm=h, tilt_deg=tilt, yaw_deg=cam_yaw,
-                        deviations=Deviations(mesh_yaw_deg=mesh_yaw), seed=seed, scene_seed=seed + 1)
+    cap = synth_capture(
+        design,
+        height_mm=h,
+        tilt_deg=tilt,
+        yaw_deg=cam_yaw,
+        deviations=Deviations(mesh_yaw_deg=mesh_yaw),
+        seed=seed,
+        scene_seed=seed + 1,
+    )
     res = inspect(cap, design, diameters=False, rng=seed)
     s = score_result(res, cap)
     m = s["matches"]
@@ -225,7 +301,9 @@ def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
     assert len(hit) == 1, f"truth bar {bar} not found"
     row = res.bars.set_index("bar_id").loc[int(hit["bar_id"].iloc[0])]
     # found by the second look: there, but its axis is not placed to the millimetre
-    assert row["status"] == NOT_MEASURED and row["reason"].startswith("seen only at full resolution")
+    assert row["status"] == NOT_MEASURED and row["reason"].startswith(
+        "seen only at full resolution"
+    )
     assert float(hit["offset_mm"].iloc[0]) < SECOND_LOOK_AXIS_TOL_MM
     # its spacings are not measured (never one spacing twice the real one)
     sp = res.spacings
@@ -239,9 +317,14 @@ def test_second_look_invents_no_bar_where_one_is_missing_under_an_upper_bar(seed
     """Upper bars stacked right above the lower bars, several lower and upper bars left out: the
     flying pixels along the upper bars' edges and the empty positions under them give no bar."""
     design = paper_design(cover_mm=20)
-    cap = synth_capture(design, height_mm=600, tilt_deg=5, yaw_deg=30.0 * seed,
-                        deviations=Deviations(stacked=True, missing=6, mesh_yaw_deg=17.0 * seed),
-                        seed=seed)
+    cap = synth_capture(
+        design,
+        height_mm=600,
+        tilt_deg=5,
+        yaw_deg=30.0 * seed,
+        deviations=Deviations(stacked=True, missing=6, mesh_yaw_deg=17.0 * seed),
+        seed=seed,
+    )
     res = inspect(cap, design, diameters=False, rng=0)
     s = score_result(res, cap)
     assert s["phantoms"] == [], f"seed {seed}: phantom bars {s['phantoms']}"
@@ -259,9 +342,16 @@ def test_second_look_ignores_flying_pixels(k, h, tilt, stacked):
     placed one in each of these captures.)"""
     design = paper_design(cover_mm=20)
     sensor = SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5)
-    cap = synth_capture(design, sensor=sensor, height_mm=h, tilt_deg=tilt, yaw_deg=47.0 * k,
-                        deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
-                        seed=500 + k, scene_seed=600 + k)
+    cap = synth_capture(
+        design,
+        sensor=sensor,
+        height_mm=h,
+        tilt_deg=tilt,
+        yaw_deg=47.0 * k,
+        deviations=Deviations(mesh_yaw_deg=31.0 * k, stacked=stacked, missing=6),
+        seed=500 + k,
+        scene_seed=600 + k,
+    )
     res = inspect(cap, design, diameters=False, rng=0)
     s = score_result(res, cap)
     seen_later = res.bars["reason"].str.startswith("seen only at full resolution")
@@ -274,8 +364,16 @@ def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
     bars = {(b["layer"], b["level"], b["index"]): b for b in cap.truth["bars"]}
     n = 0
     for m in cap.truth["missing"]:
-        lo, hi = bars.get(("lower", m["level"], m["index"] - 1)), bars.get(("lower", m["level"], m["index"] + 1))
-        if m["layer"] != "lower" or lo is None or hi is None or ("upper", m["level"], m["index"]) not in bars:
+        lo, hi = (
+            bars.get(("lower", m["level"], m["index"] - 1)),
+            bars.get(("lower", m["level"], m["index"] + 1)),
+        )
+        if (
+            m["layer"] != "lower"
+            or lo is None
+            or hi is None
+            or ("upper", m["level"], m["index"]) not in bars
+        ):
             continue
         a = 0.5 * (np.array(lo["axis_start_mm"]) + np.array(hi["axis_start_mm"]))
         b = 0.5 * (np.array(lo["axis_end_mm"]) + np.array(hi["axis_end_mm"]))
@@ -287,8 +385,22 @@ def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
 
 def test_bar_table_columns_and_axes_in_camera_frame(hard):
     cap, _, res = hard
-    cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
-            "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "status", "reason"]
+    cols = [
+        "bar_id",
+        "layer",
+        "level",
+        "plan_angle_deg",
+        "start_x_mm",
+        "start_y_mm",
+        "start_z_mm",
+        "end_x_mm",
+        "end_y_mm",
+        "end_z_mm",
+        "visible_length_mm",
+        "n_points",
+        "status",
+        "reason",
+    ]
     assert set(cols) <= set(res.bars.columns)
     # axis end points project into the image (visible extent), and bar_points carry the pixels
     K = cap.intrinsics
@@ -310,9 +422,13 @@ def test_formwork_a_disparity_step_above_its_plane_is_not_taken_for_bars():
     # measured). Every bar of both lattices is found and the cover is measured.
     from rebarlib import Intrinsics
 
-    k = Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480)
+    k = Intrinsics(
+        fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480
+    )
     design = paper_design()
-    cap = synth_capture(design, height_mm=600, tilt_deg=0, seed=1, sensor=SensorModel(), intrinsics=k)
+    cap = synth_capture(
+        design, height_mm=600, tilt_deg=0, seed=1, sensor=SensorModel(), intrinsics=k
+    )
     res = inspect(cap, design, diameters=False, rng=0)
     counts = res.counts.set_index(["layer", "level"])
     assert (counts.found > 0).all() and (counts.missing == 0).all()
@@ -338,7 +454,11 @@ def test_no_formwork_visible(hard):
     bare = _bare(cap)
     res = inspect(bare, design, rng=0)
     t = cap.truth
-    assert res.cover.status == NOT_MEASURED and res.cover.value_mm is None and "formwork" in res.cover.reason
+    assert (
+        res.cover.status == NOT_MEASURED
+        and res.cover.value_mm is None
+        and "formwork" in res.cover.reason
+    )
     assert res.top_cover.status == NOT_MEASURED
     # layers and spacing are still measured (relative quantities)
     assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
@@ -354,7 +474,9 @@ def test_bar_with_too_few_points_is_not_measured(hard):
     the stride) is reported as "not measured" with a reason, not dropped silently and not given a
     number."""
     cap, design, _ = hard
-    target = max(_visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"])
+    target = max(
+        _visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"]
+    )
     mask = cap.bar_ids == target["id"] + 1
     vv, uu = np.nonzero(mask)
     drop = np.ones(len(vv), bool)
@@ -373,6 +495,7 @@ def test_bar_with_too_few_points_is_not_measured(hard):
 # Bad input
 # ------------------------------------------------------------------------------------------------
 
+
 def test_empty_capture_is_an_input_error(hard):
     cap, design, _ = hard
     with pytest.raises(RebarInputError, match="depth"):
@@ -381,13 +504,19 @@ def test_empty_capture_is_an_input_error(hard):
 
 #: inspect() called wrongly: (the argument changed, the word the error names). "depth" stands
 #: for the capture's depth array given in place of the capture.
-WRONG_ARGUMENTS = [({"method": "fast"}, "method"), ({"design": {"cover_mm": 20}}, "design"),
-                   ({"capture": "depth"}, "capture"),
-                   *[({"edge_trim_px": bad}, "edge_trim_px") for bad in (-1, 1.5, "1", True)]]
+WRONG_ARGUMENTS = [
+    ({"method": "fast"}, "method"),
+    ({"design": {"cover_mm": 20}}, "design"),
+    ({"capture": "depth"}, "capture"),
+    *[({"edge_trim_px": bad}, "edge_trim_px") for bad in (-1, 1.5, "1", True)],
+]
 
 
-@pytest.mark.parametrize("change, names", WRONG_ARGUMENTS,
-                         ids=[f"{k}={v!r}" for (c, _) in WRONG_ARGUMENTS for k, v in c.items()])
+@pytest.mark.parametrize(
+    "change, names",
+    WRONG_ARGUMENTS,
+    ids=[f"{k}={v!r}" for (c, _) in WRONG_ARGUMENTS for k, v in c.items()],
+)
 def test_wrong_arguments_are_input_errors(hard, change, names):
     cap, design, _ = hard
     args = {"design": design, **change}
@@ -401,7 +530,7 @@ def test_flat_formwork_only_measures_nothing(hard):
     made-up numbers."""
     cap, design, _ = hard
     K = cap.intrinsics
-    v = np.mgrid[0:K.height, 0:K.width][0]
+    v = np.mgrid[0 : K.height, 0 : K.width][0]
     # a tilted plane 500 mm away along the optical axis
     depth = 500.0 / (1.0 + 0.2 * (v - K.cy) / K.fy)
     res = inspect(_with_depth(cap, depth, "flat"), design, rng=0)
@@ -420,6 +549,7 @@ def test_absurd_design_values_rejected(absurd):
 # ------------------------------------------------------------------------------------------------
 # Shipped examples (full resolution), both methods
 # ------------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("slab,name", [("paper_slab", "B_500"), ("site_slab", "P1_500")])
 def test_examples_refined_accuracy(slab, name):
@@ -447,25 +577,51 @@ def test_paper_method_on_example():
 def test_same_seed_same_result(hard):
     cap, design, res = hard
     again = inspect(cap, design, rng=0)
-    assert again.to_json() != "" and json.loads(again.to_json())["bars"] == json.loads(res.to_json())["bars"]
+    assert (
+        again.to_json() != ""
+        and json.loads(again.to_json())["bars"] == json.loads(res.to_json())["bars"]
+    )
 
 
 # ------------------------------------------------------------------------------------------------
 # rebar inspect
 # ------------------------------------------------------------------------------------------------
 
+
 def test_cli_writes_result_and_tables(tmp_path, capsys):
     from rebarlib.cli import main
 
     folder, _ = example_slab("paper_slab")
     out = tmp_path / "results"
-    rc = main(["inspect", str(example_capture("paper_slab", "A_400")), "--design", str(folder / "design.toml"),
-               "--out", str(out)])
+    rc = main(
+        [
+            "inspect",
+            str(example_capture("paper_slab", "A_400")),
+            "--design",
+            str(folder / "design.toml"),
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     d = out / "A_400"
     data = json.loads((d / "result.json").read_text())
-    for key in ("capture", "method", "cover_mm", "layer_distance_mm", "upper_top_mm", "top_cover_mm",
-                "measurements", "formwork", "camera", "bars", "spacings", "counts", "timings_s", "notes"):
+    for key in (
+        "capture",
+        "method",
+        "cover_mm",
+        "layer_distance_mm",
+        "upper_top_mm",
+        "top_cover_mm",
+        "measurements",
+        "formwork",
+        "camera",
+        "bars",
+        "spacings",
+        "counts",
+        "timings_s",
+        "notes",
+    ):
         assert key in data
     assert data["capture"] == "A_400" and data["method"] == "refined"
     assert math.isfinite(data["cover_mm"]) and data["measurements"]["cover"]["status"] == MEASURED
@@ -487,8 +643,21 @@ def test_cli_geometry_only(tmp_path, capsys):
 
     folder, _ = example_slab("site_slab")
     out = tmp_path / "r"
-    rc = main(["inspect", str(example_capture("site_slab", "P1_500")), "--design", str(folder / "design.toml"),
-               "--out", str(out), "--no-diameters", "--method", "refined", "--seed", "3"])
+    rc = main(
+        [
+            "inspect",
+            str(example_capture("site_slab", "P1_500")),
+            "--design",
+            str(folder / "design.toml"),
+            "--out",
+            str(out),
+            "--no-diameters",
+            "--method",
+            "refined",
+            "--seed",
+            "3",
+        ]
+    )
     assert rc == 0
     bars = pd.read_csv(out / "P1_500" / "bars.csv")
     assert "nominal_mm" not in bars and len(bars) >= 20
@@ -501,7 +670,9 @@ def test_cli_never_writes_into_a_capture(tmp_path, capsys):
     folder, _ = example_slab("paper_slab")
     cap = example_capture("paper_slab", "A_400")
     before = sorted(p.name for p in cap.iterdir())
-    rc = main(["inspect", str(cap), "--design", str(folder / "design.toml"), "--out", str(cap.parent)])
+    rc = main(
+        ["inspect", str(cap), "--design", str(folder / "design.toml"), "--out", str(cap.parent)]
+    )
     assert rc == 2 and "capture folder" in capsys.readouterr().err
     assert sorted(p.name for p in cap.iterdir()) == before
 
@@ -512,11 +683,28 @@ def test_cli_duplicate_names_and_missing_capture(tmp_path, capsys):
     folder, _ = example_slab("paper_slab")
     (tmp_path / "x" / "A_400").mkdir(parents=True)
     (tmp_path / "y" / "A_400").mkdir(parents=True)
-    rc = main(["inspect", str(tmp_path / "x" / "A_400"), str(tmp_path / "y" / "A_400"), "--design",
-               str(folder / "design.toml"), "--out", str(tmp_path / "out")])
+    rc = main(
+        [
+            "inspect",
+            str(tmp_path / "x" / "A_400"),
+            str(tmp_path / "y" / "A_400"),
+            "--design",
+            str(folder / "design.toml"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 2 and "overwrite" in capsys.readouterr().err
-    rc = main(["inspect", str(tmp_path / "nope"), "--design", str(folder / "design.toml"), "--out",
-               str(tmp_path / "out")])
+    rc = main(
+        [
+            "inspect",
+            str(tmp_path / "nope"),
+            "--design",
+            str(folder / "design.toml"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 2 and "nope" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
@@ -538,6 +726,7 @@ def test_widest_bar_px_is_the_widest_envelope_at_the_nearest_depth(paper_design)
 # ------------------------------------------------------------------------------------------------
 # Colour-depth misregistration
 # ------------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def example_b500():
@@ -582,6 +771,7 @@ def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b50
 # ------------------------------------------------------------------------------------------------
 # Edge fattening
 # ------------------------------------------------------------------------------------------------
+
 
 @pytest.mark.slow
 def test_edge_fattening_is_left_out_before_the_bars_are_fitted(paper_design):

@@ -20,7 +20,13 @@ import pytest
 from rebarlib import RebarInputError, design_from_dict, load_design
 from rebarlib.acceptance import design_top_cover_mm, evaluate
 from rebarlib.cli import main
-from rebarlib.report import build_report, render_html, report_context, safe_url_fetcher, templates_dir
+from rebarlib.report import (
+    build_report,
+    render_html,
+    report_context,
+    safe_url_fetcher,
+    templates_dir,
+)
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PAPER = EXAMPLES / "paper_slab"
@@ -33,7 +39,10 @@ def with_manifest(result: dict, capture: str) -> dict:
     """The result with the manifest `rebar inspect` stores: made from PAPER's capture and design."""
     from rebarlib._manifest import make_manifest
 
-    return {**result, "manifest": make_manifest(PAPER / capture, PAPER / "design.toml", method="refined")}
+    return {
+        **result,
+        "manifest": make_manifest(PAPER / capture, PAPER / "design.toml", method="refined"),
+    }
 
 
 def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict:
@@ -43,36 +52,79 @@ def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict
     bars = []
     for i, b in enumerate(x for x in t["bars"] if x["visible"]):
         hidden = i % HIDE_EVERY == HIDE_EVERY - 1
-        rec = {"bar_id": b["id"], "layer": b["layer"], "level": b["level"], "plan_angle_deg": b["plan_angle_deg"],
-               "visible_length_mm": b["visible_length_mm"], "n_points": b["visible_pixels"],
-               "status": "measured", "reason": "", "width_median_mm": None if hidden else b["envelope_mm"],
-               "width_spread_mm": None if hidden else 0.5, "nominal_mm": None if hidden else b["diameter_mm"],
-               "confidence": 0.0 if hidden else 0.97,
-               "diameter_status": "hidden" if hidden else "measured",
-               "diameter_reason": "under crossing bars" if hidden else "",
-               "design_diameter_mm": b["design_diameter_mm"], "hidden": hidden}
+        rec = {
+            "bar_id": b["id"],
+            "layer": b["layer"],
+            "level": b["level"],
+            "plan_angle_deg": b["plan_angle_deg"],
+            "visible_length_mm": b["visible_length_mm"],
+            "n_points": b["visible_pixels"],
+            "status": "measured",
+            "reason": "",
+            "width_median_mm": None if hidden else b["envelope_mm"],
+            "width_spread_mm": None if hidden else 0.5,
+            "nominal_mm": None if hidden else b["diameter_mm"],
+            "confidence": 0.0 if hidden else 0.97,
+            "diameter_status": "hidden" if hidden else "measured",
+            "diameter_reason": "under crossing bars" if hidden else "",
+            "design_diameter_mm": b["design_diameter_mm"],
+            "hidden": hidden,
+        }
         for c, s, e in zip("xyz", b["visible_start_mm"], b["visible_end_mm"]):
             rec[f"start_{c}_mm"], rec[f"end_{c}_mm"] = s, e
         bars.append(rec)
-    spacings = [{"layer": s["layer"], "level": s["level"], "bar_a": s["bar_a"], "bar_b": s["bar_b"],
-                 "spacing_mm": s["spacing_mm"], "design_spacing_mm": 200.0, "deviation_mm": s["spacing_mm"] - 200.0,
-                 "status": "measured", "reason": ""} for s in t["spacings"] if s["visible"]]
+    spacings = [
+        {
+            "layer": s["layer"],
+            "level": s["level"],
+            "bar_a": s["bar_a"],
+            "bar_b": s["bar_b"],
+            "spacing_mm": s["spacing_mm"],
+            "design_spacing_mm": 200.0,
+            "deviation_mm": s["spacing_mm"] - 200.0,
+            "status": "measured",
+            "reason": "",
+        }
+        for s in t["spacings"]
+        if s["visible"]
+    ]
     counts = []
     for la in ("lower", "upper"):
         for lv in ("bottom", "top"):
             k = sum(b["layer"] == la and b["level"] == lv for b in bars)
-            counts.append({"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0})
+            counts.append(
+                {"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0}
+            )
 
     def m(v):
-        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
+        return {
+            "value_mm": v,
+            "uncertainty_mm": 0.7,
+            "n_points": 1000,
+            "status": "measured",
+            "reason": "",
+        }
 
     top = design.thickness_mm - t["upper_top_mm"]
-    return {"capture": capture_dir.name, "method": "truth",
-            "measurements": {"cover": m(t["cover_mm"] + cover_offset_mm), "layer_distance": m(t["layer_distance_mm"]),
-                             "upper_top": m(t["upper_top_mm"]), "top_cover": m(top)},
-            "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
-            "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
-            "bars": bars, "spacings": spacings, "counts": counts, "notes": []}
+    return {
+        "capture": capture_dir.name,
+        "method": "truth",
+        "measurements": {
+            "cover": m(t["cover_mm"] + cover_offset_mm),
+            "layer_distance": m(t["layer_distance_mm"]),
+            "upper_top": m(t["upper_top_mm"]),
+            "top_cover": m(top),
+        },
+        "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
+        "camera": {
+            "height_mm": t["camera"]["height_mm"],
+            "tilt_deg": math.degrees(math.acos(abs(n[2]))),
+        },
+        "bars": bars,
+        "spacings": spacings,
+        "counts": counts,
+        "notes": [],
+    }
 
 
 def pdf_text(path) -> str:
@@ -88,10 +140,15 @@ def paper():
 
 def test_pdf_text_equals_the_tables(paper, tmp_path):
     design, res = paper
-    results = [res["A_400"], result_from_truth(PAPER / "B_500", design, cover_offset_mm=COVER_OFF_MM)]
+    results = [
+        res["A_400"],
+        result_from_truth(PAPER / "B_500", design, cover_offset_mm=COVER_OFF_MM),
+    ]
     acc = evaluate(results, design)
     assert acc.verdict == "rejected"  # the cover of B is off by more than 1.5x
-    cover_b = acc.checkpoints[(acc.checkpoints["item"] == "cover") & (acc.checkpoints["capture"] == "B_500")].iloc[0]
+    cover_b = acc.checkpoints[
+        (acc.checkpoints["item"] == "cover") & (acc.checkpoints["capture"] == "B_500")
+    ].iloc[0]
     assert (cover_b["status"], cover_b["flag"]) == ("beyond max", "#")
     out = build_report(PAPER, design, acc, out_path=tmp_path / "r.pdf")
     text = pdf_text(out)
@@ -100,10 +157,18 @@ def test_pdf_text_equals_the_tables(paper, tmp_path):
     assert "GB 50204-2015" in text
     for it in acc.items.itertuples():
         unit = "bars" if it.unit == "bars" else "mm"
-        worst = f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
+        worst = (
+            f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
+        )
         worst = worst.replace("+0.0 mm", "0.0 mm").replace("+0 bars", "0 bars")
-        extra = ", ".join(t for t in (f"+{it.not_measured} n/m" if it.not_measured else "",
-                                      f"+{it.excluded} hidden" if it.excluded else "") if t)
+        extra = ", ".join(
+            t
+            for t in (
+                f"+{it.not_measured} n/m" if it.not_measured else "",
+                f"+{it.excluded} hidden" if it.excluded else "",
+            )
+            if t
+        )
         extra = f" ({extra})" if extra else ""
         row = f"{it.tolerance} {it.measured}{extra} {it.passed} {100 * it.pass_ratio:.0f} % {worst} {it.verdict}"
         assert row in text, f"summary row of {it.item} not in the PDF: {row!r}"
@@ -112,7 +177,10 @@ def test_pdf_text_equals_the_tables(paper, tmp_path):
     # Exports next to the PDF hold every checkpoint.
     cp = pd.read_csv(tmp_path / "r_checkpoints.csv")
     assert len(cp) == len(acc.checkpoints)
-    assert json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))["verdict"] == "rejected"
+    assert (
+        json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))["verdict"]
+        == "rejected"
+    )
 
 
 def test_html_draws_every_bar_and_writes_the_spacings(paper):
@@ -127,7 +195,9 @@ def test_html_draws_every_bar_and_writes_the_spacings(paper):
     cap = ctx["captures"][0]
     drawn = {b["id"] for b in cap["image"]["bars"]}
     assert drawn == {str(b["bar_id"]) for b in res["A_400"]["bars"]}  # all visible bars are in view
-    assert sum(b["hidden"] for b in cap["image"]["bars"]) == sum(b["hidden"] for b in res["A_400"]["bars"])
+    assert sum(b["hidden"] for b in cap["image"]["bars"]) == sum(
+        b["hidden"] for b in res["A_400"]["bars"]
+    )
     labels = sorted(lab["text"] for lab in cap["plan"]["labels"])
     assert labels == sorted(f"{s['spacing_mm']:.0f}" for s in res["A_400"]["spacings"])
     # Plan coordinates are in the formwork plane: a spacing drawn equals the spacing measured.
@@ -138,10 +208,18 @@ def test_html_draws_every_bar_and_writes_the_spacings(paper):
 
 def test_text_from_design_files_is_escaped(paper, tmp_path):
     _, res = paper
-    design = design_from_dict({"slab": {"id": EVIL, "project": "<script>alert(1)</script>", "location": "a & b"},
-                               "design": {"cover_mm": 20, "layer_distance_mm": 85, "thickness_mm": 180,
-                                          "lower": {"diameter_mm": 14, "spacing_mm": 200},
-                                          "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+    design = design_from_dict(
+        {
+            "slab": {"id": EVIL, "project": "<script>alert(1)</script>", "location": "a & b"},
+            "design": {
+                "cover_mm": 20,
+                "layer_distance_mm": 85,
+                "thickness_mm": 180,
+                "lower": {"diameter_mm": 14, "spacing_mm": 200},
+                "upper": {"diameter_mm": 12, "spacing_mm": 200},
+            },
+        }
+    )
     r = dict(res["A_400"], capture=EVIL)
     acc = evaluate([r], design)
     html = render_html(report_context([r], design, acc))
@@ -158,15 +236,22 @@ def test_url_fetcher_serves_only_data_uris_and_template_files(tmp_path):
     secret = tmp_path / "secret.css"
     secret.write_text("body { color: red }", encoding="utf-8")
     root = templates_dir()
-    html = (f'<link rel="stylesheet" href="report.css"><link rel="stylesheet" href="{secret.as_uri()}">'
-            '<link rel="stylesheet" href="../pyproject.toml">'
-            '<img src="file:///etc/passwd"><img src="http://127.0.0.1:9/x.png">'
-            '<img src="data:image/gif;base64,R0lGODlhAQABAAAAACwAAAAAAQABAAA=">')
+    html = (
+        f'<link rel="stylesheet" href="report.css"><link rel="stylesheet" href="{secret.as_uri()}">'
+        '<link rel="stylesheet" href="../pyproject.toml">'
+        '<img src="file:///etc/passwd"><img src="http://127.0.0.1:9/x.png">'
+        '<img src="data:image/gif;base64,R0lGODlhAQABAAAAACwAAAAAAQABAAA=">'
+    )
     refused = []
-    weasyprint.HTML(string=html, base_url=str(root) + "/",
-                    url_fetcher=safe_url_fetcher(root, refused=refused)).write_pdf()
-    assert set(refused) == {secret.as_uri(), (root.parent / "pyproject.toml").as_uri(),
-                            "file:///etc/passwd", "http://127.0.0.1:9/x.png"}
+    weasyprint.HTML(
+        string=html, base_url=str(root) + "/", url_fetcher=safe_url_fetcher(root, refused=refused)
+    ).write_pdf()
+    assert set(refused) == {
+        secret.as_uri(),
+        (root.parent / "pyproject.toml").as_uri(),
+        "file:///etc/passwd",
+        "http://127.0.0.1:9/x.png",
+    }
 
 
 def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
@@ -174,7 +259,9 @@ def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     results = tmp_path / "results"
     for name, r in res.items():  # C_600 and D_500 have no result
         (results / name).mkdir(parents=True)
-        (results / name / "result.json").write_text(json.dumps(with_manifest(r, name)), encoding="utf-8")
+        (results / name / "result.json").write_text(
+            json.dumps(with_manifest(r, name)), encoding="utf-8"
+        )
     out = tmp_path / "report" / "S-101.pdf"
     assert main(["report", str(PAPER), "--results", str(results), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -184,7 +271,9 @@ def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     assert [m["capture"] for m in saved["missing_captures"]] == ["C_600", "D_500"]
     text = pdf_text(out)
     assert "NOT ACCEPTED (incomplete" in text and "capture C_600: no result" in text
-    assert main(["report", str(PAPER), "--results", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
+    assert (
+        main(["report", str(PAPER), "--results", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
+    )
 
 
 def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
@@ -198,16 +287,44 @@ def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
 def test_cli_html_with_another_standard(paper, tmp_path):
     _, res = paper
     (tmp_path / "res" / "A_400").mkdir(parents=True)
-    (tmp_path / "res" / "A_400" / "result.json").write_text(json.dumps(with_manifest(res["A_400"], "A_400")),
-                                                            encoding="utf-8")
+    (tmp_path / "res" / "A_400" / "result.json").write_text(
+        json.dumps(with_manifest(res["A_400"], "A_400")), encoding="utf-8"
+    )
     out = tmp_path / "r.html"
-    assert main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out),
-                 "--standard", "ACI117-318", "--no-exports"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(PAPER),
+                "--results",
+                str(tmp_path / "res"),
+                "--out",
+                str(out),
+                "--standard",
+                "ACI117-318",
+                "--no-exports",
+            ]
+        )
+        == 0
+    )
     html = out.read_text(encoding="utf-8")
     assert "ACI 318-19 / ACI 117-10" in html and "±76 mm" in html
     assert not (tmp_path / "r_checkpoints.csv").exists()
-    assert main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out),
-                 "--standard", "BS8110"]) == 2
+    assert (
+        main(
+            [
+                "report",
+                str(PAPER),
+                "--results",
+                str(tmp_path / "res"),
+                "--out",
+                str(out),
+                "--standard",
+                "BS8110",
+            ]
+        )
+        == 2
+    )
 
 
 def test_missing_templates_fail_with_a_clear_error(monkeypatch, tmp_path):
@@ -221,8 +338,13 @@ def test_missing_templates_fail_with_a_clear_error(monkeypatch, tmp_path):
 def test_unmeasured_item_is_reported_with_its_reason(paper):
     design, res = paper
     r = json.loads(json.dumps(res["A_400"]))
-    r["measurements"]["layer_distance"] = {"value_mm": None, "uncertainty_mm": None, "n_points": 0,
-                                           "status": "not measured", "reason": "upper lattice not found"}
+    r["measurements"]["layer_distance"] = {
+        "value_mm": None,
+        "uncertainty_mm": None,
+        "n_points": 0,
+        "status": "not measured",
+        "reason": "upper lattice not found",
+    }
     acc = evaluate([r], design)
     assert acc.verdict == "incomplete"
     ctx = report_context([r], design, acc)
@@ -248,12 +370,16 @@ def test_cli_inspects_captures_itself_without_results(paper, tmp_path, monkeypat
             raise RebarInputError("depth image empty")
         return result_from_truth(PAPER / capture.name, design_)
 
-    monkeypatch.setitem(sys.modules, "rebarlib._inspect", types.SimpleNamespace(inspect=fake_inspect))
+    monkeypatch.setitem(
+        sys.modules, "rebarlib._inspect", types.SimpleNamespace(inspect=fake_inspect)
+    )
     out = tmp_path / "r.html"
     assert main(["report", str(PAPER), "--out", str(out), "--method", "paper"]) == 0
     assert calls == [(c, "paper") for c in ("A_400", "B_500", "C_600", "D_500")]
     saved = json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))
-    assert saved["missing_captures"] == [{"capture": "D_500", "reason": "inspection failed: depth image empty"}]
+    assert saved["missing_captures"] == [
+        {"capture": "D_500", "reason": "inspection failed: depth image empty"}
+    ]
     monkeypatch.setitem(sys.modules, "rebarlib._inspect", None)  # the stage is not installed
     assert main(["report", str(PAPER), "--out", str(out), "--force"]) == 2  # (the report exists)
     assert "--results" in capsys.readouterr().err
@@ -263,12 +389,18 @@ def test_bar_row_does_not_repeat_its_status_and_a_partly_checked_bar_is_not_pass
     design, res = paper
     r = json.loads(json.dumps(res["A_400"]))
     hid = next(b for b in r["bars"] if b["hidden"])
-    hid["diameter_reason"] = "hidden: 90% of its cross-sections lie wholly or partly under nearer bars"
+    hid["diameter_reason"] = (
+        "hidden: 90% of its cross-sections lie wholly or partly under nearer bars"
+    )
     # a bar whose spacings are within tolerance but whose size could not be measured
     spaced = {str(s["bar_a"]) for s in r["spacings"]} | {str(s["bar_b"]) for s in r["spacings"]}
     nm = next(b for b in r["bars"] if not b["hidden"] and str(b["bar_id"]) in spaced)
-    nm.update(nominal_mm=None, confidence=0.6, diameter_status="not measured",
-              diameter_reason="ambiguous: width 15.2 mm (mask) lies between Φ12 and Φ14")
+    nm.update(
+        nominal_mm=None,
+        confidence=0.6,
+        diameter_status="not measured",
+        diameter_reason="ambiguous: width 15.2 mm (mask) lies between Φ12 and Φ14",
+    )
     acc = evaluate([r], design)
     ctx = report_context([r], design, acc)
     rows = {str(b["bar_id"]): b for b in ctx["captures"][0]["bars"]}

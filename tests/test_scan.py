@@ -26,8 +26,12 @@ def design():
 
 
 def _scan(design, sigma, *, formwork=True, seed=0, step=0.1):
-    return synth_scan(design, scanner=ScannerModel(range_sigma_mm=sigma, step_az_deg=step, step_el_deg=step),
-                      formwork=formwork, rng=seed)
+    return synth_scan(
+        design,
+        scanner=ScannerModel(range_sigma_mm=sigma, step_az_deg=step, step_el_deg=step),
+        formwork=formwork,
+        rng=seed,
+    )
 
 
 @pytest.mark.parametrize("suffix", FORMATS)
@@ -77,8 +81,16 @@ def test_scan_with_formwork_finds_every_bar_and_measures_to_tolerance(design):
 @pytest.mark.slow
 def test_scan_without_formwork_y_up_far_origin_in_metres(design, tmp_path):
     pts, truth, fields = _scan(design, 10.0, formwork=False, seed=5)
-    export_scan(tmp_path / "site.laz", pts, truth, fields, units="m", up="+y", origin_mm=(20000.0, 5000.0, -3000.0),
-                truth_json=True)
+    export_scan(
+        tmp_path / "site.laz",
+        pts,
+        truth,
+        fields,
+        units="m",
+        up="+y",
+        origin_mm=(20000.0, 5000.0, -3000.0),
+        truth_json=True,
+    )
     res = inspect_cloud(tmp_path / "site.laz", design, units="m", up="+y")
     told = json.loads((tmp_path / "site.laz.truth.json").read_text())
     assert len(told["bars"]) == 40 and told["cover_mm"] is None
@@ -96,7 +108,9 @@ def test_scan_without_formwork_y_up_far_origin_in_metres(design, tmp_path):
 def test_up_sign_from_the_normals_without_formwork(design, tmp_path):
     # sigma 15 mm: the crossings cannot tell the sign here, the scanner's normals can
     pts, truth, fields = _scan(design, 15.0, formwork=False, seed=1)
-    export_scan(tmp_path / "geo.ply", pts, truth, fields, units="m", up="-y", origin_mm=(5e8, 3e9, 1.2e5))
+    export_scan(
+        tmp_path / "geo.ply", pts, truth, fields, units="m", up="-y", origin_mm=(5e8, 3e9, 1.2e5)
+    )
     res = inspect_cloud(read_cloud(tmp_path / "geo.ply", units="m"), design)
     s = score_scan(res, truth)
     assert "normals" in res.notes[0]
@@ -110,7 +124,9 @@ def test_up_sign_from_the_crossings_at_low_noise(design, flip):
     res = inspect_cloud(pts * np.array([1.0, -1.0, -1.0]) if flip else pts, design)
     assert "GUESSED" in res.notes[0]
     assert (res.extras["cloud"]["up"][2] < 0) == flip  # up is the world's +z either way
-    assert res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
+    assert (
+        res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
+    )
 
 
 def test_diameter_criterion():
@@ -129,15 +145,35 @@ def test_bar_systems_of_other_markets_and_plain_bars():
     for name, label in (("AS/NZS 4671", "N12"), ("IS 1786", "Ø12"), ("BS 4449", "H12")):
         s = bar_system(name)
         assert s.label(12) == label and s.of_size(s.envelope_mm, 12) > 12
-    d = design_from_dict({"slab": {"id": "S", "bar_system": "JIS"}, "design": {
-        "cover_mm": 25, "layer_distance_mm": 90, "lower": {"diameter_mm": 12.7, "spacing_mm": 200},
-        "upper": {"diameter_mm": 12.7, "spacing_mm": 200, "top": {"surface": "plain", "diameter_mm": 8}}}})
+    d = design_from_dict(
+        {
+            "slab": {"id": "S", "bar_system": "JIS"},
+            "design": {
+                "cover_mm": 25,
+                "layer_distance_mm": 90,
+                "lower": {"diameter_mm": 12.7, "spacing_mm": 200},
+                "upper": {
+                    "diameter_mm": 12.7,
+                    "spacing_mm": 200,
+                    "top": {"surface": "plain", "diameter_mm": 8},
+                },
+            },
+        }
+    )
     assert barset_width_mm(d.upper.top, d.bar_system) == 8.0
     assert barset_width_mm(d.lower.bottom, d.bar_system) == 14.0
     with pytest.raises(RebarInputError, match="surface"):
-        design_from_dict({"slab": {"id": "S"}, "design": {"cover_mm": 25, "layer_distance_mm": 90,
-                          "lower": {"diameter_mm": 12, "spacing_mm": 200, "surface": "smooth"},
-                          "upper": {"diameter_mm": 12, "spacing_mm": 200}}})
+        design_from_dict(
+            {
+                "slab": {"id": "S"},
+                "design": {
+                    "cover_mm": 25,
+                    "layer_distance_mm": 90,
+                    "lower": {"diameter_mm": 12, "spacing_mm": 200, "surface": "smooth"},
+                    "upper": {"diameter_mm": 12, "spacing_mm": 200},
+                },
+            }
+        )
 
 
 @pytest.mark.slow
@@ -146,19 +182,39 @@ def test_cli_inspect_cloud_writes_results_with_manifest(design, tmp_path):
 
     pts, truth, fields = _scan(design, 5.0, seed=2, step=0.12)
     export_scan(tmp_path / "scan.ply", pts, truth, fields, units="mm")
-    rc = main(["inspect-cloud", str(tmp_path / "scan.ply"), "--units", "mm", "--up", "+z", "--design", DESIGN,
-               "--out", str(tmp_path / "out")])
+    rc = main(
+        [
+            "inspect-cloud",
+            str(tmp_path / "scan.ply"),
+            "--units",
+            "mm",
+            "--up",
+            "+z",
+            "--design",
+            DESIGN,
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 0
     data = json.loads((tmp_path / "out" / "scan" / "result.json").read_text())
     assert data["method"] == "cloud" and data["manifest"]["cloud_digest"].startswith("sha256:")
     assert data["measurements"]["cover"]["status"] == "measured"
-    assert all((tmp_path / "out" / "scan" / f).is_file() for f in ("bars.csv", "spacings.csv", "counts.csv"))
+    assert all(
+        (tmp_path / "out" / "scan" / f).is_file()
+        for f in ("bars.csv", "spacings.csv", "counts.csv")
+    )
 
 
 @pytest.mark.slow
 def test_diameters_where_the_noise_allows(design):
-    pts, truth, _ = synth_scan(design, scanner=ScannerModel(range_sigma_mm=0.5, step_az_deg=0.06,
-                                                     step_el_deg=0.06, mixed_fraction=0.2), rng=0)
+    pts, truth, _ = synth_scan(
+        design,
+        scanner=ScannerModel(
+            range_sigma_mm=0.5, step_az_deg=0.06, step_el_deg=0.06, mixed_fraction=0.2
+        ),
+        rng=0,
+    )
     bars = inspect_cloud(pts, design).bars
     sized = bars[bars["diameter_status"] == "measured"]
     assert len(sized) >= 0.6 * len(bars)
@@ -168,7 +224,9 @@ def test_diameters_where_the_noise_allows(design):
     # at sigma 10 mm nothing is sized, and each bar says why
     pts, truth, _ = _scan(design, 10.0, seed=0)
     bars = inspect_cloud(pts, design).bars
-    assert (bars["diameter_status"] == "not measured").all() and bars["diameter_reason"].str.len().min() > 10
+    assert (bars["diameter_status"] == "not measured").all() and bars[
+        "diameter_reason"
+    ].str.len().min() > 10
 
 
 @pytest.mark.slow
@@ -176,14 +234,22 @@ def test_partly_scanned_mesh_and_a_station_above_it(design):
     from rebarlib.synth_scan import Station
 
     # a third of the mesh scanned: every bar with >= 100 mm of returns found, nothing else
-    pts, truth, _ = synth_scan(design, scanner=ScannerModel(range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1),
-                               region=(-1000, 200, -1000, 300), rng=4)
+    pts, truth, _ = synth_scan(
+        design,
+        scanner=ScannerModel(range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1),
+        region=(-1000, 200, -1000, 300),
+        rng=4,
+    )
     s = score_scan(inspect_cloud(pts, design), truth)
     assert 15 <= s["scanned"] < 40 and s["missed"] == 0 and s["phantoms"] == 0, s
     assert s["spacing_max_abs_err_mm"] <= 5.0 and abs(s["layer_distance_err_mm"]) <= 3.0
     # a hand-held scanner looking down from 1.2 m, two positions
-    pts, truth, _ = synth_scan(design, stations=[Station((0.0, 0.0, 1200.0)), Station((600.0, -400.0, 1200.0))],
-                               scanner=ScannerModel(range_sigma_mm=5.0, step_az_deg=0.25, step_el_deg=0.25), rng=3)
+    pts, truth, _ = synth_scan(
+        design,
+        stations=[Station((0.0, 0.0, 1200.0)), Station((600.0, -400.0, 1200.0))],
+        scanner=ScannerModel(range_sigma_mm=5.0, step_az_deg=0.25, step_el_deg=0.25),
+        rng=3,
+    )
     s = score_scan(inspect_cloud(pts, design), truth)
     assert s["missed"] == 0 and s["phantoms"] == 0 and s["spacing_max_abs_err_mm"] <= 3.0, s
 
@@ -199,14 +265,51 @@ def test_report_of_a_slab_folder_of_clouds(design, tmp_path):
     export_scan(slab / "bay1.ply", pts, truth, fields, units="m")
     # clouds are judged from their results only
     assert main(["report", str(slab), "--out", str(tmp_path / "r0.pdf")]) == 2
-    assert main(["inspect-cloud", str(slab / "bay1.ply"), "--units", "m", "--design", str(slab / "design.toml"),
-                 "--out", str(tmp_path / "res")]) == 0
-    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r.pdf")]) == 0
+    assert (
+        main(
+            [
+                "inspect-cloud",
+                str(slab / "bay1.ply"),
+                "--units",
+                "m",
+                "--design",
+                str(slab / "design.toml"),
+                "--out",
+                str(tmp_path / "res"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "report",
+                str(slab),
+                "--results",
+                str(tmp_path / "res"),
+                "--out",
+                str(tmp_path / "r.pdf"),
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "r.pdf").stat().st_size > 10_000
     # a changed cloud is not the one the result was made from
     with open(slab / "bay1.ply", "ab") as f:
         f.write(b"\n")
-    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r2.pdf")]) == 2
+    assert (
+        main(
+            [
+                "report",
+                str(slab),
+                "--results",
+                str(tmp_path / "res"),
+                "--out",
+                str(tmp_path / "r2.pdf"),
+            ]
+        )
+        == 2
+    )
 
 
 @pytest.mark.slow
@@ -216,8 +319,13 @@ def test_outliers(design, fraction):
     # which the scattered points do not widen (their spread did: 98 mm, and no lattice split);
     # 5 %: the levels are ordered by their bars' median heights (a mean height, pulled up by the
     # outliers above the mesh, swapped the upper lattice's levels)
-    pts, truth, _ = synth_scan(design, scanner=ScannerModel(range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1,
-                                                            outlier_fraction=fraction), rng=6)
+    pts, truth, _ = synth_scan(
+        design,
+        scanner=ScannerModel(
+            range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1, outlier_fraction=fraction
+        ),
+        rng=6,
+    )
     res = inspect_cloud(pts, design)
     s = score_scan(res, truth)
     assert s["missed"] == 0 and s["phantoms"] == 0 and s["spacing_max_abs_err_mm"] <= 5.0, s

@@ -12,11 +12,26 @@ from rebarlib import GEMINI2, RebarInputError
 from rebarlib._inspect import registered_mask
 from rebarlib.synth import SensorModel, misregister, synth_capture
 from rebarlib.segmentation import (
-    SegmentationModel, confusion_counts, depth_overreach_px, dice, estimate_registration,
-    fit_formwork_plane, fuse_masks, iou, mask_from_depth, pixel_accuracy, shift_image, soft_mask,
-    trim_depth_overreach)
+    SegmentationModel,
+    confusion_counts,
+    depth_overreach_px,
+    dice,
+    estimate_registration,
+    fit_formwork_plane,
+    fuse_masks,
+    iou,
+    mask_from_depth,
+    pixel_accuracy,
+    shift_image,
+    soft_mask,
+    trim_depth_overreach,
+)
 from rebarlib.synth_segmentation import (
-    DATASET_SEED, split_indices, synth_eval_regions, synth_segmentation_capture)
+    DATASET_SEED,
+    split_indices,
+    synth_eval_regions,
+    synth_segmentation_capture,
+)
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
@@ -48,10 +63,8 @@ HALF = GEMINI2.scaled(0.5)
 
 
 def test_confusion_counts_by_hand():
-    pred = np.array([[1, 1, 0, 0, 1],
-                     [0, 1, 1, 0, 0]], bool)
-    truth = np.array([[1, 0, 0, 1, 1],
-                      [0, 1, 0, 1, 0]], bool)
+    pred = np.array([[1, 1, 0, 0, 1], [0, 1, 1, 0, 0]], bool)
+    truth = np.array([[1, 0, 0, 1, 1], [0, 1, 0, 1, 0]], bool)
     # TP at (0,0) (0,4) (1,1); FP at (0,1) (1,2); FN at (0,3) (1,3); TN at (0,2) (1,0) (1,4)
     c = confusion_counts(pred, truth)
     assert c == {"TP": 3, "FP": 2, "FN": 2, "TN": 3}
@@ -105,35 +118,49 @@ def _red_minus_blue_model(tmp_path, sidecar, name="redblue", fixed=None):
     h, w = fixed if fixed else ("H", "W")
     weight = helper.make_tensor("w", TensorProto.FLOAT, [1, 3, 1, 1], [1 / 16, 0.0, -1 / 16])
     graph = helper.make_graph(
-        [helper.make_node("Conv", ["image", "w"], ["logit"])], "red_minus_blue",
+        [helper.make_node("Conv", ["image", "w"], ["logit"])],
+        "red_minus_blue",
         [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, h, w])],
-        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, [1, 1, h, w])], [weight])
+        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, [1, 1, h, w])],
+        [weight],
+    )
     return _save(tmp_path, name, graph, sidecar)
 
 
 def _argmax_label_model(tmp_path, sidecar, name="argmax"):
     """NHWC uint8 input -> label map = index of the brightest channel (R 0, G 1, B 2)."""
     graph = helper.make_graph(
-        [helper.make_node("Cast", ["img"], ["f"], to=TensorProto.FLOAT),
-         helper.make_node("ArgMax", ["f"], ["labels"], axis=3, keepdims=0)], "argmax_channel",
+        [
+            helper.make_node("Cast", ["img"], ["f"], to=TensorProto.FLOAT),
+            helper.make_node("ArgMax", ["f"], ["labels"], axis=3, keepdims=0),
+        ],
+        "argmax_channel",
         [helper.make_tensor_value_info("img", TensorProto.UINT8, [1, "H", "W", 3])],
-        [helper.make_tensor_value_info("labels", TensorProto.INT64, [1, "H", "W"])])
+        [helper.make_tensor_value_info("labels", TensorProto.INT64, [1, "H", "W"])],
+    )
     return _save(tmp_path, name, graph, sidecar)
 
 
 def _red_left_blue_right(h=50, w=80):
     img = np.zeros((h, w, 3), np.uint8)
     img[:, : w // 2, 0] = 200
-    img[:, w // 2:, 2] = 200
+    img[:, w // 2 :, 2] = 200
     truth = np.zeros((h, w), bool)
     truth[:, : w // 2] = True
     return img, truth
 
 
 def test_in_test_logit_model_with_scale_and_padding(tmp_path):
-    sidecar = {"input": {"scale": 0.5, "pad_to": 16, "channel_order": "RGB", "layout": "NCHW",
-                         "dtype": "float32"},
-               "output": {"kind": "logits", "rebar_classes": [0], "threshold": 0.5}}
+    sidecar = {
+        "input": {
+            "scale": 0.5,
+            "pad_to": 16,
+            "channel_order": "RGB",
+            "layout": "NCHW",
+            "dtype": "float32",
+        },
+        "output": {"kind": "logits", "rebar_classes": [0], "threshold": 0.5},
+    }
     path = _red_minus_blue_model(tmp_path, sidecar)
     model = SegmentationModel(path)  # sidecar found next to the model
     img, truth = _red_left_blue_right(50, 80)
@@ -148,15 +175,20 @@ def test_in_test_logit_model_with_scale_and_padding(tmp_path):
 
 
 def test_in_test_model_bgr_swaps_the_answer(tmp_path):
-    sidecar = {"input": {"scale": 1.0, "channel_order": "BGR"}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    sidecar = {
+        "input": {"scale": 1.0, "channel_order": "BGR"},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="bgr"))
     img, truth = _red_left_blue_right()
     assert np.array_equal(model.predict_mask(img), ~truth)
 
 
 def test_in_test_label_map_model_nhwc_uint8(tmp_path):
-    sidecar = {"input": {"layout": "NHWC", "dtype": "uint8"},
-               "output": {"kind": "labels", "rebar_classes": [0]}}
+    sidecar = {
+        "input": {"layout": "NHWC", "dtype": "uint8"},
+        "output": {"kind": "labels", "rebar_classes": [0]},
+    }
     model = SegmentationModel(_argmax_label_model(tmp_path, sidecar))
     img, truth = _red_left_blue_right()
     assert np.array_equal(model.predict_mask(img), truth)
@@ -164,7 +196,9 @@ def test_in_test_label_map_model_nhwc_uint8(tmp_path):
 
 def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
     sidecar = {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40)))
+    model = SegmentationModel(
+        _red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40))
+    )
     img, truth = _red_left_blue_right(100, 160)
     mask = model.predict_mask(img)
     assert mask.shape == (100, 160)
@@ -173,7 +207,9 @@ def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
 
 def test_in_test_model_fixed_size_keeps_the_aspect_ratio_and_pads(tmp_path):
     sidecar = {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40)))
+    model = SegmentationModel(
+        _red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40))
+    )
     assert model._input_size(160, 100) == (40, 25)  # the input's own aspect ratio: scaled
     assert model._input_size(160, 120) == (33, 25)  # 4:3 into 16:10: padded on the right
     assert model._input_size(100, 200) == (12, 25)  # portrait
@@ -187,7 +223,10 @@ def test_in_test_model_fixed_size_keeps_the_aspect_ratio_and_pads(tmp_path):
 
 
 def test_in_test_dynamic_model_keeps_the_pixel_scale_at_any_size(tmp_path):
-    sidecar = {"input": {"scale": 0.5, "pad_to": 16}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    sidecar = {
+        "input": {"scale": 0.5, "pad_to": 16},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="dyn"))
     for h, w in ((480, 640), (301, 199), (3024, 4032)):
         assert model._input_size(w, h) == (round(w / 2), round(h / 2))
@@ -195,7 +234,7 @@ def test_in_test_dynamic_model_keeps_the_pixel_scale_at_any_size(tmp_path):
         mask = model.predict_mask(img)
         assert mask.shape == (h, w)
         assert np.array_equal(mask[:, : w // 2 - 3], truth[:, : w // 2 - 3])
-        assert not mask[:, w // 2 + 3:].any()
+        assert not mask[:, w // 2 + 3 :].any()
 
 
 @pytest.mark.parametrize("flips", [[], ["h", "v", "hv"]])
@@ -204,8 +243,13 @@ def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips)
     # the image's own resolution, every pixel gets exactly its own logit whatever tile it lies in
     # and however the overlapping tiles are blended; down-scaled to the input, a one-pixel red
     # line is averaged away with its blue neighbours
-    sidecar = {"input": {"size": [40, 25], "flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="tiled" + "_".join(flips), fixed=(25, 40)))
+    sidecar = {
+        "input": {"size": [40, 25], "flips": flips},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
+    model = SegmentationModel(
+        _red_minus_blue_model(tmp_path, sidecar, name="tiled" + "_".join(flips), fixed=(25, 40))
+    )
     img, _ = _red_left_blue_right(100, 160)
     img[:, 71] = (200, 0, 0)  # the edge one pixel right of the middle
     img[:, 123] = (200, 0, 0)  # a one-pixel red line in the blue half
@@ -224,21 +268,32 @@ def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips)
 def test_in_test_model_tiles_are_down_scaled_where_bars_would_be_too_wide(tmp_path):
     # the sidecar says the model knows bars up to 10 input pixels wide: a 20 px bar halves the
     # tiles' resolution, a 40 px bar brings the image down to the input (the plain whole-image run)
-    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="maxbar", fixed=(25, 40)))
+    sidecar = {
+        "input": {"size": [40, 25], "max_bar_px": 10},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
+    model = SegmentationModel(
+        _red_minus_blue_model(tmp_path, sidecar, name="maxbar", fixed=(25, 40))
+    )
     assert model.tile_scale(None) == 1.0 and model.tile_scale(8) == 1.0
-    assert model.tile_scale(20) == pytest.approx(0.5) and model.tile_scale(40) == pytest.approx(0.25)
+    assert model.tile_scale(20) == pytest.approx(0.5) and model.tile_scale(40) == pytest.approx(
+        0.25
+    )
     img, _ = _red_left_blue_right(100, 160)
     img[:, 123] = (200, 0, 0)
     want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
     assert np.allclose(model.predict_proba(img, tiled=True, bar_width_px=8), want, atol=1e-5)
     half = model.predict_proba(img, tiled=True, bar_width_px=20)
     assert half.shape == (100, 160) and not np.allclose(half, want, atol=1e-2)
-    assert np.array_equal(model.predict_proba(img, tiled=True, bar_width_px=40), model.predict_proba(img))
-    bad = {"input": {"size": [40, 25], "max_bar_px": -3}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    assert np.array_equal(
+        model.predict_proba(img, tiled=True, bar_width_px=40), model.predict_proba(img)
+    )
+    bad = {
+        "input": {"size": [40, 25], "max_bar_px": -3},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
     with pytest.raises(RebarInputError, match="max_bar_px"):
         SegmentationModel(_red_minus_blue_model(tmp_path, bad, name="badmax", fixed=(25, 40)))
-
 
 
 def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_path):
@@ -246,8 +301,10 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     # the smaller ratio, 80 / 60 = 4/3, unless that makes its widest bar wider than the sidecar's
     # 10 px (an 8 px bar: 10 / 8 = 1.25); a bar too wide already shrinks it, as before. Images of
     # twice the input or more, and images no larger than the input, keep their scale.
-    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10},
-               "output": {"kind": "logits", "rebar_classes": [0]}}
+    sidecar = {
+        "input": {"size": [40, 25], "max_bar_px": 10},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="up", fixed=(25, 40)))
     assert model.tile_scale(None, (60, 32)) == pytest.approx(4 / 3)
     assert model.tile_scale(8, (60, 32)) == pytest.approx(1.25)
@@ -273,24 +330,34 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     model.predict_proba(img, tiled=True, bar_width_px=10)  # a 10 px bar: no room to enlarge
     assert len(seen) == 4
 
+
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""
-    weight = helper.make_tensor("w", TensorProto.FLOAT, [1, 3, 1, 3], [1 / 16, 0, 0, 0, 0, 0, 0, 0, 0])
+    weight = helper.make_tensor(
+        "w", TensorProto.FLOAT, [1, 3, 1, 3], [1 / 16, 0, 0, 0, 0, 0, 0, 0, 0]
+    )
     bias = helper.make_tensor("b", TensorProto.FLOAT, [1], [-4.0])
     graph = helper.make_graph(
-        [helper.make_node("Conv", ["image", "w", "b"], ["logit"], pads=[0, 1, 0, 1])], "left_neighbour",
+        [helper.make_node("Conv", ["image", "w", "b"], ["logit"], pads=[0, 1, 0, 1])],
+        "left_neighbour",
         [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, "H", "W"])],
-        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, [1, 1, "H", "W"])], [weight, bias])
+        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, [1, 1, "H", "W"])],
+        [weight, bias],
+    )
     return _save(tmp_path, name, graph, sidecar)
 
 
-@pytest.mark.parametrize("flips, columns", [([], [21]), (["v"], [21]), (["h"], [19, 21]), (["h", "v", "hv"], [19, 21])])
+@pytest.mark.parametrize(
+    "flips, columns", [([], [21]), (["v"], [21]), (["h"], [19, 21]), (["h", "v", "hv"], [19, 21])]
+)
 def test_in_test_model_with_test_time_flips(tmp_path, flips, columns):
     # one red column at x = 20: the plain model marks x = 21 (logit 200/16 - 4 = 8.5); its mirror
     # image marks x = 19, and the mean of the two logits is 200/32 - 4 = 2.25 > 0 at both
     sidecar = {"input": {"flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="flips" + "_".join(flips)))
+    model = SegmentationModel(
+        _left_neighbour_model(tmp_path, sidecar, name="flips" + "_".join(flips))
+    )
     img = np.zeros((30, 40, 3), np.uint8)
     img[:, 20, 0] = 200
     mask = model.predict_mask(img)
@@ -304,20 +371,29 @@ def test_in_test_model_tiles_get_the_test_time_flips(tmp_path):
     # the plain and the mirrored run, so the red column at x = 50 marks x = 49 and x = 51 with the
     # mean logit 2.25, as on a whole image (test above); flips=False runs each tile once (x = 51 only, 8.5).
     # x = 49-51 lie inside every 40 px tile that holds them (tiles start every 20 px)
-    sidecar = {"input": {"size": [40, 25], "flips": ["h"]}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    sidecar = {
+        "input": {"size": [40, 25], "flips": ["h"]},
+        "output": {"kind": "logits", "rebar_classes": [0]},
+    }
     model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="tileflips"))
     img = np.zeros((100, 160, 3), np.uint8)
     img[:, 50, 0] = 200
     sig = lambda z: 1 / (1 + np.exp(-z))  # noqa: E731
     both = model.predict_proba(img, tiled=True)
     assert both.shape == (100, 160)
-    assert np.allclose(both[:, [49, 51]], sig(2.25), atol=1e-5) and np.allclose(both[:, 55:100], sig(-4.0), atol=1e-5)
+    assert np.allclose(both[:, [49, 51]], sig(2.25), atol=1e-5) and np.allclose(
+        both[:, 55:100], sig(-4.0), atol=1e-5
+    )
     once = model.predict_proba(img, tiled=True, flips=False)
-    assert np.allclose(once[:, 51], sig(8.5), atol=1e-5) and np.allclose(once[:, 49], sig(-4.0), atol=1e-5)
+    assert np.allclose(once[:, 51], sig(8.5), atol=1e-5) and np.allclose(
+        once[:, 49], sig(-4.0), atol=1e-5
+    )
     # an image of the input's size is scored whole, with its flip or without
     small = np.ascontiguousarray(img[:25, 30:70])
     assert np.allclose(model.predict_proba(small, tiled=True)[:, 19], sig(2.25), atol=1e-5)
-    assert np.allclose(model.predict_proba(small, tiled=True, flips=False)[:, 19], sig(-4.0), atol=1e-5)
+    assert np.allclose(
+        model.predict_proba(small, tiled=True, flips=False)[:, 19], sig(-4.0), atol=1e-5
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -346,21 +422,42 @@ def test_corrupt_model_and_sidecar(tmp_path):
     with pytest.raises(RebarInputError, match=r"badjson\.json: output.kind"):
         SegmentationModel(path)
     for flips, kind in ((["x"], "logits"), (["h", "h"], "logits"), (["h"], "labels")):
-        (tmp_path / "badjson.json").write_text(json.dumps({"input": {"flips": flips}, "output": {"kind": kind}}))
+        (tmp_path / "badjson.json").write_text(
+            json.dumps({"input": {"flips": flips}, "output": {"kind": kind}})
+        )
         with pytest.raises(RebarInputError, match=r"badjson\.json: input.flips"):
             SegmentationModel(path)
 
 
-@pytest.mark.parametrize("sidecar, message", [
-    ({"input": {"size": [64, 64]}, "output": {"kind": "logits", "rebar_classes": [0]}}, "does not match"),
-    ({"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}, "set input.size"),
-    ({"input": {"size": [40, 25], "dtype": "uint8"}, "output": {"kind": "logits", "rebar_classes": [0]}},
-     "input.dtype"),
-    ({"input": {"size": [40, 25], "layout": "NHWC"}, "output": {"kind": "logits", "rebar_classes": [0]}},
-     "input.layout"),
-    ({"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [1]}}, "out of range"),
-    ({"input": {"size": [40, 25], "name": "rgb"}, "output": {"kind": "logits"}}, "input.name"),
-])
+@pytest.mark.parametrize(
+    "sidecar, message",
+    [
+        (
+            {"input": {"size": [64, 64]}, "output": {"kind": "logits", "rebar_classes": [0]}},
+            "does not match",
+        ),
+        ({"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}, "set input.size"),
+        (
+            {
+                "input": {"size": [40, 25], "dtype": "uint8"},
+                "output": {"kind": "logits", "rebar_classes": [0]},
+            },
+            "input.dtype",
+        ),
+        (
+            {
+                "input": {"size": [40, 25], "layout": "NHWC"},
+                "output": {"kind": "logits", "rebar_classes": [0]},
+            },
+            "input.layout",
+        ),
+        (
+            {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [1]}},
+            "out of range",
+        ),
+        ({"input": {"size": [40, 25], "name": "rgb"}, "output": {"kind": "logits"}}, "input.name"),
+    ],
+)
 def test_mismatched_sidecar(tmp_path, sidecar, message):
     path = _red_minus_blue_model(tmp_path, sidecar, name="mismatch", fixed=(25, 40))
     with pytest.raises(RebarInputError, match=message) as e:
@@ -369,8 +466,11 @@ def test_mismatched_sidecar(tmp_path, sidecar, message):
 
 
 def test_bad_color_input(tmp_path):
-    model = SegmentationModel(_red_minus_blue_model(
-        tmp_path, {"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}))
+    model = SegmentationModel(
+        _red_minus_blue_model(
+            tmp_path, {"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}
+        )
+    )
     with pytest.raises(RebarInputError, match="color"):
         model.predict_mask(np.zeros((10, 10), np.uint8))
 
@@ -410,7 +510,8 @@ def test_shipped_sidecar_copied_elsewhere_still_loads(tmp_path):
     shutil.copy(src, tmp_path / "m.onnx")
     shutil.copy(src.with_suffix(".json"), tmp_path / "other.json")
     assert SegmentationModel(tmp_path / "m.onnx", tmp_path / "other.json").predict_mask(
-        np.zeros((8, 8, 3), np.uint8)).shape == (8, 8)
+        np.zeros((8, 8, 3), np.uint8)
+    ).shape == (8, 8)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -429,8 +530,10 @@ def test_depth_mask_and_plane_against_labels(fresh_captures):
 
     cap = fresh_captures[1]
     truth = cap.labels > 0
-    angle, doff = _plane_error(fit_formwork_plane(depth_to_points(cap.depth_mm, cap.intrinsics).points, rng=0),
-                               cap.truth["formwork_plane"])
+    angle, doff = _plane_error(
+        fit_formwork_plane(depth_to_points(cap.depth_mm, cap.intrinsics).points, rng=0),
+        cap.truth["formwork_plane"],
+    )
     assert angle < PLANE_MAX_ANGLE_DEG and doff < PLANE_MAX_OFFSET_MM
     dm = mask_from_depth(cap, rng=0)
     c = confusion_counts(dm, truth)
@@ -467,15 +570,21 @@ def test_registration_finds_how_far_depth_lies_from_colour(fresh_captures, du, d
     cap = fresh_captures[0]
     depth = misregister(cap, du, dv).depth_mm
     dmask = mask_from_depth(depth, cap.intrinsics, rng=0)
-    eu, ev, cc = estimate_registration((cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0)
+    eu, ev, cc = estimate_registration(
+        (cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0
+    )
     assert np.hypot(eu - du, ev - dv) <= REGISTRATION_MAX_ERR_PX
     assert cc > 0.8
 
 
 def test_registration_to_a_fraction_of_a_pixel(fresh_captures):
     cap = fresh_captures[1]
-    colour = shift_image((cap.labels > 0).astype(np.float32), -0.6, 1.4)  # colour moved, depth stays
-    eu, ev, _ = estimate_registration(colour, mask_from_depth(cap, rng=0), depth_valid=cap.depth_mm > 0)
+    colour = shift_image(
+        (cap.labels > 0).astype(np.float32), -0.6, 1.4
+    )  # colour moved, depth stays
+    eu, ev, _ = estimate_registration(
+        colour, mask_from_depth(cap, rng=0), depth_valid=cap.depth_mm > 0
+    )
     assert np.hypot(eu - 0.6, ev + 1.4) <= REGISTRATION_FRACTION_MAX_ERR_PX
 
 
@@ -542,8 +651,10 @@ def test_depth_overreach_is_fattening_on_every_side_not_a_moved_depth_image(pape
     truth, dm, valid = fat.labels > 0, mask_from_depth(fat, rng=0), fat.depth_mm > 0
     k = depth_overreach_px(truth, dm, depth_valid=valid)
     assert k >= 1
-    assert iou(fuse_masks(truth, dm, depth_valid=valid), truth) > iou(
-        fuse_masks(truth, dm, depth_valid=valid, overreach_px=0), truth) + 0.03
+    assert (
+        iou(fuse_masks(truth, dm, depth_valid=valid), truth)
+        > iou(fuse_masks(truth, dm, depth_valid=valid, overreach_px=0), truth) + 0.03
+    )
     trimmed = trim_depth_overreach(truth, dm, k)
     assert not (trimmed & ~dm).any()
     eu, ev, _ = estimate_registration(truth.astype(np.float32), trimmed, depth_valid=valid)
@@ -571,9 +682,11 @@ def test_runtime_does_not_import_torch():
     import subprocess
     import sys
 
-    code = ("import sys, numpy as np; from rebarlib.segmentation import SegmentationModel; "
-            "SegmentationModel.default().predict_mask(np.zeros((8, 8, 3), np.uint8)); "
-            "print('torch' in sys.modules)")
+    code = (
+        "import sys, numpy as np; from rebarlib.segmentation import SegmentationModel; "
+        "SegmentationModel.default().predict_mask(np.zeros((8, 8, 3), np.uint8)); "
+        "print('torch' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -606,6 +719,7 @@ def test_eval_regions_separate_cast_from_attached_shadow():
     assert (unlit_bars & ~r["shadow"]).sum() > 0.2 * unlit_bars.sum()
     # the shadow subset is unlit bar pixels grown by the margin (2 px at 640 wide): nothing else
     import cv2
+
     near = cv2.dilate(unlit_bars.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     assert not (r["shadow"] & ~near).any()
 
@@ -617,10 +731,19 @@ def test_data_set_capture_with_ribs_in_relief_is_the_same_scene():
     quarter = GEMINI2.scaled(0.25)
     smooth = synth_segmentation_capture(5, intrinsics=quarter)
     relief = synth_segmentation_capture(5, intrinsics=quarter, rib_relief=True)
-    axes = lambda c: [(b["id"], b["axis_start_mm"], b["axis_end_mm"], b["diameter_mm"]) for b in c.truth["bars"]]  # noqa: E731
+
+    def axes(c):
+        return [
+            (b["id"], b["axis_start_mm"], b["axis_end_mm"], b["diameter_mm"])
+            for b in c.truth["bars"]
+        ]
+
     assert axes(smooth) == axes(relief)
     a, b = smooth.labels > 0, relief.labels > 0
     assert b.sum() < a.sum() and (b & ~a).sum() < 0.01 * b.sum()
     import cv2
-    edge = cv2.morphologyEx(a.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)).astype(bool)
+
+    edge = cv2.morphologyEx(
+        a.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)
+    ).astype(bool)
     assert ((a != b) & ~edge).sum() < 0.05 * (a != b).sum()

@@ -17,16 +17,32 @@ import pytest
 from rebarlib import Measurement, RebarInputError, evaluate, load_tolerances
 from rebarlib._results import InspectionResult
 from rebarlib.devices import device_for, list_devices, load_device
-from rebarlib.uncertainty import (COVERAGE_K, Inputs, apply_budget, combine, height_terms, inputs_for,
-                                  length_terms, width_terms)
+from rebarlib.uncertainty import (
+    COVERAGE_K,
+    Inputs,
+    apply_budget,
+    combine,
+    height_terms,
+    inputs_for,
+    length_terms,
+    width_terms,
+)
 
 Z = 600.0  # working depth, mm
 F = 616.4  # focal length, px
 
 
 def _inputs(**kw) -> Inputs:
-    base = dict(source="test", name="test", u_scale=0.0, u_offset_mm=0.0, u_quad_mm_per_m2=0.0, u_focal=0.0,
-                u_pp_px=0.0, u_registration_px=0.0)
+    base = dict(
+        source="test",
+        name="test",
+        u_scale=0.0,
+        u_offset_mm=0.0,
+        u_quad_mm_per_m2=0.0,
+        u_focal=0.0,
+        u_pp_px=0.0,
+        u_registration_px=0.0,
+    )
     return Inputs(**{**base, **kw})
 
 
@@ -47,21 +63,42 @@ def _backproject(u, v, z, f=F, c=(640.0, 400.0)):
 # Device profiles
 # ------------------------------------------------------------------------------------------------
 
+
 def test_every_shipped_profile_loads_with_a_source_and_positive_limits():
     devices = list_devices()
-    assert {"gemini2", "femto", "azure_kinect", "realsense_d405", "realsense_d435", "realsense_d455", "zed",
-            "phone_lidar", "unknown"} <= set(devices)
+    assert {
+        "gemini2",
+        "femto",
+        "azure_kinect",
+        "realsense_d405",
+        "realsense_d435",
+        "realsense_d455",
+        "zed",
+        "phone_lidar",
+        "unknown",
+    } <= set(devices)
     for key, p in devices.items():
         assert p.depth_percent > 0 and p.focal_percent > 0 and p.depth_source, key
         lim = p.depth_limits()
         assert lim["scale"] > 0 or lim["quad_mm_per_m2"] > 0, key
 
 
-@pytest.mark.parametrize("device, key", [
-    ("rebarlib synthetic (Gemini-2-like)", "gemini2"), ("Orbbec Gemini 2", "gemini2"),
-    ("Intel RealSense D435I", "realsense_d435"), ("Intel(R) RealSense(TM) Depth Camera 455", "unknown"),
-    ("RealSense D455", "realsense_d455"), ("Orbbec Femto Bolt", "femto"), ("Azure Kinect DK", "azure_kinect"),
-    ("iPhone 13 Pro", "phone_lidar"), ("ZED 2i", "zed"), ("", "unknown"), (None, "unknown")])
+@pytest.mark.parametrize(
+    "device, key",
+    [
+        ("rebarlib synthetic (Gemini-2-like)", "gemini2"),
+        ("Orbbec Gemini 2", "gemini2"),
+        ("Intel RealSense D435I", "realsense_d435"),
+        ("Intel(R) RealSense(TM) Depth Camera 455", "unknown"),
+        ("RealSense D455", "realsense_d455"),
+        ("Orbbec Femto Bolt", "femto"),
+        ("Azure Kinect DK", "azure_kinect"),
+        ("iPhone 13 Pro", "phone_lidar"),
+        ("ZED 2i", "zed"),
+        ("", "unknown"),
+        (None, "unknown"),
+    ],
+)
 def test_device_strings_pick_their_profile(device, key):
     prof, matched = device_for(device)
     assert prof.key == key and matched == (key != "unknown")
@@ -70,7 +107,7 @@ def test_device_strings_pick_their_profile(device, key):
 def test_stereo_profile_error_grows_with_distance_as_the_datasheet_says():
     # Gemini 2: 2 % of the distance at 2 m (k z²: 40 mm at 2 m), 0.5 % constant scale
     lim = load_device("gemini2").depth_limits()
-    assert lim["quad_mm_per_m2"] * 2.0 ** 2 == pytest.approx(0.02 * 2000)
+    assert lim["quad_mm_per_m2"] * 2.0**2 == pytest.approx(0.02 * 2000)
     assert lim["scale"] == pytest.approx(0.005)
     # ToF: 0.1 % of the distance plus 11 mm
     tof = load_device("azure_kinect").depth_limits()
@@ -94,7 +131,10 @@ def test_inputs_are_rectangular_standard_uncertainties_of_the_limits():
 # Sensitivity coefficients against the error model
 # ------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("field, err", [("u_scale", 0.01), ("u_offset_mm", 5.0), ("u_quad_mm_per_m2", 20.0)])
+
+@pytest.mark.parametrize(
+    "field, err", [("u_scale", 0.01), ("u_offset_mm", 5.0), ("u_quad_mm_per_m2", 20.0)]
+)
 def test_length_sensitivities_match_the_depth_error_model(field, err):
     # two points 200 mm apart across the line of sight at depth Z, read through the error
     L = 200.0
@@ -106,8 +146,10 @@ def test_length_sensitivities_match_the_depth_error_model(field, err):
     assert combine(terms) == pytest.approx(abs(moved - L), rel=1e-6)
 
 
-@pytest.mark.parametrize("field, err, first_order", [("u_scale", 0.01, True), ("u_offset_mm", 5.0, True),
-                                                     ("u_quad_mm_per_m2", 20.0, False)])
+@pytest.mark.parametrize(
+    "field, err, first_order",
+    [("u_scale", 0.01, True), ("u_offset_mm", 5.0, True), ("u_quad_mm_per_m2", 20.0, False)],
+)
 def test_height_sensitivities_match_the_depth_error_model(field, err, first_order):
     # a height along the line of sight: two depths h apart, read through the error
     h = 85.0
@@ -133,10 +175,14 @@ def test_focal_length_stretches_lengths_not_heights_seen_square_on():
 
 
 def test_combined_is_the_root_sum_of_squares_and_keeps_the_random_term():
-    terms = height_terms(85.0, 0.3, _inputs(u_scale=0.004), depth_mm=Z, tilt_deg=0.0, envelope_mm=0.15)
-    expected = math.sqrt(0.3 ** 2 + (85 * 0.004) ** 2 + 0.15 ** 2)
+    terms = height_terms(
+        85.0, 0.3, _inputs(u_scale=0.004), depth_mm=Z, tilt_deg=0.0, envelope_mm=0.15
+    )
+    expected = math.sqrt(0.3**2 + (85 * 0.004) ** 2 + 0.15**2)
     assert combine(terms) == pytest.approx(expected)
-    assert _term(terms, "fits").kind == "random" and _term(terms, "depth scale").kind == "systematic"
+    assert (
+        _term(terms, "fits").kind == "random" and _term(terms, "depth scale").kind == "systematic"
+    )
 
 
 def test_registration_reaches_a_width_through_the_pixel_size():
@@ -148,38 +194,84 @@ def test_registration_reaches_a_width_through_the_pixel_size():
 # The budget applied to a result
 # ------------------------------------------------------------------------------------------------
 
+
 def _result(paper_design, device_bars_z=600.0) -> InspectionResult:
-    bars = pd.DataFrame({
-        "bar_id": [0, 1, 2], "layer": ["lower"] * 3, "level": ["bottom"] * 3,
-        "start_z_mm": [device_bars_z] * 3, "end_z_mm": [device_bars_z] * 3, "axis_se_mm": [0.1, 0.2, 0.1],
-        "status": ["measured"] * 3, "width_used_mm": [16.1, 16.3, 13.8], "width_sigma_mm": [0.2, 0.2, 0.2]})
-    spacings = pd.DataFrame({"layer": ["lower"] * 2, "level": ["bottom"] * 2, "bar_a": [0, 1], "bar_b": [1, 2],
-                             "spacing_mm": [199.0, 203.0], "design_spacing_mm": [200.0, 200.0],
-                             "deviation_mm": [-1.0, 3.0], "status": ["measured"] * 2, "reason": ["", ""]})
-    return InspectionResult("A", "refined", Measurement(20.4, 0.05, 500), Measurement(85.3, 0.07, 900),
-                            Measurement(125.0, 0.06, 400), Measurement.not_measured("no thickness"),
-                            bars, spacings, camera={"height_mm": 650.0, "tilt_deg": 10.0})
+    bars = pd.DataFrame(
+        {
+            "bar_id": [0, 1, 2],
+            "layer": ["lower"] * 3,
+            "level": ["bottom"] * 3,
+            "start_z_mm": [device_bars_z] * 3,
+            "end_z_mm": [device_bars_z] * 3,
+            "axis_se_mm": [0.1, 0.2, 0.1],
+            "status": ["measured"] * 3,
+            "width_used_mm": [16.1, 16.3, 13.8],
+            "width_sigma_mm": [0.2, 0.2, 0.2],
+        }
+    )
+    spacings = pd.DataFrame(
+        {
+            "layer": ["lower"] * 2,
+            "level": ["bottom"] * 2,
+            "bar_a": [0, 1],
+            "bar_b": [1, 2],
+            "spacing_mm": [199.0, 203.0],
+            "design_spacing_mm": [200.0, 200.0],
+            "deviation_mm": [-1.0, 3.0],
+            "status": ["measured"] * 2,
+            "reason": ["", ""],
+        }
+    )
+    return InspectionResult(
+        "A",
+        "refined",
+        Measurement(20.4, 0.05, 500),
+        Measurement(85.3, 0.07, 900),
+        Measurement(125.0, 0.06, 400),
+        Measurement.not_measured("no thickness"),
+        bars,
+        spacings,
+        camera={"height_mm": 650.0, "tilt_deg": 10.0},
+    )
 
 
 def test_apply_budget_keeps_every_value_and_records_every_term(paper_design):
     res = _result(paper_design)
-    before = (res.cover.value_mm, res.layer_distance.value_mm, res.spacings["spacing_mm"].tolist(),
-              res.bars["width_used_mm"].tolist())
+    before = (
+        res.cover.value_mm,
+        res.layer_distance.value_mm,
+        res.spacings["spacing_mm"].tolist(),
+        res.bars["width_used_mm"].tolist(),
+    )
     apply_budget(res, paper_design, device="rebarlib synthetic (Gemini-2-like)", intrinsics=None)
-    assert (res.cover.value_mm, res.layer_distance.value_mm, res.spacings["spacing_mm"].tolist(),
-            res.bars["width_used_mm"].tolist()) == before
+    assert (
+        res.cover.value_mm,
+        res.layer_distance.value_mm,
+        res.spacings["spacing_mm"].tolist(),
+        res.bars["width_used_mm"].tolist(),
+    ) == before
     ub = res.extras["uncertainty"]
     assert ub["k"] == COVERAGE_K and ub["inputs"]["name"] == "Orbbec Gemini 2"
     cover = ub["measurements"]["cover"]
-    assert {t["term"] for t in cover["terms"]} >= {"fits (random)", "depth scale", "focal length",
-                                                    "rib envelope (spread between mills)", "assumed bar shape"}
-    assert res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4) and res.cover.uncertainty_mm > 0.05
+    assert {t["term"] for t in cover["terms"]} >= {
+        "fits (random)",
+        "depth scale",
+        "focal length",
+        "rib envelope (spread between mills)",
+        "assumed bar shape",
+    }
+    assert (
+        res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4)
+        and res.cover.uncertainty_mm > 0.05
+    )
     assert cover["U_mm"] == pytest.approx(2 * cover["u_mm"], abs=2e-4)
     # the depth errors act on what the camera sees: a lower bar's top (cover + its envelope,
     # Φ14: 16.2 mm), the upper bars' tops over the lower bars' (layer distance + 13.9 - 16.2)
     ld = {t["term"]: t["contribution_mm"] for t in ub["measurements"]["layer_distance"]["terms"]}
     cv = {t["term"]: t["contribution_mm"] for t in cover["terms"]}
-    assert ld["depth scale"] == pytest.approx(cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3)
+    assert ld["depth scale"] == pytest.approx(
+        cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3
+    )
     # the assumed shape moves both lattices' undersides alike: only the rib heights' difference
     # (Φ14 against Φ12) is left in the layer distance
     assert 0 < ld["assumed bar shape"] < 0.25 * cv["assumed bar shape"]
@@ -204,16 +296,31 @@ def test_unknown_device_uses_the_conservative_default_and_says_so(paper_design):
 # Decision rules
 # ------------------------------------------------------------------------------------------------
 
+
 def _meas(v, u):
     return {"value_mm": v, "uncertainty_mm": u, "n_points": 100, "status": "measured", "reason": ""}
 
 
 def _slab(cover, u_cover, spacing=None, u_sp=None):
-    r = {"capture": "A", "measurements": {"cover": _meas(cover, u_cover), "layer_distance": _meas(85.0, 0.3)}}
+    r = {
+        "capture": "A",
+        "measurements": {"cover": _meas(cover, u_cover), "layer_distance": _meas(85.0, 0.3)},
+    }
     if spacing is not None:
-        r["spacings"] = [{"layer": "lower", "level": "bottom", "bar_a": 0, "bar_b": 1, "spacing_mm": spacing,
-                          "design_spacing_mm": 200.0, "deviation_mm": spacing - 200.0, "status": "measured",
-                          "reason": "", "uncertainty_mm": u_sp}]
+        r["spacings"] = [
+            {
+                "layer": "lower",
+                "level": "bottom",
+                "bar_a": 0,
+                "bar_b": 1,
+                "spacing_mm": spacing,
+                "design_spacing_mm": 200.0,
+                "deviation_mm": spacing - 200.0,
+                "status": "measured",
+                "reason": "",
+                "uncertainty_mm": u_sp,
+            }
+        ]
     return r
 
 
@@ -249,7 +356,10 @@ def test_simple_acceptance_marks_a_straddling_interval_but_keeps_the_verdict(pap
 
 def test_beyond_not_proven_and_a_clear_within(paper_design):
     acc = evaluate([_slab(paper_design.cover_mm + 3.3, 0.4)], paper_design)
-    assert _cp(acc, "cover")["decision"] == "beyond, not proven" and _cp(acc, "cover")["status"] == "beyond"
+    assert (
+        _cp(acc, "cover")["decision"] == "beyond, not proven"
+        and _cp(acc, "cover")["status"] == "beyond"
+    )
     acc = evaluate([_slab(paper_design.cover_mm + 0.5, 0.4)], paper_design)
     assert _cp(acc, "cover")["decision"] == "within" and _cp(acc, "cover")["risk"] < 1e-6
 
@@ -257,7 +367,9 @@ def test_beyond_not_proven_and_a_clear_within(paper_design):
 def test_guarded_acceptance_narrows_the_limit_by_U(paper_design):
     from dataclasses import replace
 
-    guarded = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"})
+    guarded = replace(
+        paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"}
+    )
     # within by 0.4 mm < U = 0.8: accepted under simple acceptance, not under guarded acceptance
     simple = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], paper_design)
     g = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], guarded)

@@ -89,8 +89,15 @@ def tex_concrete(rng, h, w):
 
 def tex_wood(rng, h, w, film=False):
     if film:
-        base = (rng.choice([(0.35, 0.2, 0.12), (0.12, 0.1, 0.09), (0.5, 0.35, 0.1),
-                            (0.45, 0.12, 0.08), (0.6, 0.55, 0.4)]))
+        base = rng.choice(
+            [
+                (0.35, 0.2, 0.12),
+                (0.12, 0.1, 0.09),
+                (0.5, 0.35, 0.1),
+                (0.45, 0.12, 0.08),
+                (0.6, 0.55, 0.4),
+            ]
+        )
         c = _colour(rng, base, 0.2)
         img = c * (1 + 0.08 * fractal(rng, h, w, rng.uniform(50, 400)))[..., None]
         sheen = np.clip(fractal(rng, h, w, 400, 2), 0, 1) * rng.uniform(0, 0.25)
@@ -114,16 +121,23 @@ def tex_wood(rng, h, w, film=False):
 
 
 def tex_plastic(rng, h, w):
-    c = _colour(rng, rng.choice([(0.05, 0.05, 0.06), (0.15, 0.3, 0.6), (0.85, 0.85, 0.85),
-                                 (0.6, 0.62, 0.6)]), 0.15)
+    c = _colour(
+        rng,
+        rng.choice([(0.05, 0.05, 0.06), (0.15, 0.3, 0.6), (0.85, 0.85, 0.85), (0.6, 0.62, 0.6)]),
+        0.15,
+    )
     ridges = 1 - np.abs(fractal(rng, h, w, rng.uniform(30, 200), 3))
     img = c * (0.7 + 0.3 * ridges)[..., None]
     return img + (np.clip(ridges - 0.8, 0, 1) * rng.uniform(0, 2))[..., None]
 
 
 def tex_ground(rng, h, w, kind):
-    bases = {"soil": (0.3, 0.2, 0.12), "sand": (0.7, 0.6, 0.42), "snow": (0.9, 0.92, 0.97),
-             "sawdust": (0.78, 0.62, 0.4)}
+    bases = {
+        "soil": (0.3, 0.2, 0.12),
+        "sand": (0.7, 0.6, 0.42),
+        "snow": (0.9, 0.92, 0.97),
+        "sawdust": (0.78, 0.62, 0.4),
+    }
     c = _colour(rng, bases[kind], 0.15)
     img = _two_tone(rng, h, w, c * 0.7, c * 1.15, rng.uniform(10, 200), rng.uniform(0.5, 1.5))
     fine = rng.uniform(0.03, 0.2) * rng.standard_normal((h, w)).astype(np.float32)
@@ -139,7 +153,7 @@ def tex_ground(rng, h, w, kind):
 def tex_gravel(rng, h, w):
     img = _colour(rng, (0.35, 0.33, 0.3), 0.2) * np.ones((h, w, 3), np.float32)
     size = rng.uniform(3, 25)
-    for _ in range(min(2500, int(h * w / size ** 2 * 0.8))):
+    for _ in range(min(2500, int(h * w / size**2 * 0.8))):
         cx, cy = rng.uniform(0, w), rng.uniform(0, h)
         ax = (int(size * rng.uniform(0.4, 1)), int(size * rng.uniform(0.3, 0.8)))
         col = tuple(float(v) for v in _colour(rng, (0.5, 0.48, 0.45), 0.35, 0.02))
@@ -153,10 +167,17 @@ def tex_grass(rng, h, w):
     for _ in range(min(3000, int(h * w / rng.uniform(40, 400)))):
         x, y = rng.uniform(0, w), rng.uniform(0, h)
         ln, a = rng.uniform(5, 40), rng.normal(-math.pi / 2, 0.6)
-        col = _colour(rng, rng.choice([(0.2, 0.45, 0.1), (0.55, 0.55, 0.25), (0.4, 0.35, 0.2)]),
-                      0.3, 0.0)
-        cv2.line(img, (int(x), int(y)), (int(x + ln * math.cos(a)), int(y + ln * math.sin(a))),
-                 tuple(float(v) for v in col), int(rng.integers(1, 3)), cv2.LINE_AA)
+        col = _colour(
+            rng, rng.choice([(0.2, 0.45, 0.1), (0.55, 0.55, 0.25), (0.4, 0.35, 0.2)]), 0.3, 0.0
+        )
+        cv2.line(
+            img,
+            (int(x), int(y)),
+            (int(x + ln * math.cos(a)), int(y + ln * math.sin(a))),
+            tuple(float(v) for v in col),
+            int(rng.integers(1, 3)),
+            cv2.LINE_AA,
+        )
     return img
 
 
@@ -186,13 +207,25 @@ def tex_sky(rng, h, w):
         wc = tuple(float(v) for v in _colour(rng, (0.3, 0.35, 0.4), 0.5))
         for yy in np.arange(y0 + pitch / 2, h, pitch):
             for xx in np.arange(x0 + pitch / 2, x1 - pitch / 2, pitch):
-                cv2.rectangle(img, (int(xx), int(yy)), (int(xx + pitch / 2), int(yy + pitch / 2)),
-                              wc, -1)
+                cv2.rectangle(
+                    img, (int(xx), int(yy)), (int(xx + pitch / 2), int(yy + pitch / 2)), wc, -1
+                )
     return img
 
 
-GROUNDS = ("concrete", "plywood", "film", "plastic", "soil", "sand", "gravel", "grass",
-           "steel_deck", "sawdust", "snow")
+GROUNDS = (
+    "concrete",
+    "plywood",
+    "film",
+    "plastic",
+    "soil",
+    "sand",
+    "gravel",
+    "grass",
+    "steel_deck",
+    "sawdust",
+    "snow",
+)
 
 
 def texture(rng, h, w, kind):
@@ -256,12 +289,19 @@ def bar_style(rng, name=None):
     """A bar surface: a style of ``BAR_STYLES`` with its colours and ribs jittered."""
     name = name or str(rng.choice(list(BAR_STYLES)))
     albedo, contrast, spec, rust = BAR_STYLES[name]
-    return {"name": name, "albedo": _colour(rng, albedo, 0.2, 0.03),
-            "contrast": contrast * rng.uniform(0.5, 1.5), "spec": spec * rng.uniform(0.3, 1.5),
-            "rust": rust * rng.uniform(0.3, 1.0), "splash": name == "splashed" or rng.random() < 0.1,
-            "ribs": rng.random() < 0.75, "rib_pitch": rng.uniform(0.5, 0.9),
-            "rib_angle": rng.uniform(-0.9, 0.9), "rib_height": rng.uniform(0.04, 0.12),
-            "rib_contrast": rng.uniform(0.15, 0.6)}
+    return {
+        "name": name,
+        "albedo": _colour(rng, albedo, 0.2, 0.03),
+        "contrast": contrast * rng.uniform(0.5, 1.5),
+        "spec": spec * rng.uniform(0.3, 1.5),
+        "rust": rust * rng.uniform(0.3, 1.0),
+        "splash": name == "splashed" or rng.random() < 0.1,
+        "ribs": rng.random() < 0.75,
+        "rib_pitch": rng.uniform(0.5, 0.9),
+        "rib_angle": rng.uniform(-0.9, 0.9),
+        "rib_height": rng.uniform(0.04, 0.12),
+        "rib_contrast": rng.uniform(0.15, 0.6),
+    }
 
 
 def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
@@ -278,8 +318,9 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
     d /= length
     n = np.float32([-d[1], d[0]])
     r = max(w0, w1) * 0.62 + 2
-    corners = np.stack([p0 - d * 2 + n * r, p1 + d * 2 + n * r, p1 + d * 2 - n * r,
-                        p0 - d * 2 - n * r])
+    corners = np.stack(
+        [p0 - d * 2 + n * r, p1 + d * 2 + n * r, p1 + d * 2 - n * r, p0 - d * 2 - n * r]
+    )
     x0, y0 = np.maximum(np.floor(corners.min(0)).astype(int), 0)
     x1, y1 = np.minimum(np.ceil(corners.max(0)).astype(int) + 1, [w, h])
     if x0 >= x1 or y0 >= y1:
@@ -298,11 +339,15 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
         phase = (s + t * style["rib_angle"]) / period
         rib = np.maximum(0, np.cos(2 * np.pi * phase)) ** 3
         hw = hw * (1 + style["rib_height"] * rib)
-    cov = np.clip(hw - np.abs(t) + 0.5, 0, 1) * np.clip(s + 0.5, 0, 1) * np.clip(length - s + 0.5, 0, 1)
+    cov = (
+        np.clip(hw - np.abs(t) + 0.5, 0, 1)
+        * np.clip(s + 0.5, 0, 1)
+        * np.clip(length - s + 0.5, 0, 1)
+    )
     keep = cov > 0
     s, t, hw, rib, cov, ys, xs = (a[keep] for a in (s, t, hw, rib, cov, ys, xs))
     u = np.clip(t / np.maximum(hw, 0.5), -1, 1)
-    nz = np.sqrt(1 - u ** 2)
+    nz = np.sqrt(1 - u**2)
     shade = light["ambient"] + light["diffuse"] * np.maximum(0, u * light["lx"] + nz * light["lz"])
     shade *= 1 + style.get("rib_contrast", 0) * (rib - 0.3) * (1 if style.get("ribs") else 0)
     T = tile.shape[0]
@@ -310,13 +355,14 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
     tex = tile[ti]
     col = style["albedo"] * (1 + style["contrast"] * tex)[:, None]
     if style.get("rust", 0) > 0:
-        patch = np.clip((tile[(ti[0] // 7 + 31) % T, (ti[1] // 7 + 53) % T] + 1 - 2 * style["rust"])
-                        * 3, 0, 1)[:, None]
+        patch = np.clip(
+            (tile[(ti[0] // 7 + 31) % T, (ti[1] // 7 + 53) % T] + 1 - 2 * style["rust"]) * 3, 0, 1
+        )[:, None]
         col = col * (1 - patch) + RUST * (1 + 0.3 * tex)[:, None] * patch
     if style.get("splash"):
         sp = (tile[(ti[0] // 3 + 11) % T, (ti[1] // 3 + 7) % T] > 0.9)[:, None]
         col = np.where(sp, SPLASH, col)
-    spec = style["spec"] * np.exp(-((u - light["u_spec"]) / 0.18) ** 2)
+    spec = style["spec"] * np.exp(-(((u - light["u_spec"]) / 0.18) ** 2))
     out = col * shade[:, None] * light["colour"] + (spec[:, None] * light["colour"])
     a = cov[:, None]
     Y, X = ys + y0, xs + x0
@@ -327,9 +373,17 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
 
 def draw_tube(img, rng, light, tile, pts, width, colour, corrugated=False):
     """A smooth tube (conduit, hose, cable) along the polyline ``pts``: not rebar."""
-    style = {"albedo": colour, "contrast": 0.05, "spec": rng.uniform(0.1, 0.6), "rust": 0,
-             "ribs": corrugated, "rib_pitch": rng.uniform(0.2, 0.4), "rib_angle": 0.0,
-             "rib_height": 0.05, "rib_contrast": 0.4}
+    style = {
+        "albedo": colour,
+        "contrast": 0.05,
+        "spec": rng.uniform(0.1, 0.6),
+        "rust": 0,
+        "ribs": corrugated,
+        "rib_pitch": rng.uniform(0.2, 0.4),
+        "rib_angle": 0.0,
+        "rib_height": 0.05,
+        "rib_contrast": 0.4,
+    }
     for a, b in zip(pts[:-1], pts[1:]):
         draw_strip(img, None, a, b, width, width, style, light, tile, rng)
 
@@ -340,7 +394,7 @@ def _curve(rng, p0, p1, bend, n=12):
     d = p1 - p0
     c = (p0 + p1) / 2 + np.array([-d[1], d[0]]) / max(np.hypot(*d), 1) * bend
     t = np.linspace(0, 1, n)[:, None]
-    return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * c + t ** 2 * p1
+    return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * c + t**2 * p1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -354,7 +408,9 @@ def _homography(rng, size, tilt):
     k = rng.uniform(0.8, 1.25)
     half = size / 2
     rot = np.array([[c * k, -s * k, 0], [s * k, c * k, 0], [0, 0, 1]])
-    persp = np.array([[1, 0, 0], [0, 1, 0], [rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), 1]])
+    persp = np.array(
+        [[1, 0, 0], [0, 1, 0], [rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), 1]]
+    )
     shift = np.array([[1, 0, half], [0, 1, half], [0, 0, 1]])
     return shift @ persp @ rot
 
@@ -402,8 +458,17 @@ def layout_slab(rng, size):
         for fam in range(2):
             sp = max(3.5 * wl, _log_uniform(rng, 25, 300))
             ang = a + fam * (math.pi / 2 + rng.normal(0, 0.05))
-            bars += _mesh(rng, size, H, wl * rng.uniform(0.7, 1.3), sp, ang, reach,
-                          layer=2 * (layers - 1 - layer) + fam, ends=0.15)
+            bars += _mesh(
+                rng,
+                size,
+                H,
+                wl * rng.uniform(0.7, 1.3),
+                sp,
+                ang,
+                reach,
+                layer=2 * (layers - 1 - layer) + fam,
+                ends=0.15,
+            )
     return bars, "ground"
 
 
@@ -460,16 +525,25 @@ def layout_pile(rng, size):
     return bars, "ground"
 
 
-LAYOUTS = {"slab": (layout_slab, 0.5), "cage": (layout_cage, 0.17),
-           "starters": (layout_starters, 0.1), "pile": (layout_pile, 0.13),
-           "none": (None, 0.1)}
+LAYOUTS = {
+    "slab": (layout_slab, 0.5),
+    "cage": (layout_cage, 0.17),
+    "starters": (layout_starters, 0.1),
+    "pile": (layout_pile, 0.13),
+    "none": (None, 0.1),
+}
 
 
 # ---------------------------------------------------------------------------------------------
 # light, clutter, camera
 
-KELVIN = {2700: (1.0, 0.7, 0.42), 4000: (1.0, 0.86, 0.72), 5500: (1.0, 0.97, 0.93),
-          6500: (0.95, 0.97, 1.0), 9000: (0.8, 0.88, 1.0)}
+KELVIN = {
+    2700: (1.0, 0.7, 0.42),
+    4000: (1.0, 0.86, 0.72),
+    5500: (1.0, 0.97, 0.93),
+    6500: (0.95, 0.97, 1.0),
+    9000: (0.8, 0.88, 1.0),
+}
 
 
 def _light(rng, mode):
@@ -477,18 +551,32 @@ def _light(rng, mode):
     temp = KELVIN[int(rng.choice(list(KELVIN)))] if rng.random() < 0.6 else KELVIN[5500]
     colour = np.float32(temp) * rng.uniform(0.9, 1.1, 3).astype(np.float32)
     lx = rng.uniform(-0.95, 0.95)
-    light = {"mode": mode, "colour": colour, "lx": lx, "lz": math.sqrt(1 - lx ** 2),
-             "u_spec": lx * 0.5 + rng.normal(0, 0.1), "sun": rng.uniform(0, 2 * math.pi)}
+    light = {
+        "mode": mode,
+        "colour": colour,
+        "lx": lx,
+        "lz": math.sqrt(1 - lx**2),
+        "u_spec": lx * 0.5 + rng.normal(0, 0.1),
+        "sun": rng.uniform(0, 2 * math.pi),
+    }
     if mode == "overcast":
         light.update(ambient=rng.uniform(0.5, 0.8), diffuse=rng.uniform(0.2, 0.5))
     elif mode == "sun":
         light.update(ambient=rng.uniform(0.15, 0.45), diffuse=rng.uniform(0.7, 1.1))
     elif mode == "flash":
-        light.update(ambient=rng.uniform(0.1, 0.3), diffuse=rng.uniform(0.8, 1.2), lx=0.0,
-                     lz=1.0, u_spec=rng.normal(0, 0.1))
+        light.update(
+            ambient=rng.uniform(0.1, 0.3),
+            diffuse=rng.uniform(0.8, 1.2),
+            lx=0.0,
+            lz=1.0,
+            u_spec=rng.normal(0, 0.1),
+        )
     else:  # night floodlight
-        light.update(ambient=rng.uniform(0.05, 0.2), diffuse=rng.uniform(0.6, 1.0),
-                     colour=np.float32(KELVIN[2700]) * rng.uniform(0.8, 1.2, 3).astype(np.float32))
+        light.update(
+            ambient=rng.uniform(0.05, 0.2),
+            diffuse=rng.uniform(0.6, 1.0),
+            colour=np.float32(KELVIN[2700]) * rng.uniform(0.8, 1.2, 3).astype(np.float32),
+        )
     return light
 
 
@@ -500,17 +588,30 @@ def _soft_shapes(rng, size, n, big=True):
         if kind < 0.35 and big:  # the edge of a building's or a slab's shadow
             a, c = rng.uniform(0, 2 * math.pi), rng.uniform(0.2, 0.8) * size
             yy, xx = np.mgrid[0:size, 0:size]
-            m = np.maximum(m, ((xx - size / 2) * math.cos(a) + (yy - size / 2) * math.sin(a)
-                               > c - size / 2).astype(np.float32))
+            m = np.maximum(
+                m,
+                (
+                    (xx - size / 2) * math.cos(a) + (yy - size / 2) * math.sin(a) > c - size / 2
+                ).astype(np.float32),
+            )
         elif kind < 0.7:  # a person: head, body, legs
             x, y, s = rng.uniform(0, size), rng.uniform(0, size), rng.uniform(0.1, 0.5) * size
             cv2.ellipse(m, (int(x), int(y)), (int(s * 0.12), int(s * 0.15)), 0, 0, 360, 1, -1)
-            cv2.rectangle(m, (int(x - s * 0.18), int(y + s * 0.12)), (int(x + s * 0.18),
-                                                                     int(y + s * 0.6)), 1, -1)
+            cv2.rectangle(
+                m,
+                (int(x - s * 0.18), int(y + s * 0.12)),
+                (int(x + s * 0.18), int(y + s * 0.6)),
+                1,
+                -1,
+            )
             for lx in (-0.1, 0.1):
-                cv2.line(m, (int(x + lx * s), int(y + s * 0.6)), (int(x + lx * s * 1.5),
-                                                                  int(y + s * 1.1)), 1,
-                         max(1, int(s * 0.09)))
+                cv2.line(
+                    m,
+                    (int(x + lx * s), int(y + s * 0.6)),
+                    (int(x + lx * s * 1.5), int(y + s * 1.1)),
+                    1,
+                    max(1, int(s * 0.09)),
+                )
         else:  # a board or formwork edge
             pts = rng.uniform(-0.2, 1.2, (4, 2)) * size
             cv2.fillPoly(m, [pts.astype(np.int32)], 1)
@@ -527,12 +628,33 @@ def add_clutter(img, cover, rng, light, tile, n, over):
         if kind in ("tube", "cable"):
             p0, p1 = rng.uniform(-0.2, 1.2, (2, 2)) * size
             w = rng.uniform(8, 45) if kind == "tube" else rng.uniform(2, 10)
-            tcol = _colour(rng, rng.choice([(0.85, 0.35, 0.05), (0.1, 0.3, 0.7), (0.9, 0.8, 0.1),
-                                            (0.05, 0.05, 0.05), (0.85, 0.85, 0.85),
-                                            (0.7, 0.1, 0.1), (0.5, 0.5, 0.52)]), 0.15, 0.1)
+            tcol = _colour(
+                rng,
+                rng.choice(
+                    [
+                        (0.85, 0.35, 0.05),
+                        (0.1, 0.3, 0.7),
+                        (0.9, 0.8, 0.1),
+                        (0.05, 0.05, 0.05),
+                        (0.85, 0.85, 0.85),
+                        (0.7, 0.1, 0.1),
+                        (0.5, 0.5, 0.52),
+                    ]
+                ),
+                0.15,
+                0.1,
+            )
             before = img.copy()
-            draw_tube(img, rng, light, tile, _curve(rng, p0, p1, rng.normal(0, 0.3) * size), w,
-                      tcol, corrugated=kind == "tube" and rng.random() < 0.4)
+            draw_tube(
+                img,
+                rng,
+                light,
+                tile,
+                _curve(rng, p0, p1, rng.normal(0, 0.3) * size),
+                w,
+                tcol,
+                corrugated=kind == "tube" and rng.random() < 0.4,
+            )
             if over and cover is not None:
                 cover[np.any(np.abs(img - before) > 1e-6, axis=2)] = 0
             continue
@@ -543,12 +665,25 @@ def add_clutter(img, cover, rng, light, tile, n, over):
             cv2.polylines(layer, [pts], False, 1, 1, cv2.LINE_AA)
             col = _colour(rng, (0.2, 0.2, 0.22), 0.3)
         elif kind in ("spacer", "boot"):
-            cv2.ellipse(layer, (int(x), int(y)), (int(s * 0.3), int(s * 0.2)), rng.uniform(0, 180),
-                        0, 360, 1, -1, cv2.LINE_AA)
+            cv2.ellipse(
+                layer,
+                (int(x), int(y)),
+                (int(s * 0.3), int(s * 0.2)),
+                rng.uniform(0, 180),
+                0,
+                360,
+                1,
+                -1,
+                cv2.LINE_AA,
+            )
             if kind == "boot":
                 col = _colour(rng, (0.1, 0.1, 0.1), 0.5, 0.2)
         else:  # timber, board or tag, tool: a rotated rectangle (a tool: two)
-            rect = ((x, y), (s * rng.uniform(0.3, 3), s * rng.uniform(0.1, 0.6)), rng.uniform(0, 180))
+            rect = (
+                (x, y),
+                (s * rng.uniform(0.3, 3), s * rng.uniform(0.1, 0.6)),
+                rng.uniform(0, 180),
+            )
             cv2.fillPoly(layer, [cv2.boxPoints(rect).astype(np.int32)], 1, cv2.LINE_AA)
             if kind == "tool":
                 rect2 = ((x, y), (s * 0.2, s * 0.8), rect[2])
@@ -577,8 +712,14 @@ def _cast_bar_shadows(img, bars, rng, light):
     for p0, p1, w0, w1, _ in bars:
         a, b = np.asarray(p0) + off, np.asarray(p1) + off
         if np.all(np.abs(np.r_[a, b]) < 1e5):
-            cv2.line(m, tuple(int(v) for v in a), tuple(int(v) for v in b), 1,
-                     max(1, int((w0 + w1) / 2)), cv2.LINE_AA)
+            cv2.line(
+                m,
+                tuple(int(v) for v in a),
+                tuple(int(v) for v in b),
+                1,
+                max(1, int((w0 + w1) / 2)),
+                cv2.LINE_AA,
+            )
     m = cv2.GaussianBlur(m, (0, 0), rng.uniform(0.5, 3) + dist / 15)
     img *= (1 - rng.uniform(0.3, 0.7) * m)[..., None]
 
@@ -587,8 +728,9 @@ def _apply_light(img, rng, light):
     size = img.shape[0]
     mode = light["mode"]
     if mode == "sun" and rng.random() < 0.7:
-        m = cv2.GaussianBlur(_soft_shapes(rng, size, int(rng.integers(1, 4))), (0, 0),
-                             rng.uniform(0.7, 8))
+        m = cv2.GaussianBlur(
+            _soft_shapes(rng, size, int(rng.integers(1, 4))), (0, 0), rng.uniform(0.7, 8)
+        )
         sky = np.float32([0.75, 0.85, 1.1])
         img *= 1 - (m * rng.uniform(0.4, 0.75))[..., None] * (2 - sky)
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float32) / size - 0.5
@@ -608,20 +750,28 @@ def _camera(img, rng, night):
     size = img.shape[0]
     if rng.random() < 0.4:  # vignetting
         yy, xx = np.mgrid[0:size, 0:size].astype(np.float32) / size - 0.5
-        img *= (1 - rng.uniform(0.1, 0.6) * (xx ** 2 + yy ** 2) * 2)[..., None]
+        img *= (1 - rng.uniform(0.1, 0.6) * (xx**2 + yy**2) * 2)[..., None]
     if rng.random() < 0.2:  # motion blur
         k = np.zeros((15, 15), np.float32)
         ln = int(rng.integers(2, 8))
         a = rng.uniform(0, math.pi)
-        cv2.line(k, (int(7 - ln * math.cos(a)), int(7 - ln * math.sin(a))),
-                 (int(7 + ln * math.cos(a)), int(7 + ln * math.sin(a))), 1, 1)
+        cv2.line(
+            k,
+            (int(7 - ln * math.cos(a)), int(7 - ln * math.sin(a))),
+            (int(7 + ln * math.cos(a)), int(7 + ln * math.sin(a))),
+            1,
+            1,
+        )
         img = cv2.filter2D(img, -1, k / k.sum())
     if rng.random() < 0.3:  # focus
         img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.5, 2.5))
     img *= rng.uniform(0.85, 1.15, 3).astype(np.float32)  # white balance
     sigma = rng.uniform(0, 0.03) + (rng.uniform(0.01, 0.05) if night else 0)
-    img = img + rng.normal(0, sigma, img.shape[:2] + (1,)).astype(np.float32) \
+    img = (
+        img
+        + rng.normal(0, sigma, img.shape[:2] + (1,)).astype(np.float32)
         + rng.normal(0, sigma / 2, img.shape).astype(np.float32)
+    )
     # to display gamma, through a look-up table (linear 0..4 in 4096 steps)
     gamma = (np.arange(4096, dtype=np.float32) / 1023) ** (1 / rng.uniform(1.8, 2.6))
     img = gamma[np.clip(img * 1023, 0, 4095).astype(np.int32)]
@@ -649,8 +799,12 @@ def scene(index, seed=DR_SEED, size=FULL):
     names = list(LAYOUTS)
     kind = names[int(rng.choice(len(names), p=[LAYOUTS[k][1] for k in names]))]
     bars, behind = LAYOUTS[kind][0](rng, size) if LAYOUTS[kind][0] else ([], "ground")
-    light = _light(rng, str(rng.choice(["overcast", "sun", "sun", "flash", "night"],
-                                       p=[0.3, 0.25, 0.2, 0.13, 0.12])))
+    light = _light(
+        rng,
+        str(
+            rng.choice(["overcast", "sun", "sun", "flash", "night"], p=[0.3, 0.25, 0.2, 0.13, 0.12])
+        ),
+    )
     if behind == "sky":
         img = texture(rng, size, size, "sky")
         if rng.random() < 0.6:  # ground or a wall below a horizon
@@ -692,8 +846,11 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92) -> bo
     rgb, mask = scene(index, seed, size)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
-    cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255,
-                [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
+    cv2.imwrite(
+        str(tmp),
+        mask.astype(np.uint8) * 255,
+        [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1],
+    )
     tmp.replace(f_mask)
     tmp = f_img.with_suffix(".tmp.jpg")
     cv2.imwrite(str(tmp), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])

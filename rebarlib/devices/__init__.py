@@ -75,19 +75,36 @@ class DeviceProfile:
         if self.grows == "with distance":
             # A z_ref of error at z_ref, growing as z²: k (z_ref / 1 m)² = A z_ref
             k = a * self.depth_at_mm / (self.depth_at_mm / 1000.0) ** 2
-            return {"scale": self.scale_percent / 100.0, "offset_mm": float(self.offset_mm),
-                    "quad_mm_per_m2": round(k, 6)}
+            return {
+                "scale": self.scale_percent / 100.0,
+                "offset_mm": float(self.offset_mm),
+                "quad_mm_per_m2": round(k, 6),
+            }
         return {"scale": a, "offset_mm": float(self.offset_mm), "quad_mm_per_m2": 0.0}
 
     def to_dict(self) -> dict:
-        return {"key": self.key, "name": self.name, "principle": self.principle,
-                "range_mm": list(self.range_mm), "depth_error": {
-                    "percent": self.depth_percent, "at_mm": self.depth_at_mm, "grows": self.grows,
-                    "offset_mm": self.offset_mm, "scale_percent": self.scale_percent,
-                    "confirmed": self.depth_confirmed, "source": self.depth_source},
-                "intrinsics": {"focal_percent": self.focal_percent, "principal_point_px": self.principal_point_px,
-                               "registration_px": self.registration_px, "source": self.intrinsics_source},
-                "default": self.is_default}
+        return {
+            "key": self.key,
+            "name": self.name,
+            "principle": self.principle,
+            "range_mm": list(self.range_mm),
+            "depth_error": {
+                "percent": self.depth_percent,
+                "at_mm": self.depth_at_mm,
+                "grows": self.grows,
+                "offset_mm": self.offset_mm,
+                "scale_percent": self.scale_percent,
+                "confirmed": self.depth_confirmed,
+                "source": self.depth_source,
+            },
+            "intrinsics": {
+                "focal_percent": self.focal_percent,
+                "principal_point_px": self.principal_point_px,
+                "registration_px": self.registration_px,
+                "source": self.intrinsics_source,
+            },
+            "default": self.is_default,
+        }
 
 
 def _norm(text: str) -> str:
@@ -109,23 +126,38 @@ def _from_file(path: Path) -> DeviceProfile:
     where = str(path)
     dep, intr = data.get("depth_error"), data.get("intrinsics")
     if not isinstance(dep, dict) or not isinstance(intr, dict) or "name" not in data:
-        raise RebarInputError(f"{where}: expected 'name', a [depth_error] and an [intrinsics] table")
+        raise RebarInputError(
+            f"{where}: expected 'name', a [depth_error] and an [intrinsics] table"
+        )
     grows = dep.get("grows", "constant")
     if grows not in _GROWS:
-        raise RebarInputError(f"{where}: depth_error.grows: expected one of {_GROWS}, got {grows!r}")
+        raise RebarInputError(
+            f"{where}: depth_error.grows: expected one of {_GROWS}, got {grows!r}"
+        )
     rng = data.get("range_mm", [0, 0])
     return DeviceProfile(
-        key=path.stem, name=str(data["name"]), match=tuple(_norm(m) for m in data.get("match", []) if _norm(m)),
-        principle=str(data.get("principle", "")), range_mm=tuple(float(x) for x in rng),
+        key=path.stem,
+        name=str(data["name"]),
+        match=tuple(_norm(m) for m in data.get("match", []) if _norm(m)),
+        principle=str(data.get("principle", "")),
+        range_mm=tuple(float(x) for x in rng),
         depth_percent=_num(dep, "percent", f"{where}: depth_error", hi=50),
         depth_at_mm=_num(dep, "at_mm", f"{where}: depth_error", lo=1),
-        grows=grows, offset_mm=_num({"o": dep.get("offset_mm", 0.0)}, "o", f"{where}: depth_error.offset_mm", hi=500),
-        scale_percent=_num({"s": dep.get("scale_percent", 0.0)}, "s", f"{where}: depth_error.scale_percent", hi=50),
+        grows=grows,
+        offset_mm=_num(
+            {"o": dep.get("offset_mm", 0.0)}, "o", f"{where}: depth_error.offset_mm", hi=500
+        ),
+        scale_percent=_num(
+            {"s": dep.get("scale_percent", 0.0)}, "s", f"{where}: depth_error.scale_percent", hi=50
+        ),
         focal_percent=_num(intr, "focal_percent", f"{where}: intrinsics", hi=20),
         principal_point_px=_num(intr, "principal_point_px", f"{where}: intrinsics", hi=500),
         registration_px=_num(intr, "registration_px", f"{where}: intrinsics", hi=100),
-        depth_confirmed=bool(dep.get("confirmed", False)), depth_source=str(dep.get("source", "")),
-        intrinsics_source=str(intr.get("source", "")), path=where)
+        depth_confirmed=bool(dep.get("confirmed", False)),
+        depth_source=str(dep.get("source", "")),
+        intrinsics_source=str(intr.get("source", "")),
+        path=where,
+    )
 
 
 def list_devices() -> dict:
@@ -154,8 +186,10 @@ def load_device(name_or_path) -> DeviceProfile:
         return devices[str(name_or_path)]
     prof, matched = device_for(str(name_or_path))
     if not matched:
-        raise RebarInputError(f"device {name_or_path!r}: no profile matches; expected one of {sorted(devices)}, "
-                              "a device name containing one of their match words, or a .toml path")
+        raise RebarInputError(
+            f"device {name_or_path!r}: no profile matches; expected one of {sorted(devices)}, "
+            "a device name containing one of their match words, or a .toml path"
+        )
     return prof
 
 

@@ -35,16 +35,45 @@ Modules, in the order the data flows:
 from __future__ import annotations
 
 from .bars import bars_from_truth
-from .barsizes import (BAR_SYSTEMS, BarSystem, bar_system, barset_width_mm, observed_width_mm,
-                       snap_diameter)
+from .barsizes import (
+    BAR_SYSTEMS,
+    BarSystem,
+    bar_system,
+    barset_width_mm,
+    observed_width_mm,
+    snap_diameter,
+)
 from .measure import measure_diameters
 from .params import BAR_COLUMNS, DIAMETER_COLUMNS, DiameterParams
-from .plane import (BarPlane, boundary_pixels, cross_section_direction, diameter_region,
-                    imaginary_plane, intersect_rays_plane, pixels_in_region)
+from .plane import (
+    BarPlane,
+    boundary_pixels,
+    cross_section_direction,
+    diameter_region,
+    imaginary_plane,
+    intersect_rays_plane,
+    pixels_in_region,
+)
 from .reading import BarReading
 
-__all__ = ["BarPlane", "imaginary_plane", "intersect_rays_plane", "cross_section_direction",
-           "diameter_region", "pixels_in_region", "boundary_pixels", "bars_from_truth",
-           "measure_diameters", "BAR_COLUMNS", "DIAMETER_COLUMNS", "BAR_SYSTEMS", "BarSystem",
-           "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter",
-           "BarReading", "DiameterParams"]
+__all__ = [
+    "BarPlane",
+    "imaginary_plane",
+    "intersect_rays_plane",
+    "cross_section_direction",
+    "diameter_region",
+    "pixels_in_region",
+    "boundary_pixels",
+    "bars_from_truth",
+    "measure_diameters",
+    "BAR_COLUMNS",
+    "DIAMETER_COLUMNS",
+    "BAR_SYSTEMS",
+    "BarSystem",
+    "bar_system",
+    "barset_width_mm",
+    "observed_width_mm",
+    "snap_diameter",
+    "BarReading",
+    "DiameterParams",
+]

@@ -48,9 +48,19 @@ def bars_from_truth(truth: dict, *, visible_only: bool = True):
         if visible_only and not b.get("visible", True):
             continue
         s, e = b["visible_start_mm"], b["visible_end_mm"]
-        rows.append({"bar_id": int(b["id"]), "layer": b["layer"], "level": b["level"],
-                     "start_x_mm": float(s[0]), "start_y_mm": float(s[1]), "start_z_mm": float(s[2]),
-                     "end_x_mm": float(e[0]), "end_y_mm": float(e[1]), "end_z_mm": float(e[2])})
+        rows.append(
+            {
+                "bar_id": int(b["id"]),
+                "layer": b["layer"],
+                "level": b["level"],
+                "start_x_mm": float(s[0]),
+                "start_y_mm": float(s[1]),
+                "start_z_mm": float(s[2]),
+                "end_x_mm": float(e[0]),
+                "end_y_mm": float(e[1]),
+                "end_z_mm": float(e[2]),
+            }
+        )
     return pd.DataFrame(rows, columns=list(BAR_COLUMNS))
 
 
@@ -59,23 +69,33 @@ def _check_inputs(capture, bars, mask, method):
         raise RebarInputError(f"method: expected 'refined' or 'paper', got {method!r}")
     missing = [c for c in BAR_COLUMNS if c not in getattr(bars, "columns", ())]
     if missing:
-        raise RebarInputError(f"bars: expected a DataFrame with columns {list(BAR_COLUMNS)}; missing {missing}")
+        raise RebarInputError(
+            f"bars: expected a DataFrame with columns {list(BAR_COLUMNS)}; missing {missing}"
+        )
     m = np.asarray(mask)
     h, w = capture.intrinsics.height, capture.intrinsics.width
     if m.shape != (h, w):
         raise RebarInputError(f"mask: expected shape ({h}, {w}) like the capture, got {m.shape}")
-    if m.dtype == bool or np.issubdtype(m.dtype, np.integer):  # integer labels: any non-zero is rebar
+    if m.dtype == bool or np.issubdtype(
+        m.dtype, np.integer
+    ):  # integer labels: any non-zero is rebar
         m = m.astype(bool)
         return m, m.astype(np.float32)
     if not np.issubdtype(m.dtype, np.floating):
-        raise RebarInputError(f"mask: expected bool, integer or a float rebar probability in 0..1, got dtype {m.dtype}")
+        raise RebarInputError(
+            f"mask: expected bool, integer or a float rebar probability in 0..1, got dtype {m.dtype}"
+        )
     soft = m.astype(np.float32)
     if not np.isfinite(soft).all():
-        raise RebarInputError(f"mask: a float mask must be a rebar probability in 0..1; "
-                              f"{int((~np.isfinite(soft)).sum())} values are NaN or infinite")
+        raise RebarInputError(
+            f"mask: a float mask must be a rebar probability in 0..1; "
+            f"{int((~np.isfinite(soft)).sum())} values are NaN or infinite"
+        )
     if soft.min() < 0 or soft.max() > 1:
-        raise RebarInputError(f"mask: a float mask must be a rebar probability in 0..1, got values "
-                              f"{float(soft.min()):.3g}..{float(soft.max()):.3g}")
+        raise RebarInputError(
+            f"mask: a float mask must be a rebar probability in 0..1, got values "
+            f"{float(soft.min()):.3g}..{float(soft.max()):.3g}"
+        )
     return soft >= 0.5, soft
 
 
@@ -92,7 +112,9 @@ class _Bar:
     expected_mm: float  # observed width expected from the design size (window sizing)
     axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
     axis_ok: bool = True  # the axis was measured (not only located): one-sided widths may use it
-    stack_mm: float = math.nan  # its top above the tops of the bars it rests on (geometry.stack_heights)
+    stack_mm: float = (
+        math.nan
+    )  # its top above the tops of the bars it rests on (geometry.stack_heights)
     top_mm: float = math.nan  # its top above the formwork (geometry.top_heights)
 
 
@@ -111,17 +133,34 @@ def _prepare(bars, design, system, deformed, default_expected_mm):
         design_mm = math.nan
         if design is not None and r.layer in ("lower", "upper") and r.level in ("bottom", "top"):
             design_mm = float(design.lattice(r.layer).level(r.level).diameter_mm)
-        expected = (observed_width_mm(design_mm, system=system, deformed=deformed)
-                    if math.isfinite(design_mm) else default_expected_mm)
+        expected = (
+            observed_width_mm(design_mm, system=system, deformed=deformed)
+            if math.isfinite(design_mm)
+            else default_expected_mm
+        )
         plane = imaginary_plane(p0, p1)
         # the radius the axis was placed with: ours, or the geometry stage's fixed-radius fit
         assumed = _optional(r, "axis_radius_mm", _optional(r, "radius_mm"))
         # a bar the geometry stage only located (status "not measured", e.g. its second look)
         # has an axis good for finding its pixels, not for measuring from one edge to it
         axis_ok = str(getattr(r, "status", "measured")) == "measured"
-        out.append(_Bar(int(r.bar_id), str(r.layer), str(r.level), p0, p1, plane,
-                        float(np.linalg.norm(p1 - p0)), design_mm, expected, assumed, axis_ok,
-                        _optional(r, "stack_mm"), _optional(r, "top_mm")))
+        out.append(
+            _Bar(
+                int(r.bar_id),
+                str(r.layer),
+                str(r.level),
+                p0,
+                p1,
+                plane,
+                float(np.linalg.norm(p1 - p0)),
+                design_mm,
+                expected,
+                assumed,
+                axis_ok,
+                _optional(r, "stack_mm"),
+                _optional(r, "top_mm"),
+            )
+        )
     return out
 
 
@@ -151,8 +190,17 @@ class _Footprints:
 
 def _footprints(prepared, intr, margin_rel=0.2, margin_px=1.5):
     B = len(prepared)
-    fp = _Footprints(np.zeros((B, 3)), np.zeros(B), np.zeros((B, 3)), np.zeros((B, 3)), np.zeros((B, 3)),
-                     np.zeros(B), np.zeros(B), np.zeros(B), np.zeros((B, 4)))
+    fp = _Footprints(
+        np.zeros((B, 3)),
+        np.zeros(B),
+        np.zeros((B, 3)),
+        np.zeros((B, 3)),
+        np.zeros((B, 3)),
+        np.zeros(B),
+        np.zeros(B),
+        np.zeros(B),
+        np.zeros((B, 4)),
+    )
     for i, b in enumerate(prepared):
         z = max(min(b.p0[2], b.p1[2]), 1.0)
         # the expected width with room for a bar one size larger and for mask edges a pixel off
@@ -162,8 +210,10 @@ def _footprints(prepared, intr, margin_rel=0.2, margin_px=1.5):
         fp.normal[i], fp.offset[i], fp.p0[i] = b.plane.normal, b.plane.offset_mm, b.p0
         fp.along[i], fp.across[i] = b.plane.direction, b.plane.across
         fp.s_lo[i], fp.s_hi[i], fp.half_mm[i] = -ext, b.length_mm + ext, half
-        corners = np.array([b.p0 - ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)]
-                           + [b.p1 + ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)])
+        corners = np.array(
+            [b.p0 - ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)]
+            + [b.p1 + ext * b.plane.direction + sg * half * b.plane.across for sg in (-1, 1)]
+        )
         corners = corners[corners[:, 2] > 1.0]
         uv = project(corners, intr) if len(corners) else np.zeros((1, 2))
         fp.bbox[i] = [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()]
@@ -181,7 +231,9 @@ def _hits_footprints(points_mm, fp: _Footprints, which: np.ndarray):
     x = lam[:, :, None] * d[:, None, :] - fp.p0[which][None, :, :]
     s = np.einsum("nck,ck->nc", x, fp.along[which])
     t = np.einsum("nck,ck->nc", x, fp.across[which])
-    inside = (lam > 0) & (np.abs(t) <= fp.half_mm[which]) & (s >= fp.s_lo[which]) & (s <= fp.s_hi[which])
+    inside = (
+        (lam > 0) & (np.abs(t) <= fp.half_mm[which]) & (s >= fp.s_lo[which]) & (s <= fp.s_hi[which])
+    )
     nearer = inside & (lam < points_mm[:, 2:3])
     return inside, nearer
 
@@ -197,5 +249,11 @@ def _candidates(i, fp: _Footprints, window_bbox):
 def _remap(img, u, v):
     import cv2
 
-    return cv2.remap(img, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return cv2.remap(
+        img,
+        u.astype(np.float32),
+        v.astype(np.float32),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )

@@ -6,9 +6,19 @@ import math
 from dataclasses import dataclass
 
 from .._checks import RebarInputError
+from .._design import DEFAULT_BAR_SYSTEM
 
-__all__ = ["BAR_SYSTEMS", "BarSystem", "bar_system", "barset_width_mm", "observed_width_mm", "snap_diameter",
-           "GB_RIBS", "GB_RIB_PITCH", "rib_envelope_mm"]
+__all__ = [
+    "BAR_SYSTEMS",
+    "BarSystem",
+    "bar_system",
+    "barset_width_mm",
+    "observed_width_mm",
+    "snap_diameter",
+    "GB_RIBS",
+    "GB_RIB_PITCH",
+    "rib_envelope_mm",
+]
 
 
 @dataclass(frozen=True)
@@ -47,7 +57,7 @@ class BarSystem:
         [10.0, 12.0, 14.0]
         """
         j = _nearest(self.sizes_mm, nominal_mm)
-        return set(self.sizes_mm[max(j - 1, 0):j + 2])
+        return set(self.sizes_mm[max(j - 1, 0) : j + 2])
 
     def of_size(self, values, nominal_mm: float, default=None):
         """The entry of ``values`` (one of this system's per-size tuples) for the nominal size
@@ -60,9 +70,23 @@ class BarSystem:
 
 # GB 1499.2 (docs/acceptance.md): nominal size, inner diameter d1, rib height h. The rib envelope
 # d1 + 2h is what a silhouette shows (a Φ12 bar looks 13.9 mm wide).
-_GB = ((6, 5.8, 0.6), (8, 7.7, 0.8), (10, 9.6, 1.0), (12, 11.5, 1.2), (14, 13.4, 1.4),
-       (16, 15.4, 1.5), (18, 17.3, 1.6), (20, 19.3, 1.7), (22, 21.3, 1.9), (25, 24.2, 2.1),
-       (28, 27.2, 2.2), (32, 31.0, 2.4), (36, 35.0, 2.6), (40, 38.7, 2.9), (50, 48.5, 3.2))
+_GB = (
+    (6, 5.8, 0.6),
+    (8, 7.7, 0.8),
+    (10, 9.6, 1.0),
+    (12, 11.5, 1.2),
+    (14, 13.4, 1.4),
+    (16, 15.4, 1.5),
+    (18, 17.3, 1.6),
+    (20, 19.3, 1.7),
+    (22, 21.3, 1.9),
+    (25, 24.2, 2.1),
+    (28, 27.2, 2.2),
+    (32, 31.0, 2.4),
+    (36, 35.0, 2.6),
+    (40, 38.7, 2.9),
+    (50, 48.5, 3.2),
+)
 # GB 1499.2 crescent-rib bars: nominal spacing l of the transverse ribs per size (same order)
 _GB_PITCH = (4.0, 5.5, 7.0, 8.0, 9.0, 10.0, 10.0, 10.0, 10.5, 12.5, 12.5, 14.0, 15.0, 15.0, 16.0)
 #: The same table by size, as the simulator draws ribs (``rebarlib.synth``): nominal size ->
@@ -109,19 +133,33 @@ def _system(name, sizes, labels, smooth=()):
 
 
 BAR_SYSTEMS = {
-    "GB1499.2": BarSystem("GB1499.2", tuple(float(s) for s, _, _ in _GB),
-                          tuple(f"Φ{s}" for s, _, _ in _GB),
-                          tuple(round(d1 + 2 * h, 3) for _, d1, h in _GB),
-                          tuple(float(d1) for _, d1, _ in _GB), _GB_PITCH),
+    "GB1499.2": BarSystem(
+        "GB1499.2",
+        tuple(float(s) for s, _, _ in _GB),
+        tuple(f"Φ{s}" for s, _, _ in _GB),
+        tuple(round(d1 + 2 * h, 3) for _, d1, h in _GB),
+        tuple(float(d1) for _, d1, _ in _GB),
+        _GB_PITCH,
+    ),
     # ASTM A615 #3 .. #11, #14, #18 (nominal diameters in mm)
-    "ASTM-A615": _system("ASTM-A615", (9.5, 12.7, 15.9, 19.1, 22.2, 25.4, 28.7, 32.3, 35.8, 43.0, 57.3),
-                         ("#3", "#4", "#5", "#6", "#7", "#8", "#9", "#10", "#11", "#14", "#18")),
+    "ASTM-A615": _system(
+        "ASTM-A615",
+        (9.5, 12.7, 15.9, 19.1, 22.2, 25.4, 28.7, 32.3, 35.8, 43.0, 57.3),
+        ("#3", "#4", "#5", "#6", "#7", "#8", "#9", "#10", "#11", "#14", "#18"),
+    ),
     # CSA G30.18 10M .. 55M
-    "CSA": _system("CSA", (11.3, 16.0, 19.5, 25.2, 29.9, 35.7, 43.7, 56.4),
-                   ("10M", "15M", "20M", "25M", "30M", "35M", "45M", "55M")),
+    "CSA": _system(
+        "CSA",
+        (11.3, 16.0, 19.5, 25.2, 29.9, 35.7, 43.7, 56.4),
+        ("10M", "15M", "20M", "25M", "30M", "35M", "45M", "55M"),
+    ),
     # UK / EU (B500): 6 mm is mild (smooth) steel, so its envelope is its diameter
-    "EU": _system("EU", (6, 8, 10, 12, 16, 20, 25, 32, 40, 50),
-                  ("Ø6", "Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø32", "Ø40", "Ø50"), smooth=(6,)),
+    "EU": _system(
+        "EU",
+        (6, 8, 10, 12, 16, 20, 25, 32, 40, 50),
+        ("Ø6", "Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø32", "Ø40", "Ø50"),
+        smooth=(6,),
+    ),
 }
 
 # Designs from other markets (issue 58). Nominal diameters are those each standard defines; only
@@ -130,38 +168,83 @@ BAR_SYSTEMS = {
 # JIS G 3112 (SD295..SD490) and KS D 3504 share the D-series: nominal diameter (mm) and the
 # maximum outer diameter over the ribs given in the standard's dimension table (reference values
 # as published in the JIS table; recalled, not checked against the standard's text here).
-_JIS = (("D6", 6.35, 7.0), ("D10", 9.53, 11.0), ("D13", 12.7, 14.0), ("D16", 15.9, 18.0),
-        ("D19", 19.1, 21.0), ("D22", 22.2, 25.0), ("D25", 25.4, 28.0), ("D29", 28.6, 33.0),
-        ("D32", 31.8, 36.0), ("D35", 34.9, 40.0), ("D38", 38.1, 43.0), ("D41", 41.3, 46.0),
-        ("D51", 50.8, 58.0))
+_JIS = (
+    ("D6", 6.35, 7.0),
+    ("D10", 9.53, 11.0),
+    ("D13", 12.7, 14.0),
+    ("D16", 15.9, 18.0),
+    ("D19", 19.1, 21.0),
+    ("D22", 22.2, 25.0),
+    ("D25", 25.4, 28.0),
+    ("D29", 28.6, 33.0),
+    ("D32", 31.8, 36.0),
+    ("D35", 34.9, 40.0),
+    ("D38", 38.1, 43.0),
+    ("D41", 41.3, 46.0),
+    ("D51", 50.8, 58.0),
+)
 
 
 def _jis_like(name: str) -> BarSystem:
-    return BarSystem(name, tuple(d for _, d, _ in _JIS), tuple(lb for lb, _, _ in _JIS),
-                     tuple(e for _, _, e in _JIS),
-                     tuple(_gb_like(d, _GB_CORE_RATIO) for _, d, _ in _JIS))
+    return BarSystem(
+        name,
+        tuple(d for _, d, _ in _JIS),
+        tuple(lb for lb, _, _ in _JIS),
+        tuple(e for _, _, e in _JIS),
+        tuple(_gb_like(d, _GB_CORE_RATIO) for _, d, _ in _JIS),
+    )
 
 
-BAR_SYSTEMS.update({
-    "JIS-G3112": _jis_like("JIS-G3112"),
-    "KS-D3504": _jis_like("KS-D3504"),
-    # AS/NZS 4671: D500N deformed bars N10..N40 (nominal = designation); envelopes estimated
-    "AS/NZS4671": _system("AS/NZS4671", (10, 12, 16, 20, 24, 28, 32, 36, 40),
-                          ("N10", "N12", "N16", "N20", "N24", "N28", "N32", "N36", "N40")),
-    # IS 1786: HYSD bars, nominal sizes 8..40 mm; envelopes estimated
-    "IS1786": _system("IS1786", (8, 10, 12, 16, 20, 25, 28, 32, 36, 40),
-                      ("Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø28", "Ø32", "Ø36", "Ø40")),
-    # BS 4449: B500 bars, preferred sizes 8..50 mm ("H" on UK drawings); envelopes estimated
-    "BS4449": _system("BS4449", (8, 10, 12, 16, 20, 25, 32, 40, 50),
-                      ("H8", "H10", "H12", "H16", "H20", "H25", "H32", "H40", "H50")),
-})
+BAR_SYSTEMS.update(
+    {
+        "JIS-G3112": _jis_like("JIS-G3112"),
+        "KS-D3504": _jis_like("KS-D3504"),
+        # AS/NZS 4671: D500N deformed bars N10..N40 (nominal = designation); envelopes estimated
+        "AS/NZS4671": _system(
+            "AS/NZS4671",
+            (10, 12, 16, 20, 24, 28, 32, 36, 40),
+            ("N10", "N12", "N16", "N20", "N24", "N28", "N32", "N36", "N40"),
+        ),
+        # IS 1786: HYSD bars, nominal sizes 8..40 mm; envelopes estimated
+        "IS1786": _system(
+            "IS1786",
+            (8, 10, 12, 16, 20, 25, 28, 32, 36, 40),
+            ("Ø8", "Ø10", "Ø12", "Ø16", "Ø20", "Ø25", "Ø28", "Ø32", "Ø36", "Ø40"),
+        ),
+        # BS 4449: B500 bars, preferred sizes 8..50 mm ("H" on UK drawings); envelopes estimated
+        "BS4449": _system(
+            "BS4449",
+            (8, 10, 12, 16, 20, 25, 32, 40, 50),
+            ("H8", "H10", "H12", "H16", "H20", "H25", "H32", "H40", "H50"),
+        ),
+    }
+)
 
-_ALIASES = {"JIS": "JIS-G3112", "JIS G 3112": "JIS-G3112", "JIS G3112": "JIS-G3112", "KS": "KS-D3504",
-            "KS D 3504": "KS-D3504", "KS D3504": "KS-D3504", "AS/NZS 4671": "AS/NZS4671", "AS4671": "AS/NZS4671",
-            "AS/NZS": "AS/NZS4671", "NZS4671": "AS/NZS4671", "IS 1786": "IS1786", "IS": "IS1786",
-            "BS 4449": "BS4449", "BS": "BS4449",
-            "GB": "GB1499.2", "GB1499": "GB1499.2", "GB 1499.2": "GB1499.2", "ASTM": "ASTM-A615",
-            "A615": "ASTM-A615", "ASTM A615": "ASTM-A615", "CSA G30.18": "CSA", "UK": "EU", "EN": "EU"}
+_ALIASES = {
+    "JIS": "JIS-G3112",
+    "JIS G 3112": "JIS-G3112",
+    "JIS G3112": "JIS-G3112",
+    "KS": "KS-D3504",
+    "KS D 3504": "KS-D3504",
+    "KS D3504": "KS-D3504",
+    "AS/NZS 4671": "AS/NZS4671",
+    "AS4671": "AS/NZS4671",
+    "AS/NZS": "AS/NZS4671",
+    "NZS4671": "AS/NZS4671",
+    "IS 1786": "IS1786",
+    "IS": "IS1786",
+    "BS 4449": "BS4449",
+    "BS": "BS4449",
+    "GB": "GB1499.2",
+    "GB1499": "GB1499.2",
+    "GB 1499.2": "GB1499.2",
+    "ASTM": "ASTM-A615",
+    "A615": "ASTM-A615",
+    "ASTM A615": "ASTM-A615",
+    "CSA G30.18": "CSA",
+    "UK": "EU",
+    "EN": "EU",
+}
 
 #: Standard uncertainty (mm) of the tabulated envelope itself: rib height varies between mills.
 ENVELOPE_SIGMA_MM = 0.15
@@ -195,7 +278,9 @@ def bar_system(name: str) -> BarSystem:
     return BAR_SYSTEMS[key]
 
 
-def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: bool = True) -> float:
+def observed_width_mm(
+    nominal_mm: float, *, system: str = DEFAULT_BAR_SYSTEM, deformed: bool = True
+) -> float:
     """Width a silhouette shows of a bar of ``nominal_mm``: the rib envelope, or the diameter if smooth.
 
     Parameters
@@ -220,7 +305,7 @@ def observed_width_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     return e if e is not None else _gb_like(float(nominal_mm))
 
 
-def barset_width_mm(bar_set, system: str = "GB1499.2") -> float:
+def barset_width_mm(bar_set, system: str = DEFAULT_BAR_SYSTEM) -> float:
     """Outer width of the bars of one design bar set: the rib envelope of a deformed bar, the
     true diameter of a plain one (``bar_set.surface == "plain"``: plain round bars have no ribs,
     so cover, heights and sizes use their diameter).
@@ -249,7 +334,7 @@ def _nearest(values, x: float) -> int:
     return min(range(len(values)), key=lambda k: abs(values[k] - x))
 
 
-def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
+def core_size(width_mm: float, *, system: str = DEFAULT_BAR_SYSTEM) -> float:
     """Nominal size of ``system`` whose core diameter (between the ribs) is nearest to ``width_mm``.
 
     Parameters
@@ -271,7 +356,7 @@ def core_size(width_mm: float, *, system: str = "GB1499.2") -> float:
     return float(sysm.sizes_mm[_nearest(sysm.core_mm, w)]) if math.isfinite(w) else math.nan
 
 
-def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
+def rib_pitch_mm(nominal_mm: float, *, system: str = DEFAULT_BAR_SYSTEM) -> float:
     """Transverse-rib spacing the standard sets for size ``nominal_mm`` (NaN where it sets none,
     or for a size not in its table).
 
@@ -293,7 +378,7 @@ def rib_pitch_mm(nominal_mm: float, *, system: str = "GB1499.2") -> float:
     return float(sysm.of_size(sysm.rib_pitch_mm, nominal_mm, math.nan))
 
 
-def rib_height_mm(width_mm: float, *, system: str = "GB1499.2") -> float:
+def rib_height_mm(width_mm: float, *, system: str = DEFAULT_BAR_SYSTEM) -> float:
     """Rib height h, (envelope − core) / 2, of the size of ``system`` whose envelope is nearest
     to ``width_mm``.
 
@@ -325,7 +410,9 @@ def _half_gaps(obs, i) -> tuple[float, float]:
     return lo, hi
 
 
-def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: bool = True) -> tuple[float, float]:
+def size_half_gaps_mm(
+    nominal_mm: float, *, system: str = DEFAULT_BAR_SYSTEM, deformed: bool = True
+) -> tuple[float, float]:
     """Half the distances (mm) from the observed width of size ``nominal_mm`` to those of the
     next smaller and next larger sizes of ``system`` (at the ends of the table, the nearest
     step): a width beyond them snaps to another size.
@@ -351,7 +438,7 @@ def size_half_gaps_mm(nominal_mm: float, *, system: str = "GB1499.2", deformed: 
     return _half_gaps(obs, i)
 
 
-def bracketing_sizes(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True):
+def bracketing_sizes(width_mm: float, *, system: str = DEFAULT_BAR_SYSTEM, deformed: bool = True):
     """The two nominal sizes of ``system`` whose observed widths lie either side of
     ``width_mm``, as ``((smaller, its width), (larger, its width))``; ``None`` for a width
     outside the table (what an ambiguous width names as the sizes to tell apart by hand).
@@ -382,8 +469,14 @@ def bracketing_sizes(width_mm: float, *, system: str = "GB1499.2", deformed: boo
     return None
 
 
-def snap_diameter(width_mm: float, *, system: str = "GB1499.2", deformed: bool = True,
-                  sigma_mm: float = 0.0, dof: float = WIDTH_SIGMA_DOF) -> tuple[float, float]:
+def snap_diameter(
+    width_mm: float,
+    *,
+    system: str = DEFAULT_BAR_SYSTEM,
+    deformed: bool = True,
+    sigma_mm: float = 0.0,
+    dof: float = WIDTH_SIGMA_DOF,
+) -> tuple[float, float]:
     """Nominal size whose observed width is nearest to ``width_mm``, and a confidence in 0..1.
 
     The confidence is the probability of the chosen size given the width: its posterior over the

@@ -18,7 +18,9 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     and with ``unique`` each pixel is taken once."""
     H, W = depth.shape
     t = centres[:, None] + f[None, :] * widths[:, None] / 2
-    uv = np.rint(project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)).astype(int)
+    uv = np.rint(
+        project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)
+    ).astype(int)
     uv = uv[(uv[:, 0] >= 0) & (uv[:, 0] < W) & (uv[:, 1] >= 0) & (uv[:, 1] < H)]
     if unique:
         # rows sorted by u, then v, as np.unique(uv, axis=0) gives them, on a 1-D key (faster)
@@ -29,8 +31,9 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm,
-                 covered=None):
+def _depth_width(
+    depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm, covered=None
+):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.
@@ -88,14 +91,14 @@ def _circle_fit(a, b, r0, *, iters: int = 30):
     fail = (math.nan, math.nan, math.nan, math.nan, w)
     for k in range(iters):
         da = a - p[0]
-        q = np.sqrt(np.maximum(p[2] ** 2 - da ** 2, 1e-6))
+        q = np.sqrt(np.maximum(p[2] ** 2 - da**2, 1e-6))
         res = b - (p[1] - q)
         w = (np.abs(da) < 0.98 * p[2]).astype(float)
         if k:  # the first step from the starting guess is unweighted
             mid = float(np.median(res[w > 0])) if w.any() else 0.0
             s = max(1.4826 * float(np.median(np.abs(res - mid))), 0.05)
             u = (res - mid) / (4.685 * s)
-            w *= np.where(np.abs(u) < 1, (1 - u ** 2) ** 2, 0.0)
+            w *= np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         J = np.column_stack((-da / q, np.ones_like(q), -p[2] / q))  # d(b0 − q)/d(a0, b0, r)
         JW = J * w[:, None]
         A = J.T @ JW
@@ -109,7 +112,7 @@ def _circle_fit(a, b, r0, *, iters: int = 30):
         if np.abs(step).max() < 1e-5:
             break
     res = b - (p[1] - np.sqrt(np.maximum(p[2] ** 2 - (a - p[0]) ** 2, 1e-6)))
-    var = float((w * res ** 2).sum()) / max(float(w.sum()) - 3.0, 1.0)
+    var = float((w * res**2).sum()) / max(float(w.sum()) - 3.0, 1.0)
     try:
         cov = np.linalg.inv(A) * var
     except np.linalg.LinAlgError:

@@ -32,19 +32,23 @@ def _alert_other_size(out: dict, med, nom_m, conf_m, dw, nom_c, prm, covered: fl
     if covered >= prm.hidden_fraction:
         out["diameter_reason"] += (
             f"; {covered:.0%} of its cross-sections lie partly under nearer bars: its mask width "
-            "is read on what is seen beside them and suggests no other size")
+            "is read on what is seen beside them and suggests no other size"
+        )
     else:
         out["diameter_reason"] = (
             f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
             f"but the axis was fitted with the radius of Φ{nom_c:g}, so the point cloud ({dw:.1f} mm) "
-            "cannot confirm another size: check this bar by hand")
+            "cannot confirm another size: check this bar by hand"
+        )
 
 
 #: the widths that do not depend on where an axis placed with an assumed radius lies: how the
 #: reason names each
-_INDEPENDENT = {"stack": "its top {w:.1f} ± {s:.1f} mm above the bars it rests on",
-                "level": "its top {w:.1f} ± {s:.1f} mm above its level's supports",
-                "circle": "the point cloud's shape, circle fit {w:.1f} ± {s:.1f} mm"}
+_INDEPENDENT = {
+    "stack": "its top {w:.1f} ± {s:.1f} mm above the bars it rests on",
+    "level": "its top {w:.1f} ± {s:.1f} mm above its level's supports",
+    "circle": "the point cloud's shape, circle fit {w:.1f} ± {s:.1f} mm",
+}
 
 
 def _independent_widths(info) -> list:
@@ -72,7 +76,9 @@ def _birge_mean(widths, sigmas) -> tuple[float, float]:
     return width, max(1.0, birge) / math.sqrt(float(wt.sum()))
 
 
-def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed, covered: float = 0.0):
+def _arbitrate(
+    out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed, covered: float = 0.0
+):
     """``out`` as a bar sized by its independent widths alone (:func:`_independent_widths`),
     where its mask width ``med`` and the size its axis was placed with disagree (``pair``: the
     mask's size and the assumed one); None where they cannot tell.
@@ -96,8 +102,11 @@ def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed
         return None
     width, sigma = _birge_mean([w for _, w, _ in used], [sg for _, _, sg in used])
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
-    if (nominal not in pair or conf < prm.min_confidence
-            or sigma > min(size_half_gaps_mm(nominal, system=system, deformed=deformed))):
+    if (
+        nominal not in pair
+        or conf < prm.min_confidence
+        or sigma > min(size_half_gaps_mm(nominal, system=system, deformed=deformed))
+    ):
         return None
     # a mask width from one edge and the axis of a bar seen beside nearer bars (``covered``: the
     # share of its sections partly under them) carries the axis's error twice, and the axis of
@@ -114,12 +123,19 @@ def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed
         # 1 mm low on its supports, its top read 2 mm low, read a size down with a mask leaning
         # that way at 0.74)
         return None
-    why = (f"its mask width {med:.1f} mm is nearest Φ{pair[0]:g}, the axis was fitted with the radius of "
-           f"Φ{pair[1]:g}, and these widths, which depend on neither, tell the two apart" if pair[0] != pair[1] else
-           f"its mask width {med:.1f} mm and its point cloud, which echoes the radius its axis was fitted with, "
-           "disagree, and these widths depend on neither")
-    reason = f"size from {' and '.join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)}: {why}"
-    return _sized(out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm)
+    why = (
+        f"its mask width {med:.1f} mm is nearest Φ{pair[0]:g}, the axis was fitted with the radius of "
+        f"Φ{pair[1]:g}, and these widths, which depend on neither, tell the two apart"
+        if pair[0] != pair[1]
+        else f"its mask width {med:.1f} mm and its point cloud, which echoes the radius its axis was fitted with, "
+        "disagree, and these widths depend on neither"
+    )
+    reason = (
+        f"size from {' and '.join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)}: {why}"
+    )
+    return _sized(
+        out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm
+    )
 
 
 def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
@@ -145,15 +161,30 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     # together within a half size step at one σ (a circle fitted to a few millimetres of arc
     # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
     wt = 1 / np.array([sg for _, _, sg in used]) ** 2
-    if 1 / math.sqrt(float(wt.sum())) > min(size_half_gaps_mm(size, system=system, deformed=deformed)):
+    if 1 / math.sqrt(float(wt.sum())) > min(
+        size_half_gaps_mm(size, system=system, deformed=deformed)
+    ):
         return None
-    width, sigma = _birge_mean([med] + [w for _, w, _ in used], [sigma_m] + [sg for _, _, sg in used])
+    width, sigma = _birge_mean(
+        [med] + [w for _, w, _ in used], [sigma_m] + [sg for _, _, sg in used]
+    )
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
     if nominal != size or conf < prm.min_confidence:
         return None
-    reason = "size from the mask and " + " and ".join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)
-    return _sized(out, nominal, conf, width, sigma, "mask+" + "+".join(k for k, _, _ in used), reason,
-                  in_shadow, prm)
+    reason = "size from the mask and " + " and ".join(
+        _INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used
+    )
+    return _sized(
+        out,
+        nominal,
+        conf,
+        width,
+        sigma,
+        "mask+" + "+".join(k for k, _, _ in used),
+        reason,
+        in_shadow,
+        prm,
+    )
 
 
 def _sized(out, nominal, conf, width, sigma, source, reason, in_shadow, prm) -> dict:
@@ -162,8 +193,15 @@ def _sized(out, nominal, conf, width, sigma, source, reason, in_shadow, prm) -> 
     if in_shadow:
         conf = min(conf, prm.shadow_confidence)
         reason = (reason + "; " if reason else "") + "bar in shadow: confidence capped"
-    out.update(nominal_mm=nominal, confidence=round(conf, 4), diameter_status=MEASURED, diameter_reason=reason,
-               width_source=source, width_used_mm=round(width, 3), width_sigma_mm=round(sigma, 3))
+    out.update(
+        nominal_mm=nominal,
+        confidence=round(conf, 4),
+        diameter_status=MEASURED,
+        diameter_reason=reason,
+        width_source=source,
+        width_used_mm=round(width, 3),
+        width_sigma_mm=round(sigma, 3),
+    )
     return out
 
 
@@ -199,11 +237,18 @@ def _check_core(row: dict, info, prm, *, system) -> None:
         core = larger[0]
     else:
         return
-    reason = (f"ribs resolved: the rib crests ({info.crest_mm:.1f} mm) give {sysm.label(nominal)}, "
-              f"the core between them ({c:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand")
+    reason = (
+        f"ribs resolved: the rib crests ({info.crest_mm:.1f} mm) give {sysm.label(nominal)}, "
+        f"the core between them ({c:.1f} mm) {sysm.label(core) or 'no size'}: check it by hand"
+    )
     # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
-    row.update(nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason,
-               _pair=(nominal, core))
+    row.update(
+        nominal_mm=math.nan,
+        confidence=0.0,
+        diameter_status=NOT_MEASURED,
+        diameter_reason=reason,
+        _pair=(nominal, core),
+    )
 
 
 def _matches_design(nominal_mm, design_mm):
@@ -219,12 +264,27 @@ def _ambiguous_reason(width, source, conf, nominal, pair, system) -> str:
     if pair is None:  # (beyond the table: snap_diameter gives no size there)
         return f"ambiguous: width {width:.1f} mm ({source}) lies between two {system} sizes (confidence {conf:.2f})"
     (a, wa), (b, wb) = pair
-    return (f"ambiguous: width {width:.1f} mm ({source}) lies between {sysm.label(a)} ({wa:.1f} mm) and "
-            f"{sysm.label(b)} ({wb:.1f} mm), nearer {sysm.label(nominal)} (confidence {conf:.2f}): check it by hand")
+    return (
+        f"ambiguous: width {width:.1f} mm ({source}) lies between {sysm.label(a)} ({wa:.1f} mm) and "
+        f"{sysm.label(b)} ({wb:.1f} mm), nearer {sysm.label(nominal)} (confidence {conf:.2f}): check it by hand"
+    )
 
 
-def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed, use_cloud,
-                      assumed_mm=math.nan, mask_median=None, covered: float = 0.0) -> dict:
+def _refined_decision(
+    med,
+    spread,
+    n,
+    info,
+    in_shadow,
+    prm,
+    *,
+    system,
+    deformed,
+    use_cloud,
+    assumed_mm=math.nan,
+    mask_median=None,
+    covered: float = 0.0,
+) -> dict:
     """Size, confidence, status and reason of one bar from its mask widths and point-cloud width.
 
     The mask width and the point-cloud width are two independent measurements, each with a
@@ -268,8 +328,19 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
     cap = 1.0
     if not mask_problem and cloud:
         done, width, sigma, source = _mask_and_cloud(
-            out, med, sigma_m, sigma_c, info, in_shadow, prm, system=system, deformed=deformed,
-            veto_only=veto_only, assumed_mm=assumed_mm, covered=covered)
+            out,
+            med,
+            sigma_m,
+            sigma_c,
+            info,
+            in_shadow,
+            prm,
+            system=system,
+            deformed=deformed,
+            veto_only=veto_only,
+            assumed_mm=assumed_mm,
+            covered=covered,
+        )
         if done is not None:
             return done
     elif not mask_problem:
@@ -288,15 +359,20 @@ def _refined_decision(med, spread, n, info, in_shadow, prm, *, system, deformed,
         # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
         # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
         # confirm what the mask leans to but never overturn it
-        settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
-                          deformed=deformed, size=nominal)
+        settled = _settle(
+            out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nominal
+        )
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
         pair = bracketing_sizes(width, system=system, deformed=deformed)
-        out.update(confidence=conf, width_source=source, width_used_mm=round(width, 3),
-                   width_sigma_mm=round(sigma, 3),
-                   diameter_reason=_ambiguous_reason(width, source, conf, nominal, pair, system))
+        out.update(
+            confidence=conf,
+            width_source=source,
+            width_used_mm=round(width, 3),
+            width_sigma_mm=round(sigma, 3),
+            diameter_reason=_ambiguous_reason(width, source, conf, nominal, pair, system),
+        )
         if pair is not None:
             out["_pair"] = (pair[0][0], pair[1][0])
         return out
@@ -313,8 +389,11 @@ def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
     # (shading towards the limbs): that common offset of the capture is not the mask's error
     cdiff = 0.0
     if math.isfinite(info.colour_width_mm):
-        r = abs(info.colour_width_mm - (med if mask_median is None else mask_median)
-                - info.colour_offset_px * px_mm)
+        r = abs(
+            info.colour_width_mm
+            - (med if mask_median is None else mask_median)
+            - info.colour_offset_px * px_mm
+        )
         typical = prm.veto_k * info.colour_spread_mm
         cdiff = info.colour_weight * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
@@ -325,16 +404,24 @@ def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
     per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.mask_between_mm)
     # a width from one edge and the axis (one-sided sections) is off by twice the axis's error
     one_sided = 2 * prm.axis_sigma_mm * info.one_sided_share
-    return math.hypot(1.2533 * spread / math.sqrt(n), per_bar, 2 * max(off - prm.axis_sigma_mm, 0.0),
-                      max(cdiff - prm.colour_tolerance_px * px_mm, 0.0), one_sided, info.rib_sigma_mm)
+    return math.hypot(
+        1.2533 * spread / math.sqrt(n),
+        per_bar,
+        2 * max(off - prm.axis_sigma_mm, 0.0),
+        max(cdiff - prm.colour_tolerance_px * px_mm, 0.0),
+        one_sided,
+        info.rib_sigma_mm,
+    )
 
 
 def _mask_problem(med, spread, n, info, prm) -> str:
     """Why a bar's mask width cannot be trusted (its runs off the axis, its widths too
     scattered); "" where it can."""
     if _off_centre(info, med, prm):
-        return (f"mask not centred on the axis ({abs(info.centre_mm):.1f} mm off over a {med:.1f} mm width): "
-                f"one side lost to shadow or segmentation")
+        return (
+            f"mask not centred on the axis ({abs(info.centre_mm):.1f} mm off over a {med:.1f} mm width): "
+            f"one side lost to shadow or segmentation"
+        )
     if spread > prm.max_spread_rel * med:
         return f"mask widths too scattered (robust σ {spread:.1f} mm over {n} sections)"
     return ""
@@ -346,8 +433,11 @@ def _cloud_sigma(info, prm) -> float:
     # depth noise grows with z²; besides its random part, the cloud of an active stereo
     # camera is off by up to about a millimetre on a bar's diameter at 500-700 mm
     d_spread, d_n = info.depth_spread_mm, info.depth_points
-    return math.hypot(1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
-                      2 * prm.axis_sigma_mm, prm.cloud_bias_mm_per_m2 * (info.z_mm / 1000) ** 2)
+    return math.hypot(
+        1.2533 * d_spread / math.sqrt(max(d_n / prm.depth_correlated_px, 1.0)),
+        2 * prm.axis_sigma_mm,
+        prm.cloud_bias_mm_per_m2 * (info.z_mm / 1000) ** 2,
+    )
 
 
 def _off_bar_reason(info) -> str:
@@ -356,17 +446,34 @@ def _off_bar_reason(info) -> str:
     if info.depth_off_covered:
         # every section under a nearer bar (a sliver beside it): the band from its one edge to
         # the axis runs under that bar, and too few of the bar's own points are left there
-        return (f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
-                "the bar over it, and too few of its own points are left to check a width from one "
-                "edge")
+        return (
+            f"{off_bar:.0%} of the point cloud between its visible edge and the axis lies on "
+            "the bar over it, and too few of its own points are left to check a width from one "
+            "edge"
+        )
     # the depth across the mask runs lies mostly beyond a diameter from the axis: what the
     # mask shows there is mostly another object (the bar over this one), not this bar
-    return (f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the axis "
-            "than the bar's diameter: the mask there shows another object (a bar over it)")
+    return (
+        f"{off_bar:.0%} of the point cloud across the mask runs lies farther from the axis "
+        "than the bar's diameter: the mask there shows another object (a bar over it)"
+    )
 
 
-def _mask_and_cloud(out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system, deformed,
-                    veto_only, assumed_mm, covered):
+def _mask_and_cloud(
+    out,
+    med,
+    sigma_m,
+    sigma_c,
+    info,
+    in_shadow,
+    prm,
+    *,
+    system,
+    deformed,
+    veto_only,
+    assumed_mm,
+    covered,
+):
     """A sound mask width against a point-cloud width: ``(done, width, sigma, source)``, where
     ``done`` is the bar's finished row where they disagree (else None, and the width to snap:
     their weighted mean, or in veto mode the mask's alone)."""
@@ -379,14 +486,21 @@ def _mask_and_cloud(out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system,
     nom_c = nom_m = math.nan
     conf_m = 0.0
     if veto_only:
-        nom_c = (snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0] if math.isfinite(assumed_mm)
-                 else snap_diameter(dw, system=system, deformed=deformed)[0])
+        nom_c = (
+            snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0]
+            if math.isfinite(assumed_mm)
+            else snap_diameter(dw, system=system, deformed=deformed)[0]
+        )
         nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
     strict = veto_only and nom_c != nom_m
     if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
-        out["diameter_reason"] = (f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree")
+        out["diameter_reason"] = (
+            f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree"
+        )
         if not veto_only:  # (veto mode has snapped both above)
-            nom_m, nom_c = (snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw))
+            nom_m, nom_c = (
+                snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw)
+            )
         out["_pair"] = (nom_m, nom_c)  # the rib pitch may tell them apart (_pitch_settle)
         if not veto_only:
             return out, None, None, None
@@ -396,17 +510,44 @@ def _mask_and_cloud(out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system,
         # width from one edge to the axis: the axis was placed with the assumed radius (a
         # fit over part of the bar's arc slides with it), so that width cannot overturn it
         if conf_m >= prm.min_confidence and _two_sided(info):
-            settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system,
-                              deformed=deformed, size=nom_m)
+            settled = _settle(
+                out,
+                med,
+                sigma_m,
+                info,
+                in_shadow,
+                prm,
+                system=system,
+                deformed=deformed,
+                size=nom_m,
+            )
             if settled is not None:
                 return settled, None, None, None
         # else the widths that depend on neither the mask nor the axis may tell the
         # mask's size from the assumed one
-        return (_arbitrate(out, med, conf_m, (nom_m, nom_c), info, in_shadow, prm, system=system,
-                           deformed=deformed, covered=covered) or out), None, None, None
+        return (
+            (
+                _arbitrate(
+                    out,
+                    med,
+                    conf_m,
+                    (nom_m, nom_c),
+                    info,
+                    in_shadow,
+                    prm,
+                    system=system,
+                    deformed=deformed,
+                    covered=covered,
+                )
+                or out
+            ),
+            None,
+            None,
+            None,
+        )
     if veto_only:  # the cloud only checks the mask: it may echo an assumed radius
         return None, med, sigma_m, "mask"
-    wm, wc = 1 / sigma_m ** 2, 1 / sigma_c ** 2
+    wm, wc = 1 / sigma_m**2, 1 / sigma_c**2
     width, sigma = (wm * med + wc * dw) / (wm + wc), 1 / math.sqrt(wm + wc)
     # two estimates further apart than their σ say: the σ are too small (Birge ratio)
     sigma *= max(1.0, abs(med - dw) / math.hypot(sigma_m, sigma_c))

@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from .._checks import RebarInputError
+from .._design import DEFAULT_BAR_SYSTEM
 from .bars import _check_inputs, _footprints, _prepare
 from .barsizes import bar_system, observed_width_mm, rib_height_mm, snap_diameter
 from .calibration import _colour_calibration, _mask_between_spread, _width_calibration
@@ -32,15 +33,31 @@ __all__ = ["measure_diameters"]
 
 #: why a bar has too few clean cross-sections, by the count of a :class:`BarReading` that lost
 #: it the most sections
-_LOST = {"crossing": "at crossings or next to other bars", "no_edge": "no clear mask edges",
-         "border": "at the image border", "shadow": "in shadow", "outlier": "inconsistent widths",
-         "holed": "beside a strip without depth, most likely a bar under it peeking out"}
+_LOST = {
+    "crossing": "at crossings or next to other bars",
+    "no_edge": "no clear mask edges",
+    "border": "at the image border",
+    "shadow": "in shadow",
+    "outlier": "inconsistent widths",
+    "holed": "beside a strip without depth, most likely a bar under it peeking out",
+}
 
 
-def measure_diameters(capture, bars, mask, *, design=None, method: str = "refined",
-                      system: str | None = None, deformed: bool = True, use_depth: bool = True,
-                      colour_edges="check", use_cloud: bool = True,
-                      paper_points: int = 20, rng=None):
+def measure_diameters(
+    capture,
+    bars,
+    mask,
+    *,
+    design=None,
+    method: str = "refined",
+    system: str | None = None,
+    deformed: bool = True,
+    use_depth: bool = True,
+    colour_edges="check",
+    use_cloud: bool = True,
+    paper_points: int = 20,
+    rng=None,
+):
     """Nominal diameter of every bar from the rebar mask and the bar axes.
 
     Parameters
@@ -133,25 +150,53 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
 
     m, maskf = _check_inputs(capture, bars, mask, method)
     if system is None:
-        system = getattr(design, "bar_system", None) or "GB1499.2"
+        system = getattr(design, "bar_system", None) or DEFAULT_BAR_SYSTEM
     bar_system(system)  # validates the name
     intr = capture.intrinsics
     prm = DiameterParams(colour_edges=colour_edges or False)
-    prepared = _prepare(bars, design, system, deformed, default_expected_mm=observed_width_mm(
-        prm.default_size_mm, system="GB1499.2", deformed=deformed))
+    prepared = _prepare(
+        bars,
+        design,
+        system,
+        deformed,
+        default_expected_mm=observed_width_mm(
+            prm.default_size_mm, system=DEFAULT_BAR_SYSTEM, deformed=deformed
+        ),
+    )
     _check_options(use_cloud, colour_edges)
     fp = _footprints(prepared, intr, prm.footprint_margin_rel, prm.footprint_margin_px)
     gray, rgb, depth, depth_img = _images(capture, use_depth, use_cloud)
     # an axis placed with an assumed radius: its cloud width echoes that radius, so it may only
     # veto, and the circle fitted to its cloud is what can size the bar (the refined decision
     # only: the paper's method never reads it)
-    cloud_mode = ["veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud
-                  for bar in prepared]
-    results = [_refined_bar(i, bar, maskf, gray, depth, intr, fp, prm, rgb, depth_img,
-                            circle=method == "refined" and cloud_mode[i] == "veto")
-               for i, bar in enumerate(prepared)]
-    sizes, ribs = _capture_ribs(results, prepared, prm, method=method, system=system,
-                                deformed=deformed, colour_edges=colour_edges)
+    cloud_mode = [
+        "veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud for bar in prepared
+    ]
+    results = [
+        _refined_bar(
+            i,
+            bar,
+            maskf,
+            gray,
+            depth,
+            intr,
+            fp,
+            prm,
+            rgb,
+            depth_img,
+            circle=method == "refined" and cloud_mode[i] == "veto",
+        )
+        for i, bar in enumerate(prepared)
+    ]
+    sizes, ribs = _capture_ribs(
+        results,
+        prepared,
+        prm,
+        method=method,
+        system=system,
+        deformed=deformed,
+        colour_edges=colour_edges,
+    )
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
     _calibrate(results, prepared, cloud_mode, prm, system=system, deformed=deformed)
@@ -164,14 +209,36 @@ def measure_diameters(capture, bars, mask, *, design=None, method: str = "refine
         # a bar in shadow over its whole length: its mask edges are the least reliable there
         # is, so its size is never reported with high confidence
         in_shadow = bool(np.isfinite(ref_lum) and reading.lum < prm.shadow_ratio * ref_lum)
-        paper_w = (_paper_bar(i, bar, m, edge, intr, paper_points, owner, prm.paper_short_px)
-                   if method == "paper" else None)
-        rows.append(_bar_row(bar, reading, paper_w, in_shadow, cloud_mode[i], ribs, prm,
-                             method=method, system=system, deformed=deformed))
+        paper_w = (
+            _paper_bar(i, bar, m, edge, intr, paper_points, owner, prm.paper_short_px)
+            if method == "paper"
+            else None
+        )
+        rows.append(
+            _bar_row(
+                bar,
+                reading,
+                paper_w,
+                in_shadow,
+                cloud_mode[i],
+                ribs,
+                prm,
+                method=method,
+                system=system,
+                deformed=deformed,
+            )
+        )
         shadows.append(in_shadow)
     if method == "refined" and ribs:
-        _pitch_settle(rows, results, sizes, shadows, prm, system=system,
-                      face=lambda i: _face_pitch(prepared[i], results[i], gray, intr, prm, fp, i))
+        _pitch_settle(
+            rows,
+            results,
+            sizes,
+            shadows,
+            prm,
+            system=system,
+            face=lambda i: _face_pitch(prepared[i], results[i], gray, intr, prm, fp, i),
+        )
     if method == "refined" and deformed:
         _pitch_veto(rows, results, prm, system=system)
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
@@ -184,8 +251,9 @@ def _check_options(use_cloud, colour_edges) -> None:
     if use_cloud not in (True, False, "veto"):
         raise RebarInputError(f"use_cloud: expected True, False or 'veto', got {use_cloud!r}")
     if colour_edges not in ("check", "replace", False, None):
-        raise RebarInputError("colour_edges: expected 'check', 'replace' or False, got "
-                              f"{colour_edges!r}")
+        raise RebarInputError(
+            f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}"
+        )
 
 
 def _images(capture, use_depth, use_cloud):
@@ -200,8 +268,11 @@ def _images(capture, use_depth, use_cloud):
         rgb = np.ascontiguousarray(capture.color, dtype=np.float32)
         gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)  # luminance: only compared with itself
     depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
-    depth_img = (np.asarray(capture.depth_mm, np.float32)
-                 if (use_cloud and capture.depth_mm is not None) else None)
+    depth_img = (
+        np.asarray(capture.depth_mm, np.float32)
+        if (use_cloud and capture.depth_mm is not None)
+        else None
+    )
     return gray, rgb, depth, depth_img
 
 
@@ -223,11 +294,17 @@ def _capture_ribs(results, prepared, prm, *, method, system, deformed, colour_ed
     for r in results:
         r.mask_width_mm = float(np.median(r.widths)) if len(r.widths) else math.nan
         r.rib_sigma_mm = 0.0
-    sizes = [b.design_mm if math.isfinite(b.design_mm) or not len(r.widths)
-             else snap_diameter(r.mask_width_mm, system=system, deformed=deformed)[0]
-             for b, r in zip(prepared, results)]
-    ribs_p = (_ribs_in_view([(r.rib_pitch_mm, r.rib_p) for r in results], prm, sizes)
-              if method == "refined" and deformed else 1.0)
+    sizes = [
+        b.design_mm
+        if math.isfinite(b.design_mm) or not len(r.widths)
+        else snap_diameter(r.mask_width_mm, system=system, deformed=deformed)[0]
+        for b, r in zip(prepared, results)
+    ]
+    ribs_p = (
+        _ribs_in_view([(r.rib_pitch_mm, r.rib_p) for r in results], prm, sizes)
+        if method == "refined" and deformed
+        else 1.0
+    )
     ribs = ribs_p < prm.rib_capture_p
     if method == "refined" and deformed and not ribs and colour_edges:
         # a mask that smooths the ribs away: the colour image may still show them. Where a bar's
@@ -261,8 +338,14 @@ def _calibrate(results, prepared, cloud_mode, prm, *, system, deformed) -> None:
     _width_calibration(results, "stack", prm, system=system, deformed=deformed)
     # the bars of one level rest on the same supports: a bar's top above the formwork less the
     # supports' height, learnt from its level's bars that the mask sizes clearly
-    _width_calibration(results, "level", prm, system=system, deformed=deformed,
-                       groups=[(b.layer, b.level) for b in prepared])
+    _width_calibration(
+        results,
+        "level",
+        prm,
+        system=system,
+        deformed=deformed,
+        groups=[(b.layer, b.level) for b in prepared],
+    )
     for r in results:  # a bar's own top counts once: where it has a stack height, that is its top
         if math.isfinite(r.stack_width_mm) and math.isfinite(r.stack_between_mm):
             r.level_width_mm = math.nan
@@ -271,22 +354,36 @@ def _calibrate(results, prepared, cloud_mode, prm, *, system, deformed) -> None:
 def _new_row(bar, reading, occ_frac, ribs, prm, method) -> dict:
     """A bar's row of :data:`DIAMETER_COLUMNS` before it is sized: not measured, with what its
     cross-sections read."""
-    return {"bar_id": bar.bar_id, "width_median_mm": math.nan, "width_spread_mm": math.nan,
-            "n_sections": 0, "nominal_mm": math.nan, "confidence": 0.0,
-            "diameter_status": NOT_MEASURED, "diameter_reason": "",
-            "design_diameter_mm": bar.design_mm, "matches_design": None, "hidden": False,
-            "occluded_fraction": round(occ_frac, 3),
-            "one_sided_share": round(reading.one_sided_share, 3) if method == "refined" else 0.0,
-            "cloud_width_mm": math.nan, "width_source": "", "width_used_mm": math.nan,
-            "width_sigma_mm": math.nan, "circle_width_mm": reading.circle_width_mm,
-            "circle_sigma_mm": reading.circle_sigma_mm, "crest_width_mm": reading.crest_mm,
-            "core_width_mm": reading.core_mm,
-            "rib_pitch_mm": reading.rib_pitch_mm if reading.rib_p < prm.rib_bar_p else math.nan,
-            "ribs_resolved": ribs}
+    return {
+        "bar_id": bar.bar_id,
+        "width_median_mm": math.nan,
+        "width_spread_mm": math.nan,
+        "n_sections": 0,
+        "nominal_mm": math.nan,
+        "confidence": 0.0,
+        "diameter_status": NOT_MEASURED,
+        "diameter_reason": "",
+        "design_diameter_mm": bar.design_mm,
+        "matches_design": None,
+        "hidden": False,
+        "occluded_fraction": round(occ_frac, 3),
+        "one_sided_share": round(reading.one_sided_share, 3) if method == "refined" else 0.0,
+        "cloud_width_mm": math.nan,
+        "width_source": "",
+        "width_used_mm": math.nan,
+        "width_sigma_mm": math.nan,
+        "circle_width_mm": reading.circle_width_mm,
+        "circle_sigma_mm": reading.circle_sigma_mm,
+        "crest_width_mm": reading.crest_mm,
+        "core_width_mm": reading.core_mm,
+        "rib_pitch_mm": reading.rib_pitch_mm if reading.rib_p < prm.rib_bar_p else math.nan,
+        "ribs_resolved": ribs,
+    }
 
 
-def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method, system,
-             deformed) -> dict:
+def _bar_row(
+    bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method, system, deformed
+) -> dict:
     """One bar's row of :data:`DIAMETER_COLUMNS`: its widths' statistics and its size, or why
     it has none (outside the image, hidden, too few clean sections, no size). ``paper_w``: the
     paper's widths of the bar (None for the refined method)."""
@@ -300,45 +397,80 @@ def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method,
     med = math.nan
     if len(w):
         q1, med, q3 = np.percentile(w, [25, 50, 75])
-        row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349),
-                   n_sections=len(w))
+        row.update(
+            width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w)
+        )
     few = len(w) < (1 if method == "paper" else prm.min_sections)
     if n_in == 0:
         row["diameter_reason"] = "bar axis is outside the image"
     elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
-        row.update(diameter_status=HIDDEN, hidden=True,
-                   diameter_reason=_hidden_reason(bar, reading, occ_frac, prm))
+        row.update(
+            diameter_status=HIDDEN,
+            hidden=True,
+            diameter_reason=_hidden_reason(bar, reading, occ_frac, prm),
+        )
     elif few:
-        why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"),
-                  key=lambda k: getattr(reading, k))
-        row["diameter_reason"] = (f"too few clean cross-sections ({len(w)} of {reading.stations}; "
-                                  f"most lost {_LOST[why]})")
+        why = max(
+            ("crossing", "no_edge", "border", "shadow", "outlier", "holed"),
+            key=lambda k: getattr(reading, k),
+        )
+        row["diameter_reason"] = (
+            f"too few clean cross-sections ({len(w)} of {reading.stations}; most lost {_LOST[why]})"
+        )
     elif method == "paper":
         nominal, share = _paper_vote(w, system, prm.paper_bin_mm)
         if math.isfinite(nominal):
-            row.update(nominal_mm=nominal, confidence=round(share, 3), diameter_status=MEASURED,
-                       width_source="mask", width_used_mm=float(med))
+            row.update(
+                nominal_mm=nominal,
+                confidence=round(share, 3),
+                diameter_status=MEASURED,
+                width_source="mask",
+                width_used_mm=float(med),
+            )
         else:
-            row["diameter_reason"] = (f"no width within ±1 mm of a {system} size "
-                                      f"(median {med:.1f} mm)")
+            row["diameter_reason"] = (
+                f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
+            )
     elif ribs and not math.isfinite(reading.crest_mm):
-        row["diameter_reason"] = (f"ribs resolved in this capture: {len(w)} clean cross-sections "
-                                  "are too few to read the bar's rib crests (at least "
-                                  f"{prm.rib_min_sections})")
+        row["diameter_reason"] = (
+            f"ribs resolved in this capture: {len(w)} clean cross-sections "
+            "are too few to read the bar's rib crests (at least "
+            f"{prm.rib_min_sections})"
+        )
     else:
-        row.update(_refined_decision(reading.mask_width_mm, row["width_spread_mm"], len(w),
-                                     reading, in_shadow, prm, system=system, deformed=deformed,
-                                     use_cloud=cloud_mode, assumed_mm=bar.axis_radius_mm,
-                                     mask_median=med, covered=occ_frac))
+        row.update(
+            _refined_decision(
+                reading.mask_width_mm,
+                row["width_spread_mm"],
+                len(w),
+                reading,
+                in_shadow,
+                prm,
+                system=system,
+                deformed=deformed,
+                use_cloud=cloud_mode,
+                assumed_mm=bar.axis_radius_mm,
+                mask_median=med,
+                covered=occ_frac,
+            )
+        )
         if ribs and row["diameter_status"] == MEASURED:
             _check_core(row, reading, prm, system=system)
-        if (row["diameter_status"] == NOT_MEASURED and occ_frac >= prm.hidden_fraction
-                and _off_centre(reading, med, prm)):
+        if (
+            row["diameter_status"] == NOT_MEASURED
+            and occ_frac >= prm.hidden_fraction
+            and _off_centre(reading, med, prm)
+        ):
             # the side the mask lacks is under the nearer bars along most of the bar: no section
             # shows its whole width, so it is hidden for its size, as a bar wholly under them is
-            row.update(diameter_status=HIDDEN, hidden=True, diameter_reason=(
-                f"hidden: {occ_frac:.0%} of its cross-sections lie partly under nearer bars and the "
-                f"mask shows one side only ({row['diameter_reason']})"))
+            row.update(
+                diameter_status=HIDDEN,
+                hidden=True,
+                diameter_reason=(
+                    f"hidden: {occ_frac:.0%} of its cross-sections lie partly under nearer bars and the "
+                    f"mask shows one side only ({row['diameter_reason']})"
+                ),
+            )
     if row["diameter_status"] == MEASURED:
         row["matches_design"] = _matches_design(row["nominal_mm"], bar.design_mm)
     return row
@@ -347,13 +479,14 @@ def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method,
 def _hidden_reason(bar, reading, occ_frac, prm) -> str:
     """Why a bar mostly under nearer bars is "hidden", and, for a sliver seen beside them, why
     it still gives no size."""
-    reason = (f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly under nearer "
-              "bars")
+    reason = f"hidden: {occ_frac:.0%} of its cross-sections lie wholly or partly under nearer bars"
     if not bar.axis_ok and reading.one_edge >= prm.min_sections:
         # a sliver beside the bar over it: what is seen is not nothing, and the inspector
         # should know why it still gives no size
-        reason += (f"; {reading.one_edge} cross-sections show one edge of it beside them (a "
-                   "sliver): a width from one edge needs the axis placed to a fraction of a "
-                   "millimetre, which a sliver does not give without taking the bar's radius "
-                   "as known")
+        reason += (
+            f"; {reading.one_edge} cross-sections show one edge of it beside them (a "
+            "sliver): a width from one edge needs the axis placed to a fraction of a "
+            "millimetre, which a sliver does not give without taking the bar's radius "
+            "as known"
+        )
     return reason

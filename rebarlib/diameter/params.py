@@ -16,22 +16,56 @@ from dataclasses import dataclass
 
 from .._status import HIDDEN, MEASURED, NOT_MEASURED
 
-__all__ = ["BAR_COLUMNS", "DIAMETER_COLUMNS", "DiameterParams", "MEASURED", "NOT_MEASURED",
-           "HIDDEN"]
+__all__ = [
+    "BAR_COLUMNS",
+    "DIAMETER_COLUMNS",
+    "DiameterParams",
+    "MEASURED",
+    "NOT_MEASURED",
+    "HIDDEN",
+]
 
 
 #: Columns the bars table must have (camera frame axis end points, mm).
-BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_mm",
-               "end_x_mm", "end_y_mm", "end_z_mm")
+BAR_COLUMNS = (
+    "bar_id",
+    "layer",
+    "level",
+    "start_x_mm",
+    "start_y_mm",
+    "start_z_mm",
+    "end_x_mm",
+    "end_y_mm",
+    "end_z_mm",
+)
 
 
 #: Columns of the table :func:`measure_diameters` returns (one row per bar, merge on bar_id).
-DIAMETER_COLUMNS = ("bar_id", "width_median_mm", "width_spread_mm", "n_sections", "nominal_mm",
-                    "confidence", "diameter_status", "diameter_reason", "design_diameter_mm",
-                    "matches_design", "hidden", "occluded_fraction", "one_sided_share",
-                    "cloud_width_mm", "width_source", "width_used_mm", "width_sigma_mm",
-                    "circle_width_mm", "circle_sigma_mm",
-                    "crest_width_mm", "core_width_mm", "rib_pitch_mm", "ribs_resolved")
+DIAMETER_COLUMNS = (
+    "bar_id",
+    "width_median_mm",
+    "width_spread_mm",
+    "n_sections",
+    "nominal_mm",
+    "confidence",
+    "diameter_status",
+    "diameter_reason",
+    "design_diameter_mm",
+    "matches_design",
+    "hidden",
+    "occluded_fraction",
+    "one_sided_share",
+    "cloud_width_mm",
+    "width_source",
+    "width_used_mm",
+    "width_sigma_mm",
+    "circle_width_mm",
+    "circle_sigma_mm",
+    "crest_width_mm",
+    "core_width_mm",
+    "rib_pitch_mm",
+    "ribs_resolved",
+)
 
 
 @dataclass(frozen=True)

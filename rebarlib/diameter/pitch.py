@@ -58,9 +58,14 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
     spread = 1.4826 * float(np.median(np.abs(dev - np.median(dev))))
     sizes_of = sizes_of or (lambda i: {keys[i]})
     members = [i for v in groups.values() for i in v]
-    agree = sum(any(abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1)
-                    <= _pitch_band(spread, clear[i][1], prm) for sz in sizes_of(i))
-                for i in members)
+    agree = sum(
+        any(
+            abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1)
+            <= _pitch_band(spread, clear[i][1], prm)
+            for sz in sizes_of(i)
+        )
+        for i in members
+    )
     return scale, spread, (agree + 1) / (len(members) + 2)
 
 
@@ -96,12 +101,17 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
         s, cw = r.colour_widths
         good = np.isfinite(cw)
         enough = good.sum() >= prm.rib_min_sections
-        reads.append(_rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0))
+        reads.append(
+            _rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0)
+        )
         lengths.append(float(np.ptp(s[good])) if enough else 0.0)
     if _ribs_in_view(reads, prm, keys) >= prm.rib_capture_p:
         return False
-    clear = {i: c for i, ((q, p), length) in enumerate(zip(reads, lengths))
-             if (c := _clear_pitch(q, p, length, prm)) is not None}
+    clear = {
+        i: c
+        for i, ((q, p), length) in enumerate(zip(reads, lengths))
+        if (c := _clear_pitch(q, p, length, prm)) is not None
+    }
     fit = _pitch_table(clear, keys, prm, system=system, sizes_of=lambda i: sysm.neighbours(keys[i]))
     return fit is not None and fit[2] >= prm.min_confidence
 
@@ -139,12 +149,17 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return
-    clear = {i: c for i, r in enumerate(results)  # bar index -> (pitch, relative resolution)
-             if (c := _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm)) is not None}
+    clear = {
+        i: c
+        for i, r in enumerate(results)  # bar index -> (pitch, relative resolution)
+        if (c := _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm)) is not None
+    }
 
     def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
         row = rows[i]
-        return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
+        return {keys[i]} | (
+            {row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ()))
+        )
 
     faces = {}  # bar index -> its face's read (None: none clear), each read once
 
@@ -156,7 +171,9 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
     if (fit is None or fit[2] < prm.min_confidence) and face is not None:
         # too few widths clearly periodic to test the table: the faces of the others may show it
-        more = {i: c for i in range(len(rows)) if i not in clear and (c := face_read(i)) is not None}
+        more = {
+            i: c for i in range(len(rows)) if i not in clear and (c := face_read(i)) is not None
+        }
         fit = _pitch_table({**clear, **more}, keys, prm, system=system, sizes_of=sizes_of)
     if fit is None or fit[2] < prm.min_confidence:
         return
@@ -167,16 +184,21 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
             continue
         # a bar whose width shows no clear pitch may show it along each of its edges, or in the
         # shading of its face
-        read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
+        read, where = (
+            (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
+        )
         if read is None:
             read, where = face_read(i), " (in the shading along its face)"
         if read is None:
             continue
-        _size_by_pitch(row, read, where, results[i], shadows[i], scale, spread, conf, prm,
-                       system=system)
+        _size_by_pitch(
+            row, read, where, results[i], shadows[i], scale, spread, conf, prm, system=system
+        )
 
 
-def _size_by_pitch(row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system) -> None:
+def _size_by_pitch(
+    row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system
+) -> None:
     """Size a bar left between two sizes (``row["_pair"]``) by its rib pitch ``read``
     (``(pitch, relative resolution)``, read ``where``) where it lies within the band of exactly
     one of the sizes from one of the two to the other (the capture's ``scale`` and ``spread``
@@ -200,11 +222,22 @@ def _size_by_pitch(row, read, where, reading, in_shadow, scale, spread, conf, pr
     j = list(pair).index(on[0])
     size, other = pair[j], pair[1 - j]
     why = row["diameter_reason"].removesuffix(": check it by hand")
-    reason = (f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
-              f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})")
+    reason = (
+        f"size from the rib pitch {p:.2f} mm{where}: {sysm.label(size)}'s is {ls[j]:g} mm, "
+        f"{sysm.label(other)}'s {ls[1 - j]:g} mm (the widths alone: {why})"
+    )
     width = row["width_used_mm"] if math.isfinite(row["width_used_mm"]) else reading.mask_width_mm
-    _sized(row, size, conf, width, row["width_sigma_mm"], (row["width_source"] or "mask") + "+pitch",
-           reason, in_shadow, prm)
+    _sized(
+        row,
+        size,
+        conf,
+        width,
+        row["width_sigma_mm"],
+        (row["width_source"] or "mask") + "+pitch",
+        reason,
+        in_shadow,
+        prm,
+    )
     row["matches_design"] = _matches_design(size, row["design_diameter_mm"])
 
 
@@ -230,8 +263,11 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
         return
     sizes = list(sysm.sizes_mm)
     for row, r in zip(rows, results):
-        if (row["diameter_status"] != MEASURED or "pitch" in (row["width_source"] or "")
-                or not r.rib_p < prm.rib_capture_p):  # (stricter than _clear_pitch's p)
+        if (
+            row["diameter_status"] != MEASURED
+            or "pitch" in (row["width_source"] or "")
+            or not r.rib_p < prm.rib_capture_p
+        ):  # (stricter than _clear_pitch's p)
             continue
         read = _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm)
         j = _nearest(sizes, row["nominal_mm"])
@@ -246,9 +282,16 @@ def _pitch_veto(rows, results, prm, *, system) -> None:
             continue
         this, next_up = sysm.label(sizes[j]), sysm.label(sizes[j + 1])
         conf = row["confidence"]
-        reason = (f"possible wrong size: the widths give {this} (confidence {conf:.2f}), but "
-                  f"they are periodic with a pitch of {p:.2f} mm, the rib spacing of {next_up} "
-                  f"({up:g} mm; {this}'s is {own:g} mm): a mask that smooths the ribs away "
-                  "reads a bar's core, a size down; check this bar by hand")
-        row.update(diameter_status=NOT_MEASURED, matches_design=None, nominal_mm=math.nan,
-                   confidence=0.0, diameter_reason=reason)
+        reason = (
+            f"possible wrong size: the widths give {this} (confidence {conf:.2f}), but "
+            f"they are periodic with a pitch of {p:.2f} mm, the rib spacing of {next_up} "
+            f"({up:g} mm; {this}'s is {own:g} mm): a mask that smooths the ribs away "
+            "reads a bar's core, a size down; check this bar by hand"
+        )
+        row.update(
+            diameter_status=NOT_MEASURED,
+            matches_design=None,
+            nominal_mm=math.nan,
+            confidence=0.0,
+            diameter_reason=reason,
+        )

@@ -13,8 +13,9 @@ from .._camera import project
 from .bars import _candidates, _hits_footprints, _remap
 
 
-def _rib_periodicity(s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4,
-                     width_mm: float | None = None) -> tuple[float, float]:
+def _rib_periodicity(
+    s_mm, w_mm, *, band=(0.4, 1.2), oversample: int = 4, width_mm: float | None = None
+) -> tuple[float, float]:
     """Strongest periodic component of a bar's section widths along it: ``(pitch_mm, p)``.
 
     The transverse ribs of a deformed bar make its silhouette's width periodic along the bar, at
@@ -83,7 +84,7 @@ def _periodogram(s, w, f):
         terms[1:] = np.exp(2j * np.pi * (f[1] - f[0]) * s)
     np.cumprod(terms, axis=0, out=terms)
     x = terms.sum(axis=1)
-    return x.real ** 2 + x.imag ** 2
+    return x.real**2 + x.imag**2
 
 
 def _band_peak(f, power, fmin, fmax, length):
@@ -213,7 +214,9 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     if not varied.any():
         return None
     nfft = 1 << int(math.ceil(math.log2(prm.face_oversample * n)))
-    power = (np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (cnt[varied] * var[varied])[:, None]).sum(axis=0)
+    power = (
+        np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (cnt[varied] * var[varied])[:, None]
+    ).sum(axis=0)
     f = np.fft.rfftfreq(nfft, ds)
     fmin, fmax = 1 / (prm.rib_band[1] * width), min(1 / (prm.rib_band[0] * width), 0.5 / ds)
     k = _band_peak(f, power, fmin, fmax, length)
@@ -243,14 +246,21 @@ def _detrended(lum, m, width, ds, n, prm):
     shadows: a Gaussian over three of the longest pitches searched, normalised over the samples
     read, ``m``) and their means: ``(x, samples read per line, variance per line)``."""
     sig = 3 * prm.rib_band[1] * width / ds
-    half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
+    half = min(
+        int(3 * sig), (n - 1) // 2
+    )  # (np.convolve "same" keeps n samples while n >= the kernel)
     x_g = np.arange(-half, half + 1)
     g = np.exp(-0.5 * (x_g / sig) ** 2)
-    x = np.array([(row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
-                  for row, mk in zip(lum, m)])
+    x = np.array(
+        [
+            (row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9))
+            * mk
+            for row, mk in zip(lum, m)
+        ]
+    )
     cnt = np.maximum(m.sum(axis=1), 1.0)  # samples read per line (a line with none has no variance)
     x -= (x.sum(axis=1) / cnt)[:, None] * m
-    var = (x ** 2).sum(axis=1) / cnt
+    var = (x**2).sum(axis=1) / cnt
     return x, cnt, var
 
 
@@ -273,7 +283,10 @@ def _ribs_in_view(reads, prm, sizes=None) -> float:
     for (pitch, p), key in zip(reads, sizes):
         if p < prm.rib_bar_p and math.isfinite(pitch):
             clear[key].append(pitch)
-    agree = sum(int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol)) for v in clear.values())
+    agree = sum(
+        int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol))
+        for v in clear.values()
+    )
     if agree < prm.rib_min_bars:
         return 1.0
     ps = [max(p, prm.rib_p_floor) for pitch, p in reads if math.isfinite(pitch)]

@@ -33,7 +33,7 @@ def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
 
 
 def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
-    """"lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
+    """ "lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
     ``t``; ``left2``, ``right2``: the same ends with the samples behind the bar or without depth
     left out) end, at that side only, in a strip behind the bar or without depth at least
     ``prm.sliver_min_px`` wide and half that wider than at the other end (medians over the
@@ -51,8 +51,11 @@ def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
     centre = float(np.median(t[left[rows] + 1] + t[right[rows] - 1])) / 2 / px_mm  # px, + to hi
     for side, strip, other, sign in (("hi", s_hi, s_lo, 1.0), ("lo", s_lo, s_hi, -1.0)):
         # off-centre by more than the axis's own lateral error could make it
-        if (strip >= prm.sliver_min_px and strip - other >= prm.sliver_min_px / 2
-                and sign * centre >= max((strip - other) / 4, 2 * prm.axis_sigma_mm / px_mm)):
+        if (
+            strip >= prm.sliver_min_px
+            and strip - other >= prm.sliver_min_px / 2
+            and sign * centre >= max((strip - other) / 4, 2 * prm.axis_sigma_mm / px_mm)
+        ):
             return side
     return ""
 
@@ -61,8 +64,7 @@ def _tangent_correct(width_mm, distance_mm):
     # Silhouette rays are tangent to the cylinder: they meet γ at ±r·D/√(D² − r²), slightly
     # wider than the bar. Invert for the radius (exact for a circular cross-section).
     half = np.asarray(width_mm, float) / 2
-    return 2 * half * distance_mm / np.sqrt(distance_mm ** 2 + half ** 2)
-
+    return 2 * half * distance_mm / np.sqrt(distance_mm**2 + half**2)
 
     # about d1 + 1.4h at others: crest widths are read as d1 + 1.7h ± 0.3h
 
@@ -115,7 +117,7 @@ def _colour_edges_rgb(c, t, t_lo, t_hi, px_mm, prm):
 
 def _thinned(idx, n: int):
     """Every k-th of ``idx``, k the smallest that leaves at most ``n`` of them."""
-    return idx[::max(1, -(-len(idx) // n))]
+    return idx[:: max(1, -(-len(idx) // n))]
 
 
 @dataclass
@@ -163,8 +165,19 @@ class _Sections:
     strip_side: str = ""
 
 
-def _refined_bar(i, bar: _Bar, maskf, gray, depth, intr, fp, prm: DiameterParams, rgb=None,
-                 depth_img=None, circle=False) -> BarReading:
+def _refined_bar(
+    i,
+    bar: _Bar,
+    maskf,
+    gray,
+    depth,
+    intr,
+    fp,
+    prm: DiameterParams,
+    rgb=None,
+    depth_img=None,
+    circle=False,
+) -> BarReading:
     """Read one bar's cross-sections (refined method).
 
     Parameters
@@ -225,21 +238,41 @@ def _profiles(bar: _Bar, shape, intr, prm) -> _Sections:
     inside_px = (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1) & (z > 0)
     in_img = inside_px[:, K // 2]  # the station itself is in the image
     nan = np.full(M, np.nan)
-    return _Sections(st, t, u, v, z, inside_px, in_img, ok=in_img.copy(),
-                     one_sided=np.zeros(M, bool), cut=np.zeros(M, bool), widths=nan.copy(),
-                     centres=nan.copy(), colour_w=nan.copy(), d_centre=nan.copy(),
-                     d_width=nan.copy(), edge_lo=nan.copy(), edge_hi=nan.copy(),
-                     side_lo=nan.copy(), side_hi=nan.copy())
+    return _Sections(
+        st,
+        t,
+        u,
+        v,
+        z,
+        inside_px,
+        in_img,
+        ok=in_img.copy(),
+        one_sided=np.zeros(M, bool),
+        cut=np.zeros(M, bool),
+        widths=nan.copy(),
+        centres=nan.copy(),
+        colour_w=nan.copy(),
+        d_centre=nan.copy(),
+        d_width=nan.copy(),
+        edge_lo=nan.copy(),
+        edge_hi=nan.copy(),
+        side_lo=nan.copy(),
+        side_hi=nan.copy(),
+    )
 
 
 def _occlusion(i, bar: _Bar, sec: _Sections, fp, prm):
     """Mark the stations whose section lies under a nearer bar across the expected width (for
     "hidden"); the bars whose footprints reach the bar's window (their indices)."""
     u, v, in_img, st, M = sec.u, sec.v, sec.in_img, sec.st, len(sec.st)
-    win_uv = (np.column_stack((u[in_img].ravel(), v[in_img].ravel())) if in_img.any()
-              else np.zeros((1, 2)))
-    cand = _candidates(i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(),
-                               win_uv[:, 1].max()])
+    win_uv = (
+        np.column_stack((u[in_img].ravel(), v[in_img].ravel()))
+        if in_img.any()
+        else np.zeros((1, 2))
+    )
+    cand = _candidates(
+        i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(), win_uv[:, 1].max()]
+    )
     probe_t = np.array(prm.probe_fractions) * bar.expected_mm
     occluded = np.zeros(M, bool)
     if len(cand):
@@ -267,13 +300,21 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
         # out beside it: the mask alone cannot separate the two, the point cloud can.
         import cv2
 
-        dz = cv2.remap(depth, u.astype(np.float32), v.astype(np.float32), cv2.INTER_NEAREST,
-                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        dz = cv2.remap(
+            depth,
+            u.astype(np.float32),
+            v.astype(np.float32),
+            cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
         # no depth counts too: beside a bar the projector's shadow often hides the bar behind,
         # unless the bar itself has none (then the pixels without depth are its own)
         deep = b & (dz > z + bar.expected_mm / 2 + prm.behind_mm)
         core = np.abs(t) <= bar.expected_mm / 4
-        own_none = in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
+        own_none = (
+            in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
+        )
         behind = deep if own_none else deep | (b & (dz <= 0))
     kc = K // 2
     idx = np.arange(K)
@@ -306,8 +347,11 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     # where the depth cannot cut it off (and where it can, the sections cut there and those
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
-    sec.strip_side = "" if depth is None else _holed_side(t, left, right, left2, right2,
-                                                          in_img & has_seed, sample_px, prm)
+    sec.strip_side = (
+        ""
+        if depth is None
+        else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
+    )
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     # An edge is where the run meets a non-bar sample inside the image; a run that meets the
@@ -332,8 +376,7 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     sec.m, sec.behind, sec.left, sec.right = m, behind, left, right
 
 
-def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
-                   reading) -> None:
+def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm, reading) -> None:
     """Both edges of the sections ``rows`` to a fraction of a sample, checked against the colour
     image and against the other bars' footprints; each section's width, centre and edges."""
     t, pl = sec.t, bar.plane
@@ -357,8 +400,9 @@ def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
     sec.cut[rows] = two & (cut_lo | cut_hi)
     if rgb is not None and prm.colour_edges and two.any():
         _colour_check(sec, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading)
-    bad_lo, bad_hi = _edges_at_other_bars(i, sec, rows, t_lo, t_hi, two, has_lo, has_hi, cand,
-                                          pl, intr, fp, reading)
+    bad_lo, bad_hi = _edges_at_other_bars(
+        i, sec, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading
+    )
     if sec.strip_side:  # nor is the end at a strip without depth beside the bar (_mask_runs)
         reading.holed = int(two.sum())
         bad_lo |= sec.strip_side == "lo"
@@ -393,15 +437,17 @@ def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
         sec.one_sided[:] = False
 
 
-def _colour_check(sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm,
-                  reading) -> None:
+def _colour_check(
+    sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading
+) -> None:
     """The colour edges next to the two-edged sections' mask edges: their widths
     (``sec.colour_w``), and with ``prm.colour_edges == "replace"`` the edges themselves (in
     place in ``t_lo``, ``t_hi``; never an edge cut at a depth step)."""
     r2 = rows[two]
     g = _remap(rgb, sec.u[r2], sec.v[r2])
-    c_lo, c_hi, moved = _colour_edges_rgb(g, sec.t, t_lo[two], t_hi[two], sec.st[r2, 2] / intr.fx,
-                                          prm)
+    c_lo, c_hi, moved = _colour_edges_rgb(
+        g, sec.t, t_lo[two], t_hi[two], sec.st[r2, 2] / intr.fx, prm
+    )
     reading.colour_edges = int(moved.sum())
     both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
     sec.colour_w[r2[both]] = (c_hi - c_lo)[both]
@@ -410,8 +456,9 @@ def _colour_check(sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, in
         t_hi[two] = np.where(cut_hi[two], t_hi[two], c_hi)
 
 
-def _edges_at_other_bars(i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl,
-                         intr, fp, reading):
+def _edges_at_other_bars(
+    i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading
+):
     """Per section of ``rows``, whether its low and its high edge may belong to another bar:
     inside the footprint of a nearer bar (ours is occluded there), or beyond our own expected
     width and inside a farther bar's footprint (our run merged with the bar behind)."""
@@ -420,8 +467,9 @@ def _edges_at_other_bars(i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_h
     if len(cand):
         st = sec.st
         px_mm = st[rows, 2] / intr.fx
-        tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi,
-                              t_hi + 1.5 * px_mm))
+        tt = np.column_stack(
+            (t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm)
+        )
         P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
         inside, nearer = _hits_footprints(P, fp, cand)
         beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
@@ -440,8 +488,12 @@ def _shadowed_sections(bar: _Bar, sec: _Sections, gray, intr, prm, reading) -> N
     K = len(t)
     rows = np.flatnonzero(ok | one_sided)
     if len(rows) >= prm.min_sections:
-        pos = np.where(ok[rows], 0.0, (t[np.clip(sec.left[rows] + 1, 0, K - 1)]
-                                       + t[np.clip(sec.right[rows] - 1, 0, K - 1)]) / 2)
+        pos = np.where(
+            ok[rows],
+            0.0,
+            (t[np.clip(sec.left[rows] + 1, 0, K - 1)] + t[np.clip(sec.right[rows] - 1, 0, K - 1)])
+            / 2,
+        )
         uvc = project(sec.st[rows] + pos[:, None] * bar.plane.across, intr)
         lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
         dark = lum < prm.shadow_ratio * np.median(lum)
@@ -480,18 +532,19 @@ def _kept_widths(bar: _Bar, sec: _Sections, intr, prm, reading):
     return w, c, cw, kept, cut_off
 
 
-def _read_ribs(i, bar: _Bar, sec: _Sections, w, kept, cut_off, s_k, intr, fp, prm,
-               reading) -> None:
+def _read_ribs(i, bar: _Bar, sec: _Sections, w, kept, cut_off, s_k, intr, fp, prm, reading) -> None:
     """The crests and core of the bar's widths and, where they differ by more than the pixel
     grid's steps, the period of the widths along the bar (its rib pitch)."""
     st = sec.st
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
         reading.crest_mm, reading.core_mm = (
-            float(q) for q in np.quantile(w, [prm.crest_quantile, prm.core_quantile]))
+            float(q) for q in np.quantile(w, [prm.crest_quantile, prm.core_quantile])
+        )
     # A binary mask's width along a slanted bar steps by a pixel periodically as its edges cross
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
     if math.isfinite(reading.crest_mm) and reading.crest_mm - reading.core_mm >= (
-            prm.rib_min_px * float(np.median(st[kept, 2])) / intr.fx):
+        prm.rib_min_px * float(np.median(st[kept, 2])) / intr.fx
+    ):
         reading.rib_pitch_mm, reading.rib_p = _rib_periodicity(s_k, w, band=prm.rib_band)
         reading.rib_length_mm = float(s_k.max() - s_k.min())
     # The crests are the widest sections, and where a bar's silhouette touches one beside it
@@ -514,16 +567,33 @@ def _read_cloud(bar: _Bar, sec: _Sections, kept, depth_img, circle, intr, prm, r
     st, pl, occluded = sec.st, bar.plane, sec.occluded
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
-    (reading.depth_width_mm, reading.depth_spread_mm, reading.depth_points,
-     reading.depth_off_share) = _depth_width(
-        depth_img, intr, pl, st[ck], sec.d_centre[ck], sec.d_width[ck], prm, bar.expected_mm,
-        occluded[ck]) if depth_img is not None else (math.nan, math.nan, 0, math.nan)
+    (
+        reading.depth_width_mm,
+        reading.depth_spread_mm,
+        reading.depth_points,
+        reading.depth_off_share,
+    ) = (
+        _depth_width(
+            depth_img,
+            intr,
+            pl,
+            st[ck],
+            sec.d_centre[ck],
+            sec.d_width[ck],
+            prm,
+            bar.expected_mm,
+            occluded[ck],
+        )
+        if depth_img is not None
+        else (math.nan, math.nan, 0, math.nan)
+    )
     # that share was read where every section lies under a nearer bar
     reading.depth_off_covered = bool(len(ck) and occluded[ck].all())
     if depth_img is not None and circle:  # (only for axes placed with an assumed radius)
         two_k = _thinned(kept[~sec.one_sided[kept]], prm.cloud_sections)
         reading.circle_width_mm, reading.circle_sigma_mm = _cloud_circle(
-            depth_img, intr, pl, st[two_k], sec.centres[two_k], sec.widths[two_k], prm)
+            depth_img, intr, pl, st[two_k], sec.centres[two_k], sec.widths[two_k], prm
+        )
 
 
 def _read_colour_and_place(sec: _Sections, c, cw, kept, s_k, gray, intr, prm, reading) -> None:
@@ -540,8 +610,9 @@ def _read_colour_and_place(sec: _Sections, c, cw, kept, s_k, gray, intr, prm, re
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
     two_kept = ~sec.one_sided[kept]  # a one-sided section has no centre of its own
-    reading.centre_mm = (float(np.median(c[two_kept])) if two_kept.any()
-                         else (0.0 if len(c) else math.nan))
+    reading.centre_mm = (
+        float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
+    )
     reading.px_mm = float(np.median(st[:, 2])) / intr.fx
     # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
     # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same

@@ -60,16 +60,44 @@ from .levels import assign_levels, level_heights, stack_heights, top_heights
 from .paper import group_directions, paper_find_bars, paper_spacings
 from .params import GeometryParams
 from .partial import flag_border_cut
-from .plane import (Plane, fit_formwork, from_slab_frame, paper_fit_formwork, plane_frame,
-                    to_slab_frame)
+from .plane import (
+    Plane,
+    fit_formwork,
+    from_slab_frame,
+    paper_fit_formwork,
+    plane_frame,
+    to_slab_frame,
+)
 from .second_look import _in_image, find_missed_bars  # noqa: F401  (_in_image: rebarlib._counts)
 from .spacing import _pair_spacing, bars_table, count_bars, measure_spacings  # noqa: F401
 
 __all__ = [
-    "Plane", "BarAxis", "fit_formwork", "paper_fit_formwork", "plane_frame", "to_slab_frame",
-    "from_slab_frame", "split_layers", "find_layer_split", "bar_directions", "find_bars",
-    "paper_find_bars", "group_directions", "bars_table", "measure_spacings", "paper_spacings",
-    "level_heights", "stack_heights", "top_heights", "count_bars", "envelope_mm",
-    "direction_sharpness", "flag_border_cut", "assign_levels", "find_missed_bars", "LAYERS",
-    "LEVELS", "GeometryParams",
+    "Plane",
+    "BarAxis",
+    "fit_formwork",
+    "paper_fit_formwork",
+    "plane_frame",
+    "to_slab_frame",
+    "from_slab_frame",
+    "split_layers",
+    "find_layer_split",
+    "bar_directions",
+    "find_bars",
+    "paper_find_bars",
+    "group_directions",
+    "bars_table",
+    "measure_spacings",
+    "paper_spacings",
+    "level_heights",
+    "stack_heights",
+    "top_heights",
+    "count_bars",
+    "envelope_mm",
+    "direction_sharpness",
+    "flag_border_cut",
+    "assign_levels",
+    "find_missed_bars",
+    "LAYERS",
+    "LEVELS",
+    "GeometryParams",
 ]

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._design import DEFAULT_BAR_SYSTEM
+
 
 @dataclass(frozen=True)
 class BarAxis:
@@ -62,13 +64,17 @@ class BarAxis:
 
     def plan_point(self, t) -> np.ndarray:
         t = np.asarray(t, float)
-        return (t[..., None] * self.direction
-                + (self.offset_mm + self.slope * t)[..., None] * self.normal2d)
+        return (
+            t[..., None] * self.direction
+            + (self.offset_mm + self.slope * t)[..., None] * self.normal2d
+        )
 
     def axis_points(self, t) -> np.ndarray:
         """(…, 3) slab-frame points of the axis at ``t``."""
         t = np.asarray(t, float)
-        return np.concatenate([self.plan_point(t), (self.centre_h_mm + self.h_slope * t)[..., None]], axis=-1)
+        return np.concatenate(
+            [self.plan_point(t), (self.centre_h_mm + self.h_slope * t)[..., None]], axis=-1
+        )
 
     @property
     def axis_height_mm(self) -> float:
@@ -88,7 +94,7 @@ class BarAxis:
         return math.degrees(math.atan2(self.direction[1], self.direction[0])) % 180.0
 
 
-def envelope_mm(nominal_mm: float, system: str = "GB1499.2") -> float:
+def envelope_mm(nominal_mm: float, system: str = DEFAULT_BAR_SYSTEM) -> float:
     """Outer diameter over the ribs (what a depth camera sees) of a nominal size: the bar
     sizes' :func:`~rebarlib.diameter.barsizes.observed_width_mm` of a deformed bar.
 

@@ -36,7 +36,9 @@ def direction_sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
     return out
 
 
-def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 30.0, rng=None) -> list:
+def bar_directions(
+    plan, *, max_points: int = 5000, min_separation_deg: float = 30.0, rng=None
+) -> list:
     """The dominant bar directions (plan angles in degrees, [0, 180)) of one lattice's points.
 
     Bars are long and straight, so offsets across the true direction pile up into narrow peaks:
@@ -56,7 +58,9 @@ def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 
     plan = np.asarray(plan, float)
     if len(plan) < 20:
         return []
-    sub = plan if len(plan) <= max_points else plan[rng.choice(len(plan), max_points, replace=False)]
+    sub = (
+        plan if len(plan) <= max_points else plan[rng.choice(len(plan), max_points, replace=False)]
+    )
     coarse = np.radians(np.arange(0.0, 180.0, 1.0))
     s = direction_sharpness(sub, coarse, 4.0)
     dirs = []
@@ -76,8 +80,16 @@ def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 
     return dirs
 
 
-def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.0, max_gap_mm: float = 10.0,
-                    min_cell_points: int = 2):
+def _bar_candidates(
+    off,
+    along,
+    *,
+    radius_mm,
+    min_length_mm,
+    cell_mm: float = 5.0,
+    max_gap_mm: float = 10.0,
+    min_cell_points: int = 2,
+):
     """Offsets (mm) across a direction at which the points run continuously along it.
 
     The points are rasterised in (offset, along) cells of 1 mm × ``cell_mm``; a cell counts as
@@ -135,16 +147,29 @@ def _bar_candidates(off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.
         centre = float((rows_ * wts).sum() / wts.sum()) if wts.sum() > 0 else 0.5 * (j0 + j1)
         centres.append(o0 + centre + 0.5)
         runs.append(float(run[i]))
-        free[max(0, j0 - w):j1 + w + 1] = False
+        free[max(0, j0 - w) : j1 + w + 1] = False
     order = np.argsort(centres)
     return np.array(centres)[order], np.array(runs)[order]
 
 
-def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min_points: int = 30,
-              window_mm: float | None = None, min_inlier_fraction: float = 0.6, max_rms_ratio: float = 3.0,
-              pitch_mm: float | None = None, min_arc_deg: float = 90.0, max_arc_deg: float = 200.0,
-              camera=None, skew_check_deg: float = 2.0, rng=None,
-              params: GeometryParams | None = None) -> list:
+def find_bars(
+    points,
+    *,
+    layer: str,
+    radius_mm,
+    min_length_mm: float = 50.0,
+    min_points: int = 30,
+    window_mm: float | None = None,
+    min_inlier_fraction: float = 0.6,
+    max_rms_ratio: float = 3.0,
+    pitch_mm: float | None = None,
+    min_arc_deg: float = 90.0,
+    max_arc_deg: float = 200.0,
+    camera=None,
+    skew_check_deg: float = 2.0,
+    rng=None,
+    params: GeometryParams | None = None,
+) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
 
@@ -202,17 +227,30 @@ def find_bars(points, *, layer: str, radius_mm, min_length_mm: float = 50.0, min
     dirs = bar_directions(plan, rng=rng)
     radii = radius_mm if isinstance(radius_mm, dict) else {0: float(radius_mm), 1: float(radius_mm)}
     max_r = max(radii.values())
-    cand = [_direction_band(g, ang, plan, radii.get(g, max_r), min_extent, pitch_mm, window_mm, prm)
-            for g, ang in enumerate(dirs)]
+    cand = [
+        _direction_band(g, ang, plan, radii.get(g, max_r), min_extent, pitch_mm, window_mm, prm)
+        for g, ang in enumerate(dirs)
+    ]
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
         ambiguous = cand[0].member & cand[1].member
     bars = []
     for dn in cand:
         for k, c in enumerate(dn.centres):
-            bar = _candidate_bar(dn, k, c, h, ambiguous, layer=layer, min_points=min_points,
-                                 min_extent=min_extent, min_inlier_fraction=min_inlier_fraction,
-                                 skew_check_deg=skew_check_deg, camera=camera, prm=prm)
+            bar = _candidate_bar(
+                dn,
+                k,
+                c,
+                h,
+                ambiguous,
+                layer=layer,
+                min_points=min_points,
+                min_extent=min_extent,
+                min_inlier_fraction=min_inlier_fraction,
+                skew_check_deg=skew_check_deg,
+                camera=camera,
+                prm=prm,
+            )
             if bar is not None:
                 bars.append(bar)
     # sparse bars: a stretch whose depth is mostly lost (too few points for the density test
@@ -256,10 +294,19 @@ def _direction_band(g, ang, plan, r, min_extent, pitch_mm, window_mm, prm) -> _D
     n2 = np.array([-d[1], d[0]])
     off = plan @ n2
     along = plan @ d
-    min_cell = (2 if pitch_mm is None
-                else max(2, int(prm.min_cell_share * prm.cell_mm * 2 * r / pitch_mm**2)))
-    centres, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent,
-                                 cell_mm=prm.cell_mm, min_cell_points=min_cell)
+    min_cell = (
+        2
+        if pitch_mm is None
+        else max(2, int(prm.min_cell_share * prm.cell_mm * 2 * r / pitch_mm**2))
+    )
+    centres, _ = _bar_candidates(
+        off,
+        along,
+        radius_mm=r,
+        min_length_mm=min_extent,
+        cell_mm=prm.cell_mm,
+        min_cell_points=min_cell,
+    )
     win = window_mm if window_mm is not None else r + prm.window_margin_mm
     if len(centres):
         j = np.searchsorted(centres, off)
@@ -272,8 +319,21 @@ def _direction_band(g, ang, plan, r, min_extent, pitch_mm, window_mm, prm) -> _D
     return _Direction(g, d, n2, off, along, r, centres, near, member, win)
 
 
-def _candidate_bar(dn: _Direction, k, c, h, ambiguous, *, layer, min_points, min_extent,
-                   min_inlier_fraction, skew_check_deg, camera, prm):
+def _candidate_bar(
+    dn: _Direction,
+    k,
+    c,
+    h,
+    ambiguous,
+    *,
+    layer,
+    min_points,
+    min_extent,
+    min_inlier_fraction,
+    skew_check_deg,
+    camera,
+    prm,
+):
     """The bar at candidate ``k`` (offset ``c``) of a direction: its points' stretch, the
     cylinder fitted to them (:func:`_fitted_bar`), or a "not measured" bar with too few points
     for a fit; None where there is no bar."""
@@ -289,24 +349,69 @@ def _candidate_bar(dn: _Direction, k, c, h, ambiguous, *, layer, min_points, min
     t = along[idx]
     # the bar's extent: the longest run of occupied 5 mm cells (a peak can also catch a
     # few stray points far away along the line)
-    t0, t1 = _longest_run(t, cell_mm=prm.run_cell_mm,
-                          max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r))
+    t0, t1 = _longest_run(
+        t, cell_mm=prm.run_cell_mm, max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r)
+    )
     sel = (t >= t0) & (t <= t1)
     idx, t = idx[sel], t[sel]
     length = float(t1 - t0)
     if length < min_extent:
         return None
     if len(idx) < min_points:
-        return BarAxis(layer, d, float(c), 0.0, float(np.median(h[idx])) - r, 0.0, float(t0),
-                       float(t1), r, len(idx), float("nan"), idx, g, status="not measured",
-                       reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit")
-    return _fitted_bar(dn, c, idx, t, t0, t1, h, ambiguous, layer=layer, min_points=min_points,
-                       min_extent=min_extent, min_inlier_fraction=min_inlier_fraction,
-                       skew_check_deg=skew_check_deg, camera=camera, prm=prm)
+        return BarAxis(
+            layer,
+            d,
+            float(c),
+            0.0,
+            float(np.median(h[idx])) - r,
+            0.0,
+            float(t0),
+            float(t1),
+            r,
+            len(idx),
+            float("nan"),
+            idx,
+            g,
+            status="not measured",
+            reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit",
+        )
+    return _fitted_bar(
+        dn,
+        c,
+        idx,
+        t,
+        t0,
+        t1,
+        h,
+        ambiguous,
+        layer=layer,
+        min_points=min_points,
+        min_extent=min_extent,
+        min_inlier_fraction=min_inlier_fraction,
+        skew_check_deg=skew_check_deg,
+        camera=camera,
+        prm=prm,
+    )
 
 
-def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, *, layer, min_points,
-                min_extent, min_inlier_fraction, skew_check_deg, camera, prm):
+def _fitted_bar(
+    dn: _Direction,
+    c,
+    idx,
+    t,
+    t0,
+    t1,
+    h,
+    ambiguous,
+    *,
+    layer,
+    min_points,
+    min_extent,
+    min_inlier_fraction,
+    skew_check_deg,
+    camera,
+    prm,
+):
     """A candidate's cylinder, refitted on its band re-centred (:func:`_refit_band`), kept
     parallel unless a skew fits clearly better, on the side facing the camera and with the
     depth noise's bias out; None where most of its points are not on the cylinder."""
@@ -339,11 +444,32 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, *, layer, min_p
     arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
     status, reason = "measured", ""
     if camera is not None and not facing:
-        status, reason = "not measured", ("its points face away from the camera from either side of "
-                                          "them: a flank seen alone, its axis cannot be placed")
-    return BarAxis(layer, d, float(c + a0), float(a1), float(b0), float(b1), float(tt.min()),
-                   float(tt.max()), r, int(keep.sum()), rms, idx[keep], g, status=status,
-                   reason=reason, arc_deg=arc, axis_se_mm=float(max(se)))
+        status, reason = (
+            "not measured",
+            (
+                "its points face away from the camera from either side of "
+                "them: a flank seen alone, its axis cannot be placed"
+            ),
+        )
+    return BarAxis(
+        layer,
+        d,
+        float(c + a0),
+        float(a1),
+        float(b0),
+        float(b1),
+        float(tt.min()),
+        float(tt.max()),
+        r,
+        int(keep.sum()),
+        rms,
+        idx[keep],
+        g,
+        status=status,
+        reason=reason,
+        arc_deg=arc,
+        axis_se_mm=float(max(se)),
+    )
 
 
 def _refit_band(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, min_points, prm):
@@ -361,11 +487,17 @@ def _refit_band(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, min_points, prm
         (a0, a1, b0, b1), w, rms, _ = fit
         pred = c + a0 + a1 * along
         h_axis = b0 + b1 * along
-        reach = r + max(prm.refit_reach_mm, prm.refit_reach_rms * rms if np.isfinite(rms)
-                        else prm.refit_reach_mm)
-        near_axis = ((np.abs(off - pred) < win) & ~ambiguous & (along >= t0 - prm.refit_margin_mm)
-                     & (along <= t1 + prm.refit_margin_mm)
-                     & (np.abs(h - h_axis) < reach))
+        reach = r + max(
+            prm.refit_reach_mm,
+            prm.refit_reach_rms * rms if np.isfinite(rms) else prm.refit_reach_mm,
+        )
+        near_axis = (
+            (np.abs(off - pred) < win)
+            & ~ambiguous
+            & (along >= t0 - prm.refit_margin_mm)
+            & (along <= t1 + prm.refit_margin_mm)
+            & (np.abs(h - h_axis) < reach)
+        )
         idx2 = np.where(near_axis)[0]
         if len(idx2) < min_points:
             break
@@ -383,13 +515,22 @@ def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
         hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
         if len(hs) >= 2:
             med, tol = float(np.median(hs)), prm.level_tol_radii * radii.get(g, max_r)
-            bars = [b for b in bars if b.group != g or b.status != "measured"
-                    or b.axis_height_mm >= med - tol]
-            bars = [replace(b, status="not measured",
-                             reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
-                                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed")
-                    if b.group == g and b.status == "measured" and b.axis_height_mm > med + tol
-                    else b for b in bars]
+            bars = [
+                b
+                for b in bars
+                if b.group != g or b.status != "measured" or b.axis_height_mm >= med - tol
+            ]
+            bars = [
+                replace(
+                    b,
+                    status="not measured",
+                    reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
+                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed",
+                )
+                if b.group == g and b.status == "measured" and b.axis_height_mm > med + tol
+                else b
+                for b in bars
+            ]
     return bars
 
 
@@ -401,20 +542,35 @@ def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> l
     dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == "measured"]
     if dens:
         typical = float(np.median(dens))
-        bars = [replace(b, status="not measured",
-                         reason=(f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
-                                 f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
-                                 f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"))
-                if b.status == "measured" and (
-                    b.arc_deg < prm.arc_min_share * min_arc_deg or b.arc_deg > max_arc_deg or (
-                        b.arc_deg < min_arc_deg
-                        and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < prm.sparse_density_share * typical))
-                else b for b in bars]
+        bars = [
+            replace(
+                b,
+                status="not measured",
+                reason=(
+                    f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
+                    f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
+                    f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"
+                ),
+            )
+            if b.status == "measured"
+            and (
+                b.arc_deg < prm.arc_min_share * min_arc_deg
+                or b.arc_deg > max_arc_deg
+                or (
+                    b.arc_deg < min_arc_deg
+                    and b.n_points / max(b.t1_mm - b.t0_mm, 1.0)
+                    < prm.sparse_density_share * typical
+                )
+            )
+            else b
+            for b in bars
+        ]
     return bars
 
 
-def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float,
-                 min_points: int = 8) -> list:
+def _sparse_bars(
+    bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float, min_points: int = 8
+) -> list:
     out = []
     # points already fitted as part of a bar (the crossing bars above or below, a neighbour)
     # are not evidence of another bar: without them, what is left along a loose run is the
@@ -430,7 +586,9 @@ def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent
         axis_h = float(np.median([b.axis_height_mm for b in same]))
         top = axis_h + r
         known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
-        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1)
+        loose, _ = _bar_candidates(
+            off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1
+        )
         for c in loose:
             if len(known) and np.min(np.abs(known - c)) < 2.5 * r:
                 continue
@@ -455,10 +613,26 @@ def _sparse_bars(bars: list, cand: list, ambiguous, h, *, layer: str, min_extent
             if len(np.unique(np.floor(ta[inside & on_bar] / 5.0))) < 0.8 * n_cells:
                 continue
             keep = (t >= t0) & (t <= t1)
-            out.append(BarAxis(layer, d, float(np.median(off[idx][keep])), 0.0, axis_h, 0.0, float(t0), float(t1), r,
-                               int(keep.sum()), float("nan"), idx[keep], g, status="not measured",
-                               reason=f"only {int(keep.sum())} points over {t1 - t0:.0f} mm (its depth is mostly "
-                                      "missing): too few to fit its cross-section"))
+            out.append(
+                BarAxis(
+                    layer,
+                    d,
+                    float(np.median(off[idx][keep])),
+                    0.0,
+                    axis_h,
+                    0.0,
+                    float(t0),
+                    float(t1),
+                    r,
+                    int(keep.sum()),
+                    float("nan"),
+                    idx[keep],
+                    g,
+                    status="not measured",
+                    reason=f"only {int(keep.sum())} points over {t1 - t0:.0f} mm (its depth is mostly "
+                    "missing): too few to fit its cross-section",
+                )
+            )
             known = np.append(known, c)
     return out
 

@@ -9,8 +9,18 @@ import math
 import numpy as np
 
 
-def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None, parallel=False,
-             ray=None):
+def _fit_bar(
+    t,
+    s,
+    h,
+    radius,
+    *,
+    iters: int = 12,
+    max_fit_points: int = 1500,
+    start=None,
+    parallel=False,
+    ray=None,
+):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
     Model: across-offset ``a0 + a1·t``, height ``b0 + b1·t``; residual = distance to the axis −
@@ -28,8 +38,11 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
     Returns (params, weights, rms, (se of the offset, se of the height)).
     """
     tc = t - t.mean()
-    a = (np.array(start, float) if start is not None
-         else np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0]))
+    a = (
+        np.array(start, float)
+        if start is not None
+        else np.array([np.median(s), 0.0, np.percentile(h, 95) - radius, 0.0])
+    )
     if parallel:
         a[1] = 0.0
     # the iterations run on at most max_fit_points evenly spread points (1500 points place an
@@ -99,12 +112,12 @@ def _noise_bias(cs, ch, rho, r, w, us, uh, ts, parallel) -> np.ndarray:
     """
     a = us * cs + uh * ch
     b = uh * cs - us * ch
-    den = float(np.sum(w * a ** 2))
+    den = float(np.sum(w * a**2))
     if den <= 0.1 * float(np.sum(w)):
         return np.zeros(4)
     var = _ray_variance(r, a, w)
-    ms = var * (b ** 2 / (2 * rho) * cs - a * b / rho * ch)
-    mh = var * (b ** 2 / (2 * rho) * ch + a * b / rho * cs)
+    ms = var * (b**2 / (2 * rho) * cs - a * b / rho * ch)
+    mh = var * (b**2 / (2 * rho) * ch + a * b / rho * cs)
     out = np.array([np.sum(w * ms), np.sum(w * ts * ms), np.sum(w * mh), np.sum(w * ts * mh)])
     if parallel:
         out[1] = 0.0
@@ -120,7 +133,7 @@ def _ray_variance(r, a, w) -> float:
     that was read as depth noise several times too large (a bar seen on one side only, 72° of its
     cross-section: σ² 1.19 mm² against about 0.4 mm² from the sensor, and its underside moved
     0.45 mm down)."""
-    k = (w > 0) & (a ** 2 >= 0.5)
+    k = (w > 0) & (a**2 >= 0.5)
     if k.sum() < 20:
         k = w > 0
     return float(np.sum(w[k] * r[k] ** 2)) / max(float(np.sum(w[k] * a[k] ** 2)), 1e-9)
@@ -182,6 +195,13 @@ def _refit_along_rays(fit, t, s, h, r, camera, c, d, n2):
     vs = s + c - float(cam[:2] @ n2)
     vt = t - float(cam[:2] @ d)
     vh = h - float(cam[2])
-    norm = np.sqrt(vs ** 2 + vt ** 2 + vh ** 2) + 1e-9
-    return _fit_bar(t, s, h, r, start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1), parallel=a1 == 0.0,
-                    ray=(vs / norm, vh / norm))
+    norm = np.sqrt(vs**2 + vt**2 + vh**2) + 1e-9
+    return _fit_bar(
+        t,
+        s,
+        h,
+        r,
+        start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1),
+        parallel=a1 == 0.0,
+        ray=(vs / norm, vh / norm),
+    )

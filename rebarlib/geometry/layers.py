@@ -8,8 +8,9 @@ import numpy as np
 LAYERS, LEVELS = ("lower", "upper"), ("bottom", "top")
 
 
-def find_layer_split(heights, *, bin_mm: float = 1.0, min_gap_mm: float = 6.0,
-                     empty_fraction: float = 0.03) -> float | None:
+def find_layer_split(
+    heights, *, bin_mm: float = 1.0, min_gap_mm: float = 6.0, empty_fraction: float = 0.03
+) -> float | None:
     """Height (mm) between the two lattices: the middle of the widest nearly empty band of the
     height histogram of the bar points, or ``None`` when there is no such band (one lattice).
 

@@ -22,9 +22,19 @@ def _line_distances(points, p0, dirs):
     return np.sqrt(np.maximum(d2, 0))
 
 
-def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int = 460,
-                    stop_fraction: float = 0.06, min_count_ratio: float = 0.4, max_bars: int = 80,
-                    chunk: int = 40, score_points: int = 4000, rng=None) -> list:
+def paper_find_bars(
+    points,
+    *,
+    layer: str,
+    threshold_mm: float,
+    max_trials: int = 460,
+    stop_fraction: float = 0.06,
+    min_count_ratio: float = 0.4,
+    max_bars: int = 80,
+    chunk: int = 40,
+    score_points: int = 4000,
+    rng=None,
+) -> list:
     """The paper's sequential RANSAC lines in one lattice (slab-frame points).
 
     Hypotheses (pairs of points) are evaluated in vectorised chunks. Each accepted line is refitted
@@ -54,12 +64,17 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
     n_total = len(q)
     remaining = np.arange(n_total)
     found = []
-    while len(remaining) > stop_fraction * n_total and len(found) < max_bars and len(remaining) >= 2:
+    while (
+        len(remaining) > stop_fraction * n_total and len(found) < max_bars and len(remaining) >= 2
+    ):
         pts_all = q[remaining]
         # hypotheses are scored on a random subset (the count ranks hypotheses the same way up
         # to sampling noise); the chosen line's inliers are then taken from all points
-        pts = (pts_all if len(pts_all) <= score_points
-               else pts_all[rng.choice(len(pts_all), score_points, replace=False)])
+        pts = (
+            pts_all
+            if len(pts_all) <= score_points
+            else pts_all[rng.choice(len(pts_all), score_points, replace=False)]
+        )
         best_n, best = -1, None
         for s in range(0, max_trials, chunk):
             k = min(chunk, max_trials - s)
@@ -97,8 +112,22 @@ def paper_find_bars(points, *, layer: str, threshold_mm: float, max_trials: int 
         n2 = np.array([-d2[1], d2[0]])
         t = q[idx, :2] @ d2
         off = float(c[:2] @ n2)
-        bars.append(BarAxis(layer, d2, off, 0.0, float(q[idx, 2].mean()), 0.0, float(t.min()), float(t.max()),
-                            0.0, len(idx), float("nan"), idx))
+        bars.append(
+            BarAxis(
+                layer,
+                d2,
+                off,
+                0.0,
+                float(q[idx, 2].mean()),
+                0.0,
+                float(t.min()),
+                float(t.max()),
+                0.0,
+                len(idx),
+                float("nan"),
+                idx,
+            )
+        )
     return bars
 
 
@@ -122,7 +151,9 @@ def group_directions(bars: list, *, rng=None) -> list:
         if not members:
             continue
         # common direction of the group, so offsets are comparable
-        mean_ang = 0.5 * math.atan2(np.sin(2 * ang[members]).mean(), np.cos(2 * ang[members]).mean())
+        mean_ang = 0.5 * math.atan2(
+            np.sin(2 * ang[members]).mean(), np.cos(2 * ang[members]).mean()
+        )
         d = np.array([math.cos(mean_ang), math.sin(mean_ang)])
         for i in members:
             b = bars[i]
@@ -131,13 +162,27 @@ def group_directions(bars: list, *, rng=None) -> list:
             p = b.plan_point(np.array([b.t0_mm, b.t1_mm]))
             n2 = np.array([-bd[1], bd[0]])
             t = p @ bd
-            out.append(replace(b, direction=bd, offset_mm=float(p[0] @ n2), t0_mm=float(t.min()),
-                               t1_mm=float(t.max()), group=g))
+            out.append(
+                replace(
+                    b,
+                    direction=bd,
+                    offset_mm=float(p[0] @ n2),
+                    t0_mm=float(t.min()),
+                    t1_mm=float(t.max()),
+                    group=g,
+                )
+            )
     return out
 
 
-def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | None = None,
-                   n_sample: int = 1000, rng=None) -> pd.DataFrame:
+def paper_spacings(
+    bars: list,
+    points_by_layer: dict,
+    *,
+    design_spacing: dict | None = None,
+    n_sample: int = 1000,
+    rng=None,
+) -> pd.DataFrame:
     """The paper's spacing: mean distance of ``n_sample`` random points of one bar to the fitted
     axis of its neighbour (3-D, slab frame).
 
@@ -164,7 +209,17 @@ def paper_spacings(bars: list, points_by_layer: dict, *, design_spacing: dict | 
         d3 = np.r_[b.direction, 0.0]
         s = float(_line_distances(p, p0, d3[None])[0].mean())
         ds = (design_spacing or {}).get((layer, level))
-        rows.append({"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)],
-                     "spacing_mm": s, "design_spacing_mm": ds,
-                     "deviation_mm": None if ds is None else s - ds, "status": "measured", "reason": ""})
+        rows.append(
+            {
+                "layer": layer,
+                "level": level,
+                "bar_a": ids[id(a)],
+                "bar_b": ids[id(b)],
+                "spacing_mm": s,
+                "design_spacing_mm": ds,
+                "deviation_mm": None if ds is None else s - ds,
+                "status": "measured",
+                "reason": "",
+            }
+        )
     return _spacing_frame(rows)

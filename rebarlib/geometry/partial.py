@@ -26,13 +26,23 @@ def _approximate_axes(bars: list, offsets: dict, h=None, camera=None) -> list:
     noise = _layer_noise(bars)
     out = []
     for b in bars:
-        if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
+        if (
+            b.status == "measured"
+            or b.point_index is None
+            or len(b.point_index) == 0
+            or b.group not in offsets
+        ):
             out.append(b)
             continue
         height = levels.get(b.group, b.axis_height_mm)
         hb = None if h is None or b.group not in levels else h[b.point_index]
-        out.append(_level_axis(b, _placed_offset(b, offsets[b.group][b.point_index], hb, height, camera, noise),
-                               height))
+        out.append(
+            _level_axis(
+                b,
+                _placed_offset(b, offsets[b.group][b.point_index], hb, height, camera, noise),
+                height,
+            )
+        )
     return out
 
 
@@ -43,8 +53,15 @@ def _placed_offset(b: BarAxis, s, h, height_mm: float, camera, noise_mm: float) 
     heights or camera)."""
     off = None
     if h is not None and camera is not None:
-        off = _offset_at_height(s, h, height_mm, b.radius_mm, float(np.asarray(camera[:2]) @ b.normal2d),
-                                float(camera[2]), noise_mm)
+        off = _offset_at_height(
+            s,
+            h,
+            height_mm,
+            b.radius_mm,
+            float(np.asarray(camera[:2]) @ b.normal2d),
+            float(camera[2]),
+            noise_mm,
+        )
     return float(np.median(s)) if off is None else off
 
 
@@ -55,8 +72,18 @@ def _layer_noise(bars: list) -> float:
     return max(float(np.median(rms)), 0.3) if rms else 1.0
 
 
-def _offset_at_height(s, h, height_mm: float, radius_mm: float, cam_s: float, cam_h: float, noise_mm: float,
-                      *, step_mm: float = 0.05, max_points: int = 2000) -> float | None:
+def _offset_at_height(
+    s,
+    h,
+    height_mm: float,
+    radius_mm: float,
+    cam_s: float,
+    cam_h: float,
+    noise_mm: float,
+    *,
+    step_mm: float = 0.05,
+    max_points: int = 2000,
+) -> float | None:
     """Offset across of the axis of a bar seen only in part (a sliver beside a bar over it, a
     strip along the image border), when its axis height is known (its level's: the bars of one
     level lie on the same supports).
@@ -94,8 +121,15 @@ def _offset_at_height(s, h, height_mm: float, radius_mm: float, cam_s: float, ca
     return float(grid[i])
 
 
-def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics, min_whole_fraction: float = 0.5,
-                    margin_px: float = 1.0) -> list:
+def flag_border_cut(
+    bars: list,
+    points,
+    *,
+    plane: Plane,
+    intrinsics: Intrinsics,
+    min_whole_fraction: float = 0.5,
+    margin_px: float = 1.0,
+) -> list:
     """Bars of one lattice that the image border cuts lengthwise, fitted off their level, become
     "not measured".
 
@@ -140,23 +174,47 @@ def flag_border_cut(bars: list, points, *, plane: Plane, intrinsics: Intrinsics,
         ax = b.axis_points(grid)
         n3 = np.r_[b.normal2d, 0.0]
         whole = np.ones(len(grid), bool)
-        for probe in (ax - b.radius_mm * n3, ax + b.radius_mm * n3, ax + np.array([0.0, 0.0, b.radius_mm])):
+        for probe in (
+            ax - b.radius_mm * n3,
+            ax + b.radius_mm * n3,
+            ax + np.array([0.0, 0.0, b.radius_mm]),
+        ):
             cam = from_slab_frame(probe, plane)
             uv = project(cam, intrinsics)
-            whole &= ((uv[:, 0] >= margin_px) & (uv[:, 0] <= W - 1 - margin_px) & (uv[:, 1] >= margin_px)
-                      & (uv[:, 1] <= H - 1 - margin_px) & (cam[:, 2] > 0))
-        pw = whole[np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)]
-        others = [o.axis_height_mm for o in bars if o.group == b.group and o.status == "measured" and o is not b]
+            whole &= (
+                (uv[:, 0] >= margin_px)
+                & (uv[:, 0] <= W - 1 - margin_px)
+                & (uv[:, 1] >= margin_px)
+                & (uv[:, 1] <= H - 1 - margin_px)
+                & (cam[:, 2] > 0)
+            )
+        pw = whole[
+            np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)
+        ]
+        others = [
+            o.axis_height_mm
+            for o in bars
+            if o.group == b.group and o.status == "measured" and o is not b
+        ]
         level = float(np.median(others)) if len(others) >= 2 else b.axis_height_mm
         dh = b.axis_height_mm - level
         if pw.mean() >= min_whole_fraction or abs(dh) <= 0.5 * b.radius_mm:
             out.append(b)
             continue
         seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
-        off = _placed_offset(b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise)
-        out.append(_level_axis(b, off, level, status="not measured",
-                               reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, "
-                                      f"over {seen:.0f} mm, at whole cross-sections) and the circle fitted to "
-                                      f"the strip seen sits {dh:+.1f} mm off the other bars of its direction: "
-                                      "its axis cannot be placed"))
+        off = _placed_offset(
+            b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise
+        )
+        out.append(
+            _level_axis(
+                b,
+                off,
+                level,
+                status="not measured",
+                reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, "
+                f"over {seen:.0f} mm, at whole cross-sections) and the circle fitted to "
+                f"the strip seen sits {dh:+.1f} mm off the other bars of its direction: "
+                "its axis cannot be placed",
+            )
+        )
     return out

@@ -42,9 +42,12 @@ class Plane:
         return np.asarray(points, float) @ self.normal + self.offset_mm
 
     def to_dict(self) -> dict:
-        return {"normal": [round(float(x), 8) for x in self.normal], "offset_mm": round(float(self.offset_mm), 3),
-                "n_inliers": int(self.n_inliers),
-                "noise_mm": None if self.noise_mm is None else round(float(self.noise_mm), 3)}
+        return {
+            "normal": [round(float(x), 8) for x in self.normal],
+            "offset_mm": round(float(self.offset_mm), 3),
+            "n_inliers": int(self.n_inliers),
+            "noise_mm": None if self.noise_mm is None else round(float(self.noise_mm), 3),
+        }
 
 
 def _oriented(normal, offset) -> tuple[np.ndarray, float]:
@@ -66,7 +69,9 @@ def _lsq_plane(points) -> tuple[np.ndarray, float]:
     return _oriented(n, -float(n @ c))
 
 
-def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rng=None) -> tuple[Plane, np.ndarray]:
+def paper_fit_formwork(
+    points, *, threshold_mm: float, max_trials: int = 170, rng=None
+) -> tuple[Plane, np.ndarray]:
     """The paper's plane: Open3D RANSAC, inliers within ``threshold_mm`` (t₁ = 0.8 × design
     cover), ``max_trials`` hypotheses (k = 170). Returns ``(plane, inlier mask)``.
 
@@ -82,18 +87,22 @@ def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rn
 
     pts = np.asarray(points, float)
     if len(pts) < 3:
-        raise RebarInputError(f"points: need at least 3 points to fit the formwork plane, got {len(pts)}")
+        raise RebarInputError(
+            f"points: need at least 3 points to fit the formwork plane, got {len(pts)}"
+        )
     rng = np.random.default_rng(rng)
-    model, idx = ransac_plane(pts, threshold_mm=threshold_mm, iterations=max_trials,
-                              seed=int(rng.integers(0, 2**31 - 1)))
+    model, idx = ransac_plane(
+        pts, threshold_mm=threshold_mm, iterations=max_trials, seed=int(rng.integers(0, 2**31 - 1))
+    )
     n, d = _oriented(model[:3], model[3])
     mask = np.zeros(len(pts), bool)
     mask[idx] = True
     return Plane(n, float(d), int(mask.sum())), mask
 
 
-def fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, sample: int = 30_000,
-                 rng=None) -> tuple[Plane, np.ndarray]:
+def fit_formwork(
+    points, *, threshold_mm: float, max_trials: int = 170, sample: int = 30_000, rng=None
+) -> tuple[Plane, np.ndarray]:
     """Formwork plane: RANSAC on a sample, then least squares on inliers re-selected at 4 robust
     standard deviations of the residuals (twice), so that the plane's accuracy is the sensor's.
 
@@ -120,7 +129,9 @@ def fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, sample: 
     """
     pts = np.asarray(points, float)
     if len(pts) < 3:
-        raise RebarInputError(f"points: need at least 3 points to fit the formwork plane, got {len(pts)}")
+        raise RebarInputError(
+            f"points: need at least 3 points to fit the formwork plane, got {len(pts)}"
+        )
     rng = np.random.default_rng(rng)
     sub = pts if len(pts) <= sample else pts[rng.choice(len(pts), sample, replace=False)]
     plane, _ = paper_fit_formwork(sub, threshold_mm=threshold_mm, max_trials=max_trials, rng=rng)

@@ -81,8 +81,16 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
             off = _line_dist(mid, a, b)
             if best is None or off < best[0]:
                 best = (off, t, _dir_angle_deg(d, b - a) if np.linalg.norm(d) > 0 else np.nan)
-        rec = {"bar_id": r.bar_id, "layer": r.layer, "level": r.level, "truth_id": None, "truth_level": None,
-               "offset_mm": np.nan, "angle_deg": np.nan, "phantom": True}
+        rec = {
+            "bar_id": r.bar_id,
+            "layer": r.layer,
+            "level": r.level,
+            "truth_id": None,
+            "truth_level": None,
+            "offset_mm": np.nan,
+            "angle_deg": np.nan,
+            "phantom": True,
+        }
         if best is not None:
             off, t, ang = best
             rec.update(truth_id=int(t["id"]), truth_level=t["level"], offset_mm=off, angle_deg=ang)
@@ -95,8 +103,19 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
                 rec["phantom"] = False
                 taken[t["id"]] = len(rows)
         rows.append(rec)
-    return pd.DataFrame(rows, columns=["bar_id", "layer", "level", "truth_id", "truth_level", "offset_mm",
-                                       "angle_deg", "phantom"])
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "bar_id",
+            "layer",
+            "level",
+            "truth_id",
+            "truth_level",
+            "offset_mm",
+            "angle_deg",
+            "phantom",
+        ],
+    )
 
 
 def measurable_bars(capture) -> list:
@@ -161,9 +180,16 @@ def score_result(result, capture) -> dict:
     def err(meas_, true):
         return meas_.value_mm - true if meas_.ok else float("nan")
 
-    return {"cover_err_mm": err(result.cover, truth["cover_mm"]),
-            "layer_distance_err_mm": err(result.layer_distance, truth["layer_distance_mm"]),
-            "upper_top_err_mm": err(result.upper_top, truth["upper_top_mm"]),
-            "measurable": len(meas), "found": len(meas) - len(missed), "missed": missed, "phantoms": phantoms,
-            "wrong_level": wrong_level, "spacing_errors_mm": np.asarray(errs, float),
-            "spacings_unscored": unscored, "matches": m}
+    return {
+        "cover_err_mm": err(result.cover, truth["cover_mm"]),
+        "layer_distance_err_mm": err(result.layer_distance, truth["layer_distance_mm"]),
+        "upper_top_err_mm": err(result.upper_top, truth["upper_top_mm"]),
+        "measurable": len(meas),
+        "found": len(meas) - len(missed),
+        "missed": missed,
+        "phantoms": phantoms,
+        "wrong_level": wrong_level,
+        "spacing_errors_mm": np.asarray(errs, float),
+        "spacings_unscored": unscored,
+        "matches": m,
+    }

@@ -13,16 +13,28 @@ from .plane import Plane, from_slab_frame, to_slab_frame
 from .spacing import _order_across
 
 
-_POSITION_STEP_MM = 5.0  # sampling of a would-be bar's axis when checking what the camera sees there
+_POSITION_STEP_MM = (
+    5.0  # sampling of a would-be bar's axis when checking what the camera sees there
+)
 
 
 _POSITION_T = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)  # along a would-be bar, mm
 
 
-def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Plane, design_spacing: dict,
-                     noise_mm: float | None = None, min_length_mm: float = 50.0, min_points: int = 8,
-                     min_fill: float = 0.25, search_fraction: float = 0.25,
-                     step_mm: float = 0.5) -> tuple[list, list]:
+def find_missed_bars(
+    bars: list,
+    *,
+    depth_mm,
+    intrinsics: Intrinsics,
+    plane: Plane,
+    design_spacing: dict,
+    noise_mm: float | None = None,
+    min_length_mm: float = 50.0,
+    min_points: int = 8,
+    min_fill: float = 0.25,
+    search_fraction: float = 0.25,
+    step_mm: float = 0.5,
+) -> tuple[list, list]:
     """A second look, at full resolution, at every position of a row where no bar was found.
 
     The bar search works on a thinned cloud with the pixels just behind occluding edges removed
@@ -93,8 +105,9 @@ def find_missed_bars(bars: list, *, depth_mm, intrinsics: Intrinsics, plane: Pla
             for off, inside in _empty_positions(ref, offs, s, h_axis, r, plane, intrinsics):
                 if np.min(np.abs(offs - off)) < 0.5 * s:
                     continue
-                found = _look_at_position(ref, off, inside, half, h_axis, r, depth, intrinsics, plane,
-                                          eye, look)
+                found = _look_at_position(
+                    ref, off, inside, half, h_axis, r, depth, intrinsics, plane, eye, look
+                )
                 if found is None:
                     continue
                 c, t0, t1, cloud = found
@@ -112,8 +125,10 @@ def _empty_positions(ref: BarAxis, offs, s, h_axis, r, plane, intrinsics) -> lis
     cand = []
     for a_off, b_off in zip(offs[:-1], offs[1:]):
         k = int(round((b_off - a_off) / s)) - 1
-        cand += [(o, _surface_in_image(ref, o, h_axis, r, plane, intrinsics))
-                 for o in (a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1))]
+        cand += [
+            (o, _surface_in_image(ref, o, h_axis, r, plane, intrinsics))
+            for o in (a_off + j * (b_off - a_off) / (k + 1) for j in range(1, k + 1))
+        ]
     for start, sign in ((offs[0], -1), (offs[-1], 1)):
         for j in range(1, 200):
             off = start + sign * j * s
@@ -127,12 +142,29 @@ def _empty_positions(ref: BarAxis, offs, s, h_axis, r, plane, intrinsics) -> lis
 def _bar_seen_at(ref: BarAxis, layer, level, c, t0, t1, h_axis, r, cloud) -> BarAxis:
     """The bar the second look found at offset ``c``: "not measured", its axis at its level's
     height."""
-    return BarAxis(layer, ref.direction, c, 0.0, h_axis, 0.0, t0, t1, r, len(cloud), float("nan"),
-                   None, ref.group, level=level, status="not measured",
-                   reason=(f"seen only at full resolution, {len(cloud)} depth pixels over "
-                           f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "
-                           "image border): it is there, but its axis cannot be placed to the "
-                           "millimetre"))
+    return BarAxis(
+        layer,
+        ref.direction,
+        c,
+        0.0,
+        h_axis,
+        0.0,
+        t0,
+        t1,
+        r,
+        len(cloud),
+        float("nan"),
+        None,
+        ref.group,
+        level=level,
+        status="not measured",
+        reason=(
+            f"seen only at full resolution, {len(cloud)} depth pixels over "
+            f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "
+            "image border): it is there, but its axis cannot be placed to the "
+            "millimetre"
+        ),
+    )
 
 
 class _Look(NamedTuple):
@@ -147,8 +179,19 @@ class _Look(NamedTuple):
     min_fill: float
 
 
-def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: float, r: float, depth,
-                      intr: Intrinsics, plane: Plane, eye, look: _Look):
+def _look_at_position(
+    ref: BarAxis,
+    off: float,
+    inside,
+    half: float,
+    h_axis: float,
+    r: float,
+    depth,
+    intr: Intrinsics,
+    plane: Plane,
+    eye,
+    look: _Look,
+):
     """Full-resolution points of the corridor ``off ± half`` on the cylinder of radius ``r`` at
     height ``h_axis``: ``(offset, t0, t1, Cloud)`` of the best bar there, or None. ``inside``:
     the samples of ``_POSITION_T`` where the position's surface is in the image; ``eye``: the
@@ -167,7 +210,9 @@ def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: flo
 
     def on_cylinder(c):
         ro, rh = o - c, hz - h_axis
-        return (np.abs(np.hypot(ro, rh) - r) < look.tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
+        return (np.abs(np.hypot(ro, rh) - r) < look.tol) & (
+            ro * (eye_o - o) + rh * (eye_h - hz) > 0
+        )
 
     c = _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look)
     if c is None:
@@ -176,7 +221,10 @@ def _look_at_position(ref: BarAxis, off: float, inside, half: float, h_axis: flo
     t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
     on &= (t >= t0) & (t <= t1)
     along = (t_all >= t0) & (t_all <= t1)
-    if _seen_through(c, o_all[along], h_all[along], h_axis, r, eye_o, eye_h, look.tol) > 0.5 * on.sum():
+    if (
+        _seen_through(c, o_all[along], h_all[along], h_axis, r, eye_o, eye_h, look.tol)
+        > 0.5 * on.sum()
+    ):
         return None
     # a bar in view is a continuous stripe in the image, a sliver of it at least a pixel wide:
     # along its run, at least ``min_fill`` of the pixels' length must hold one of its points.
@@ -239,8 +287,10 @@ def _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look: _Look
     # left to the loop): only offsets that can reach min_points are looked at further
     near = np.zeros(len(offsets), int)
     for k in range(0, len(offsets), 64):
-        c_ = offsets[k:k + 64, None]
-        near[k:k + 64] = (np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < look.tol).sum(axis=1)
+        c_ = offsets[k : k + 64, None]
+        near[k : k + 64] = (
+            np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < look.tol
+        ).sum(axis=1)
     scores = []  # (offset, run start, run end, points on the cylinder along the run)
     for c in offsets[near >= look.min_points]:
         on = on_cylinder(c)
@@ -248,7 +298,9 @@ def _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look: _Look
             continue
         t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
         scores.append((float(c), t0, t1, int(np.sum(on & (t >= t0) & (t <= t1)))))
-    ok = [x for x in scores if x[2] - x[1] >= look.min_length_mm - pitch and x[3] >= look.min_points]
+    ok = [
+        x for x in scores if x[2] - x[1] >= look.min_length_mm - pitch and x[3] >= look.min_points
+    ]
     if not ok:
         return None
     # the offsets that explain the most points along a long run; several neighbouring offsets do
@@ -275,6 +327,7 @@ def _seen_through(c, o, h, h_axis, r, eye_o, eye_h, tol) -> int:
     dist = np.hypot(o - c, h - h_axis)
     return int(np.sum(((closest < r - tol) & (dist > r + tol)) | (dist < r - tol)))
 
+
 def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, intr: Intrinsics):
     """Samples every 5 mm of a line parallel to ``ref`` at plan offset ``off`` and ``height_mm``:
     (camera-frame points (N, 3), their pixels (N, 2))."""
@@ -284,8 +337,9 @@ def _position_axis(ref: BarAxis, off: float, height_mm: float, plane: Plane, int
     return cam, project(cam, intr)
 
 
-def _surface_in_image(ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane,
-                      intr: Intrinsics) -> np.ndarray:
+def _surface_in_image(
+    ref: BarAxis, off: float, h_axis: float, radius: float, plane: Plane, intr: Intrinsics
+) -> np.ndarray:
     """(len(_POSITION_T),) bool: where along it a would-be bar's surface (either flank or its
     crest) projects into the image."""
     inside = np.zeros(len(_POSITION_T), bool)
@@ -296,4 +350,10 @@ def _surface_in_image(ref: BarAxis, off: float, h_axis: float, radius: float, pl
 
 
 def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:
-    return (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)
+    return (
+        (uv[:, 0] >= 0)
+        & (uv[:, 0] < intr.width)
+        & (uv[:, 1] >= 0)
+        & (uv[:, 1] < intr.height)
+        & (cam[:, 2] > 0)
+    )

@@ -78,15 +78,35 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     # "not measured" spacings instead of one spacing twice the real one
     for layer, level, a, b in _adjacent_pairs(bars):
         ds = (design_spacing or {}).get((layer, level))
-        row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)], "design_spacing_mm": ds}
+        row = {
+            "layer": layer,
+            "level": level,
+            "bar_a": ids[id(a)],
+            "bar_b": ids[id(b)],
+            "design_spacing_mm": ds,
+        }
         bad = [x for x in (a, b) if x.status != "measured"]
         if bad:
-            rows.append({**row, "spacing_mm": None, "deviation_mm": None, "status": "not measured",
-                         "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}"})
+            rows.append(
+                {
+                    **row,
+                    "spacing_mm": None,
+                    "deviation_mm": None,
+                    "status": "not measured",
+                    "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}",
+                }
+            )
             continue
         s = _pair_spacing(a, b)
-        rows.append({**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds,
-                     "status": "measured", "reason": ""})
+        rows.append(
+            {
+                **row,
+                "spacing_mm": s,
+                "deviation_mm": None if ds is None else s - ds,
+                "status": "measured",
+                "reason": "",
+            }
+        )
     return _spacing_frame(rows)
 
 
@@ -100,7 +120,17 @@ def _adjacent_pairs(bars: list):
 
 
 def _spacing_frame(rows) -> pd.DataFrame:
-    cols = ["layer", "level", "bar_a", "bar_b", "spacing_mm", "design_spacing_mm", "deviation_mm", "status", "reason"]
+    cols = [
+        "layer",
+        "level",
+        "bar_a",
+        "bar_b",
+        "spacing_mm",
+        "design_spacing_mm",
+        "deviation_mm",
+        "status",
+        "reason",
+    ]
     df = pd.DataFrame(rows, columns=cols)
     for c in ("spacing_mm", "design_spacing_mm", "deviation_mm"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
@@ -142,16 +172,32 @@ def count_bars(bars: list, *, design_spacing: dict) -> pd.DataFrame:
             s = design_spacing.get((layer, level))
             found = len(grp)
             if not grp or s is None:
-                rows.append({"layer": layer, "level": level, "found": found, "expected": None,
-                             "missing": None, "extra": None})
+                rows.append(
+                    {
+                        "layer": layer,
+                        "level": level,
+                        "found": found,
+                        "expected": None,
+                        "missing": None,
+                        "extra": None,
+                    }
+                )
                 continue
             n2 = np.array([-grp[0].direction[1], grp[0].direction[0]])
             offs = np.array([float(b.plan_point(b.t_mid) @ n2) for b in grp])
             gaps = np.diff(offs)
             extra = int(np.sum(gaps < 0.5 * s))
             missing = int(sum(max(0, int(round(g / s)) - 1) for g in gaps if g > 1.5 * s))
-            rows.append({"layer": layer, "level": level, "found": found, "expected": found - extra + missing,
-                         "missing": missing, "extra": extra})
+            rows.append(
+                {
+                    "layer": layer,
+                    "level": level,
+                    "found": found,
+                    "expected": found - extra + missing,
+                    "missing": missing,
+                    "extra": extra,
+                }
+            )
     return pd.DataFrame(rows, columns=["layer", "level", "found", "expected", "missing", "extra"])
 
 
@@ -191,23 +237,61 @@ def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataF
         =======================  ===========================================================
     """
     rows = []
-    slab_points = None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
+    slab_points = (
+        None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
+    )
     crest = _crest_lines(bars, slab_points)  # read once: the stack and top heights both use them
     stack, top = _stacks(bars, crest, _MIN_CROSSINGS), _tops(bars, crest)
     for i, b in enumerate(bars):
         ends = from_slab_frame(b.axis_points(np.array([b.t0_mm, b.t1_mm])), plane)
-        rows.append({
-            "bar_id": i, "layer": b.layer, "level": b.level, "plan_angle_deg": b.plan_angle_deg,
-            "start_x_mm": ends[0, 0], "start_y_mm": ends[0, 1], "start_z_mm": ends[0, 2],
-            "end_x_mm": ends[1, 0], "end_y_mm": ends[1, 1], "end_z_mm": ends[1, 2],
-            "visible_length_mm": b.t1_mm - b.t0_mm, "n_points": int(b.n_points),
-            "axis_height_mm": b.axis_height_mm,
-            "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
-            "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
-            "fit_rms_mm": b.rms_mm, "arc_deg": b.arc_deg, "axis_se_mm": b.axis_se_mm, "stack_mm": stack[i],
-            "top_mm": top[i], "status": b.status, "reason": b.reason,
-        })
-    cols = ["bar_id", "layer", "level", "plan_angle_deg", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm",
-            "end_y_mm", "end_z_mm", "visible_length_mm", "n_points", "axis_height_mm", "underside_mm", "radius_mm",
-            "fit_rms_mm", "arc_deg", "axis_se_mm", "stack_mm", "top_mm", "status", "reason"]
+        rows.append(
+            {
+                "bar_id": i,
+                "layer": b.layer,
+                "level": b.level,
+                "plan_angle_deg": b.plan_angle_deg,
+                "start_x_mm": ends[0, 0],
+                "start_y_mm": ends[0, 1],
+                "start_z_mm": ends[0, 2],
+                "end_x_mm": ends[1, 0],
+                "end_y_mm": ends[1, 1],
+                "end_z_mm": ends[1, 2],
+                "visible_length_mm": b.t1_mm - b.t0_mm,
+                "n_points": int(b.n_points),
+                "axis_height_mm": b.axis_height_mm,
+                "underside_mm": b.underside_mm if b.radius_mm > 0 else float("nan"),
+                "radius_mm": b.radius_mm if b.radius_mm > 0 else float("nan"),
+                "fit_rms_mm": b.rms_mm,
+                "arc_deg": b.arc_deg,
+                "axis_se_mm": b.axis_se_mm,
+                "stack_mm": stack[i],
+                "top_mm": top[i],
+                "status": b.status,
+                "reason": b.reason,
+            }
+        )
+    cols = [
+        "bar_id",
+        "layer",
+        "level",
+        "plan_angle_deg",
+        "start_x_mm",
+        "start_y_mm",
+        "start_z_mm",
+        "end_x_mm",
+        "end_y_mm",
+        "end_z_mm",
+        "visible_length_mm",
+        "n_points",
+        "axis_height_mm",
+        "underside_mm",
+        "radius_mm",
+        "fit_rms_mm",
+        "arc_deg",
+        "axis_se_mm",
+        "stack_mm",
+        "top_mm",
+        "status",
+        "reason",
+    ]
     return pd.DataFrame(rows, columns=cols)

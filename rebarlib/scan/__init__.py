@@ -39,6 +39,15 @@ from ._input import METHOD as METHOD, as_scan_cloud, cloud_manifest, parse_up
 from ._measure import diameter_resolvable
 from ._pipeline import inspect_cloud
 
-__all__ = ["as_scan_cloud", "cloud_manifest", "crossing_lift", "diameter_resolvable", "find_datum",
-           "inspect_cloud", "lattice_bars", "mesh_up", "parse_up", "split_lattices"]
-
+__all__ = [
+    "as_scan_cloud",
+    "cloud_manifest",
+    "crossing_lift",
+    "diameter_resolvable",
+    "find_datum",
+    "inspect_cloud",
+    "lattice_bars",
+    "mesh_up",
+    "parse_up",
+    "split_lattices",
+]

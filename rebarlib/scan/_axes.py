@@ -15,7 +15,9 @@ from ._datum import Datum, split_lattices
 from ._util import _dot, _slab_frame
 
 
-_SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar's upper half, x radius
+_SURFACE_MEAN = (
+    2.0 / math.pi
+)  # mean height of points spread evenly over a bar's upper half, x radius
 
 
 def _envelope(design: Design, layer: str, level: str) -> float:
@@ -30,8 +32,24 @@ def _to_axis(b: _Bar, layer: str, level: str, group: int, r: float) -> G.BarAxis
     mean height of its points."""
     axis_h = b.mean_h - _SURFACE_MEAN * r
     se = b.resid_sd / math.sqrt(max(b.n, 1))
-    return G.BarAxis(layer, b.direction, b.centre, b.slope, axis_h, 0.0, b.t0, b.t1, r, b.n, b.resid_sd,
-                     b.idx, group, level, arc_deg=float("nan"), axis_se_mm=se)
+    return G.BarAxis(
+        layer,
+        b.direction,
+        b.centre,
+        b.slope,
+        axis_h,
+        0.0,
+        b.t0,
+        b.t1,
+        r,
+        b.n,
+        b.resid_sd,
+        b.idx,
+        group,
+        level,
+        arc_deg=float("nan"),
+        axis_se_mm=se,
+    )
 
 
 def _all_axes(q, split, design, datum, min_length_mm, rng):
@@ -101,8 +119,10 @@ def _frame(pts, normal, datum: Datum):
     above = h > (3 * datum.noise_mm + 2 if datum.found else -np.inf)
     split = split_lattices(h[above], noise_mm=datum.noise_mm if datum.found else 10.0)
     if split is None:
-        raise RebarInputError("cloud: no gap between two lattices in the heights above the mesh's plane; "
-                              "is this a two-lattice mesh (or is up wrong)?")
+        raise RebarInputError(
+            "cloud: no gap between two lattices in the heights above the mesh's plane; "
+            "is this a two-lattice mesh (or is up wrong)?"
+        )
     return plane, q, split
 
 
@@ -115,7 +135,9 @@ def _layer_points(q, split, layer, datum: Datum) -> np.ndarray:
     return np.flatnonzero((h > floor) & (h < split))
 
 
-def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rng) -> tuple[list, tuple]:
+def _layer_axes(
+    q, split, layer, design: Design, datum: Datum, min_length_mm, rng
+) -> tuple[list, tuple]:
     """The bar axes of one lattice, and the noise (plan, height) measured on its bars.
 
     Two passes: the first with the formwork's noise (or 10 mm) finds the bars; their spread
@@ -127,19 +149,34 @@ def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rn
     qs = q[idx]
     spacing = min(lat.bottom.spacing_mm, lat.top.spacing_mm)
     guess = max(datum.noise_mm or 10.0, 3.0)
-    found = lattice_bars(qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=guess,
-                         min_length_mm=min_length_mm, rng=rng)
+    found = lattice_bars(
+        qs,
+        radius_mm={0: r, 1: r},
+        spacing_mm=spacing,
+        noise_mm=guess,
+        min_length_mm=min_length_mm,
+        rng=rng,
+    )
     if not found:
         return [], (guess, guess)
     sig_plan = _noise_across(found, r)
-    found = lattice_bars(qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=sig_plan,
-                         min_length_mm=min_length_mm, rng=rng)
+    found = lattice_bars(
+        qs,
+        radius_mm={0: r, 1: r},
+        spacing_mm=spacing,
+        noise_mm=sig_plan,
+        min_length_mm=min_length_mm,
+        rng=rng,
+    )
     if not found:
         return [], (sig_plan, guess)
     found = _refit_off_crossings(qs, found, r, sig_plan)
     sig_plan = _noise_across(found, r)
-    sig_h = datum.noise_mm if datum.found else float(np.median(
-        [math.sqrt(max(b.h_sd ** 2 - 0.05 * r ** 2, 0.25)) for _, b in found]))
+    sig_h = (
+        datum.noise_mm
+        if datum.found
+        else float(np.median([math.sqrt(max(b.h_sd**2 - 0.05 * r**2, 0.25)) for _, b in found]))
+    )
     level_of = _levels(found)
     axes = []
     band_floor = -np.inf if (layer == "lower") else split
@@ -153,8 +190,17 @@ def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rn
         half_cross = radii["top" if lv == "bottom" else "bottom"] + 2 * sig_plan + 2
         if g not in proj:
             proj[g] = (_dot(qb[:, :2], b.normal2d), _dot(qb[:, :2], b.direction))
-        mean_h, n = _bar_height(qb, proj[g], b, other, half_cross, r + 2 * sig_plan + 2, sig_h,
-                                formwork=datum.found and layer == "lower", radius_mm=radii[lv])
+        mean_h, n = _bar_height(
+            qb,
+            proj[g],
+            b,
+            other,
+            half_cross,
+            r + 2 * sig_plan + 2,
+            sig_h,
+            formwork=datum.found and layer == "lower",
+            radius_mm=radii[lv],
+        )
         if mean_h is None:
             continue
         b.mean_h, b.n, b.idx = mean_h, n, idx[b.idx]
@@ -184,7 +230,7 @@ def _refit_off_crossings(qs, found: list, r: float, sig_plan: float) -> list:
 def _noise_across(found: list, r: float) -> float:
     """Noise in plan: the bars' spread across less what a bar's own width spreads its points."""
     sd = float(np.median([b.resid_sd for _, b in found]))
-    return float(math.sqrt(max(sd ** 2 - r ** 2 / 3, 1.0)))
+    return float(math.sqrt(max(sd**2 - r**2 / 3, 1.0)))
 
 
 def _levels(found: list) -> dict:
@@ -195,7 +241,9 @@ def _levels(found: list) -> dict:
     return {g: G.LEVELS[min(k, 1)] for k, g in enumerate(order)}
 
 
-def _bar_height(qb, proj, b: _Bar, other: list, half_cross, half, sig_h, *, formwork: bool, radius_mm: float):
+def _bar_height(
+    qb, proj, b: _Bar, other: list, half_cross, half, sig_h, *, formwork: bool, radius_mm: float
+):
     """Mean height of a bar's surface points away from the crossing bars, and their number.
 
     Over a formwork the band beside a low bar also holds formwork points: the heights are then
@@ -231,7 +279,7 @@ def _mixture_mean(h, sig0, radius_mm: float, iters: int = 30):
     the bar's tenfold (sparse synthetic scans: bar heights 12 mm low)."""
     hi = h[h > 2 * sig0]
     mu = float(np.median(hi)) if len(hi) else float(np.median(h))
-    s1 = math.sqrt(sig0 ** 2 + (0.3 * radius_mm) ** 2)
+    s1 = math.sqrt(sig0**2 + (0.3 * radius_mm) ** 2)
     pi1 = 0.5
     for _ in range(iters):
         p0 = (1 - pi1) * np.exp(-0.5 * (h / sig0) ** 2) / sig0

@@ -21,7 +21,9 @@ class _Candidate:
     z: float  # excess over its counting noise
 
 
-def _offset_peaks(off, *, kernel_mm: float, min_sep_mm: float, background_mm: float, z_min: float) -> list:
+def _offset_peaks(
+    off, *, kernel_mm: float, min_sep_mm: float, background_mm: float, z_min: float
+) -> list:
     """Peaks of the smoothed offset histogram standing out of a running background (the lower
     envelope over ``background_mm``) by ``z_min`` times its counting noise."""
     if len(off) < 20:
@@ -34,14 +36,18 @@ def _offset_peaks(off, *, kernel_mm: float, min_sep_mm: float, background_mm: fl
     eff = 2 * math.sqrt(math.pi) * max(kernel_mm, 0.5)
     noise = np.sqrt(np.maximum(bg, 1.0 / eff) / eff)
     z = (s - bg) / noise
-    cand = [i for i in range(1, len(s) - 1) if s[i] >= s[i - 1] and s[i] > s[i + 1] and z[i] >= z_min]
+    cand = [
+        i for i in range(1, len(s) - 1) if s[i] >= s[i - 1] and s[i] > s[i + 1] and z[i] >= z_min
+    ]
     cand.sort(key=lambda i: -(s[i] - bg[i]))
     kept = []
     for i in cand:
         if all(abs(x[i] - x[j]) >= min_sep_mm for j in kept):
             kept.append(i)
-    return sorted((_Candidate(float(x[i]), float(s[i] - bg[i]), float(z[i])) for i in kept),
-                  key=lambda cnd: cnd.centre)
+    return sorted(
+        (_Candidate(float(x[i]), float(s[i] - bg[i]), float(z[i])) for i in kept),
+        key=lambda cnd: cnd.centre,
+    )
 
 
 def _running_min(x, w: int) -> np.ndarray:
@@ -157,15 +163,26 @@ def _crossing_free(along, crossings, half_width):
     if len(crossings) == 0:
         return np.ones(len(along), bool)
     cr = np.sort(np.asarray(crossings))
-    j = np.clip(np.searchsorted(cr, along), 1, len(cr) - 1) if len(cr) > 1 else np.zeros(len(along), int)
+    j = (
+        np.clip(np.searchsorted(cr, along), 1, len(cr) - 1)
+        if len(cr) > 1
+        else np.zeros(len(along), int)
+    )
     d = np.abs(along - cr[j])
     if len(cr) > 1:
         d = np.minimum(d, np.abs(along - cr[j - 1]))
     return d > half_width
 
 
-def lattice_bars(q, *, radius_mm: dict, spacing_mm: float, noise_mm: float, min_length_mm: float = 100.0,
-                 rng=None) -> list:
+def lattice_bars(
+    q,
+    *,
+    radius_mm: dict,
+    spacing_mm: float,
+    noise_mm: float,
+    min_length_mm: float = 100.0,
+    rng=None,
+) -> list:
     """The bars of one lattice: ``[(direction index, _Bar), ...]`` from its slab-frame points.
 
     Directions: the sharpest plan angle, then the sharpest at least 30° from it once the first
@@ -224,8 +241,16 @@ def _find_lattice(plan, h, radius_mm, spacing_mm, noise_mm, min_length_mm, rng) 
         if ang is None:
             break
         first = ang if first is None else first
-        bars, off, along = _bars_along(plan, h, ang, keep, radius_mm=radius_mm.get(g, max(radius_mm.values())),
-                                       spacing_mm=spacing_mm, noise_mm=noise_mm, min_length_mm=min_length_mm)
+        bars, off, along = _bars_along(
+            plan,
+            h,
+            ang,
+            keep,
+            radius_mm=radius_mm.get(g, max(radius_mm.values())),
+            spacing_mm=spacing_mm,
+            noise_mm=noise_mm,
+            min_length_mm=min_length_mm,
+        )
         out += [(g, b) for b in bars]
         for b in bars:
             keep[b.idx] = False
@@ -241,10 +266,15 @@ def _bars_along(plan, h, ang, keep, *, radius_mm, spacing_mm, noise_mm, min_leng
     d = np.array([math.cos(a), math.sin(a)])
     n2 = np.array([-d[1], d[0]])
     off, along = _dot(plan, n2), _dot(plan, d)
-    spread = math.sqrt(noise_mm ** 2 + radius_mm ** 2 / 2)
+    spread = math.sqrt(noise_mm**2 + radius_mm**2 / 2)
     half = radius_mm + 2.5 * noise_mm + 2.0
-    peaks = _offset_peaks(off[keep], kernel_mm=spread, min_sep_mm=max(0.45 * spacing_mm, 3 * spread),
-                          background_mm=max(spacing_mm, 6 * spread), z_min=5.0)
+    peaks = _offset_peaks(
+        off[keep],
+        kernel_mm=spread,
+        min_sep_mm=max(0.45 * spacing_mm, 3 * spread),
+        background_mm=max(spacing_mm, 6 * spread),
+        z_min=5.0,
+    )
     bars = []
     for p in peaks:
         c, slope, idx = _fit_line(off, along, p.centre, half, keep)
@@ -264,9 +294,21 @@ def _bars_along(plan, h, ang, keep, *, radius_mm, spacing_mm, noise_mm, min_leng
         r = off[idx] - (c + slope * along[idx])
         # the median height: outliers scattered along the rays above the mesh pulled a mean
         # height up by more than a diameter and swapped the levels (5 % outliers)
-        bars.append(_Bar(d, c, slope, t0, t1, float(np.median(h[idx])), len(idx),
-                         _mad(r), _mad(h[idx] - np.median(h[idx])),
-                         idx, p.z))
+        bars.append(
+            _Bar(
+                d,
+                c,
+                slope,
+                t0,
+                t1,
+                float(np.median(h[idx])),
+                len(idx),
+                _mad(r),
+                _mad(h[idx] - np.median(h[idx])),
+                idx,
+                p.z,
+            )
+        )
     return bars, off, along
 
 

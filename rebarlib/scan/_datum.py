@@ -36,7 +36,9 @@ def mesh_up(points, *, up=None, rng=None) -> tuple[np.ndarray, str]:
     if u is None:
         return n, "the thin direction of the cloud (its sign settled below)"
     if abs(float(n @ u)) >= math.cos(math.radians(30)):
-        return (n if n @ u > 0 else -n), f"up = {up} given; the mesh plane's own tilt from the cloud"
+        return (
+            n if n @ u > 0 else -n
+        ), f"up = {up} given; the mesh plane's own tilt from the cloud"
     return u, f"up = {up} given (the cloud's thin direction is more than 30° off it: kept as given)"
 
 
@@ -59,7 +61,7 @@ def _far_side_sigma(s, i: int, *, bin_mm: float, kernel_mm: float) -> float:
     while j > 0 and s[j] > 0.5 * s[i]:
         j -= 1
     hwhm = (i - j) * bin_mm
-    return float(math.sqrt(max((hwhm / 1.1774) ** 2 - kernel_mm ** 2, 0.25)))
+    return float(math.sqrt(max((hwhm / 1.1774) ** 2 - kernel_mm**2, 0.25)))
 
 
 def _is_peak(s, i: int, *, kernel_bins: float, z_min: float = 5.0) -> bool:
@@ -101,13 +103,23 @@ def find_datum(points, normal, *, rng=None) -> Datum:
             best = (sign, mode, share, sigma)
     sign, mode, share, sigma = best
     if share < 0.15:
-        return Datum(G.Plane(n, 0.0), False, None, share,
-                     f"no plane under the mesh: at most {100 * share:.0f} % of the points lie on one "
-                     "(the formwork or the ground is not in the scan)")
+        return Datum(
+            G.Plane(n, 0.0),
+            False,
+            None,
+            share,
+            f"no plane under the mesh: at most {100 * share:.0f} % of the points lie on one "
+            "(the formwork or the ground is not in the scan)",
+        )
     if _lined_up(points, n, sign * h, mode, sigma, rng):
-        return Datum(G.Plane(n, 0.0), False, None, share,
-                     "the lowest dense layer of points is made of bars, not a plane (no formwork or "
-                     "ground in the scan)")
+        return Datum(
+            G.Plane(n, 0.0),
+            False,
+            None,
+            share,
+            "the lowest dense layer of points is made of bars, not a plane (no formwork or "
+            "ground in the scan)",
+        )
     # refine the plane's tilt on its own points (a band around the mode, below the bars)
     band = np.abs(sign * h - mode) < max(1.5 * sigma, 1.5)
     q = points[band]
@@ -166,11 +178,11 @@ def split_lattices(h, *, noise_mm: float, min_gap_mm: float = 10.0) -> float | N
     sep = min_gap_mm + 2 * noise_mm
     best = None
     for a_i, a in enumerate(order):
-        for b in order[a_i + 1:]:
+        for b in order[a_i + 1 :]:
             if abs(x[a] - x[b]) < sep:
                 continue
             i0, i1 = sorted((a, b))
-            v = i0 + int(np.argmin(s[i0:i1 + 1]))
+            v = i0 + int(np.argmin(s[i0 : i1 + 1]))
             depth = s[v] / min(s[i0], s[i1])
             if best is None or depth < best[0]:
                 best = (depth, x[v])

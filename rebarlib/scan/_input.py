@@ -21,11 +21,15 @@ def as_scan_cloud(cloud, *, units: str | None = None) -> ScanCloud:
         return cloud
     if isinstance(cloud, (str, Path)):
         if units is None:
-            raise RebarInputError(f"units: the unit of {Path(cloud).name} must be given ('mm' or 'm')")
+            raise RebarInputError(
+                f"units: the unit of {Path(cloud).name} must be given ('mm' or 'm')"
+            )
         return read_cloud(cloud, units=units)
     pts = np.asarray(cloud, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-        raise RebarInputError(f"cloud: expected a file, a ScanCloud or a non-empty (N, 3) array, got shape {pts.shape}")
+        raise RebarInputError(
+            f"cloud: expected a file, a ScanCloud or a non-empty (N, 3) array, got shape {pts.shape}"
+        )
     scale = {"mm": 1.0, None: 1.0, "m": 1000.0}.get(units)
     if scale is None:
         raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
@@ -53,7 +57,9 @@ def parse_up(up) -> np.ndarray | None:
     return v / np.linalg.norm(v)
 
 
-def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: dict | None = None) -> dict:
+def cloud_manifest(
+    cloud_path, design_path, *, method: str = METHOD, options: dict | None = None
+) -> dict:
     """The result manifest of a cloud file (as :func:`rebarlib._manifest.make_manifest` writes for
     a capture folder): the cloud's path and SHA-256 digest stand for the capture's."""
     from .. import __version__
@@ -61,6 +67,13 @@ def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: di
 
     p = Path(cloud_path).resolve()
     man = make_manifest(p.parent, design_path, method=method, options=options)
-    man.update({"capture_folder": None, "capture_digest": None, "cloud_file": str(p),
-                "cloud_digest": file_digest(p), "rebarlib_version": __version__})
+    man.update(
+        {
+            "capture_folder": None,
+            "capture_digest": None,
+            "cloud_file": str(p),
+            "cloud_digest": file_digest(p),
+            "rebarlib_version": __version__,
+        }
+    )
     return man

@@ -22,7 +22,9 @@ from ._input import METHOD
 from ._util import _dot, _mad
 
 
-def diameter_resolvable(noise_mm: float, radius_mm: float, half_gap_mm: float, n_points: int) -> tuple[bool, str]:
+def diameter_resolvable(
+    noise_mm: float, radius_mm: float, half_gap_mm: float, n_points: int
+) -> tuple[bool, str]:
     """Whether a bar's size can be read from its points, and why not.
 
     A circle fitted to noisy points of a bar's upper half is biased by the noise unless the noise
@@ -31,12 +33,16 @@ def diameter_resolvable(noise_mm: float, radius_mm: float, half_gap_mm: float, n
     of the half gap to the nearest other standard size (so the size is told apart at 4 σ).
     """
     if noise_mm > radius_mm / 4:
-        return False, (f"range noise σ {noise_mm:.1f} mm exceeds a quarter of the bar's radius "
-                       f"({radius_mm:.1f} mm): the scan cannot size it")
+        return False, (
+            f"range noise σ {noise_mm:.1f} mm exceeds a quarter of the bar's radius "
+            f"({radius_mm:.1f} mm): the scan cannot size it"
+        )
     se = noise_mm * math.sqrt(8.0 / max(n_points, 1))
     if se > half_gap_mm / 4:
-        return False, (f"{n_points} points at σ {noise_mm:.1f} mm give its radius to ±{se:.2f} mm, more than "
-                       f"a quarter of the half gap to the next size ({half_gap_mm:.2f} mm)")
+        return False, (
+            f"{n_points} points at σ {noise_mm:.1f} mm give its radius to ±{se:.2f} mm, more than "
+            f"a quarter of the half gap to the next size ({half_gap_mm:.2f} mm)"
+        )
     return True, ""
 
 
@@ -49,57 +55,127 @@ def _mean_measure(values, ses, n_points: int) -> Measurement:
     return Measurement(float(np.mean(v)), sd, n_points)
 
 
-def _assemble(sc: ScanCloud, design: Design, plane, datum: Datum, bars: list, noise, notes, diameters, q,
-              *, name, t_start, up_how) -> InspectionResult:
+def _assemble(
+    sc: ScanCloud,
+    design: Design,
+    plane,
+    datum: Datum,
+    bars: list,
+    noise,
+    notes,
+    diameters,
+    q,
+    *,
+    name,
+    t_start,
+    up_how,
+) -> InspectionResult:
     """The result of a cloud: spacings, layer distance, cover (with a datum), top of the upper
     lattice, the bar table (with sizes where ``diameters``), counts found, and how it was made."""
-    order = sorted(range(len(bars)), key=lambda i: (G.LAYERS.index(bars[i].layer), G.LEVELS.index(bars[i].level),
-                                                    bars[i].offset_mm))
+    order = sorted(
+        range(len(bars)),
+        key=lambda i: (
+            G.LAYERS.index(bars[i].layer),
+            G.LEVELS.index(bars[i].level),
+            bars[i].offset_mm,
+        ),
+    )
     bars = [bars[i] for i in order]
-    spacing = {(la, lv): design.lattice(la).level(lv).spacing_mm for la in G.LAYERS for lv in G.LEVELS}
+    spacing = {
+        (la, lv): design.lattice(la).level(lv).spacing_mm for la in G.LAYERS for lv in G.LEVELS
+    }
     spacings = G.measure_spacings(bars, design_spacing=spacing)
     table = G.bars_table(bars, plane)
     if diameters:
         table = _add_diameters(table, bars, q, design, noise)
-    und = {(la, lv): [b.underside_mm for b in bars if b.layer == la and b.level == lv] for la in G.LAYERS
-           for lv in G.LEVELS}
-    npts = {(la, lv): sum(b.n_points for b in bars if b.layer == la and b.level == lv) for la in G.LAYERS
-            for lv in G.LEVELS}
+    und = {
+        (la, lv): [b.underside_mm for b in bars if b.layer == la and b.level == lv]
+        for la in G.LAYERS
+        for lv in G.LEVELS
+    }
+    npts = {
+        (la, lv): sum(b.n_points for b in bars if b.layer == la and b.level == lv)
+        for la in G.LAYERS
+        for lv in G.LEVELS
+    }
     ses = {k: [b.axis_se_mm for b in bars if (b.layer, b.level) == k] for k in und}
     lo, hi = und[("lower", "bottom")], und[("upper", "bottom")]
     if lo and hi:
-        m_lo, m_hi = _mean_measure(lo, ses[("lower", "bottom")], 0), _mean_measure(hi, ses[("upper", "bottom")], 0)
-        layer_distance = Measurement(m_hi.value_mm - m_lo.value_mm,
-                                     math.hypot(m_lo.uncertainty_mm, m_hi.uncertainty_mm),
-                                     npts[("lower", "bottom")] + npts[("upper", "bottom")])
+        m_lo, m_hi = (
+            _mean_measure(lo, ses[("lower", "bottom")], 0),
+            _mean_measure(hi, ses[("upper", "bottom")], 0),
+        )
+        layer_distance = Measurement(
+            m_hi.value_mm - m_lo.value_mm,
+            math.hypot(m_lo.uncertainty_mm, m_hi.uncertainty_mm),
+            npts[("lower", "bottom")] + npts[("upper", "bottom")],
+        )
     else:
-        layer_distance = Measurement.not_measured("the bottom bars of both lattices are needed; "
-                                                  f"found {len(lo)} lower and {len(hi)} upper")
+        layer_distance = Measurement.not_measured(
+            "the bottom bars of both lattices are needed; "
+            f"found {len(lo)} lower and {len(hi)} upper"
+        )
     if not datum.found:
         cover = Measurement.not_measured(f"{datum.reason}: heights have no datum")
         upper_top = Measurement.not_measured(cover.reason)
     else:
-        cover = _mean_measure(lo, ses[("lower", "bottom")], npts[("lower", "bottom")]) if lo else \
-            Measurement.not_measured("no bottom bar of the lower lattice found")
+        cover = (
+            _mean_measure(lo, ses[("lower", "bottom")], npts[("lower", "bottom")])
+            if lo
+            else Measurement.not_measured("no bottom bar of the lower lattice found")
+        )
         tops = [b.top_mm for b in bars if b.layer == "upper" and b.level == "top"]
-        upper_top = Measurement(float(np.mean(tops)), None, npts[("upper", "top")]) if tops else \
-            Measurement.not_measured("no top bar of the upper lattice found")
+        upper_top = (
+            Measurement(float(np.mean(tops)), None, npts[("upper", "top")])
+            if tops
+            else Measurement.not_measured("no top bar of the upper lattice found")
+        )
     top_cover = _top_cover(design, upper_top)
-    counts = pd.DataFrame([{"layer": la, "level": lv, "found": sum(1 for b in bars if (b.layer, b.level) == (la, lv)),
-                            "expected": None, "missing": None, "extra": None}
-                           for la in G.LAYERS for lv in G.LEVELS])
+    counts = pd.DataFrame(
+        [
+            {
+                "layer": la,
+                "level": lv,
+                "found": sum(1 for b in bars if (b.layer, b.level) == (la, lv)),
+                "expected": None,
+                "missing": None,
+                "extra": None,
+            }
+            for la in G.LAYERS
+            for lv in G.LEVELS
+        ]
+    )
     fw = plane.to_dict() | {"found": bool(datum.found)}
     if not datum.found:
         fw["reason"] = datum.reason
     res = InspectionResult(
-        capture=name or (Path(sc.source).stem if sc.source else "cloud"), method=METHOD, cover=cover,
-        layer_distance=layer_distance, upper_top=upper_top, top_cover=top_cover, bars=table, spacings=spacings,
-        counts=counts, formwork=fw, camera={}, timings_s={"total": time.perf_counter() - t_start}, notes=notes,
-        extras={"cloud": {"source": sc.source, "units": sc.units, "n_points": int(len(sc)),
-                          "offset_mm": [round(float(v), 3) for v in sc.offset_mm],
-                          "up": [round(float(v), 6) for v in plane.normal],
-                          "up_how": up_how, "noise_mm": round(float(noise), 3), "formwork": bool(datum.found),
-                          "frame": "the cloud's frame re-centred: add offset_mm for the file's frame (mm)"}})
+        capture=name or (Path(sc.source).stem if sc.source else "cloud"),
+        method=METHOD,
+        cover=cover,
+        layer_distance=layer_distance,
+        upper_top=upper_top,
+        top_cover=top_cover,
+        bars=table,
+        spacings=spacings,
+        counts=counts,
+        formwork=fw,
+        camera={},
+        timings_s={"total": time.perf_counter() - t_start},
+        notes=notes,
+        extras={
+            "cloud": {
+                "source": sc.source,
+                "units": sc.units,
+                "n_points": int(len(sc)),
+                "offset_mm": [round(float(v), 3) for v in sc.offset_mm],
+                "up": [round(float(v), 6) for v in plane.normal],
+                "up_how": up_how,
+                "noise_mm": round(float(noise), 3),
+                "formwork": bool(datum.found),
+                "frame": "the cloud's frame re-centred: add offset_mm for the file's frame (mm)",
+            }
+        },
+    )
     return res
 
 
@@ -119,16 +195,36 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
         deformed = getattr(bs, "surface", "deformed") == "deformed"
         i = min(range(len(sysm.sizes_mm)), key=lambda k: abs(sysm.sizes_mm[k] - bs.diameter_mm))
         gap = min(size_half_gaps_mm(sysm.sizes_mm[i], system=system, deformed=deformed))
-        cross = [c for c in (_cross_axes(b, x) for x in bars if x.layer == b.layer and x.level != b.level)
-                 if np.isfinite(c)]
+        cross = [
+            c
+            for c in (_cross_axes(b, x) for x in bars if x.layer == b.layer and x.level != b.level)
+            if np.isfinite(c)
+        ]
         fit = _cross_section_width(b, q, noise, cross)
         if fit is not None and not 0.7 < fit[0] / (2 * b.radius_mm) < 1.4:
-            rows.append((None, None, None, None, "not measured",
-                         f"the circle through its cross-section is {fit[0]:.1f} mm wide against the set's "
-                         f"{2 * b.radius_mm:.1f} mm: something else lies in its cross-section"))
+            rows.append(
+                (
+                    None,
+                    None,
+                    None,
+                    None,
+                    "not measured",
+                    f"the circle through its cross-section is {fit[0]:.1f} mm wide against the set's "
+                    f"{2 * b.radius_mm:.1f} mm: something else lies in its cross-section",
+                )
+            )
             continue
         if fit is None:
-            rows.append((None, None, None, None, "not measured", "its cross-section points do not fix a circle"))
+            rows.append(
+                (
+                    None,
+                    None,
+                    None,
+                    None,
+                    "not measured",
+                    "its cross-section points do not fix a circle",
+                )
+            )
             continue
         w, sd, sigma, n = fit
         ok, why = diameter_resolvable(sigma, b.radius_mm, gap, n)
@@ -149,7 +245,9 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
     return table
 
 
-def _cross_section_width(b: G.BarAxis, q, noise, crossings=()) -> tuple[float, float, float, int] | None:
+def _cross_section_width(
+    b: G.BarAxis, q, noise, crossings=()
+) -> tuple[float, float, float, int] | None:
     """Width (2 × radius) of the circle through a bar's points in its cross-section, its standard
     error (from three independent thirds of the bar), the noise about the circle (robust σ of the
     residuals) and the points used; None if no circle fits."""
@@ -157,7 +255,9 @@ def _cross_section_width(b: G.BarAxis, q, noise, crossings=()) -> tuple[float, f
     t = _dot(p[:, :2], b.direction)
     s_ = _dot(p[:, :2], b.normal2d) - (b.offset_mm + b.slope * t)
     h = p[:, 2]
-    keep = (np.abs(s_) < b.radius_mm + 3 * noise) & (np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 3 * noise)
+    keep = (np.abs(s_) < b.radius_mm + 3 * noise) & (
+        np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 3 * noise
+    )
     keep &= _crossing_free(t, list(crossings), 3 * b.radius_mm)  # away from the bars crossing it
     cut = noise
     for _ in range(4):
@@ -181,7 +281,7 @@ def _circle(s, h) -> tuple[float, float, float]:
     x, y = s - ms, h - mh
     A = np.column_stack([2 * x, 2 * y, np.ones(len(x))])
     try:
-        xc, yc, k = np.linalg.solve(A.T @ A, A.T @ (x ** 2 + y ** 2))
+        xc, yc, k = np.linalg.solve(A.T @ A, A.T @ (x**2 + y**2))
     except np.linalg.LinAlgError:
         return math.nan, math.nan, math.nan
-    return float(xc + ms), float(yc + mh), float(math.sqrt(max(k + xc ** 2 + yc ** 2, 0.0)))
+    return float(xc + ms), float(yc + mh), float(math.sqrt(max(k + xc**2 + yc**2, 0.0)))

@@ -18,8 +18,17 @@ from ._input import as_scan_cloud
 from ._measure import _assemble
 
 
-def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, min_length_mm: float = 100.0,
-                  diameters: bool = True, rng=0, name: str | None = None) -> InspectionResult:
+def inspect_cloud(
+    cloud,
+    design: Design,
+    *,
+    units: str | None = None,
+    up=None,
+    min_length_mm: float = 100.0,
+    diameters: bool = True,
+    rng=0,
+    name: str | None = None,
+) -> InspectionResult:
     """Cover, layer distance, bars, spacings (and diameters where the scan resolves them) of a
     scanned point cloud of a two-lattice mesh.
 
@@ -41,22 +50,34 @@ def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, m
     (``extras["cloud"]["offset_mm"]`` added gives the file's frame, in mm).
     """
     if not isinstance(design, Design):
-        raise RebarInputError("design: expected a rebarlib.Design (use rebarlib.load_design), "
-                              f"got {type(design).__name__}")
+        raise RebarInputError(
+            "design: expected a rebarlib.Design (use rebarlib.load_design), "
+            f"got {type(design).__name__}"
+        )
     t_start = time.perf_counter()
     sc = as_scan_cloud(cloud, units=units)
     pts = sc.points
     if len(pts) < 500:
-        raise RebarInputError(f"cloud {sc.source or 'array'}: {len(pts)} points, at least 500 needed for a mesh")
+        raise RebarInputError(
+            f"cloud {sc.source or 'array'}: {len(pts)} points, at least 500 needed for a mesh"
+        )
     rng = np.random.default_rng(rng)
     notes = []
     normal, up_how = mesh_up(pts, up=up, rng=rng)
     datum = find_datum(pts, normal, rng=rng)
     if datum.found and up is None:
-        normal, up_how = datum.plane.normal, "away from the formwork/ground plane found under the mesh"
+        normal, up_how = (
+            datum.plane.normal,
+            "away from the formwork/ground plane found under the mesh",
+        )
     elif datum.found and float(datum.plane.normal @ normal) < 0:
-        datum = Datum(G.Plane(normal, 0.0), False, None, datum.share,
-                      "the only plane found lies above the mesh (for the up given): no formwork in the scan")
+        datum = Datum(
+            G.Plane(normal, 0.0),
+            False,
+            None,
+            datum.share,
+            "the only plane found lies above the mesh (for the up given): no formwork in the scan",
+        )
     plane, q, split = _frame(pts, normal, datum)
     result_bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
     if not datum.found and up is None:
@@ -66,21 +87,45 @@ def inspect_cloud(cloud, design: Design, *, units: str | None = None, up=None, m
         facing = _normals_facing(sc, plane.normal)
         if facing is not None:
             flip = facing < 0
-            up_how = (f"the mesh plane from the bars (no formwork in the scan); its sign from the file's normals "
-                      f"({100 * abs(facing):.0f} % more of them face that side: the scanner's)")
+            up_how = (
+                f"the mesh plane from the bars (no formwork in the scan); its sign from the file's normals "
+                f"({100 * abs(facing):.0f} % more of them face that side: the scanner's)"
+            )
             if flip:
                 plane, q, split = _frame(pts, -normal, datum)
                 result_bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
         else:
             (plane, q, split, result_bars, noise), up_how = _sign_from_crossings(
-                pts, normal, datum, design, (plane, q, split, result_bars, noise), min_length_mm, rng)
+                pts,
+                normal,
+                datum,
+                design,
+                (plane, q, split, result_bars, noise),
+                min_length_mm,
+                rng,
+            )
     notes.append(f"up: {up_how}")
     sig = float(np.median([v[0] for v in noise.values()]))
-    notes.append(f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
-                 f"spread {sig:.1f} mm across the bars in plan (noise and what lies beside them)" if datum.found else
-                 f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)")
-    return _assemble(sc, design, plane, datum, result_bars, sig, notes, diameters, q,
-                     name=name, t_start=t_start, up_how=up_how)
+    notes.append(
+        f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
+        f"spread {sig:.1f} mm across the bars in plan (noise and what lies beside them)"
+        if datum.found
+        else f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)"
+    )
+    return _assemble(
+        sc,
+        design,
+        plane,
+        datum,
+        result_bars,
+        sig,
+        notes,
+        diameters,
+        q,
+        name=name,
+        t_start=t_start,
+        up_how=up_how,
+    )
 
 
 def _normals_facing(sc: ScanCloud, normal) -> float | None:
@@ -109,9 +154,13 @@ def _sign_from_crossings(pts, normal, datum: Datum, design: Design, current, min
     else:
         bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
         other, lift_other = (plane, q, split, bars, noise), crossing_lift(q, bars, noise)
-    best, (hi, lo) = (other, (lift_other, lift)) if lift_other > lift else (current, (lift, lift_other))
-    how = ("the mesh plane from the bars (no formwork in the scan); its sign GUESSED from the crossings, "
-           f"where the bar on top hides the one beneath (heights {hi:+.1f} mm there against {lo:+.1f} mm "
-           "the other way up): right in 8 of 8 synthetic scans from above at σ 5 and at σ 15 mm; "
-           "give up= (--up) where you know it")
+    best, (hi, lo) = (
+        (other, (lift_other, lift)) if lift_other > lift else (current, (lift, lift_other))
+    )
+    how = (
+        "the mesh plane from the bars (no formwork in the scan); its sign GUESSED from the crossings, "
+        f"where the bar on top hides the one beneath (heights {hi:+.1f} mm there against {lo:+.1f} mm "
+        "the other way up): right in 8 of 8 synthetic scans from above at σ 5 and at σ 15 mm; "
+        "give up= (--up) where you know it"
+    )
     return best, how

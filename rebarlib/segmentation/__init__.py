@@ -29,8 +29,22 @@ from .registration import estimate_registration, shift_image
 from .sidecar import SIDECAR_FORMAT, read_sidecar
 
 __all__ = [
-    "SegmentationModel", "read_sidecar", "confusion_counts", "pixel_accuracy", "iou", "dice",
-    "fit_formwork_plane", "height_above_plane", "mask_from_depth", "fuse_masks", "soft_mask",
-    "depth_overreach_px", "trim_depth_overreach", "estimate_registration", "shift_image",
-    "MODELS_DIR", "DEFAULT_MODEL", "SIDECAR_FORMAT",
+    "SegmentationModel",
+    "read_sidecar",
+    "confusion_counts",
+    "pixel_accuracy",
+    "iou",
+    "dice",
+    "fit_formwork_plane",
+    "height_above_plane",
+    "mask_from_depth",
+    "fuse_masks",
+    "soft_mask",
+    "depth_overreach_px",
+    "trim_depth_overreach",
+    "estimate_registration",
+    "shift_image",
+    "MODELS_DIR",
+    "DEFAULT_MODEL",
+    "SIDECAR_FORMAT",
 ]

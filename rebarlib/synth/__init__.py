@@ -23,17 +23,46 @@ Examples
 from __future__ import annotations
 
 from ..diameter.barsizes import rib_envelope_mm
+
 # (and the internals the other simulators use: ``synth_scan`` casts its laser's rays into the
 # same geometry, ``synth_calib`` puts a checkerboard through the same sensor model)
 from .raycast import K_BAR, K_CHAIR, K_FORMWORK, K_SPACER, K_TIE
 from .raycast import _build_geometry as _build_geometry, _Caster as _Caster
-from .render import (FORMWORKS, LABEL_BACKGROUND, LABEL_LOWER, LABEL_UPPER, Appearance,
-                     CameraPose, misregister, render_capture, synth_capture)
+from .render import (
+    FORMWORKS,
+    LABEL_BACKGROUND,
+    LABEL_LOWER,
+    LABEL_UPPER,
+    Appearance,
+    CameraPose,
+    misregister,
+    render_capture,
+    synth_capture,
+)
 from .scene import Bar, Deviations, SlabScene, make_scene
 from .sensor import SensorModel, dropout_mask
 from .sensor import _sensor_depth as _sensor_depth
 
-__all__ = ["Deviations", "SensorModel", "Appearance", "CameraPose", "Bar", "SlabScene",
-           "make_scene", "render_capture", "synth_capture", "rib_envelope_mm", "misregister",
-           "dropout_mask", "FORMWORKS", "LABEL_BACKGROUND", "LABEL_LOWER", "LABEL_UPPER",
-           "K_FORMWORK", "K_BAR", "K_SPACER", "K_CHAIR", "K_TIE"]
+__all__ = [
+    "Deviations",
+    "SensorModel",
+    "Appearance",
+    "CameraPose",
+    "Bar",
+    "SlabScene",
+    "make_scene",
+    "render_capture",
+    "synth_capture",
+    "rib_envelope_mm",
+    "misregister",
+    "dropout_mask",
+    "FORMWORKS",
+    "LABEL_BACKGROUND",
+    "LABEL_LOWER",
+    "LABEL_UPPER",
+    "K_FORMWORK",
+    "K_BAR",
+    "K_SPACER",
+    "K_CHAIR",
+    "K_TIE",
+]

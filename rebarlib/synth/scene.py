@@ -80,8 +80,14 @@ class Deviations:
     @classmethod
     def none(cls) -> "Deviations":
         """A mesh exactly as designed (no jitter, no ribs, no accessories): for unit tests."""
-        return cls(position_sigma_mm=0.0, height_sigma_mm=0.0, ribs=False, spacers=False,
-                   chairs=False, ties=False)
+        return cls(
+            position_sigma_mm=0.0,
+            height_sigma_mm=0.0,
+            ribs=False,
+            spacers=False,
+            chairs=False,
+            ties=False,
+        )
 
 
 @dataclass(frozen=True)
@@ -162,8 +168,16 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     boxes, rods = _accessories(design, dev, bars, yaw)
     if dev.edge_form and extent:
         boxes.extend(_edge_forms(design, bars, extent, ex, ey, yaw))
-    return SlabScene(design, dev, tuple(bars), tuple(missing), tuple(boxes), tuple(rods),
-                     key=int(rng.integers(2**31)), ghosts=tuple(ghosts))
+    return SlabScene(
+        design,
+        dev,
+        tuple(bars),
+        tuple(missing),
+        tuple(boxes),
+        tuple(rods),
+        key=int(rng.integers(2**31)),
+        ghosts=tuple(ghosts),
+    )
 
 
 def _design_positions(design: Design, dev: Deviations, half: float, rng) -> list:
@@ -193,17 +207,17 @@ def _deviant_slots(sets: list, dev: Deviations, rng) -> tuple[set, set, set]:
     ``missing_at_end`` ones."""
     slots = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 1)]
     pick = rng.permutation(len(slots))
-    missing_slots = {slots[i] for i in pick[:dev.missing]}
-    wrong_slots = {slots[i] for i in pick[dev.missing:dev.missing + dev.wrong_size]}
+    missing_slots = {slots[i] for i in pick[: dev.missing]}
+    wrong_slots = {slots[i] for i in pick[dev.missing : dev.missing + dev.wrong_size]}
     # the options below draw from ``rng`` only when set, so that earlier renders stay identical
     if dev.missing_at_end:
         ends = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in (0, len(offs) - 1)]
         ends = [e for e in ends if e not in wrong_slots]
-        missing_slots |= {ends[i] for i in rng.permutation(len(ends))[:dev.missing_at_end]}
+        missing_slots |= {ends[i] for i in rng.permutation(len(ends))[: dev.missing_at_end]}
     extra_slots = set()
     if dev.extra:
         gaps = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 2)]
-        extra_slots = {gaps[i] for i in rng.permutation(len(gaps))[:dev.extra]}
+        extra_slots = {gaps[i] for i in rng.permutation(len(gaps))[: dev.extra]}
     return missing_slots, wrong_slots, extra_slots
 
 
@@ -215,13 +229,16 @@ def _finite_extent(sets: list, dev: Deviations) -> dict:
         for layer in ("lower", "upper"):
             offs = {lv: o for (la, lv, o) in sets if la == layer}
             for level, other in (("bottom", "top"), ("top", "bottom")):
-                extent[(layer, level)] = (min(offs[other]) - dev.end_overhang_mm,
-                                          max(offs[other]) + dev.end_overhang_mm)
+                extent[(layer, level)] = (
+                    min(offs[other]) - dev.end_overhang_mm,
+                    max(offs[other]) + dev.end_overhang_mm,
+                )
     return extent
 
 
-def _place_bars(design: Design, dev: Deviations, sets: list, slots: tuple, extent: dict, frame,
-                half: float, rng) -> tuple[list, list, list]:
+def _place_bars(
+    design: Design, dev: Deviations, sets: list, slots: tuple, extent: dict, frame, half: float, rng
+) -> tuple[list, list, list]:
     """The bars of every set where they lie (offset, height and bow drawn from ``rng``); the
     empty positions and a ghost bar at each (where it would have been, with no draw)."""
     env = (lambda d: rib_envelope_mm(d)) if dev.ribs else (lambda d: float(d))
@@ -238,8 +255,9 @@ def _place_bars(design: Design, dev: Deviations, sets: list, slots: tuple, exten
         s_mid, s_half = 0.5 * (s_lo + s_hi), 0.5 * (s_hi - s_lo)
         spacing = lat.level(level).spacing_mm
         placed = [(k, off, False) for k, off in enumerate(offsets)]
-        placed += [(k, off + spacing / 2, True) for k, off in enumerate(offsets)
-                   if (si, k) in extra_slots]
+        placed += [
+            (k, off + spacing / 2, True) for k, off in enumerate(offsets) if (si, k) in extra_slots
+        ]
         for k, off, is_extra in sorted(placed, key=lambda x: x[1]):
             if not is_extra and (si, k) in missing_slots:
                 missing.append((layer, level, k))
@@ -247,9 +265,20 @@ def _place_bars(design: Design, dev: Deviations, sets: list, slots: tuple, exten
                 e = env(d_design)
                 zc = base[layer] + (e / 2 if level == "bottom" else bottom_env + e / 2)
                 s = np.array([s_lo, s_hi])
-                ghosts.append(Bar(-1 - len(ghosts), layer, level, k, float(off), along.copy(),
-                                  s[:, None] * along + off * across + np.array([0, 0, zc]),
-                                  float(d_design), float(e), float(d_design)))
+                ghosts.append(
+                    Bar(
+                        -1 - len(ghosts),
+                        layer,
+                        level,
+                        k,
+                        float(off),
+                        along.copy(),
+                        s[:, None] * along + off * across + np.array([0, 0, zc]),
+                        float(d_design),
+                        float(e),
+                        float(d_design),
+                    )
+                )
                 continue
             nominal = d_design
             if not is_extra and (si, k) in wrong_slots:
@@ -258,18 +287,36 @@ def _place_bars(design: Design, dev: Deviations, sets: list, slots: tuple, exten
             off_true = off + rng.normal(0, dev.position_sigma_mm) if dev.position_sigma_mm else off
             if dev.position_uniform_mm:
                 off_true += rng.uniform(-dev.position_uniform_mm, dev.position_uniform_mm)
-            z0 = (base[layer] + rng.normal(0, dev.height_sigma_mm) if dev.height_sigma_mm
-                  else base[layer])
+            z0 = (
+                base[layer] + rng.normal(0, dev.height_sigma_mm)
+                if dev.height_sigma_mm
+                else base[layer]
+            )
             # bottom bars rest on the spacers; top bars rest on the bottom bars of their lattice
             zc = z0 + e / 2 if level == "bottom" else z0 + bottom_env + e / 2
             n_seg = 12 if dev.bow_mm else 1
             s = np.linspace(s_lo, s_hi, n_seg + 1)
-            bow = (dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2)
-                   if dev.bow_mm else 0 * s)
-            axis = (s[:, None] * along + (off_true + bow)[:, None] * across
-                    + np.array([0, 0, zc]))
-            bars.append(Bar(len(bars), layer, level, k, float(off_true), along.copy(), axis,
-                            float(nominal), float(e), float(d_design), extra=is_extra))
+            bow = (
+                dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2)
+                if dev.bow_mm
+                else 0 * s
+            )
+            axis = s[:, None] * along + (off_true + bow)[:, None] * across + np.array([0, 0, zc])
+            bars.append(
+                Bar(
+                    len(bars),
+                    layer,
+                    level,
+                    k,
+                    float(off_true),
+                    along.copy(),
+                    axis,
+                    float(nominal),
+                    float(e),
+                    float(d_design),
+                    extra=is_extra,
+                )
+            )
     return bars, missing, ghosts
 
 
@@ -294,8 +341,14 @@ def _accessories(design: Design, dev: Deviations, bars: list, yaw: float) -> tup
             for d_mm in np.arange(300.0, _length(b), 900.0):
                 p = b.axis[0] + d_mm * b.direction
                 z_top = b.axis[:, 2].mean() - b.radius_mm
-                rods.append((np.array([p[0], p[1], top_of_lower]), np.array([p[0], p[1], z_top]),
-                             5.0, "chair"))
+                rods.append(
+                    (
+                        np.array([p[0], p[1], top_of_lower]),
+                        np.array([p[0], p[1], z_top]),
+                        5.0,
+                        "chair",
+                    )
+                )
     if dev.ties:
         rods.extend(_ties(bars))
     return boxes, rods

@@ -77,20 +77,32 @@ class SensorModel:
 
     def __post_init__(self):
         if not (0.0 <= self.dropout <= 1.0) or not self.dropout_patch_px >= 0:
-            raise RebarInputError(f"SensorModel: dropout must be in 0..1 and dropout_patch_px >= 0, got "
-                                  f"{self.dropout!r} and {self.dropout_patch_px!r}")
+            raise RebarInputError(
+                f"SensorModel: dropout must be in 0..1 and dropout_patch_px >= 0, got "
+                f"{self.dropout!r} and {self.dropout_patch_px!r}"
+            )
 
     @classmethod
     def ideal(cls) -> "SensorModel":
         """Exact depth: no noise, holes, jitter or quantisation (depth_scale_mm for saving only)."""
-        return cls(disparity_sigma_px=0.0, noise_correlation_px=0.0, subpixel_px=0.0,
-                   lateral_jitter_px=0.0, edge_hole_prob=0.0, edge_fatten_prob=0.0,
-                   flying_pixel_prob=0.0, projector_shadow=False, depth_scale_mm=0.02,
-                   quantize=False)
+        return cls(
+            disparity_sigma_px=0.0,
+            noise_correlation_px=0.0,
+            subpixel_px=0.0,
+            lateral_jitter_px=0.0,
+            edge_hole_prob=0.0,
+            edge_fatten_prob=0.0,
+            flying_pixel_prob=0.0,
+            projector_shadow=False,
+            depth_scale_mm=0.02,
+            quantize=False,
+        )
 
     def sigma_z_mm(self, z_mm, focal_px: float):
         """Model axial noise (mm) at depth ``z_mm``."""
-        return np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
+        return (
+            np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
+        )
 
     def true_intrinsics(self, written: Intrinsics) -> Intrinsics:
         """The intrinsics the rays are cast through, where ``written`` are those saved with the
@@ -231,8 +243,11 @@ def _remove_bar_depth(depth, bar_ids, truth: dict, n: int, rng) -> set:
 
     if not n:
         return set()
-    seen = [tb["id"] for tb in truth["bars"]
-            if tb["layer"] == "lower" and tb["visible"] and tb["visible_length_mm"] >= 400]
+    seen = [
+        tb["id"]
+        for tb in truth["bars"]
+        if tb["layer"] == "lower" and tb["visible"] and tb["visible_length_mm"] >= 400
+    ]
     ids = {seen[i] for i in rng.permutation(len(seen))[:n]}
     if ids:
         mask = np.isin(bar_ids - 1, sorted(ids)).astype(np.uint8)

@@ -24,8 +24,12 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
     offset_c = float(-normal_c @ pose.to_camera([[0, 0, 0]])[0])
     ids = bar_ids.ravel() - 1
     counts = np.bincount(ids[ids >= 0], minlength=len(scene.bars))
-    bars = [_bar_truth(b, pose, p[ids == b.id] if counts[b.id] else None, int(counts[b.id]),
-                       rust_of_bar) for b in scene.bars]
+    bars = [
+        _bar_truth(
+            b, pose, p[ids == b.id] if counts[b.id] else None, int(counts[b.id]), rust_of_bar
+        )
+        for b in scene.bars
+    ]
     by = {(bb["layer"], bb["level"]): [] for bb in bars}
     for bb in bars:
         by[(bb["layer"], bb["level"])].append(bb)
@@ -42,21 +46,29 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
     return {
         "units": "mm, camera frame (OpenCV: x right, y down, z forward); heights above the formwork",
         "cover_mm": round(cover, 4) if cover is not None else None,
-        "layer_distance_mm": (round(upper_bottom - cover, 4) if None not in (cover, upper_bottom)
-                              else None),
+        "layer_distance_mm": (
+            round(upper_bottom - cover, 4) if None not in (cover, upper_bottom) else None
+        ),
         "upper_top_mm": mean_of("top_mm", "upper", "top"),
         "formwork_plane": {"normal": normal_c.round(8).tolist(), "offset_mm": round(offset_c, 4)},
-        "camera": {"height_mm": round(float(pose.centre[2]), 4),
-                   "rotation_world_to_camera": R.round(10).tolist(),
-                   "centre_world_mm": pose.centre.round(4).tolist()},
+        "camera": {
+            "height_mm": round(float(pose.centre[2]), 4),
+            "rotation_world_to_camera": R.round(10).tolist(),
+            "centre_world_mm": pose.centre.round(4).tolist(),
+        },
         "bars": bars,
-        "missing": [{"layer": lay, "level": v, "index": k, **_ghost_truth(scene, i, pose, intr)}
-                    for i, (lay, v, k) in enumerate(scene.missing)],
+        "missing": [
+            {"layer": lay, "level": v, "index": k, **_ghost_truth(scene, i, pose, intr)}
+            for i, (lay, v, k) in enumerate(scene.missing)
+        ],
         "mesh": _mesh_truth(scene, pose),
         "spacings": _spacings_truth(by),
-        "design": {"cover_mm": d.cover_mm, "layer_distance_mm": d.layer_distance_mm,
-                   "lower_diameter_mm": d.lower.bottom.diameter_mm,
-                   "upper_diameter_mm": d.upper.bottom.diameter_mm},
+        "design": {
+            "cover_mm": d.cover_mm,
+            "layer_distance_mm": d.layer_distance_mm,
+            "lower_diameter_mm": d.lower.bottom.diameter_mm,
+            "upper_diameter_mm": d.upper.bottom.diameter_mm,
+        },
         "deviations": asdict(scene.deviations),
         "sensor": asdict(sensor),
         "appearance": {**asdict(app), "formwork": formwork, "light_world": light.round(6).tolist()},
@@ -77,7 +89,10 @@ def _bar_truth(b, pose, seen, n_seen: int, rust_of_bar) -> dict:
     ve = a0 + s1 * b.direction
     vs[2] = ve[2] = b.axis[:, 2].mean()
     return {
-        "id": b.id, "layer": b.layer, "level": b.level, "index": b.index,
+        "id": b.id,
+        "layer": b.layer,
+        "level": b.level,
+        "index": b.index,
         "axis_start_mm": pose.to_camera([a0])[0].round(4).tolist(),
         "axis_end_mm": pose.to_camera([a1])[0].round(4).tolist(),
         "visible_start_mm": pose.to_camera([vs])[0].round(4).tolist(),
@@ -86,11 +101,14 @@ def _bar_truth(b, pose, seen, n_seen: int, rust_of_bar) -> dict:
         "offset_mm": round(b.offset_mm, 4),
         "underside_mm": round(b.underside_mm, 4),
         "top_mm": round(b.underside_mm + b.envelope_mm, 4),
-        "diameter_mm": b.nominal_mm, "envelope_mm": b.envelope_mm,
+        "diameter_mm": b.nominal_mm,
+        "envelope_mm": b.envelope_mm,
         "design_diameter_mm": b.design_mm,
-        "wrong_size": b.nominal_mm != b.design_mm, "extra": bool(b.extra),
+        "wrong_size": b.nominal_mm != b.design_mm,
+        "extra": bool(b.extra),
         "rust": round(float(rust_of_bar[b.id]), 3),
-        "visible_pixels": int(n_seen), "visible_length_mm": round(s1 - s0, 2),
+        "visible_pixels": int(n_seen),
+        "visible_length_mm": round(s1 - s0, 2),
         "visible": bool(n_seen >= 100 and s1 - s0 >= 50),
     }
 
@@ -102,9 +120,16 @@ def _spacings_truth(by: dict) -> list:
     for (layer, level), group in sorted(by.items()):
         group = sorted(group, key=lambda bb: bb["offset_mm"])
         for a, b in zip(group[:-1], group[1:]):
-            spacings.append({"layer": layer, "level": level, "bar_a": a["id"], "bar_b": b["id"],
-                             "spacing_mm": round(b["offset_mm"] - a["offset_mm"], 4),
-                             "visible": a["visible"] and b["visible"]})
+            spacings.append(
+                {
+                    "layer": layer,
+                    "level": level,
+                    "bar_a": a["id"],
+                    "bar_b": b["id"],
+                    "spacing_mm": round(b["offset_mm"] - a["offset_mm"], 4),
+                    "visible": a["visible"] and b["visible"],
+                }
+            )
     return spacings
 
 
@@ -121,11 +146,20 @@ def _ghost_truth(scene, i: int, pose, intr) -> dict:
     pts = a0 + t[:, None] * (a1 - a0) + np.array([0, 0, g.radius_mm])
     cam = pose.to_camera(pts)
     uv = project(cam, intr)
-    inside = (cam[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height)
+    inside = (
+        (cam[:, 2] > 0)
+        & (uv[:, 0] >= 0)
+        & (uv[:, 0] < intr.width)
+        & (uv[:, 1] >= 0)
+        & (uv[:, 1] < intr.height)
+    )
     step = float(np.linalg.norm(a1 - a0)) / 400
-    return {"offset_mm": round(g.offset_mm, 4), "axis_start_mm": pose.to_camera([a0])[0].round(4).tolist(),
-            "axis_end_mm": pose.to_camera([a1])[0].round(4).tolist(),
-            "in_view_mm": round(float(inside.sum()) * step, 1)}
+    return {
+        "offset_mm": round(g.offset_mm, 4),
+        "axis_start_mm": pose.to_camera([a0])[0].round(4).tolist(),
+        "axis_end_mm": pose.to_camera([a1])[0].round(4).tolist(),
+        "in_view_mm": round(float(inside.sum()) * step, 1),
+    }
 
 
 def _mesh_truth(scene, pose) -> dict:
