@@ -20,17 +20,13 @@ from rebarlib.synth import SensorModel
 
 CAMERAS = {
     "gemini2": GEMINI2,
-    "d435-848": Intrinsics(
-        fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480
-    ),
+    "d435-848": Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480),
 }
 
 SENSORS = {
     "default": SensorModel(),
     "flying": SensorModel(edge_hole_prob=0.15, edge_fatten_prob=0.2, flying_pixel_prob=0.5),
     "noisy": SensorModel(disparity_sigma_px=0.2),
-    "clean": SensorModel(
-        edge_hole_prob=0.0, edge_fatten_prob=0.0, flying_pixel_prob=0.0, lateral_jitter_px=0.0
-    ),
+    "clean": SensorModel(edge_hole_prob=0.0, edge_fatten_prob=0.0, flying_pixel_prob=0.0, lateral_jitter_px=0.0),
     "fattened": SensorModel(edge_fatten_px=3, edge_fatten_prob=0.6, edge_hole_prob=0.2),
 }

@@ -83,7 +83,5 @@ def shows_width(cap, min_length_d: float = SHOWS_WIDTH_D, step_px: float = 3.0) 
     their own diameters (see the module's docstring)."""
     bars = {int(b["id"]): b for b in cap.truth["bars"]}
     return {
-        i
-        for i, (_, length) in width_sections(cap, step_px).items()
-        if length >= min_length_d * bars[i]["diameter_mm"]
+        i for i, (_, length) in width_sections(cap, step_px).items() if length >= min_length_d * bars[i]["diameter_mm"]
     }

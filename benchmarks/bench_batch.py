@@ -66,10 +66,11 @@ def _stage_run(threads: str, repeats: int) -> dict:
     code = f"""
 import json, statistics, time, sys
 import rebarlib._inspect as I
+import rebarlib._masks as M
 threads = {threads!r}
 if threads != "default":
     import cv2
-    I.MODEL_THREADS = int(threads); cv2.setNumThreads(int(threads))
+    M.MODEL_THREADS = int(threads); cv2.setNumThreads(int(threads))
 from rebarlib import load_capture, load_design
 d = load_design({str(PAPER / "design.toml")!r})
 cap = load_capture({str(PAPER / "B_500")!r})
@@ -83,9 +84,7 @@ for i in range({repeats}):
 print(json.dumps({{"wall": statistics.median(walls), "cpu": statistics.median(cpus),
                   "stages": {{k: statistics.median(v) for k, v in st.items()}}}}))
 """
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
-    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -146,26 +145,13 @@ def bench_startup(repeats: int) -> None:
         help_ = _median_of([[rebar, "--help"]] * repeats)
         report = _median_of(
             [
-                [
-                    rebar,
-                    "report",
-                    str(PAPER),
-                    "--results",
-                    str(res),
-                    "--out",
-                    str(Path(tmp) / f"r{i}.pdf"),
-                ]
+                [rebar, "report", str(PAPER), "--results", str(res), "--out", str(Path(tmp) / f"r{i}.pdf")]
                 for i in range(repeats)
             ]
         )
         rows = [
             ["rebar --help", f"{help_[0]:.3f}", f"{help_[1]:.3f}", "0.3"],
-            [
-                "rebar report --results (4 captures, PDF)",
-                f"{report[0]:.3f}",
-                f"{report[1]:.3f}",
-                "3.0",
-            ],
+            ["rebar report --results (4 captures, PDF)", f"{report[0]:.3f}", f"{report[1]:.3f}", "3.0"],
         ]
     table(
         f"startup: seconds with the interpreter's start-up, median of {repeats}",
@@ -243,9 +229,7 @@ def run_batch(caps: list, out: Path, *extra) -> tuple:
         "--quiet",
         *extra,
     ]
-    p = subprocess.Popen(
-        cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-    )
+    p = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     mem = PeakMemory(p.pid)
     _, err = p.communicate()
     wall = time.perf_counter() - t
@@ -264,9 +248,7 @@ def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
         for jobs in jobs_list:
             walls, peaks, cpus = [], [], []
             for r in range(repeats):
-                wall, peak, rc, cpu = run_batch(
-                    caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs)
-                )
+                wall, peak, rc, cpu = run_batch(caps, Path(tmp) / f"out_{jobs}_{r}", "--jobs", str(jobs))
                 walls.append(wall)
                 peaks.append(peak)
                 cpus.append(cpu)
@@ -285,15 +267,7 @@ def bench_batch(n: int, jobs_list: list, repeats: int) -> None:
     table(
         f"batch: rebar inspect --jobs J over {n} copies of the paper slab's captures "
         f"(diameters on), median of {repeats}",
-        [
-            "jobs",
-            "captures",
-            "wall s",
-            "captures/min",
-            "CPU s per capture (all processes)",
-            "peak MiB (tree)",
-            "exit",
-        ],
+        ["jobs", "captures", "wall s", "captures/min", "CPU s per capture (all processes)", "peak MiB (tree)", "exit"],
         rows,
     )
 
@@ -310,26 +284,20 @@ def bench_dask(n: int, repeats: int) -> None:
         caps = copies(Path(tmp) / "caps", n)
         for workers in (1, 2):
             with LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                host="127.0.0.1",
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
             ) as cluster:
                 address = cluster.scheduler_address
                 # a first small batch lets every worker import the stages before the clock starts
                 run_batch(caps[: 2 * workers], Path(tmp) / f"warm_{workers}", "--dask", address)
                 walls = [
-                    run_batch(caps, Path(tmp) / f"out_{workers}_{r}", "--dask", address)[0]
-                    for r in range(repeats)
+                    run_batch(caps, Path(tmp) / f"out_{workers}_{r}", "--dask", address)[0] for r in range(repeats)
                 ]
             w = statistics.median(walls)
             rate = 60 * n / w
             rate1 = rate1 or rate
             rows.append([workers, n, f"{w:.1f}", f"{rate:.1f}", f"{rate / rate1:.2f}"])
     table(
-        f"dask: rebar inspect --dask on a local cluster (1 thread per worker), {n} captures, "
-        f"median of {repeats}",
+        f"dask: rebar inspect --dask on a local cluster (1 thread per worker), {n} captures, median of {repeats}",
         ["workers", "captures", "wall s", "captures/min", "scaling"],
         rows,
     )
@@ -354,11 +322,7 @@ def dump_results() -> dict:
 
 def _differences(a, b, path="") -> list:
     if isinstance(a, dict) and isinstance(b, dict):
-        return [
-            d
-            for k in sorted(set(a) | set(b))
-            for d in _differences(a.get(k), b.get(k), f"{path}.{k}")
-        ]
+        return [d for k in sorted(set(a) | set(b)) for d in _differences(a.get(k), b.get(k), f"{path}.{k}")]
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
     return [] if a == b else [f"{path}: {a!r} -> {b!r}"]
@@ -379,22 +343,10 @@ def check(path: Path) -> int:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--only", choices=("stages", "startup", "batch", "dask"), action="append")
-    ap.add_argument(
-        "--n", type=int, default=24, help="captures in the batch and dask tables (default 24)"
-    )
-    ap.add_argument(
-        "--jobs",
-        type=int,
-        action="append",
-        help="--jobs values of the batch table (default 1 and 2)",
-    )
+    ap.add_argument("--n", type=int, default=24, help="captures in the batch and dask tables (default 24)")
+    ap.add_argument("--jobs", type=int, action="append", help="--jobs values of the batch table (default 1 and 2)")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument(
-        "--big",
-        type=int,
-        metavar="N",
-        help="only the batch table, once, over N captures with --jobs 2",
-    )
+    ap.add_argument("--big", type=int, metavar="N", help="only the batch table, once, over N captures with --jobs 2")
     ap.add_argument("--dump", type=Path, metavar="FILE")
     ap.add_argument("--check", type=Path, metavar="FILE")
     a = ap.parse_args(argv)

@@ -43,11 +43,7 @@ from rebarlib.synth import Deviations, SensorModel, synth_capture
 
 SETS = {  # name: (camera, sensor, device string written with the capture)
     "gemini2": ("gemini2", SensorModel(), "rebarlib synthetic (Gemini-2-like)"),
-    "gemini2-noisy": (
-        "gemini2",
-        SensorModel(disparity_sigma_px=0.2),
-        "rebarlib synthetic (Gemini-2-like)",
-    ),
+    "gemini2-noisy": ("gemini2", SensorModel(disparity_sigma_px=0.2), "rebarlib synthetic (Gemini-2-like)"),
     "d435-848": ("d435-848", SensorModel(), "Intel RealSense D435"),
 }
 
@@ -94,18 +90,10 @@ def rows_of(res, cap, case, diameters: bool) -> list:
     tr = cap.truth
     base = {"set": name, "height": h, "tilt": tilt, **errs}
     out = []
-    for q, key in (
-        ("cover", "cover_mm"),
-        ("layer distance", "layer_distance_mm"),
-        ("upper top", "upper_top_mm"),
-    ):
-        m = getattr(
-            res, {"cover": "cover", "layer distance": "layer_distance", "upper top": "upper_top"}[q]
-        )
+    for q, key in (("cover", "cover_mm"), ("layer distance", "layer_distance_mm"), ("upper top", "upper_top_mm")):
+        m = getattr(res, {"cover": "cover", "layer distance": "layer_distance", "upper top": "upper_top"}[q])
         if m.ok and tr.get(key) is not None and m.uncertainty_mm:
-            out.append(
-                {**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm}
-            )
+            out.append({**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm})
     visible = {b["id"] for b in tr["bars"] if b["visible"]}
     mapping, _, tb = match_bars(res, tr, visible)
     tsp = {(s["bar_a"], s["bar_b"]): s["spacing_mm"] for s in tr["spacings"]}
@@ -114,14 +102,7 @@ def rows_of(res, cap, case, diameters: bool) -> list:
         ta, tb_ = mapping.get(s.bar_a), mapping.get(s.bar_b)
         if ta is None or tb_ is None or (ta, tb_) not in tsp or not np.isfinite(s.spacing_mm):
             continue
-        out.append(
-            {
-                **base,
-                "quantity": "spacing",
-                "error": s.spacing_mm - abs(tsp[(ta, tb_)]),
-                "u": s.uncertainty_mm,
-            }
-        )
+        out.append({**base, "quantity": "spacing", "error": s.spacing_mm - abs(tsp[(ta, tb_)]), "u": s.uncertainty_mm})
     if diameters and "width_uncertainty_mm" in res.bars:
         wcol = "width_used_mm" if "width_used_mm" in res.bars else "width_mm"
         for r in res.bars.itertuples():
@@ -168,9 +149,7 @@ def run(quick: bool, diameters: bool, seed: int = 59) -> pd.DataFrame:
 def report(df: pd.DataFrame) -> None:
     df = df.assign(z=(df["error"] / df["u"]).abs())
     order = ["cover", "layer distance", "upper top", "spacing", "width"]
-    print(
-        "\nCoverage of the stated standard uncertainty u (k = 2: target 95 % <= within 2u <= 99.9 %)"
-    )
+    print("\nCoverage of the stated standard uncertainty u (k = 2: target 95 % <= within 2u <= 99.9 %)")
     print(
         f"{'quantity':15s} {'set':13s} {'n':>5s} {'mean err':>9s} {'RMS err':>8s} {'median u':>9s} "
         f"{'<= 1u':>7s} {'<= 2u':>7s}  target"
@@ -192,12 +171,8 @@ def report(df: pd.DataFrame) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="8 captures instead of 36")
-    ap.add_argument(
-        "--diameters", action="store_true", help="also the bars' widths (runs the diameter stage)"
-    )
-    ap.add_argument(
-        "--seed", type=int, default=59, help="seed of the scenes and error draws (default 59)"
-    )
+    ap.add_argument("--diameters", action="store_true", help="also the bars' widths (runs the diameter stage)")
+    ap.add_argument("--seed", type=int, default=59, help="seed of the scenes and error draws (default 59)")
     ap.add_argument("--csv", help="write every measurement's error and u to this CSV")
     a = ap.parse_args()
     df = run(a.quick, a.diameters, a.seed)

@@ -83,27 +83,17 @@ def scenarios(quick: bool, seed_offset: int = 0, heights=None, seeds=None):
     ``heights`` / ``seeds``: the paper set-up only, at these camera heights (mm) and seeds
     (how the sizing depends on the capture distance)."""
     out = []
-    heights0, tilts, seeds0 = (
-        ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
-    )
+    heights0, tilts, seeds0 = ((400, 600), (0, 15), (1,)) if quick else ((400, 500, 600), (0, 5, 10, 15), (1, 2))
     only_paper = heights is not None or seeds is not None
     heights, seeds = heights or heights0, seeds or seeds0
     for h in heights:
         for tilt in tilts:
             for seed in seeds:
-                out.append(
-                    (
-                        f"paper {h}/{tilt}°/s{seed}",
-                        paper_design(),
-                        dict(height_mm=h, tilt_deg=tilt, seed=seed),
-                    )
-                )
+                out.append((f"paper {h}/{tilt}°/s{seed}", paper_design(), dict(height_mm=h, tilt_deg=tilt, seed=seed)))
     if not only_paper:
         out += _other_scenarios(quick)
     if seed_offset:
-        out = [
-            (f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out
-        ]
+        out = [(f"{n} +{seed_offset}", d, {**kw, "seed": kw["seed"] + seed_offset}) for n, d, kw in out]
     return out
 
 
@@ -113,20 +103,11 @@ def _other_scenarios(quick: bool):
     out = []
     site = ((450, 10),) if quick else ((400, 0), (450, 10), (500, 5), (500, 15))
     for k, (h, tilt) in enumerate(site):
-        out.append(
-            (f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k))
-        )
+        out.append((f"site Φ8 {h}/{tilt}°", site_design(), dict(height_mm=h, tilt_deg=tilt, seed=10 + k)))
     others = (
         ((10, 10, 500), (20, 16, 550))
         if quick
-        else (
-            (10, 10, 450),
-            (10, 10, 550),
-            (16, 10, 500),
-            (16, 10, 600),
-            (20, 16, 500),
-            (20, 16, 600),
-        )
+        else ((10, 10, 450), (10, 10, 550), (16, 10, 500), (16, 10, 600), (20, 16, 500), (20, 16, 600))
     )
     for k, (lo, up, h) in enumerate(others):
         out.append(
@@ -137,22 +118,13 @@ def _other_scenarios(quick: bool):
             )
         )
     # a few bars of another size than designed, on a smaller slab so that they are in view
-    wrong = (
-        ((450, 0, 30), (500, 10, 31))
-        if quick
-        else ((450, 0, 30), (450, 10, 31), (500, 5, 32), (550, 15, 33))
-    )
+    wrong = ((450, 0, 30), (500, 10, 31)) if quick else ((450, 0, 30), (450, 10, 31), (500, 5, 32), (550, 15, 33))
     for h, tilt, seed in wrong:
         out.append(
             (
                 f"wrong-size {h}/{tilt}°",
                 paper_design(),
-                dict(
-                    height_mm=h,
-                    tilt_deg=tilt,
-                    seed=seed,
-                    deviations=Deviations(wrong_size=3, slab_size_mm=800),
-                ),
+                dict(height_mm=h, tilt_deg=tilt, seed=seed, deviations=Deviations(wrong_size=3, slab_size_mm=800)),
             )
         )
     return out
@@ -210,15 +182,11 @@ def _mask_sources(model_path=""):
     model = None
     if hasattr(seg, "SegmentationModel"):
         try:
-            model = (
-                seg.SegmentationModel(model_path) if model_path else seg.SegmentationModel.default()
-            )
+            model = seg.SegmentationModel(model_path) if model_path else seg.SegmentationModel.default()
             if model_path:
                 notes.append(f"model and fused masks: {model_path}, not the shipped model")
         except Exception as e:  # noqa: BLE001 - report whatever keeps the model from loading
-            notes.append(
-                f"loading the segmentation model ({model_path or 'the shipped one'}) failed: {e!r}"
-            )
+            notes.append(f"loading the segmentation model ({model_path or 'the shipped one'}) failed: {e!r}")
     else:
         notes.append("rebarlib.segmentation has no SegmentationModel yet")
     if model is not None:
@@ -296,9 +264,7 @@ def _design_radius_axes(bars, truth, declare=False):
             out.loc[out.index[k], f"start_{c}_mm"] = p0[i] + shift * n[i]
             out.loc[out.index[k], f"end_{c}_mm"] = p1[i] + shift * n[i]
     if declare:  # say so, as the geometry stage should: the cloud width then only vetoes
-        out["axis_radius_mm"] = [
-            rib_envelope_mm(tb[int(i)]["design_diameter_mm"]) / 2 for i in out.bar_id
-        ]
+        out["axis_radius_mm"] = [rib_envelope_mm(tb[int(i)]["design_diameter_mm"]) / 2 for i in out.bar_id]
     return out
 
 
@@ -308,9 +274,7 @@ def _axis_sources():
         # the true axes moved by 1 mm (σ) across: what detected axes may look like
         "jitter1": lambda cap, design: _jittered(bars_from_truth(cap.truth), sigma_mm=1.0, rng=0),
         "designr": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth),
-        "designr+": lambda cap, design: _design_radius_axes(
-            bars_from_truth(cap.truth), cap.truth, True
-        ),
+        "designr+": lambda cap, design: _design_radius_axes(bars_from_truth(cap.truth), cap.truth, True),
     }
     try:
         from rebarlib._inspect import inspect
@@ -367,9 +331,7 @@ def _unsizeable(cap, design):
     return {int(i) for i in df.bar_id[df.hidden]}, {int(i) for i in df.bar_id[cut]}
 
 
-def _score(
-    df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset(), shows=frozenset()
-):
+def _score(df, bars, truth, axes_name, truly_hidden=frozenset(), cut=frozenset(), shows=frozenset()):
     """Per-bar rows joined to the truth; bars of the truth not found by the axes count as such:
     (records, missed, missed and truly hidden). A bar that lies under nearer bars cannot be seen,
     so an axis detector that does not find it has missed no visible bar: it counts as hidden.
@@ -388,11 +350,7 @@ def _score(
     seen = set()
     for r, t in zip(df.itertuples(index=False), tid):
         if t < 0 or t not in visible or t in seen:  # a spurious or duplicate axis
-            recs.append(
-                dict(
-                    kind="extra", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence
-                )
-            )
+            recs.append(dict(kind="extra", status=r.diameter_status, nominal=r.nominal_mm, conf=r.confidence))
             continue
         seen.add(t)
         width = r.width_used_mm if r.diameter_status == "measured" else r.width_median_mm
@@ -431,9 +389,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="a few captures only")
     ap.add_argument("--methods", default="paper,refined")
     ap.add_argument("--masks", default="truth,dilated,eroded,model,fused")
-    ap.add_argument(
-        "--edges", default="check", help="refined colour edges: check, replace or mask (none)"
-    )
+    ap.add_argument("--edges", default="check", help="refined colour edges: check, replace or mask (none)")
     ap.add_argument("--axes", default="truth,jitter1,designr,designr+,detected")
     ap.add_argument("--show-wrong", action="store_true", help="print every wrong size")
     ap.add_argument("--only", default="", help="only captures whose name contains this")
@@ -443,20 +399,10 @@ def main() -> None:
         choices=("fuse", "veto", "off"),
         help="refined: use_cloud True (fuse), 'veto' or False (off)",
     )
-    ap.add_argument(
-        "--heights",
-        default="",
-        help="H1,H2,...: the paper set-up only, at these camera heights (mm)",
-    )
-    ap.add_argument(
-        "--seeds", default="", help="S1,S2,...: the paper set-up only, with these seeds"
-    )
-    ap.add_argument(
-        "--seed-offset", type=int, default=0, help="shift every seed (held-out captures)"
-    )
-    ap.add_argument(
-        "--cache", default="", help="folder to keep rendered captures in (re-runs are faster)"
-    )
+    ap.add_argument("--heights", default="", help="H1,H2,...: the paper set-up only, at these camera heights (mm)")
+    ap.add_argument("--seeds", default="", help="S1,S2,...: the paper set-up only, with these seeds")
+    ap.add_argument("--seed-offset", type=int, default=0, help="shift every seed (held-out captures)")
+    ap.add_argument("--cache", default="", help="folder to keep rendered captures in (re-runs are faster)")
     ap.add_argument(
         "--pixel-samples",
         type=int,
@@ -505,13 +451,9 @@ def main() -> None:
         "meaningful then: the true axes belong to the colour image, not the moved depth",
     )
     ap.add_argument(
-        "--model",
-        default="",
-        help="ONNX segmentation model for the model and fused masks (default: the shipped one)",
+        "--model", default="", help="ONNX segmentation model for the model and fused masks (default: the shipped one)"
     )
-    ap.add_argument(
-        "--dump", default="", help="write every bar's row, joined to the truth, to this CSV"
-    )
+    ap.add_argument("--dump", default="", help="write every bar's row, joined to the truth, to this CSV")
     ap.add_argument(
         "--reasons",
         action="store_true",
@@ -529,10 +471,7 @@ def main() -> None:
     for n in notes:
         print("note:", n)
     app = Appearance(
-        rust_fraction=0.3,
-        pixel_samples=args.pixel_samples,
-        blur_px=args.blur,
-        jpeg_quality=args.jpeg or None,
+        rust_fraction=0.3, pixel_samples=args.pixel_samples, blur_px=args.blur, jpeg_quality=args.jpeg or None
     )  # random sun per seed: shadows of the upper bars on the lower
     per_capture = []
     dump = []  # every bar row joined to the truth (--dump)
@@ -543,14 +482,10 @@ def main() -> None:
     missed_hidden = defaultdict(int)
     reasons = defaultdict(lambda: defaultdict(int))
     ints = lambda text: tuple(int(x) for x in text.split(",")) if text else None  # noqa: E731
-    for name, design, kw in scenarios(
-        args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)
-    ):
+    for name, design, kw in scenarios(args.quick, args.seed_offset, ints(args.heights), ints(args.seeds)):
         if args.only not in name:
             continue
-        cap = _capture(
-            name, design, kw, app, args.cache, args.camera, args.sensor, args.ribs == "relief"
-        )
+        cap = _capture(name, design, kw, app, args.cache, args.camera, args.sensor, args.ribs == "relief")
         if depth_shift != (0, 0):
             cap = misregister(cap, *depth_shift)
         masks, measured_on = {}, {}  # measured_on: the capture with the colour moved onto the depth
@@ -585,24 +520,18 @@ def main() -> None:
             )
             times[combo].append(time.perf_counter() - t0)
             cpu[combo].append(time.process_time() - c0)
-            rr, n_missed, n_missed_hidden = _score(
-                df, axes[a], cap.truth, a, hidden_truth, cut_truth, shows
-            )
+            rr, n_missed, n_missed_hidden = _score(df, axes[a], cap.truth, a, hidden_truth, cut_truth, shows)
             recs[combo] += rr
             missed[combo] += n_missed
             missed_hidden[combo] += n_missed_hidden
             for r in rr:
                 if r["kind"] == "bar" and r["status"] != "measured":
                     why = re.sub(r"-?\d+(\.\d+)?", "#", r["row"].diameter_reason)
-                    reasons[combo][
-                        why if why.startswith(f"{r['status']}: ") else f"{r['status']}: {why}"
-                    ] += 1
+                    reasons[combo][why if why.startswith(f"{r['status']}: ") else f"{r['status']}: {why}"] += 1
             if n_missed > n_missed_hidden:
                 reasons[combo]["no axis found for the bar"] += n_missed - n_missed_hidden
             if n_missed_hidden:
-                reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += (
-                    n_missed_hidden
-                )
+                reasons[combo]["no axis found for the bar (hidden under nearer bars)"] += n_missed_hidden
             bars_rr = [r for r in rr if r["kind"] == "bar"]
             dump += [
                 {
@@ -622,9 +551,7 @@ def main() -> None:
             if args.show_wrong:
                 for r in bars_rr:
                     if r["status"] == "measured" and r["nominal"] != r["true"]:
-                        print(
-                            f"    wrong {combo}: true Φ{r['true']:g} (envelope {r['env']}) -> {r['row']}"
-                        )
+                        print(f"    wrong {combo}: true Φ{r['true']:g} (envelope {r['env']}) -> {r['row']}")
             row[combo] = (
                 sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in bars_rr),
                 sum(r["status"] == "hidden" for r in bars_rr) + n_missed_hidden,
@@ -680,9 +607,7 @@ def main() -> None:
         false_hidden = sum(r["status"] == "hidden" and not r["truly_hidden"] for r in rr)
         truly_hidden = sum(r["truly_hidden"] for r in rr) + missed_hidden[combo]
         right = len(meas) - len(wrong)
-        n_shows = sum(r["shows"] for r in rr) + sum(
-            r["kind"] == "missed-shows" for r in recs[combo]
-        )
+        n_shows = sum(r["shows"] for r in rr) + sum(r["kind"] == "missed-shows" for r in recs[combo])
         right_shows = sum(r["shows"] and r["nominal"] == r["true"] for r in meas)
         m, k, a = combo
         print(
@@ -715,33 +640,21 @@ def main() -> None:
         flagged = sum(r["status"] == "measured" and r["nominal"] == r["true"] for r in ws)
         as_other = sum(r["status"] == "measured" and r["nominal"] != r["true"] for r in ws)
         alerted = sum(alert(r) and f"Φ{r['true']:g} " in r["row"].diameter_reason for r in ws)
-        false_alerts = sum(
-            alert(r) for r in recs[combo] if r["kind"] == "bar" and not r["wrong_size"]
-        )
+        false_alerts = sum(alert(r) for r in recs[combo] if r["kind"] == "bar" and not r["wrong_size"])
         m, k, a = combo
         print(
             f"{m:<8}{k:<13}{a:<9}{len(ws):>6}{flagged:>9}{len(ws) - flagged - as_other:>6}{alerted:>9}"
             f"{as_other:>8}{false_alerts:>14}"
         )
 
-    print(
-        "\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), "
-        "bars measured with the true axes"
-    )
-    print(
-        f"{'method':<8}{'mask':<13}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}"
-    )
+    print("\nWidth used for the size (mask, cloud or both) − true rib envelope (mm), bars measured with the true axes")
+    print(f"{'method':<8}{'mask':<13}{'n':>6}{'bias':>7}{'|err| median':>13}{'p90':>7}{'p99':>7}{'max':>7}")
     for combo in combos:
         m, k, a = combo
         if a != "truth":
             continue
         err = np.array(
-            [
-                r["width"] - r["env"]
-                for r in recs[combo]
-                if r["kind"] == "bar" and r["status"] == "measured"
-            ],
-            float,
+            [r["width"] - r["env"] for r in recs[combo] if r["kind"] == "bar" and r["status"] == "measured"], float
         )
         if len(err) == 0:
             continue
@@ -763,20 +676,13 @@ def main() -> None:
     )
     for combo in combos:
         m, k, a = combo
-        rs = [
-            r
-            for r in recs[combo]
-            if r["kind"] == "bar" and np.isfinite(getattr(r["row"], "width_sigma_mm", np.nan))
-        ]
+        rs = [r for r in recs[combo] if r["kind"] == "bar" and np.isfinite(getattr(r["row"], "width_sigma_mm", np.nan))]
         if m != "refined" or not rs:
             continue
         z = np.array([_z(r["row"], r["env"]) for r in rs])
         az = np.abs(z)
         amb = [r for r in rs if str(r["row"].diameter_reason).startswith("ambiguous")]
-        near = sum(
-            f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason)
-            for r in amb
-        )
+        near = sum(f"nearer {bar_system('GB1499.2').label(r['true'])} " in str(r["row"].diameter_reason) for r in amb)
         print(
             f"{m:<8}{k:<13}{a:<9}{len(z):>6}"
             + "".join(f"{np.percentile(az, q):>6.2f}" for q in (50, 68.27, 90, 95, 99))
@@ -798,22 +704,14 @@ def main() -> None:
         m, k, a = combo
         if m != "refined":
             continue
-        rs = [
-            (r["row"], r["env"])
-            for r in recs[combo]
-            if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)
-        ]
+        rs = [(r["row"], r["env"]) for r in recs[combo] if r["kind"] == "bar" and np.isfinite(r["row"].width_median_mm)]
         for label, pick in (("two", lambda s: s == 0), ("one", lambda s: s >= 0.5)):
             g = [(row, env) for row, env in rs if pick(row.one_sided_share)]
             if not g:
                 continue
             err = np.array([row.width_median_mm - env for row, env in g], float)
             az = np.abs([_z(row, env) for row, env in g if np.isfinite(row.width_sigma_mm)])
-            zs = (
-                f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}"
-                if len(az)
-                else ""
-            )
+            zs = f"{np.median(az):>8.2f}{np.percentile(az, 95):>6.2f}{az.max():>7.2f}" if len(az) else ""
             print(
                 f"{m:<8}{k:<13}{a:<9}{label:<6}{len(g):>6}{np.median(err):>7.2f}"
                 f"{np.sqrt(np.mean(err**2)):>7.2f}{len(az):>6}" + zs

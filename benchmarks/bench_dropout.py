@@ -35,13 +35,7 @@ def run_one(cap, design, fraction: float, patch_px: float, seed: int, method: st
     depth = cap.depth_mm.copy()
     depth[dropout_mask(depth > 0, fraction, patch_px, rng=seed)] = 0
     try:
-        res = inspect(
-            dataclasses.replace(cap, depth_mm=depth),
-            design,
-            method=method,
-            diameters=False,
-            rng=seed,
-        )
+        res = inspect(dataclasses.replace(cap, depth_mm=depth), design, method=method, diameters=False, rng=seed)
     except RebarInputError:
         return {**{h: "nm" for h in HEIGHTS}, "split": None}
     out = {"split": res.extras.get("layer_split_mm")}
@@ -58,15 +52,11 @@ def run_one(cap, design, fraction: float, patch_px: float, seed: int, method: st
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--fractions", default="0.5,0.7,0.8,0.88,0.9,0.92,0.95,0.99")
-    p.add_argument(
-        "--patches", default="0,8,40", help="patch sizes in px (0 = each pixel on its own)"
-    )
+    p.add_argument("--patches", default="0,8,40", help="patch sizes in px (0 = each pixel on its own)")
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--captures", default="A_400,B_500,C_600,D_500")
     p.add_argument("--method", choices=("refined", "paper"), default="refined")
-    p.add_argument(
-        "--quick", action="store_true", help="90 %% random dropout on A_400 and B_500, one seed"
-    )
+    p.add_argument("--quick", action="store_true", help="90 %% random dropout on A_400 and B_500, one seed")
     args = p.parse_args(argv)
     if args.quick:
         args.fractions, args.patches, args.seeds, args.captures = "0.9", "0", 1, "A_400,B_500"
@@ -75,29 +65,17 @@ def main(argv=None) -> int:
     slab = ROOT / "examples" / "paper_slab"
     design = load_design(slab / "design.toml")
     caps = [load_capture(slab / n) for n in args.captures.split(",")]
-    print(
-        f"method {args.method}; off = further than {K_SIGMA:g} sigma + {SLACK_MM} mm from the truth"
-    )
-    print(
-        f"{'dropout':>8} {'patch':>5} {'runs':>4} | {'cover':>5} {'layer':>5} {'top':>5} measured | off | split mm"
-    )
+    print(f"method {args.method}; off = further than {K_SIGMA:g} sigma + {SLACK_MM} mm from the truth")
+    print(f"{'dropout':>8} {'patch':>5} {'runs':>4} | {'cover':>5} {'layer':>5} {'top':>5} measured | off | split mm")
     total_off = 0
     for fraction in (float(x) for x in args.fractions.split(",")):
         for patch in (float(x) for x in args.patches.split(",")):
-            rows = [
-                run_one(c, design, fraction, patch, seed, args.method)
-                for seed in range(args.seeds)
-                for c in caps
-            ]
+            rows = [run_one(c, design, fraction, patch, seed, args.method) for seed in range(args.seeds) for c in caps]
             measured = [sum(r[h] != "nm" for r in rows) for h in HEIGHTS]
             off = sum(r[h] == "off" for r in rows for h in HEIGHTS)
             total_off += off
             splits = [r["split"] for r in rows if r["split"] is not None]
-            span = (
-                f"{min(splits):.0f}-{max(splits):.0f} ({len(splits)} found)"
-                if splits
-                else "none found"
-            )
+            span = f"{min(splits):.0f}-{max(splits):.0f} ({len(splits)} found)" if splits else "none found"
             print(
                 f"{fraction:>8.0%} {patch:>5.0f} {len(rows):>4} | {measured[0]:>5} {measured[1]:>5} "
                 f"{measured[2]:>5}          | {off:>3} | {span}",

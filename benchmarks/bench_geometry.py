@@ -75,9 +75,7 @@ def cases(quick: bool):
     rng = np.random.default_rng(2024)
     out = []
     covers, heights, tilts = (
-        ((20,), (400, 500, 600), (5, 15))
-        if quick
-        else ((15, 20, 25), (400, 500, 600), (0, 5, 10, 15))
+        ((20,), (400, 500, 600), (5, 15)) if quick else ((15, 20, 25), (400, 500, 600), (0, 5, 10, 15))
     )
     for cover in covers:
         for h in heights:
@@ -166,12 +164,7 @@ def bar_stretches(cap, pixels=None) -> dict:
         if len(t) < 2:
             continue
         uv = project(pts, K)
-        ok = (
-            (uv[:, 0] > -200)
-            & (uv[:, 0] < K.width + 200)
-            & (uv[:, 1] > -200)
-            & (uv[:, 1] < K.height + 200)
-        )
+        ok = (uv[:, 0] > -200) & (uv[:, 0] < K.width + 200) & (uv[:, 1] > -200) & (uv[:, 1] < K.height + 200)
         uv, t = uv[ok], t[ok]
         if len(t) < 2:
             continue
@@ -214,10 +207,7 @@ def match_bars(res, truth, measurable):
 def _distance_to_axis(r, b):
     """Distance (mm) from the middle of a bars-table row's axis to a truth bar's axis line, and
     that line's unit direction."""
-    mid = (
-        np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
-        + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
-    ) / 2
+    mid = (np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm]) + np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])) / 2
     p0, p1 = np.array(b["axis_start_mm"]), np.array(b["axis_end_mm"])
     v = (p1 - p0) / np.linalg.norm(p1 - p0)
     return float(np.linalg.norm(np.cross(mid - p0, v))), v
@@ -250,18 +240,12 @@ def edge_trim(cap, design) -> int:
     where there is none): inspect then fits its bars on the depth without that fringe."""
     from rebarlib._inspect import registered_mask, widest_bar_px
 
-    reg = registered_mask(
-        cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design)
-    )[2]
+    reg = registered_mask(cap, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(cap, design))[2]
     return reg["depth_overreach_px"]
 
 
 def run(
-    quick: bool,
-    listing: bool = False,
-    camera: str = "gemini2",
-    sensor: str = "default",
-    trim: bool = True,
+    quick: bool, listing: bool = False, camera: str = "gemini2", sensor: str = "default", trim: bool = True
 ) -> pd.DataFrame:
     rows = []
     for slab, design, h, tilt, mesh_yaw, cam_yaw, seed in cases(quick):
@@ -316,9 +300,7 @@ def run(
                     "missed_any": len(missed_any),
                     "phantom": sum(v is None for v in mapping.values()),
                     "not_measured": int((res.bars.status != "measured").sum()),
-                    "second_look": int(
-                        res.bars.reason.str.startswith("seen only at full resolution").sum()
-                    ),
+                    "second_look": int(res.bars.reason.str.startswith("seen only at full resolution").sum()),
                     "edge_trim_px": trim_px if method == "refined" else 0,
                     "spacing_n": len(sp),
                     "spacing_max_err": max(map(abs, sp)) if sp else np.nan,
@@ -365,10 +347,7 @@ def _f(x):
 def report(df: pd.DataFrame) -> None:
     pd.set_option("display.width", 200)
     pd.set_option("display.max_rows", 500)
-    for q, title in (
-        ("cover", "Table 4 — concrete cover (mm)"),
-        ("ld", "Table 5 — layer distance (mm)"),
-    ):
+    for q, title in (("cover", "Table 4 — concrete cover (mm)"), ("ld", "Table 5 — layer distance (mm)")):
         print(f"\n{title}: actual, detected, absolute and relative error")
         t = df.pivot_table(
             index=["slab", "cover_design", "height", "tilt"],
@@ -387,15 +366,7 @@ def report(df: pd.DataFrame) -> None:
                 (f"{q}_rel_err_%", "refined"),
             ]
         ]
-        t.columns = [
-            "actual",
-            "paper",
-            "refined",
-            "abs err paper",
-            "abs err refined",
-            "rel % paper",
-            "rel % refined",
-        ]
+        t.columns = ["actual", "paper", "refined", "abs err paper", "abs err refined", "rel % paper", "rel % refined"]
         print(t.round(2).to_string())
     print("\nWorst case per camera height (max |error|, mm; bars over all captures)")
     g = df.groupby(["height", "method"])
@@ -458,9 +429,7 @@ def report(df: pd.DataFrame) -> None:
         .round(2)
         .to_string()
     )
-    print(
-        "(second look: bars found only by the full-resolution look at empty row positions, find_missed_bars)"
-    )
+    print("(second look: bars found only by the full-resolution look at empty row positions, find_missed_bars)")
     errs = np.array([float(e) for v in r["approx_axis_err"].fillna("") for e in str(v).split()])
     print(
         '\nRefined, approximate axes of the bars reported "not measured" (matched to a true bar): distance of '
@@ -473,9 +442,7 @@ def report(df: pd.DataFrame) -> None:
         )
     else:
         print("  none")
-    print(
-        "\nTargets (refined, <= 600 mm): cover and LD max |err| <= 0.5 mm, spacing <= 2 mm, no missed, no phantom"
-    )
+    print("\nTargets (refined, <= 600 mm): cover and LD max |err| <= 0.5 mm, spacing <= 2 mm, no missed, no phantom")
     print(
         "(missed counts bars with a 50 mm stretch of pixels showing their own depth; missed (any depth): bars "
         "with a 50 mm stretch of pixels with any depth, also another surface's)"
@@ -486,11 +453,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="9 captures instead of 48")
     ap.add_argument("--csv", help="also write the per-capture rows to this CSV file")
-    ap.add_argument(
-        "--list",
-        action="store_true",
-        help="list every missed and phantom bar of the refined method",
-    )
+    ap.add_argument("--list", action="store_true", help="list every missed and phantom bar of the refined method")
     ap.add_argument(
         "--camera",
         default="gemini2",
@@ -511,9 +474,7 @@ def main() -> None:
         "fattening its mask step measures",
     )
     args = ap.parse_args()
-    df = run(
-        args.quick, listing=args.list, camera=args.camera, sensor=args.sensor, trim=not args.no_trim
-    )
+    df = run(args.quick, listing=args.list, camera=args.camera, sensor=args.sensor, trim=not args.no_trim)
     if args.csv:
         df.to_csv(args.csv, index=False)
     report(df)

@@ -70,9 +70,7 @@ def _line_kernel(length: int, angle: float):
     k = np.zeros((length, length), np.uint8)
     c = (length - 1) / 2
     dx, dy = c * np.cos(angle), c * np.sin(angle)
-    cv2.line(
-        k, (int(round(c - dx)), int(round(c - dy))), (int(round(c + dx)), int(round(c + dy))), 1
-    )
+    cv2.line(k, (int(round(c - dx)), int(round(c - dy))), (int(round(c + dx)), int(round(c + dy))), 1)
     return k
 
 
@@ -195,29 +193,20 @@ def main(argv=None):
     ap.add_argument("--per-image", action="store_true")
     ap.add_argument("--save", default=None, help="folder for the predicted masks (PNG)")
     args = ap.parse_args(argv)
-    shifts = {
-        k: tuple(float(v) for v in s.split(","))
-        for k, s in (a.split("=", 1) for a in args.ref_shift)
-    }
+    shifts = {k: tuple(float(v) for v in s.split(",")) for k, s in (a.split("=", 1) for a in args.ref_shift)}
     sets = {}
     for a in args.set:
         name, folder = a.split("=", 1)
         sets[name] = load_set(Path(folder), shifts.get(name, (0, 0)))
         if not sets[name]:
             sys.exit(f"--set {a}: no photos found")
-    paths = (
-        [Path(p) for p in args.models] if args.models else [ROOT / "rebarlib/models/rebar_seg.onnx"]
-    )
+    paths = [Path(p) for p in args.models] if args.models else [ROOT / "rebarlib/models/rebar_seg.onnx"]
     cols = ["marked %", "ref %", "precision %", "recall %", "IoU %", "Dice %", "bg marked %"]
     print(
         f"# Real-photo benchmark: tolerance {args.tol_px:g} px at 640 px width, "
         f"{'tiled' if args.tiled else 'whole image'}, flips {'off' if args.no_flips else 'as sidecar'}"
     )
-    print(
-        f"{'model':28s} {'set':8s} {'n':>3s} "
-        + " ".join(f"{c[:11]:>11s}" for c in cols)
-        + "   ms/img"
-    )
+    print(f"{'model':28s} {'set':8s} {'n':>3s} " + " ".join(f"{c[:11]:>11s}" for c in cols) + "   ms/img")
     for path in paths:
         model = SegmentationModel(path, threads=args.threads)
         for name, items in sets.items():
@@ -231,10 +220,7 @@ def main(argv=None):
                 tot = {k: tot.get(k, 0) + v for k, v in c.items()}
                 if args.per_image:
                     s = summary(c)
-                    print(
-                        f"  {stem:26s} {name:8s}     "
-                        + " ".join(f"{_fmt(s[k]):>11s}" for k in cols)
-                    )
+                    print(f"  {stem:26s} {name:8s}     " + " ".join(f"{_fmt(s[k]):>11s}" for k in cols))
                 if args.save:
                     out = Path(args.save) / path.stem / name
                     out.mkdir(parents=True, exist_ok=True)

@@ -84,13 +84,7 @@ def result_from_truth(capture_dir: Path, design) -> dict:
     ]
 
     def m(v):
-        return {
-            "value_mm": v,
-            "uncertainty_mm": 0.7,
-            "n_points": 1000,
-            "status": "measured",
-            "reason": "",
-        }
+        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
 
     return {
         "capture": capture_dir.name,
@@ -102,10 +96,7 @@ def result_from_truth(capture_dir: Path, design) -> dict:
             "top_cover": m(design.thickness_mm - t["upper_top_mm"]),
         },
         "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
-        "camera": {
-            "height_mm": t["camera"]["height_mm"],
-            "tilt_deg": math.degrees(math.acos(abs(n[2]))),
-        },
+        "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
         "bars": bars,
         "spacings": spacings,
         "counts": counts,
@@ -135,9 +126,7 @@ def main(argv=None) -> int:
     reps = 1 if args.quick else 5
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        build_report(
-            slab, design, evaluate(results, design), out_path=Path(tmp) / "warm.html", format="html"
-        )
+        build_report(slab, design, evaluate(results, design), out_path=Path(tmp) / "warm.html", format="html")
         for fmt in ("pdf", "html"):
             times, cpu = [], []
             for i in range(reps):
@@ -175,9 +164,7 @@ def main(argv=None) -> int:
         verdict = ""
         if fmt == "pdf":
             verdict = f"<= {TARGET_S:g} s: {'yes' if med <= TARGET_S else 'NO'}"
-        print(
-            f"{fmt:<7}{n:>9}{pages!s:>7}{kib:>10.0f}{med:>15.2f}{mx:>12.2f}{cpu_med:>14.2f}  {verdict}"
-        )
+        print(f"{fmt:<7}{n:>9}{pages!s:>7}{kib:>10.0f}{med:>15.2f}{mx:>12.2f}{cpu_med:>14.2f}  {verdict}")
     return 0
 
 

@@ -40,9 +40,7 @@ def _stations(kind: str):
 def run_case(design, sigma, kind, seed, formwork=True) -> dict:
     step_az = 0.06 if kind == "dense" else 0.24
     scanner = ScannerModel(range_sigma_mm=sigma, step_az_deg=step_az, step_el_deg=0.06)
-    pts, truth, _ = synth_scan(
-        design, stations=_stations(kind), scanner=scanner, formwork=formwork, rng=seed
-    )
+    pts, truth, _ = synth_scan(design, stations=_stations(kind), scanner=scanner, formwork=formwork, rng=seed)
     t = time.perf_counter()
     res = inspect_cloud(pts, design)
     dt = time.perf_counter() - t
@@ -100,9 +98,7 @@ def up_sign(design, sigmas, seeds) -> pd.DataFrame:
                         "seed": seed,
                         "upside_down": flip,
                         "right": bool((res.extras["cloud"]["up"][2] < 0) == flip),
-                        "layer_distance_err_mm": ld.value_mm - truth.layer_distance_mm
-                        if ld.ok
-                        else None,
+                        "layer_distance_err_mm": ld.value_mm - truth.layer_distance_mm if ld.ok else None,
                     }
                 )
     return pd.DataFrame(rows)
@@ -113,9 +109,7 @@ def diameters(design, sigmas=(0.3, 1.0)) -> pd.DataFrame:
     want = {"lower": design.lower.bottom.diameter_mm, "upper": design.upper.bottom.diameter_mm}
     rows = []
     for sg in sigmas:
-        scanner = ScannerModel(
-            range_sigma_mm=sg, step_az_deg=0.05, step_el_deg=0.05, mixed_fraction=0.2
-        )
+        scanner = ScannerModel(range_sigma_mm=sg, step_az_deg=0.05, step_el_deg=0.05, mixed_fraction=0.2)
         pts, _, _ = synth_scan(design, scanner=scanner, rng=0)
         bars = inspect_cloud(pts, design).bars
         sized = bars[bars["diameter_status"] == "measured"]
@@ -137,22 +131,12 @@ def diameters(design, sigmas=(0.3, 1.0)) -> pd.DataFrame:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2)
-    ap.add_argument(
-        "--first-seed", type=int, default=0, help="seeds first-seed ... first-seed + seeds - 1"
-    )
-    ap.add_argument(
-        "--up-sign",
-        action="store_true",
-        help="only the up side guessed without formwork or normals",
-    )
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed ... first-seed + seeds - 1")
+    ap.add_argument("--up-sign", action="store_true", help="only the up side guessed without formwork or normals")
     ap.add_argument("--sigmas", type=float, nargs="+", default=[5.0, 10.0, 15.0, 20.0])
     ap.add_argument("--no-speed", action="store_true")
-    ap.add_argument(
-        "--no-formwork", action="store_true", help="scan the mesh with nothing under it"
-    )
-    ap.add_argument(
-        "--diameters", action="store_true", help="also size bars on fine scans (sigma 0.3, 1 mm)"
-    )
+    ap.add_argument("--no-formwork", action="store_true", help="scan the mesh with nothing under it")
+    ap.add_argument("--diameters", action="store_true", help="also size bars on fine scans (sigma 0.3, 1 mm)")
     args = ap.parse_args(argv)
     design = load_design(DESIGN)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
@@ -160,12 +144,7 @@ def main(argv=None) -> int:
     if args.up_sign:
         df = up_sign(design, args.sigmas, seeds)
         print(df.round(2).to_string(index=False))
-        print(
-            "\nright:",
-            df.groupby("sigma_mm")["right"]
-            .agg(lambda x: f"{int(x.sum())} of {len(x)}")
-            .to_string(),
-        )
+        print("\nright:", df.groupby("sigma_mm")["right"].agg(lambda x: f"{int(x.sum())} of {len(x)}").to_string())
         return 0
     rows = [
         run_case(design, sg, kind, seed, formwork=not args.no_formwork)
@@ -180,10 +159,7 @@ def main(argv=None) -> int:
         phantoms=("phantoms", "sum"),
         spacing_max=("spacing_max_abs_err_mm", "max"),
         ld_max=("layer_distance_err_mm", lambda x: float(np.max(np.abs(x)))),
-        cover_max=(
-            "cover_err_mm",
-            lambda x: float(np.max(np.abs(x))) if x.notna().any() else np.nan,
-        ),
+        cover_max=("cover_err_mm", lambda x: float(np.max(np.abs(x))) if x.notna().any() else np.nan),
         time_s=("time_s", "median"),
     )
     print("\nworst per case (max |err| in mm, sums of missed/phantom bars):")

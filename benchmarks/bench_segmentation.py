@@ -72,9 +72,7 @@ def _pct(x):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="8 test captures instead of 60")
     ap.add_argument("--count", type=int, default=None, help="the first N test captures")
     ap.add_argument(
@@ -117,21 +115,13 @@ def main(argv=None):
     # "tiles": a model on full-resolution tiles of the image (predict_proba(tiled=True)), as the
     # refined diameter stage runs it; every model's masks, the depth mask's once
     kinds = ("colour", "fused", "colour, tiles", "fused, tiles")
-    sources = ["depth"] + [
-        f"{k} ({name})" if len(models) > 1 else k for name in models for k in kinds
-    ]
+    sources = ["depth"] + [f"{k} ({name})" if len(models) > 1 else k for name in models for k in kinds]
     fused_counts = {src: {s: _zero() for s in subsets} for src in sources}
     share = {s: [0, 0] for s in subsets[1:]}
     t0 = time.time()
     for n, i in enumerate(test):
-        cap = synth_segmentation_capture(
-            int(i), seed=DATASET_SEED, intrinsics=intr, rib_relief=relief
-        )
-        truth = (
-            synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr)
-            if relief
-            else cap
-        ).labels > 0
+        cap = synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr, rib_relief=relief)
+        truth = (synth_segmentation_capture(int(i), seed=DATASET_SEED, intrinsics=intr) if relief else cap).labels > 0
         regions = synth_eval_regions(int(i), cap, seed=DATASET_SEED, rib_relief=relief)
         regions["all"] = None
         for s in subsets[1:]:
@@ -141,32 +131,19 @@ def main(argv=None):
         for name, m in models.items():
             masks[name] = m.predict_mask(cap.color)
             for s in subsets:
-                counts[name][s] = _add(
-                    counts[name][s], confusion_counts(masks[name], truth, region=regions[s])
-                )
+                counts[name][s] = _add(counts[name][s], confusion_counts(masks[name], truth, region=regions[s]))
         dmask = mask_from_depth(cap, rng=0)
         got = [dmask]
         for name, m in models.items():
-            fmask = fuse_masks(
-                masks[name],
-                dmask,
-                color_proba=m.predict_proba(cap.color),
-                depth_valid=cap.depth_mm > 0,
-            )
+            fmask = fuse_masks(masks[name], dmask, color_proba=m.predict_proba(cap.color), depth_valid=cap.depth_mm > 0)
             p_tiles = m.predict_proba(cap.color, tiled=True)
             c_tiles = p_tiles > m.threshold
             f_tiles = fuse_masks(c_tiles, dmask, color_proba=p_tiles, depth_valid=cap.depth_mm > 0)
             got += [masks[name], fmask, c_tiles, f_tiles]
         for src, mk in zip(sources, got):
             for s in subsets:
-                fused_counts[src][s] = _add(
-                    fused_counts[src][s], confusion_counts(mk, truth, region=regions[s])
-                )
-        print(
-            f"  capture {n + 1}/{len(test)} (index {i}) done, {time.time() - t0:.0f} s",
-            file=sys.stderr,
-            flush=True,
-        )
+                fused_counts[src][s] = _add(fused_counts[src][s], confusion_counts(mk, truth, region=regions[s]))
+        print(f"  capture {n + 1}/{len(test)} (index {i}) done, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
 
     print("\n## Table 3 (held-out synthetic test split; rebar class; %)\n")
     print("| model | PA % | IoU % | Dice % |")
@@ -204,24 +181,14 @@ def main(argv=None):
             + f" | {gap:5.2f} | {100 * (ious[0] - iou(c['unlit'])):5.2f} |"
         )
 
-    print(
-        "\n## Colour vs depth vs fused masks (IoU %"
-        + (f", model {shipped}" if len(models) == 1 else "")
-        + ")\n"
-    )
+    print("\n## Colour vs depth vs fused masks (IoU %" + (f", model {shipped}" if len(models) == 1 else "") + ")\n")
     print("| mask | " + " | ".join(f"IoU {s}" for s in subsets) + " | Dice all |")
     print("|---|" + "---:|" * (len(subsets) + 1))
     for src in sources:
         c = fused_counts[src]
-        print(
-            f"| {src} | "
-            + " | ".join(_pct(iou(c[s])) for s in subsets)
-            + f" | {_pct(dice(c['all']))} |"
-        )
+        print(f"| {src} | " + " | ".join(_pct(iou(c[s])) for s in subsets) + f" | {_pct(dice(c['all']))} |")
 
-    print(
-        f"\n## Speed: one 1280 x 800 colour image -> full-resolution mask ({args.threads} threads)\n"
-    )
+    print(f"\n## Speed: one 1280 x 800 colour image -> full-resolution mask ({args.threads} threads)\n")
     print("| model | median ms | p90 ms | ONNX size KB |")
     print("|---|---:|---:|---:|")
     img = synth_segmentation_capture(int(test[0]), seed=DATASET_SEED, intrinsics=GEMINI2).color
@@ -240,9 +207,7 @@ def main(argv=None):
         t = time.perf_counter()
         _ = m.predict_proba(img, tiled=True) > m.threshold
         ts.append(1000 * (time.perf_counter() - t))
-    print(
-        f"| {shipped}, full-resolution tiles | {np.median(ts):7.1f} | {np.percentile(ts, 90):7.1f} | |"
-    )
+    print(f"| {shipped}, full-resolution tiles | {np.median(ts):7.1f} | {np.percentile(ts, 90):7.1f} | |")
     print(f"\n(total {time.time() - t0:.0f} s)")
     return 0
 

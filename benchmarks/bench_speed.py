@@ -81,9 +81,7 @@ def time_inspect(cap, d, *, method: str, repeats: int, diameters: bool = False) 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--quick", action="store_true", help="3 repeats, refined only, small growth tables"
-    )
+    ap.add_argument("--quick", action="store_true", help="3 repeats, refined only, small growth tables")
     args = ap.parse_args(argv)
     repeats = 3 if args.quick else 7
     methods = ("refined",) if args.quick else ("refined", "paper")
@@ -95,9 +93,7 @@ def main(argv=None) -> int:
     d = design()
     cap = capture(d)
     K = cap.intrinsics
-    print(
-        f"\nStage times, {K.width}x{K.height} capture at 500 mm, tilt 10°, median of {repeats} runs (s)"
-    )
+    print(f"\nStage times, {K.width}x{K.height} capture at 500 mm, tilt 10°, median of {repeats} runs (s)")
     for method in methods:
         r = time_inspect(cap, d, method=method, repeats=1 if method == "paper" else repeats)
         print(f"\n[{method}]  {r['n_points']} points in the cloud, {r['n_bars']} bars measured")
@@ -107,20 +103,15 @@ def main(argv=None) -> int:
         verdict = "meets" if r["wall"] <= TARGET_S else "MISSES"
         print(
             f"{'total wall':<12}{r['wall']:>10.3f}   (max {r['max']:.3f}; CPU {r['cpu']:.3f} s)  "
-            f"{verdict} the {TARGET_S} s target"
-            + ("" if method == "refined" else " (paper: 1 run)")
+            f"{verdict} the {TARGET_S} s target" + ("" if method == "refined" else " (paper: 1 run)")
         )
         if method == "refined":
             rd = time_inspect(cap, d, method=method, repeats=repeats, diameters=True)
-            extra = ", ".join(
-                f"{k} {v:.3f}" for k, v in rd["stages"].items() if k not in r["stages"]
-            )
+            extra = ", ".join(f"{k} {v:.3f}" for k, v in rd["stages"].items() if k not in r["stages"])
             print(f"{'+diameters':<12}{rd['wall']:>10.3f}   (CPU {rd['cpu']:.3f} s; {extra})")
 
     print("\nGrowth with the number of points (refined; same scene, lower resolution)")
-    print(
-        f"{'image':<11}{'points':>9}{'bars':>6}{'wall s':>9}{'CPU s':>8}{'bars s':>8}{'plane s':>9}"
-    )
+    print(f"{'image':<11}{'points':>9}{'bars':>6}{'wall s':>9}{'CPU s':>8}{'bars s':>8}{'plane s':>9}")
     for scale in (0.5, 1.0) if args.quick else (0.5, 0.75, 1.0):
         c = cap if scale == 1.0 else capture(d, scale=scale)
         r = time_inspect(c, d, method="refined", repeats=repeats)
@@ -130,9 +121,7 @@ def main(argv=None) -> int:
         )
 
     print("\nGrowth with the number of bars (refined; 1280x800, spacing varied)")
-    print(
-        f"{'spacing':<9}{'points':>9}{'bars':>6}{'wall s':>9}{'CPU s':>8}{'bars s':>8}{'measure s':>10}"
-    )
+    print(f"{'spacing':<9}{'points':>9}{'bars':>6}{'wall s':>9}{'CPU s':>8}{'bars s':>8}{'measure s':>10}")
     for sp in (200, 100) if args.quick else (300, 200, 150, 100):
         dd = design(sp)
         c = cap if sp == 200 else capture(dd)

@@ -26,12 +26,7 @@ def main() -> None:
         ("paper, 500 mm, realistic", paper_design(), dict(height_mm=500), SensorModel()),
         ("paper, 600 mm, realistic", paper_design(), dict(height_mm=600), SensorModel()),
         ("paper, 500 mm, ideal", paper_design(), dict(height_mm=500), SensorModel.ideal()),
-        (
-            "site, 500 mm, bow 5 mm",
-            site_design(),
-            dict(height_mm=500, deviations=Deviations(bow_mm=5)),
-            SensorModel(),
-        ),
+        ("site, 500 mm, bow 5 mm", site_design(), dict(height_mm=500, deviations=Deviations(bow_mm=5)), SensorModel()),
     ]
     synth_capture(paper_design(), seed=0)  # warm-up: Open3D import and first scene
     print(f"cpu cores: {os.cpu_count()}, repeats: {args.repeats}")
@@ -40,14 +35,7 @@ def main() -> None:
         times = []
         for seed in range(args.repeats):
             t0 = time.perf_counter()
-            synth_capture(
-                design,
-                tilt_deg=10,
-                sensor=sensor,
-                appearance=Appearance(rust_fraction=0.3),
-                seed=seed,
-                **kw,
-            )
+            synth_capture(design, tilt_deg=10, sensor=sensor, appearance=Appearance(rust_fraction=0.3), seed=seed, **kw)
             times.append(time.perf_counter() - t0)
         print(f"{name:<28} {np.median(times):>9.2f} {np.min(times):>7.2f}")
 

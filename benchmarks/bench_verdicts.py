@@ -100,10 +100,7 @@ def _render_slab(args) -> str:
     for j, target in enumerate(targets):
         h = float(rng.uniform(400, 700))
         pose = S.CameraPose.looking_down(
-            h,
-            tilt_deg=float(rng.uniform(0, 20)),
-            yaw_deg=float(rng.uniform(0, 360)),
-            target_mm=tuple(target),
+            h, tilt_deg=float(rng.uniform(0, 20)), yaw_deg=float(rng.uniform(0, 360)), target_mm=tuple(target)
         )
         shadow = int(rng.random() < 0.25)
         sensor = S.SensorModel(bars_without_depth=shadow)
@@ -124,11 +121,7 @@ def _render_slab(args) -> str:
         "captures": caps,
         "edge_view": edge_view,
         "shadows": sum(
-            1
-            for c in caps
-            if json.loads((folder / c / "truth.json").read_text())["sensor"].get(
-                "bars_without_depth"
-            )
+            1 for c in caps if json.loads((folder / c / "truth.json").read_text())["sensor"].get("bars_without_depth")
         ),
     }
     (folder / "slab.json").write_text(json.dumps(meta), encoding="utf-8")
@@ -156,9 +149,7 @@ def _open_one_gap(scene, rng, by_mm: float):
     bars = []
     for b in scene.bars:
         if b.id in moved:
-            b = dataclasses.replace(
-                b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b)
-            )
+            b = dataclasses.replace(b, offset_mm=b.offset_mm + by_mm, axis=b.axis + by_mm * _across(scene, b))
         bars.append(b)
     return dataclasses.replace(scene, bars=tuple(bars)), (row[cut - 1].id, row[cut].id)
 
@@ -190,9 +181,7 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     if defect in ("missing_inside", "missing_end") and scene.ghosts:
         g = scene.ghosts[0]
         focus = g.axis[0, :2] + rng.uniform(0.3, 0.7) * (g.axis[-1, :2] - g.axis[0, :2])
-        if (
-            defect == "missing_end"
-        ):  # step 100 mm towards the mesh's middle: the edge and the row in view
+        if defect == "missing_end":  # step 100 mm towards the mesh's middle: the edge and the row in view
             mid = world(0.5 * (lo + hi))
             focus = focus + 100.0 * (mid - focus) / max(np.linalg.norm(mid - focus), 1.0)
     elif defect == "wrong_size":
@@ -236,11 +225,7 @@ def _inspect_slab(folder: str, rejudge: bool = False) -> dict:
     acc = R.evaluate(results, design)
     items = acc.items
     failed = sorted(
-        {
-            str(i).split("_lower")[0].split("_upper")[0]
-            for i, v in zip(items["item"], items["verdict"])
-            if v == "fail"
-        }
+        {str(i).split("_lower")[0].split("_upper")[0] for i, v in zip(items["item"], items["verdict"]) if v == "fail"}
     )
     incomplete = sorted(
         {
@@ -285,10 +270,7 @@ def main(argv=None) -> int:
     if args.report_only:
         recs = [json.loads(f.read_text()) for f in sorted(cache.glob("slab_*/verdict.json"))]
     elif args.rejudge:
-        recs = [
-            _inspect_slab(str(f.parent), rejudge=True)
-            for f in sorted(cache.glob("slab_*/slab.json"))
-        ]
+        recs = [_inspect_slab(str(f.parent), rejudge=True) for f in sorted(cache.glob("slab_*/slab.json"))]
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
             recs = list(ex.map(_render_and_judge, [(k, str(cache)) for k in ks]))
@@ -312,17 +294,13 @@ def report(recs: list) -> None:
     for truth in ("clean", "defective"):
         sel = [r for r in recs if (r["defect"] is None) == (truth == "clean")]
         print(
-            f"| {truth} ({len(sel)}) | "
-            + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts)
-            + " |"
+            f"| {truth} ({len(sel)}) | " + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts) + " |"
         )
     print(
         "\nPer defect: slabs, rejected naming the defect, rejected for something else only, incomplete, "
         "accepted (missed)\n"
     )
-    print(
-        "| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |"
-    )
+    print("| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |")
     print("|---|---:|---:|---:|---:|---:|")
     for d in DEFECTS:
         sel = [r for r in recs if r["defect"] == d]
@@ -376,9 +354,7 @@ def causes(recs: list) -> None:
     clean = [r for r in recs if r["defect"] is None and r["verdict"] == "incomplete"]
     if not clean:
         return
-    print(
-        f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n"
-    )
+    print(f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n")
     print("| cause | item | slabs |")
     print("|---|---|---:|")
     for name, item, key in CAUSES:

@@ -67,9 +67,7 @@ def text(v) -> str:
     if isinstance(v, np.ndarray):
         return json.dumps([text(x) for x in v.ravel().tolist()] + [f"shape={v.shape}"])
     if isinstance(v, dict):
-        return json.dumps(
-            {str(k): text(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))}
-        )
+        return json.dumps({str(k): text(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))})
     if isinstance(v, (list, tuple, set, frozenset)):
         seq = sorted(v, key=str) if isinstance(v, (set, frozenset)) else v
         return json.dumps([text(x) for x in seq])
@@ -167,13 +165,7 @@ def _synthetic_cases():
         (
             "syn_paper_stacked",
             paper,
-            dict(
-                height_mm=500,
-                tilt_deg=8,
-                seed=5,
-                deviations=Deviations(stacked=True),
-                intrinsics=half,
-            ),
+            dict(height_mm=500, tilt_deg=8, seed=5, deviations=Deviations(stacked=True), intrinsics=half),
         ),
         (
             "syn_paper_ideal_full",
@@ -260,16 +252,8 @@ def _barsize_rows(table: Table) -> None:
     except ImportError:
         from rebarlib import _barsizes as B
     BAR_SYSTEMS, bar_system, barset_width_mm = B.BAR_SYSTEMS, B.bar_system, B.barset_width_mm
-    bracketing_sizes, core_size, observed_width_mm = (
-        B.bracketing_sizes,
-        B.core_size,
-        B.observed_width_mm,
-    )
-    rib_height_mm, rib_pitch_mm, size_half_gaps_mm = (
-        B.rib_height_mm,
-        B.rib_pitch_mm,
-        B.size_half_gaps_mm,
-    )
+    bracketing_sizes, core_size, observed_width_mm = (B.bracketing_sizes, B.core_size, B.observed_width_mm)
+    rib_height_mm, rib_pitch_mm, size_half_gaps_mm = (B.rib_height_mm, B.rib_pitch_mm, B.size_half_gaps_mm)
     snap_diameter = B.snap_diameter
 
     for name in sorted(BAR_SYSTEMS):
@@ -300,19 +284,10 @@ def _barsize_rows(table: Table) -> None:
                             "system": name,
                             "x": w,
                             "deformed": deformed,
-                            "value": snap_diameter(
-                                w, system=name, deformed=deformed, sigma_mm=sigma
-                            ),
+                            "value": snap_diameter(w, system=name, deformed=deformed, sigma_mm=sigma),
                         }
                     )
-            table.add(
-                {
-                    "kind": "bracket",
-                    "system": name,
-                    "x": w,
-                    "value": bracketing_sizes(w, system=name),
-                }
-            )
+            table.add({"kind": "bracket", "system": name, "x": w, "value": bracketing_sizes(w, system=name)})
     for w in np.round(np.arange(4.0, 45.0, 0.37), 2):
         table.add(
             {
@@ -328,12 +303,7 @@ def _barsize_rows(table: Table) -> None:
         for layer in ("lower", "upper"):
             bs = d.lattice(layer).level("bottom")
             table.add(
-                {
-                    "kind": "barset",
-                    "system": dname,
-                    "x": layer,
-                    "value": barset_width_mm(bs, system=d.bar_system),
-                }
+                {"kind": "barset", "system": dname, "x": layer, "value": barset_width_mm(bs, system=d.bar_system)}
             )
 
 
@@ -468,19 +438,14 @@ def compare(a: Path, b: Path, *, show: int = 20) -> int:
         else:
             total_own += len(diffs)
     verdict = "IDENTICAL" if total_own == 0 else "DIFFERENT"
-    print(
-        f"{verdict}: {total_own} difference(s) in the dumped rows, {total_other} in other "
-        "sessions' columns"
-    )
+    print(f"{verdict}: {total_own} difference(s) in the dumped rows, {total_other} in other sessions' columns")
     return total_own
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out", nargs="?", type=Path, help="folder to write the rows into")
-    ap.add_argument(
-        "--compare", nargs=2, type=Path, metavar=("A", "B"), help="compare two dumps instead"
-    )
+    ap.add_argument("--compare", nargs=2, type=Path, metavar=("A", "B"), help="compare two dumps instead")
     ap.add_argument("--quick", action="store_true", help="two captures only (a smoke test)")
     args = ap.parse_args(argv)
     if args.compare:

@@ -43,9 +43,7 @@ def main() -> None:
             edge[s][0] += int((truth & ~shrunk & inside).sum())
             edge[s][1] += int((truth & inside).sum())
             for m, mask in (("dilated", grown), ("eroded", shrunk)):
-                counts[(m, s)] = _add(
-                    counts[(m, s)], confusion_counts(mask, truth, region=regions[s])
-                )
+                counts[(m, s)] = _add(counts[(m, s)], confusion_counts(mask, truth, region=regions[s]))
     for s in SUBSETS:
         print(
             f"{s}: edge-pixel share of bar pixels {100 * edge[s][0] / edge[s][1]:.1f} %, IoU of the truth "

@@ -77,18 +77,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated short names (geometry,report,...)")
     ap.add_argument("--full", action="store_true", help="full runs instead of quick modes")
-    ap.add_argument(
-        "--list", action="store_true", help="list the scripts and their quick arguments"
-    )
+    ap.add_argument("--list", action="store_true", help="list the scripts and their quick arguments")
     args = ap.parse_args(argv)
     scripts = discover()
     if args.only:
         wanted = [s.strip() for s in args.only.split(",") if s.strip()]
         unknown = [w for w in wanted if w not in scripts]
         if unknown:
-            ap.error(
-                f"--only: no benchmark named {', '.join(unknown)} (have: {', '.join(scripts)})"
-            )
+            ap.error(f"--only: no benchmark named {', '.join(unknown)} (have: {', '.join(scripts)})")
         scripts = {w: scripts[w] for w in wanted}
     if args.list:
         for name, path in scripts.items():

@@ -44,17 +44,11 @@ def main() -> None:
                 )
                 cap = synth_capture(design, sensor=sensor, **kw)
                 ideal = synth_capture(design, sensor=SensorModel.ideal(), **kw)
-                measurable = {
-                    i
-                    for i, r in bar_stretches(cap, own_depth_pixels(cap, ideal)).items()
-                    if r >= 50.0
-                }
+                measurable = {i for i, r in bar_stretches(cap, own_depth_pixels(cap, ideal)).items() if r >= 50.0}
                 res = inspect(cap, design, diameters=False, rng=0)
                 mapping, missed, _ = match_bars(res, cap.truth, measurable)
                 phantom = [i for i, v in mapping.items() if v is None]
-                second = int(
-                    res.bars["reason"].str.startswith("seen only at full resolution").sum()
-                )
+                second = int(res.bars["reason"].str.startswith("seen only at full resolution").sum())
                 rows.append(
                     {
                         "sensor": name,
@@ -66,10 +60,7 @@ def main() -> None:
                 )
                 for what, ids in (("missed truth bar", missed), ("phantom bar", phantom)):
                     for i in ids:
-                        print(
-                            f"  {name}: {h} mm tilt {tilt}°{' stacked' if stacked else ''}: {what} {i}",
-                            flush=True,
-                        )
+                        print(f"  {name}: {h} mm tilt {tilt}°{' stacked' if stacked else ''}: {what} {i}", flush=True)
     print(pd.DataFrame(rows).groupby("sensor", sort=False).sum().to_string())
 
 

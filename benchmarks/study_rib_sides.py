@@ -52,20 +52,15 @@ def _sides(info, prm):
     width = float(np.median(hi - lo))
     out = {
         "core": float(np.percentile(right, 25) + np.percentile(left, 25)),
-        "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left))
-        / info.px_mm,
+        "amp_px": min(np.percentile(x, 90) - np.percentile(x, 25) for x in (right, left)) / info.px_mm,
     }
     for k, e in (("lo", lo), ("hi", hi)):
-        out[k] = _rib_periodicity(
-            s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width
-        )
+        out[k] = _rib_periodicity(s, e - np.polyval(np.polyfit(s, e, 1), s), band=prm.rib_band, width_mm=width)
     return out
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ribs", default="relief", choices=("envelope", "relief"))
     ap.add_argument("--mask", default="fused")
     ap.add_argument("--axes", default="detected")
@@ -77,9 +72,7 @@ def main() -> None:
     gb = bar_system("GB1499.2")
     masks, _ = B._mask_sources()
     axes_src, _ = B._axis_sources()
-    app = Appearance(
-        rust_fraction=0.3
-    )  # as bench_diameter.py draws them (its cache has no key for it)
+    app = Appearance(rust_fraction=0.3)  # as bench_diameter.py draws them (its cache has no key for it)
     rows = []
     for name, design, kw in B.scenarios(args.quick):
         cap = B._capture(name, design, kw, app, args.cache, relief=args.ribs == "relief")
@@ -125,12 +118,7 @@ def main() -> None:
         f"({args.mask} mask, {args.axes} axes, ribs {args.ribs})"
     )
     d["err_h"] = (d.core - d.d1) / d.h
-    print(
-        d.groupby(pd.cut(d.amp_px, [0, 0.5, 0.75, 1, 1.5, 2, 3, 99]))
-        .err_h.describe()
-        .round(2)
-        .to_string()
-    )
+    print(d.groupby(pd.cut(d.amp_px, [0, 0.5, 0.75, 1, 1.5, 2, 3, 99])).err_h.describe().round(2).to_string())
     d1s = np.array(gb.core_mm)
     near = np.abs(d.core.to_numpy()[:, None] - d1s[None, :])
     srt = np.sort(near, axis=1)
@@ -148,24 +136,13 @@ def main() -> None:
             f"{mg:5.1f}  {len(x):5d}  {(x.snap == x.true_mm).sum():5d}  {(x.snap != x.true_mm).sum():5d} | "
             f"{len(nm):21d}  {(nm.snap == nm.true_mm).sum():5d}  {(nm.snap != nm.true_mm).sum():5d}"
         )
-    print(
-        "\nOne edge's clear pitch against its size's spacing (2 %), by p-value (each edge a read)"
-    )
+    print("\nOne edge's clear pitch against its size's spacing (2 %), by p-value (each edge a read)")
     reads = pd.DataFrame(
-        [
-            (p, abs(q / r.spacing - 1) <= 0.02)
-            for r in d.itertuples()
-            for q, p in (r.lo, r.hi)
-            if math.isfinite(q)
-        ],
+        [(p, abs(q / r.spacing - 1) <= 0.02) for r in d.itertuples() for q, p in (r.lo, r.hi) if math.isfinite(q)],
         columns=["p", "right"],
     )
     bins = pd.cut(reads.p, [0, 1e-12, 1e-8, 1e-6, 1e-4, 1e-2, 1.0])
-    print(
-        pd.crosstab(
-            reads.right.map({True: "spacing", False: "other"}).rename("pitch"), bins
-        ).to_string()
-    )
+    print(pd.crosstab(reads.right.map({True: "spacing", False: "other"}).rename("pitch"), bins).to_string())
 
 
 if __name__ == "__main__":

@@ -36,13 +36,7 @@ project = "rebarlib"
 author = "rebarlib contributors"
 copyright = "2026, rebarlib contributors"
 
-extensions = [
-    "myst_nb",
-    "sphinx.ext.autodoc",
-    "sphinx.ext.napoleon",
-    "sphinx.ext.mathjax",
-    "sphinx.ext.viewcode",
-]
+extensions = ["myst_nb", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax", "sphinx.ext.viewcode"]
 source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb"}
 exclude_patterns = ["_build", "_notebooks/.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
 

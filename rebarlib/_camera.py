@@ -30,21 +30,14 @@ class Intrinsics:
         for k in ("fx", "fy"):
             v = getattr(self, k)
             if not np.isfinite(v) or v <= 0:
-                raise RebarInputError(
-                    f"intrinsics {k}: expected a positive focal length in px, got {v!r}"
-                )
+                raise RebarInputError(f"intrinsics {k}: expected a positive focal length in px, got {v!r}")
         for k in ("width", "height"):
             v = getattr(self, k)
             if int(v) != v or v <= 0:
-                raise RebarInputError(
-                    f"intrinsics {k}: expected a positive integer in px, got {v!r}"
-                )
-        if not (
-            -self.width < self.cx < 2 * self.width and -self.height < self.cy < 2 * self.height
-        ):
+                raise RebarInputError(f"intrinsics {k}: expected a positive integer in px, got {v!r}")
+        if not (-self.width < self.cx < 2 * self.width and -self.height < self.cy < 2 * self.height):
             raise RebarInputError(
-                f"intrinsics principal point ({self.cx}, {self.cy}) is far outside the "
-                f"{self.width}x{self.height} image"
+                f"intrinsics principal point ({self.cx}, {self.cy}) is far outside the {self.width}x{self.height} image"
             )
 
     @property
@@ -57,12 +50,7 @@ class Intrinsics:
         w, h = round(self.width * factor), round(self.height * factor)
         # Pixel centres at integer coordinates: centre u maps to (u + 0.5) * f - 0.5.
         return Intrinsics(
-            self.fx * factor,
-            self.fy * factor,
-            (self.cx + 0.5) * factor - 0.5,
-            (self.cy + 0.5) * factor - 0.5,
-            w,
-            h,
+            self.fx * factor, self.fy * factor, (self.cx + 0.5) * factor - 0.5, (self.cy + 0.5) * factor - 0.5, w, h
         )
 
 
@@ -111,9 +99,7 @@ def project(points, intrinsics: Intrinsics) -> np.ndarray:
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     z = p[:, 2]
-    return np.column_stack(
-        (intrinsics.fx * p[:, 0] / z + intrinsics.cx, intrinsics.fy * p[:, 1] / z + intrinsics.cy)
-    )
+    return np.column_stack((intrinsics.fx * p[:, 0] / z + intrinsics.cx, intrinsics.fy * p[:, 1] / z + intrinsics.cy))
 
 
 def backproject(pixels, depth_mm, intrinsics: Intrinsics) -> np.ndarray:
@@ -128,11 +114,7 @@ def backproject(pixels, depth_mm, intrinsics: Intrinsics) -> np.ndarray:
     uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     z = np.asarray(depth_mm, dtype=np.float64).reshape(-1)
     return np.column_stack(
-        (
-            (uv[:, 0] - intrinsics.cx) * z / intrinsics.fx,
-            (uv[:, 1] - intrinsics.cy) * z / intrinsics.fy,
-            z,
-        )
+        ((uv[:, 0] - intrinsics.cx) * z / intrinsics.fx, (uv[:, 1] - intrinsics.cy) * z / intrinsics.fy, z)
     )
 
 

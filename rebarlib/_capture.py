@@ -64,9 +64,7 @@ class Capture:
                 f"got {self.color.shape} {self.color.dtype}"
             )
         if self.depth_mm.shape != (h, w):
-            raise RebarInputError(
-                f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}"
-            )
+            raise RebarInputError(f"depth: expected ({h}, {w}) from the intrinsics, got {self.depth_mm.shape}")
 
     @property
     def name(self) -> str:
@@ -120,26 +118,15 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
     if not (
         isinstance(m, list)
         and len(m) == 9
-        and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in m
-        )
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in m)
     ):
-        raise RebarInputError(
-            f"{path}: intrinsic_matrix must be a list of 9 finite numbers, got {_short(m)}"
-        )
+        raise RebarInputError(f"{path}: intrinsic_matrix must be a list of 9 finite numbers, got {_short(m)}")
     K = np.array(m, dtype=np.float64).reshape(3, 3).T  # stored column-major
     if abs(K[0, 1]) > 1e-9 or abs(K[1, 0]) > 1e-9 or np.abs(K[2] - [0, 0, 1]).max() > 1e-9:
-        raise RebarInputError(
-            f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}"
-        )
+        raise RebarInputError(f"{path}: intrinsic_matrix is not a pinhole matrix [fx,0,0, 0,fy,0, cx,cy,1]: {m}")
     try:
         intr = Intrinsics(
-            float(K[0, 0]),
-            float(K[1, 1]),
-            float(K[0, 2]),
-            float(K[1, 2]),
-            int(data["width"]),
-            int(data["height"]),
+            float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), int(data["width"]), int(data["height"])
         )
     except RebarInputError as exc:
         raise RebarInputError(f"{path}: {exc}") from None
@@ -148,9 +135,7 @@ def read_intrinsics(path) -> tuple[Intrinsics, dict]:
         extra["depth_scale_assumed"] = True
     scale = extra.get("depth_scale_mm", DEFAULT_DEPTH_SCALE_MM)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (0 < scale <= 100):
-        raise RebarInputError(
-            f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {_short(scale)}"
-        )
+        raise RebarInputError(f"{path}: depth_scale_mm must be mm per depth unit in (0, 100], got {_short(scale)}")
     extra["depth_scale_mm"] = float(scale)
     return intr, extra
 
@@ -163,10 +148,7 @@ def _short(value, n: int = 60) -> str:
 def _image_side(value, where: str) -> int:
     """A width or height from ``camera.json``: a whole number of pixels, 1 or more."""
     if isinstance(value, bool) or not isinstance(value, int):
-        raise RebarInputError(
-            f"{where}: expected a whole number of pixels, got "
-            f"{type(value).__name__} {_short(value)}"
-        )
+        raise RebarInputError(f"{where}: expected a whole number of pixels, got {type(value).__name__} {_short(value)}")
     if value < 1:
         raise RebarInputError(f"{where}: expected at least 1 pixel, got {value}")
     return value
@@ -230,13 +212,10 @@ def _check_image_headers(color: Path, depth: Path, intr: Intrinsics, camera_json
     (cw, ch), (dw, dh) = sizes[color], sizes[depth]
     if (cw, ch) != (dw, dh):
         raise RebarInputError(
-            f"{color.parent}: colour {cw}x{ch} and depth {dw}x{dh} differ in size: "
-            "depth must be aligned to colour"
+            f"{color.parent}: colour {cw}x{ch} and depth {dw}x{dh} differ in size: depth must be aligned to colour"
         )
     if (dw, dh) != (intr.width, intr.height):
-        raise RebarInputError(
-            f"{camera_json}: says {intr.width}x{intr.height} but the images are {dw}x{dh}"
-        )
+        raise RebarInputError(f"{camera_json}: says {intr.width}x{intr.height} but the images are {dw}x{dh}")
 
 
 def write_intrinsics(path, intrinsics: Intrinsics, **extra) -> None:
@@ -266,8 +245,7 @@ def _read_truth_image(path: Path, intr: Intrinsics) -> np.ndarray:
     w, h = image_size(path)
     if (w, h) != (intr.width, intr.height):
         raise RebarInputError(
-            f"{path}: is {w}x{h}, not the capture's {intr.width}x{intr.height} "
-            "(checked before decoding)"
+            f"{path}: is {w}x{h}, not the capture's {intr.width}x{intr.height} (checked before decoding)"
         )
     img = _imread(path, cv2.IMREAD_UNCHANGED)
     if img.ndim != 2:
@@ -285,13 +263,8 @@ def load_capture(path) -> Capture:
 
     folder = Path(path)
     if not folder.is_dir():
-        raise RebarInputError(
-            f"{folder}: capture folder not found (expected a folder with "
-            f"{', '.join(CAPTURE_FILES)})"
-        )
-    colors = [
-        folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()
-    ]
+        raise RebarInputError(f"{folder}: capture folder not found (expected a folder with {', '.join(CAPTURE_FILES)})")
+    colors = [folder / n for n in ("color.png", "color.jpg", "color.jpeg") if (folder / n).is_file()]
     if not colors:
         raise RebarInputError(f"{folder}: no color.png or color.jpg in the capture folder")
     if len(colors) > 1:
@@ -317,8 +290,7 @@ def load_capture(path) -> Capture:
     raw = _imread(depth_path, cv2.IMREAD_UNCHANGED)
     if raw.dtype != np.uint16 or raw.ndim != 2:
         raise RebarInputError(
-            f"{depth_path}: expected a single-channel 16-bit PNG, got "
-            f"{raw.dtype} with shape {raw.shape}"
+            f"{depth_path}: expected a single-channel 16-bit PNG, got {raw.dtype} with shape {raw.shape}"
         )
     if color.shape[:2] != raw.shape:
         raise RebarInputError(
@@ -346,9 +318,7 @@ def load_capture(path) -> Capture:
     return Capture(color, depth, intr, meta, labels, bar_ids)
 
 
-def save_capture(
-    capture: Capture, path, *, color_format: str = "png", overwrite: bool = False
-) -> Path:
+def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite: bool = False) -> Path:
     """Write a capture folder that :func:`load_capture` reads back.
 
     Depth is stored as ``round(depth_mm / depth_scale_mm)`` in a 16-bit PNG; a depth already on
@@ -382,9 +352,7 @@ def save_capture(
     extra = {k: capture.metadata[k] for k in ("device", "captured_at") if k in capture.metadata}
     write_intrinsics(folder / "camera.json", capture.intrinsics, depth_scale_mm=scale, **extra)
     if capture.truth is not None:
-        (folder / "truth.json").write_text(
-            json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8"
-        )
+        (folder / "truth.json").write_text(json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8")
     if capture.labels is not None:
         cv2.imwrite(str(folder / "labels.png"), capture.labels.astype(np.uint8))
     if capture.bar_ids is not None:

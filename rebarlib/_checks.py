@@ -21,9 +21,7 @@ def check_points(points, name: str = "points", *, min_count: int = 1) -> np.ndar
 
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise RebarInputError(
-            f"{name}: expected an (N, 3) array of x, y, z in mm, got shape {arr.shape}"
-        )
+        raise RebarInputError(f"{name}: expected an (N, 3) array of x, y, z in mm, got shape {arr.shape}")
     if len(arr) < min_count:
         raise RebarInputError(f"{name}: expected at least {min_count} points, got {len(arr)}")
     if not np.all(np.isfinite(arr)):
@@ -32,9 +30,7 @@ def check_points(points, name: str = "points", *, min_count: int = 1) -> np.ndar
     return arr
 
 
-def check_positive(
-    value, name: str, *, lo: float = 0.0, hi: float = math.inf, unit: str = "mm"
-) -> float:
+def check_positive(value, name: str, *, lo: float = 0.0, hi: float = math.inf, unit: str = "mm") -> float:
     """Return ``value`` as a float in ``(lo, hi]`` or raise naming ``name`` and the range."""
     try:
         v = float(value)

@@ -15,25 +15,16 @@ def add_parser(sub):
         "uncertainties, from captures of a flat printed checkerboard at several "
         "distances and tilted views (at least 3; 6-10 is better).",
     )
-    p.add_argument(
-        "captures",
-        nargs="+",
-        metavar="CAPTURE",
-        help="capture folders, each showing the whole board",
-    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture folders, each showing the whole board")
     p.add_argument(
         "--board",
         required=True,
         metavar="COLSxROWS",
         help="inner corners of the board, e.g. 9x6 (a board of 10 x 7 squares)",
     )
-    p.add_argument(
-        "--square-mm", required=True, type=float, help="side of a printed square, measured (mm)"
-    )
+    p.add_argument("--square-mm", required=True, type=float, help="side of a printed square, measured (mm)")
     p.add_argument("--out", required=True, metavar="FILE", help="calibration file to write (.json)")
-    p.add_argument(
-        "--device", default=None, help="the camera's name for the file (default: the captures')"
-    )
+    p.add_argument("--device", default=None, help="the camera's name for the file (default: the captures')")
     return p
 
 
@@ -59,13 +50,10 @@ def run(args) -> int:
     for c in args.captures:
         if not Path(c).is_dir():
             raise RebarInputError(
-                f"CAPTURE {c}: not a folder (expected a capture folder with color.png, depth.png, "
-                "camera.json)"
+                f"CAPTURE {c}: not a folder (expected a capture folder with color.png, depth.png, camera.json)"
             )
         if out.resolve().parent == Path(c).resolve():
-            raise RebarInputError(
-                f"--out {out}: inside the capture folder {c}; write the calibration elsewhere"
-            )
+            raise RebarInputError(f"--out {out}: inside the capture folder {c}; write the calibration elsewhere")
         caps.append(load_capture(c))
     cal = calibrate(caps, cols=cols, rows=rows, square_mm=args.square_mm, device=args.device)
     cal.save(out)

@@ -57,9 +57,7 @@ def add_arguments(p) -> None:
         metavar="N",
         help="a floor folder: processes inspecting its captures (default: all cores)",
     )
-    p.add_argument(
-        "--quiet", action="store_true", help="a floor folder: no progress bar, no line per slab"
-    )
+    p.add_argument("--quiet", action="store_true", help="a floor folder: no progress bar, no line per slab")
 
 
 def is_floor(folder) -> bool:
@@ -105,20 +103,15 @@ def _check_out(out: Path, slabs: list, fmt: str, *, exports: bool, force: bool) 
         for cap in find_captures(s.folder):
             if real == cap.resolve() or cap.resolve() in real.parents:
                 raise RebarInputError(
-                    f"--out {out}: lies inside the capture folder {cap}; choose "
-                    "a folder outside the captures"
+                    f"--out {out}: lies inside the capture folder {cap}; choose a folder outside the captures"
                 )
         for path in _outputs(out, s.name, fmt, exports):
             if path.is_dir():
-                raise RebarInputError(
-                    f"--out {out}: {path} is a folder; the report of slab {s.name} goes there"
-                )
+                raise RebarInputError(f"--out {out}: {path} is a folder; the report of slab {s.name} goes there")
             if path.exists() and not force:
                 raise RebarInputError(f"--out {out}: {path} exists; pass --force to replace it")
     if (out / FLOOR_SUMMARY).is_dir():
-        raise RebarInputError(
-            f"--out {out}: {out / FLOOR_SUMMARY} is a folder; the floor summary goes there"
-        )
+        raise RebarInputError(f"--out {out}: {out / FLOOR_SUMMARY} is a folder; the floor summary goes there")
 
 
 def _load_designs(slabs: list) -> None:
@@ -131,9 +124,7 @@ def _load_designs(slabs: list) -> None:
             s.design = load_design(s.folder / "design.toml")
             s.captures = find_captures(s.folder)
             if not s.captures:
-                raise RebarInputError(
-                    f"{s.folder}: no capture folders (sub-folders with camera.json)"
-                )
+                raise RebarInputError(f"{s.folder}: no capture folders (sub-folders with camera.json)")
         except RebarInputError as exc:
             s.design, s.row = None, {"verdict": "not reported", "reason": str(exc)}
 
@@ -184,12 +175,7 @@ def _judge_and_write(s: _Slab, out: Path, fmt: str, *, exports: bool, standard) 
     tolerances = load_tolerances(standard) if standard else None
     acc = evaluate(s.results, s.design, tolerances, missing_captures=s.missing)
     path = build_report(
-        s.folder,
-        s.design,
-        acc,
-        out_path=_outputs(out, s.name, fmt, exports)[0],
-        format=fmt,
-        exports=exports,
+        s.folder, s.design, acc, out_path=_outputs(out, s.name, fmt, exports)[0], format=fmt, exports=exports
     )
     items = acc.items
     s.row = {
@@ -223,9 +209,7 @@ def _line(s: _Slab) -> str:
         for key, what in (("failed_items", "failed"), ("open_items", "open"))
         if r.get(key)
     )
-    return _clean(
-        f"slab {s.name} ({r['slab_id']}): {r['verdict'].upper()}{extra}; report {r['report']}"
-    )
+    return _clean(f"slab {s.name} ({r['slab_id']}): {r['verdict'].upper()}{extra}; report {r['report']}")
 
 
 def run_floor(args) -> int:
@@ -239,17 +223,14 @@ def run_floor(args) -> int:
         raise RebarInputError(f"--jobs {args.jobs}: expected a number of processes >= 1")
     if out.suffix.lower() in (".pdf", ".html", ".htm"):
         raise RebarInputError(
-            f"--out {out}: {floor} is a floor (a folder of slab folders): give a "
-            "folder for its reports, not a file"
+            f"--out {out}: {floor} is a floor (a folder of slab folders): give a folder for its reports, not a file"
         )
     fmt = args.format or "pdf"
     exports = not args.no_exports
     slabs = [_Slab(p) for p in find_slabs(floor)]
     _check_out(out, slabs, fmt, exports=exports, force=bool(getattr(args, "force", False)))
     if args.results and not Path(args.results).is_dir():
-        raise RebarInputError(
-            f"--results {args.results}: folder not found (expected <slab>/<capture>/result.json)"
-        )
+        raise RebarInputError(f"--results {args.results}: folder not found (expected <slab>/<capture>/result.json)")
     quiet = bool(getattr(args, "quiet", False))
     with locked(out):
         _load_designs(slabs)

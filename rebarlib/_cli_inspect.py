@@ -37,13 +37,9 @@ def add_parser(sub):
         "bars.csv, spacings.csv and counts.csv, prints a summary per capture and "
         "writes OUT/summary.csv.",
     )
-    p.add_argument(
-        "captures", nargs="+", metavar="CAPTURE", help="capture folder(s) (as `rebar synth` writes)"
-    )
+    p.add_argument("captures", nargs="+", metavar="CAPTURE", help="capture folder(s) (as `rebar synth` writes)")
     p.add_argument("--design", required=True, help="design.toml of the slab")
-    p.add_argument(
-        "--out", required=True, metavar="DIR", help="results folder (one sub-folder per capture)"
-    )
+    p.add_argument("--out", required=True, metavar="DIR", help="results folder (one sub-folder per capture)")
     p.add_argument(
         "--method",
         choices=("refined", "paper"),
@@ -51,9 +47,7 @@ def add_parser(sub):
         help="refined (default, ours) or paper (the published procedure)",
     )
     p.add_argument(
-        "--no-diameters",
-        action="store_true",
-        help="geometry only: skip the bar diameters (method.md stage 3)",
+        "--no-diameters", action="store_true", help="geometry only: skip the bar diameters (method.md stage 3)"
     )
     p.add_argument(
         "--mask-source",
@@ -133,9 +127,7 @@ def _check_paths(captures, out: Path) -> list:
 
     for c in captures:
         if not c.is_dir():
-            raise RebarInputError(
-                f"CAPTURE {c}: not a folder (expected a capture folder with depth.png, camera.json)"
-            )
+            raise RebarInputError(f"CAPTURE {c}: not a folder (expected a capture folder with depth.png, camera.json)")
     names = [c.resolve().name for c in captures]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -144,14 +136,10 @@ def _check_paths(captures, out: Path) -> list:
             "in --out (rename the folders or inspect them into different --out folders)"
         )
     if SUMMARY_NAME in names:
-        raise RebarInputError(
-            f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide with the batch summary"
-        )
+        raise RebarInputError(f"CAPTURE: a capture folder named {SUMMARY_NAME} would collide with the batch summary")
     check_out_folder(out, names)
     if (out / SUMMARY_NAME).is_dir():
-        raise RebarInputError(
-            f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary is written there"
-        )
+        raise RebarInputError(f"--out {out}: {out / SUMMARY_NAME} is a folder; the batch summary is written there")
     inputs = {c.resolve() for c in captures}
     targets = [out / n for n in names]
     for c, tgt in zip(captures, targets):
@@ -190,13 +178,7 @@ def _up_to_date(target: Path, capture: Path, design_path: Path, method: str, opt
     except (OSError, ValueError):
         return None
     manifest = data.get("manifest") if isinstance(data, dict) else None
-    if manifest_problems(
-        manifest,
-        capture_folder=capture,
-        design_path=design_path,
-        method=method,
-        version=__version__,
-    ):
+    if manifest_problems(manifest, capture_folder=capture, design_path=design_path, method=method, version=__version__):
         return None
     return data if manifest.get("options") == options else None
 
@@ -232,9 +214,7 @@ def progress_bar(total: int, *, quiet: bool, unit: str = "capture"):
     from tqdm import tqdm
 
     disable = quiet or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
-    return tqdm(
-        total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True, smoothing=0.1
-    )
+    return tqdm(total=total, unit=unit, file=sys.stderr, disable=disable, dynamic_ncols=True, smoothing=0.1)
 
 
 def _say(bar, text: str, *, err: bool = False) -> None:
@@ -285,11 +265,7 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
     bar = progress_bar(len(todo), quiet=args.quiet)
     try:
         if len(rows) and not args.quiet:
-            _say(
-                bar,
-                f"{len(rows)} of {len(captures)} captures resumed: their results in {out} "
-                "are up to date",
-            )
+            _say(bar, f"{len(rows)} of {len(captures)} captures resumed: their results in {out} are up to date")
         client = args.dask
         jobs = None if client else (args.jobs or None)
         outcomes = inspect_many(
@@ -313,9 +289,7 @@ def _run_locked(args, design, design_path, out, captures, targets) -> int:
                 bar.update(1)
                 continue
             data = o.result.to_dict()
-            data["manifest"] = make_manifest(
-                captures[i], design_path, method=args.method, options=options
-            )
+            data["manifest"] = make_manifest(captures[i], design_path, method=args.method, options=options)
             write_folder_atomically(out, name, result_files(o.result, data))
             rows[i] = summary_row(name, "ok", data, o.seconds)
             if not args.quiet:

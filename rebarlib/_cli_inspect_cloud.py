@@ -20,9 +20,7 @@ def add_parser(sub):
         "against a design: writes OUT/<cloud stem>/result.json and the CSVs.",
     )
     p.add_argument("clouds", nargs="+", metavar="CLOUD", help="point cloud file(s)")
-    p.add_argument(
-        "--units", required=True, choices=("m", "mm"), help="unit of the clouds' coordinates"
-    )
+    p.add_argument("--units", required=True, choices=("m", "mm"), help="unit of the clouds' coordinates")
     p.add_argument(
         "--up",
         choices=("+x", "-x", "+y", "-y", "+z", "-z"),
@@ -30,9 +28,7 @@ def add_parser(sub):
         help="the mesh's up axis in the clouds' frame (default: found, and the notes say how)",
     )
     p.add_argument("--design", required=True, help="design.toml of the slab")
-    p.add_argument(
-        "--out", required=True, metavar="DIR", help="results folder (one sub-folder per cloud)"
-    )
+    p.add_argument("--out", required=True, metavar="DIR", help="results folder (one sub-folder per cloud)")
     p.add_argument(
         "--min-length",
         type=float,
@@ -56,22 +52,14 @@ def run(args) -> int:
     stems = [c.stem for c in clouds]
     dup = sorted({s for s in stems if stems.count(s) > 1})
     if dup:
-        raise RebarInputError(
-            f"CLOUD: several clouds named {dup}; their results would overwrite each other in --out"
-        )
+        raise RebarInputError(f"CLOUD: several clouds named {dup}; their results would overwrite each other in --out")
     if out.exists() and not out.is_dir():
         raise RebarInputError(f"--out {out}: exists and is not a folder")
     failed = 0
     for c in clouds:
         try:
             res = inspect_cloud(
-                c,
-                design,
-                units=args.units,
-                up=args.up,
-                min_length_mm=args.min_length,
-                rng=args.seed,
-                name=c.stem,
+                c, design, units=args.units, up=args.up, min_length_mm=args.min_length, rng=args.seed, name=c.stem
             )
         except RebarInputError as exc:
             print(f"{c.name}: error: {exc}", file=sys.stderr)
@@ -84,12 +72,7 @@ def run(args) -> int:
             c,
             args.design,
             method=METHOD,
-            options={
-                "units": args.units,
-                "up": args.up,
-                "min_length_mm": args.min_length,
-                "seed": args.seed,
-            },
+            options={"units": args.units, "up": args.up, "min_length_mm": args.min_length, "seed": args.seed},
         )
         (tgt / "result.json").write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
         res.bars.to_csv(tgt / "bars.csv", index=False)

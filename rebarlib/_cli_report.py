@@ -35,9 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "and write the acceptance record. Next to the report: <stem>_checkpoints.csv "
         "and <stem>_acceptance.json.",
     )
-    p.add_argument(
-        "slab_dir", metavar="SLAB_DIR", help="folder with design.toml and one folder per capture"
-    )
+    p.add_argument("slab_dir", metavar="SLAB_DIR", help="folder with design.toml and one folder per capture")
     p.add_argument(
         "--out",
         required=True,
@@ -45,9 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "named after the slab id (out/S-101.pdf)",
     )
     p.add_argument(
-        "--force",
-        action="store_true",
-        help="replace an existing report and exports (inputs are never written over)",
+        "--force", action="store_true", help="replace an existing report and exports (inputs are never written over)"
     )
     p.add_argument(
         "--results",
@@ -94,10 +90,7 @@ def report_paths(out, *, slab_id: str, fmt: str | None, exports: bool) -> tuple[
     fmt = fmt or ("html" if out.suffix.lower() in (".html", ".htm") else "pdf")
     paths = [out]
     if exports:
-        paths += [
-            out.with_name(out.stem + "_checkpoints.csv"),
-            out.with_name(out.stem + "_acceptance.json"),
-        ]
+        paths += [out.with_name(out.stem + "_checkpoints.csv"), out.with_name(out.stem + "_acceptance.json")]
     return out, fmt, paths
 
 
@@ -116,9 +109,7 @@ def check_outputs(paths, *, inputs=(), input_folders=(), force: bool = False) ->
         path = Path(path)
         real = path.resolve()
         if real in files:
-            raise RebarInputError(
-                f"--out {path}: is an input of this report; refusing to write over it"
-            )
+            raise RebarInputError(f"--out {path}: is an input of this report; refusing to write over it")
         inside = next((d for d in folders if real == d or d in real.parents), None)
         if inside is not None:
             raise RebarInputError(
@@ -132,9 +123,7 @@ def check_outputs(paths, *, inputs=(), input_folders=(), force: bool = False) ->
             )
         for parent in path.absolute().parents:
             if parent.exists() and not parent.is_dir():
-                raise RebarInputError(
-                    f"--out {path}: {parent} is a file, so the report cannot be written below it"
-                )
+                raise RebarInputError(f"--out {path}: {parent} is a file, so the report cannot be written below it")
         if path.exists() and not force:
             raise RebarInputError(f"--out {path}: exists; pass --force to replace it")
 
@@ -149,21 +138,15 @@ def check_manifests(pairs: list, *, design_path) -> None:
 
     problems = []
     for folder, r in pairs:
-        for why in manifest_problems(
-            r.get("manifest"), capture_folder=folder, design_path=design_path
-        ):
+        for why in manifest_problems(r.get("manifest"), capture_folder=folder, design_path=design_path):
             problems.append(f"result of {Path(folder).name}: {why}")
     manifests = [r.get("manifest") for _, r in pairs if isinstance(r.get("manifest"), dict)]
     for key, what in (("method", "methods"), ("rebarlib_version", "rebarlib versions")):
         seen = sorted({str(m.get(key)) for m in manifests})
         if len(seen) > 1:
-            problems.append(
-                f"the results mix {what}: {', '.join(seen)} (re-run `rebar inspect` on every capture)"
-            )
+            problems.append(f"the results mix {what}: {', '.join(seen)} (re-run `rebar inspect` on every capture)")
     if problems:
-        raise RebarInputError(
-            "--results: refusing results that do not belong to this report: " + "; ".join(problems)
-        )
+        raise RebarInputError("--results: refusing results that do not belong to this report: " + "; ".join(problems))
 
 
 def _clouds(slab_dir) -> list:
@@ -191,15 +174,11 @@ def _read_result(path: Path) -> dict:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise RebarInputError(f"{path}: not a valid result.json ({exc})") from None
     if not isinstance(data, dict) or "capture" not in data or "measurements" not in data:
-        raise RebarInputError(
-            f"{path}: not an inspection result (expected the keys 'capture' and 'measurements')"
-        )
+        raise RebarInputError(f"{path}: not an inspection result (expected the keys 'capture' and 'measurements')")
     return data
 
 
-def collect_results(
-    slab_dir, *, results_dir=None, design=None, method: str = "refined", design_path=None
-):
+def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "refined", design_path=None):
     """Results of every capture of a slab, and the captures that have none (with the reason).
 
     With ``results_dir`` and ``design_path``, the results' manifests are checked against the
@@ -219,16 +198,12 @@ def collect_results(
         )
     captures += clouds
     if not captures:
-        raise RebarInputError(
-            f"{slab_dir}: no capture folders (sub-folders with camera.json) in the slab folder"
-        )
+        raise RebarInputError(f"{slab_dir}: no capture folders (sub-folders with camera.json) in the slab folder")
     results, missing = [], []
     if results_dir is not None:
         rdir = Path(results_dir)
         if not rdir.is_dir():
-            raise RebarInputError(
-                f"--results {rdir}: folder not found (expected <capture>/result.json inside)"
-            )
+            raise RebarInputError(f"--results {rdir}: folder not found (expected <capture>/result.json inside)")
         pairs = []
         for cap in captures:
             path = rdir / _name(cap) / "result.json"
@@ -270,9 +245,7 @@ def run(args) -> int:
     design_path = slab / "design.toml" if slab.is_dir() else slab
     design = load_design(design_path)
     tolerances = _tolerances(args.standard, design, load_tolerances)
-    out, fmt, outputs = report_paths(
-        args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports
-    )
+    out, fmt, outputs = report_paths(args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports)
     captures = find_captures(slab) if slab.is_dir() else []
     if args.results and slab.is_dir():
         captures += _clouds(slab)
@@ -317,7 +290,5 @@ def _tolerances(standard, design, load_tolerances):
     try:
         load_tolerances(design.standard)
     except RebarInputError as exc:
-        raise RebarInputError(
-            f"{design.source}: slab.standard = {design.standard!r}: {exc}"
-        ) from None
+        raise RebarInputError(f"{design.source}: slab.standard = {design.standard!r}: {exc}") from None
     return None

@@ -22,9 +22,7 @@ def add_parser(sub):
         help="seed of the as-built mesh alone: captures sharing it show one slab",
     )
     p.add_argument("--height", type=float, default=500.0, help="camera height above formwork, mm")
-    p.add_argument(
-        "--tilt", type=float, default=10.0, help="optical axis tilt from vertical, degrees"
-    )
+    p.add_argument("--tilt", type=float, default=10.0, help="optical axis tilt from vertical, degrees")
     p.add_argument("--yaw", type=float, default=0.0, help="camera yaw about the vertical, degrees")
     p.add_argument(
         "--target",
@@ -36,9 +34,7 @@ def add_parser(sub):
     )
     p.add_argument("--mesh-yaw", type=float, default=0.0, help="mesh rotation in plan, degrees")
     p.add_argument("--position-sigma", type=float, default=2.0, help="bar position jitter, mm")
-    p.add_argument(
-        "--height-sigma", type=float, default=0.5, help="bar height jitter (local cover), mm"
-    )
+    p.add_argument("--height-sigma", type=float, default=0.5, help="bar height jitter (local cover), mm")
     p.add_argument("--bow", type=float, default=0.0, help="bar bow (sagitta over its length), mm")
     p.add_argument("--missing", type=int, default=0, help="number of missing bars")
     p.add_argument("--wrong-size", type=int, default=0, help="number of bars of a wrong size")

@@ -27,9 +27,7 @@ def _points_of(cloud):
         return np.asarray(cloud.points, float), cloud.subset
     pts = np.asarray(cloud, float)
     if pts.ndim != 2 or pts.shape[1] != 3:
-        raise RebarInputError(
-            f"cloud: expected a Cloud, a ScanCloud or an (N, 3) array, got shape {pts.shape}"
-        )
+        raise RebarInputError(f"cloud: expected a Cloud, a ScanCloud or an (N, 3) array, got shape {pts.shape}")
     return pts, lambda idx: pts[idx]
 
 
@@ -79,9 +77,7 @@ def remove_outliers(cloud, *, nb_neighbors: int = 20, std_ratio: float = 2.0):
     pts, subset = _points_of(cloud)
     if len(pts) <= nb_neighbors:
         return cloud
-    _, index = to_open3d(pts).remove_statistical_outlier(
-        nb_neighbors=nb_neighbors, std_ratio=std_ratio
-    )
+    _, index = to_open3d(pts).remove_statistical_outlier(nb_neighbors=nb_neighbors, std_ratio=std_ratio)
     return subset(np.sort(np.asarray(index, dtype=np.int64)))
 
 
@@ -107,9 +103,6 @@ def ransac_plane(points, *, threshold_mm: float, iterations: int, seed: int):
 
     o3d.utility.random.seed(int(seed))
     model, idx = to_open3d(points).segment_plane(
-        distance_threshold=float(threshold_mm),
-        ransac_n=3,
-        num_iterations=int(iterations),
-        probability=1.0,
+        distance_threshold=float(threshold_mm), ransac_n=3, num_iterations=int(iterations), probability=1.0
     )
     return np.asarray(model, float), np.asarray(idx, np.int64)

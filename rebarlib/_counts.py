@@ -48,17 +48,7 @@ import numpy as np
 import pandas as pd
 
 from ._camera import Intrinsics, project
-from ._status import (
-    EXTRA,
-    MEASURED,
-    MISSING,
-    NOT_EXTRA,
-    NOT_IN_VIEW,
-    NOT_MEASURED,
-    OUTSIDE,
-    PRESENT,
-    PRESENT_NO_DEPTH,
-)
+from ._status import EXTRA, MEASURED, MISSING, NOT_EXTRA, NOT_IN_VIEW, NOT_MEASURED, OUTSIDE, PRESENT, PRESENT_NO_DEPTH
 from ._evidence import (  # noqa: F401 (names tests and callers reach through this module)
     _add_mask,
     _examine,
@@ -71,16 +61,10 @@ from ._evidence import (  # noqa: F401 (names tests and callers reach through th
     _samples,
     mesh_boundary,
 )
+from ._count_tables import count_table, settle_spacings
 from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
 
-__all__ = [
-    "CountParams",
-    "examine_positions",
-    "mesh_boundary",
-    "count_table",
-    "settle_spacings",
-    "POSITION_COLUMNS",
-]
+__all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings", "POSITION_COLUMNS"]
 
 
 POSITION_COLUMNS = [
@@ -150,9 +134,7 @@ def _lattice_index(offsets: np.ndarray, s: float) -> np.ndarray:
     """Integer lattice position of each bar: offsets referred to the row's phase (the circular
     median of offset mod spacing), rounded to spacings."""
     ang = 2 * np.pi * offsets / s
-    phase = (
-        math.atan2(float(np.median(np.sin(ang))), float(np.median(np.cos(ang)))) * s / (2 * np.pi)
-    )
+    phase = math.atan2(float(np.median(np.sin(ang))), float(np.median(np.cos(ang)))) * s / (2 * np.pi)
     return np.round((offsets - phase) / s).astype(int), phase
 
 
@@ -247,16 +229,13 @@ def examine_positions(
                 n2,
             )
             reach = _reach(boundary, layer, level, row.normal)
-            higher = [
-                i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius
-            ]
+            higher = [i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius]
             # the higher bars along this row (offset across, axis height, radius): where one
             # hides a position, they say from where it would show
             over = [
                 (_offset(b, n2), b.axis_height_mm, b.radius_mm)
                 for b in bars
-                if b.axis_height_mm > row.height + row.radius
-                and abs(float(b.direction @ row.direction)) > 0.95
+                if b.axis_height_mm > row.height + row.radius and abs(float(b.direction @ row.direction)) > 0.95
             ]
             for kind, p, nb in _candidates(row, reach, plane, intr, prm):
                 rec = _judge(
@@ -284,9 +263,7 @@ def examine_positions(
                 rows_out.append({"layer": layer, "level": level, **rec})
             rows_out.extend(
                 {"layer": layer, "level": level, **rec}
-                for rec in _pairs(
-                    row, plane, intr, foot, get_mask if mask is not None else None, prm
-                )
+                for rec in _pairs(row, plane, intr, foot, get_mask if mask is not None else None, prm)
             )
     df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
     return df, new_bars, boundary
@@ -396,9 +373,7 @@ def _t_range(nb) -> tuple:
     return min(b.t0_mm for b in nb), max(b.t1_mm for b in nb)
 
 
-def _judge(
-    row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise, prm
-) -> dict:
+def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise, prm) -> dict:
     """The verdict on one empty position (a ``positions`` row, with ``_bar``/``_new`` when a bar
     is placed there): outside the mesh, not in view, present (no depth), present, missing or not
     measured, in that order of tests (module docstring)."""
@@ -422,11 +397,7 @@ def _judge(
                 "status": OUTSIDE,
                 "reason": (
                     f"the crossing bars end {beyond:.0f} mm before it"
-                    + (
-                        " (the mesh's edge is in view)"
-                        if edge
-                        else " (where they leave the view or are hidden)"
-                    )
+                    + (" (the mesh's edge is in view)" if edge else " (where they leave the view or are hidden)")
                 ),
             }
     row_ids = [i + 1 for i in row.index]
@@ -446,32 +417,18 @@ def _judge(
     E = prm.min_evidence_mm
     seen = ev["empty_mm"] + ev["occupied_mm"]
     # the colour mask is read only where the depth leaves a verdict that needs it
-    needs = ev["in_view_mm"] >= E and (
-        ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E
-    )
+    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E)
     m = mask() if (mask is not None and needs) else None
     if m is not None:
         ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
     rec = {
         **base,
         **{
-            k: round(ev[k], 1)
-            for k in (
-                "in_view_mm",
-                "empty_mm",
-                "occupied_mm",
-                "no_depth_mm",
-                "hidden_mm",
-                "mask_mm",
-            )
+            k: round(ev[k], 1) for k in ("in_view_mm", "empty_mm", "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm")
         },
     }
     if ev["in_view_mm"] < E:
-        return {
-            **rec,
-            "status": NOT_IN_VIEW,
-            "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})",
-        }
+        return {**rec, "status": NOT_IN_VIEW, "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})"}
     has_mask = "_shows" in ev
     if ev["occupied_mm"] >= E and ev["occupied_mm"] >= 0.5 * seen:
         share = ev["mask_occupied_share"]
@@ -494,11 +451,7 @@ def _judge(
             "status": NOT_MEASURED,
             "reason": (
                 f"points at the bar's height along {ev['occupied_mm']:.0f} mm, but "
-                + (
-                    "the colour mask does not show a bar there (another object?)"
-                    if has_mask
-                    else "no colour mask"
-                )
+                + ("the colour mask does not show a bar there (another object?)" if has_mask else "no colour mask")
             ),
         }
     if ev["empty_mm"] >= E and ev["occupied_mm"] <= prm.max_share * seen:
@@ -570,30 +523,15 @@ def _judge(
 
 
 def _present(
-    row: _Row,
-    p: float,
-    ev: dict,
-    sel: np.ndarray,
-    plane,
-    intr,
-    prm,
-    rec: dict,
-    status: str,
-    why: str,
+    row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str, why: str
 ) -> dict:
     """A position found holding a bar: the bar placed on the mask's centre line over the slices
     ``sel`` at its level's height, status "not measured" (its axis is not fitted to points)."""
-    off, sd, t0, t1 = _place_from_mask(
-        row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm
-    )
+    off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
     ok = sd <= prm.max_position_sigma_mm
     how = (
         f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
-        + (
-            ""
-            if ok
-            else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured"
-        )
+        + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured")
         + ")"
     )
     reason = ("no depth on it: " if status == PRESENT_NO_DEPTH else why + "; ") + how
@@ -682,16 +620,9 @@ def _pairs(row: _Row, plane, intr, foot, mask, prm):
             continue
         m_img = mask() if mask is not None else None
         if m_img is None:
-            yield {
-                **base,
-                "status": NOT_MEASURED,
-                "reason": f"{what}: no colour mask to confirm an extra bar",
-            }
+            yield {**base, "status": NOT_MEASURED, "reason": f"{what}: no colour mask to confirm an extra bar"}
             continue
-        shares = [
-            _mask_along(x, plane, intr, foot, row.index[k] + 1, m_img)
-            for x, k in ((a, k_extra), (b, k_twin))
-        ]
+        shares = [_mask_along(x, plane, intr, foot, row.index[k] + 1, m_img) for x, k in ((a, k_extra), (b, k_twin))]
         if all(math.isfinite(x) and x >= prm.min_share for x in shares):
             yield {
                 **base,
@@ -705,169 +636,5 @@ def _pairs(row: _Row, plane, intr, foot, mask, prm):
             yield {
                 **base,
                 "status": NOT_MEASURED,
-                "reason": (
-                    f"{what}: the colour mask runs along only {min(shares):.0%} of one of them"
-                ),
+                "reason": (f"{what}: the colour mask runs along only {min(shares):.0%} of one of them"),
             }
-
-
-# ----------------------------------------------------------------------------------------------
-# The count table
-
-
-def count_table(bars: list, positions: pd.DataFrame, design_spacing: dict) -> pd.DataFrame:
-    """Per lattice and direction: ``found`` (bars, including those placed from the mask),
-    ``expected``, ``missing`` and ``extra`` (evidenced only), ``not_measured`` (positions that
-    are neither), ``outside`` (positions beyond the mesh), ``evidence`` (what was seen)."""
-    rows = []
-    for layer in LAYERS:
-        for level in LEVELS:
-            found = sum(1 for b in bars if b.layer == layer and b.level == level)
-            s = design_spacing.get((layer, level))
-            pos = (
-                positions[(positions["layer"] == layer) & (positions["level"] == level)]
-                if len(positions)
-                else positions
-            )
-            st = pos["status"].value_counts().to_dict() if len(pos) else {}
-            if not found or s is None:
-                rows.append(
-                    {
-                        "layer": layer,
-                        "level": level,
-                        "found": found,
-                        "expected": None,
-                        "missing": None,
-                        "extra": None,
-                        "not_measured": None,
-                        "outside": None,
-                        "evidence": "no bar found" if not found else "no design spacing",
-                    }
-                )
-                continue
-            missing, extra = int(st.get(MISSING, 0)), int(st.get(EXTRA, 0))
-            nm = int(st.get(NOT_MEASURED, 0))
-            parts = [f"{found} found"]
-            for key, label in (
-                (PRESENT_NO_DEPTH, "placed from the colour mask (no depth)"),
-                (PRESENT, "seen but not fitted"),
-                (MISSING, "missing (seen empty)"),
-                (EXTRA, "extra"),
-                (NOT_MEASURED, "not measured"),
-                (NOT_EXTRA, "laps/short pieces"),
-                (OUTSIDE, "beyond the mesh's edge"),
-            ):
-                if st.get(key):
-                    parts.append(f"{st[key]} {label}")
-            rows.append(
-                {
-                    "layer": layer,
-                    "level": level,
-                    "found": found,
-                    "expected": found - extra + missing,
-                    "missing": missing,
-                    "extra": extra,
-                    "not_measured": nm,
-                    "outside": int(st.get(OUTSIDE, 0)),
-                    "evidence": ", ".join(parts),
-                }
-            )
-    df = pd.DataFrame(
-        rows,
-        columns=[
-            "layer",
-            "level",
-            "found",
-            "expected",
-            "missing",
-            "extra",
-            "not_measured",
-            "outside",
-            "evidence",
-        ],
-    )
-    return df
-
-
-def settle_spacings(
-    spacings: pd.DataFrame, bars: list, positions: pd.DataFrame, params: CountParams | None = None
-) -> pd.DataFrame:
-    """The spacing table once the positions are known.
-
-    - A spacing to a bar placed from the colour mask (no depth) is measured between the two
-      axes when the bar's position is known to ``max_position_sigma_mm``; its reason says so.
-    - A spacing spanning more than 1.5 design spacings is one real (wide) spacing only where
-      every position between the two bars was seen empty (missing); where one of them could not
-      be examined it is "not measured", with what was not seen.
-    """
-    from .geometry import _pair_spacing
-
-    prm = params or CountParams()
-    out = spacings.copy()
-    placed = {}
-    if len(positions):
-        for rec in positions.to_dict(orient="records"):
-            if (
-                rec["status"] in (PRESENT_NO_DEPTH, PRESENT)
-                and rec["bar_id"] is not None
-                and not pd.isna(rec["bar_id"])
-            ):
-                placed[int(rec["bar_id"])] = float(rec["position_sigma_mm"])
-    for i, s in out.iterrows():
-        a, b = int(s["bar_a"]), int(s["bar_b"])
-        ds = s["design_spacing_mm"]
-        if (a in placed or b in placed) and s["status"] != MEASURED:
-            others = [x for x in (a, b) if x not in placed]
-            sig = [placed[x] for x in (a, b) if x in placed]
-            if (
-                all(bars[x].status == MEASURED for x in others)
-                and max(sig) <= prm.max_position_sigma_mm
-            ):
-                val = _pair_spacing(bars[a], bars[b])
-                out.loc[i, "spacing_mm"] = val
-                out.loc[i, "deviation_mm"] = val - ds if np.isfinite(ds) else np.nan
-                out.loc[i, "status"] = MEASURED
-                out.loc[i, "reason"] = (
-                    f"bar {', '.join(str(x) for x in (a, b) if x in placed)} placed from "
-                    f"the colour mask (± {max(sig):.1f} mm across)"
-                )
-                s = out.loc[i]
-        if s["status"] != MEASURED or not np.isfinite(ds) or s["spacing_mm"] <= 1.5 * ds:
-            continue
-        pos = (
-            positions[
-                (positions["layer"] == s["layer"])
-                & (positions["level"] == s["level"])
-                & (positions["kind"] == "gap")
-            ]
-            if len(positions)
-            else positions
-        )
-        n2 = next(x.normal2d for x in bars if x.layer == s["layer"] and x.level == s["level"])
-        lo, hi = sorted((_offset(bars[a], n2), _offset(bars[b], n2)))
-        # the empty positions between the two (a bar placed there is one of the two, or splits
-        # the gap: it is no empty position)
-        q = 0.25 * ds
-        inner = (
-            pos[
-                (pos["offset_mm"] > lo + q)
-                & (pos["offset_mm"] < hi - q)
-                & ~pos["status"].isin([PRESENT, PRESENT_NO_DEPTH])
-            ]
-            if len(pos)
-            else pos
-        )
-        if len(inner) and (inner["status"] == MISSING).all():
-            continue
-        why = (
-            "; ".join(str(x) for x in inner["reason"])
-            if len(inner)
-            else "its positions were not examined"
-        )
-        out.loc[i, ["spacing_mm", "deviation_mm"]] = np.nan
-        out.loc[i, "status"] = NOT_MEASURED
-        out.loc[i, "reason"] = (
-            f"{s['spacing_mm']:.0f} mm gap with a bar position between that could not be "
-            f"judged ({why}), so it is not one spacing"
-        )
-    return out

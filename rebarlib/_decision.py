@@ -47,9 +47,7 @@ def check_rule(value, where: str) -> str:
     key = " ".join(str(value).lower().replace("_", " ").replace("-", " ").split())
     key = {"simple acceptance": "simple", "guarded acceptance": "guarded"}.get(key, key)
     if key not in DECISION_RULES:
-        raise RebarInputError(
-            f"{where}: decision_rule: expected one of {list(DECISION_RULES)}, got {value!r}"
-        )
+        raise RebarInputError(f"{where}: decision_rule: expected one of {list(DECISION_RULES)}, got {value!r}")
     return key
 
 
@@ -91,9 +89,7 @@ def decide(accepted: bool, deviation: float, minus, plus, U, k: float) -> tuple:
     >>> decide(True, 0.0, 3.0, 3.0, 1.0, 2.0)
     ('within', 0.0)
     """
-    inside = (minus is None or deviation >= -minus - 1e-9) and (
-        plus is None or deviation <= plus + 1e-9
-    )
+    inside = (minus is None or deviation >= -minus - 1e-9) and (plus is None or deviation <= plus + 1e-9)
     if U is None or not math.isfinite(U):
         return ("within" if accepted else "beyond"), None
     straddles = (minus is not None and deviation - U < -minus < deviation + U) or (

@@ -14,15 +14,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = [
-    "BarSet",
-    "Lattice",
-    "Design",
-    "load_design",
-    "design_from_dict",
-    "DESIGN_KEYS",
-    "DEFAULT_BAR_SYSTEM",
-]
+__all__ = ["BarSet", "Lattice", "Design", "load_design", "design_from_dict", "DESIGN_KEYS", "DEFAULT_BAR_SYSTEM"]
 
 #: Bar-size standard of a design that names none (``bar_system``), and of every function that
 #: takes a ``system``: GB 1499.2, the Chinese standard the method was developed under.
@@ -65,9 +57,7 @@ def _check_keys(table: dict, kind: str, where: str) -> None:
             continue
         near = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.6)
         hint = f"did you mean '{near[0]}'? " if near else ""
-        raise RebarInputError(
-            f"{where}: unknown key '{key}'; {hint}expected one of {sorted(known)}"
-        )
+        raise RebarInputError(f"{where}: unknown key '{key}'; {hint}expected one of {sorted(known)}")
 
 
 def _table(data: dict, key: str, where: str, *, required: bool) -> dict:
@@ -94,9 +84,7 @@ def _text(table: dict, key: str, where: str, default: str) -> str:
     """An optional text value of ``table`` (a string; numbers are accepted as their text)."""
     v = table.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (str, int, float)):
-        raise RebarInputError(
-            f"{where}.{key}: expected a text string, got {type(v).__name__} {_short(v)}"
-        )
+        raise RebarInputError(f"{where}.{key}: expected a text string, got {type(v).__name__} {_short(v)}")
     return str(v)
 
 
@@ -167,17 +155,14 @@ def _number(table: dict, key: str, where: str, *, lo: float, hi: float):
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise RebarInputError(f"{where}.{key}: expected a number in mm, got {v!r}")
     if not (lo <= v <= hi):
-        raise RebarInputError(
-            f"{where}.{key}: {v!r} mm is outside the plausible range {lo:g}..{hi:g} mm"
-        )
+        raise RebarInputError(f"{where}.{key}: {v!r} mm is outside the plausible range {lo:g}..{hi:g} mm")
     return float(v)
 
 
 def _lattice(table: dict, where: str) -> Lattice:
     if not isinstance(table, dict):
         raise RebarInputError(
-            f"{where}: expected a table with diameter_mm and spacing_mm, "
-            f"got {type(table).__name__} {_short(table)}"
+            f"{where}: expected a table with diameter_mm and spacing_mm, got {type(table).__name__} {_short(table)}"
         )
     _check_keys(table, "lattice", where)
     sets = {}
@@ -197,9 +182,7 @@ def _lattice(table: dict, where: str) -> Lattice:
                 values.append(_number(table, key, where, lo=lo, hi=hi))
         surface = sub.get("surface", table.get("surface", "deformed"))
         if surface not in SURFACES:
-            raise RebarInputError(
-                f"{where}.{lvl}.surface: expected one of {SURFACES}, got {surface!r}"
-            )
+            raise RebarInputError(f"{where}.{lvl}.surface: expected one of {SURFACES}, got {surface!r}")
         sets[lvl] = BarSet(*values, surface=surface)
     return Lattice(**sets)
 
@@ -216,25 +199,19 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
     (14.0, 129.0)
     """
     if not isinstance(data, dict):
-        raise RebarInputError(
-            f"{source}: expected the tables [slab] and [design], got {type(data).__name__}"
-        )
+        raise RebarInputError(f"{source}: expected the tables [slab] and [design], got {type(data).__name__}")
     _check_keys(data, "", source)
     slab = _table(data, "slab", source, required=False)
     des = data.get("design")
     if not isinstance(des, dict):
-        raise RebarInputError(
-            f"{source}: missing table [design] with cover_mm and layer_distance_mm"
-        )
+        raise RebarInputError(f"{source}: missing table [design] with cover_mm and layer_distance_mm")
     _check_keys(slab, "slab", f"{source}: slab")
     _check_keys(des, "design", f"{source}: design")
     tolerances = _table(data, "tolerances", source, required=False)
     where = f"{source}: design"
     for layer in ("lower", "upper"):
         if layer not in des:
-            raise RebarInputError(
-                f"{source}: missing table [design.{layer}] with diameter_mm and spacing_mm"
-            )
+            raise RebarInputError(f"{source}: missing table [design.{layer}] with diameter_mm and spacing_mm")
     lower = _lattice(des["lower"], f"{source}: design.lower")
     upper = _lattice(des["upper"], f"{source}: design.upper")
     cover = _number(des, "cover_mm", where, lo=5, hi=200)

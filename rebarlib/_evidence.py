@@ -58,9 +58,7 @@ def _plan_ends(b: BarAxis) -> np.ndarray:
     return b.plan_point(np.array([b.t0_mm, b.t1_mm]))
 
 
-def _end_seen(
-    b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: Intrinsics, tol_mm: float
-) -> bool:
+def _end_seen(b: BarAxis, t_end: float, sign: float, plane: Plane, depth, intr: Intrinsics, tol_mm: float) -> bool:
     """Does bar ``b`` really end at ``t_end``? Where it would continue (2-6 radii beyond, at its
     top), at least two pixels in the image show something lower than its underside and none
     shows something at its height: had it continued, it would have been seen there. (Pixels
@@ -72,13 +70,7 @@ def _end_seen(
     cam = from_slab_frame(pts, plane)
     uv = np.round(project(cam, intr)).astype(int)
     H, W = depth.shape
-    inside = (
-        (uv[:, 0] >= 3)
-        & (uv[:, 0] < W - 3)
-        & (uv[:, 1] >= 3)
-        & (uv[:, 1] < H - 3)
-        & (cam[:, 2] > 0)
-    )
+    inside = (uv[:, 0] >= 3) & (uv[:, 0] < W - 3) & (uv[:, 1] >= 3) & (uv[:, 1] < H - 3) & (cam[:, 2] > 0)
     if inside.sum() < 2:
         return False
     u, v = uv[inside, 0], uv[inside, 1]
@@ -95,9 +87,7 @@ def _heights(u, v, z, plane: Plane, intr: Intrinsics) -> np.ndarray:
     return plane.height(backproject(np.column_stack((u, v)), z, intr))
 
 
-def mesh_boundary(
-    bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics, noise_mm: float = 1.0
-) -> dict:
+def mesh_boundary(bars: list, *, plane: Plane, depth_mm, intrinsics: Intrinsics, noise_mm: float = 1.0) -> dict:
     """Where each lattice's mesh ends in the capture, from where its bars end.
 
     For each lattice and direction group, the extent across the group's bars covered by the
@@ -112,10 +102,7 @@ def mesh_boundary(
     tol = max(3.0 * noise_mm, 2.0)
     out = {}
     for layer in LAYERS:
-        groups = {
-            lv: [b for b in bars if b.layer == layer and b.level == lv and b.t1_mm > b.t0_mm]
-            for lv in LEVELS
-        }
+        groups = {lv: [b for b in bars if b.layer == layer and b.level == lv and b.t1_mm > b.t0_mm] for lv in LEVELS}
         info = {}
         for lv, other in (("bottom", "top"), ("top", "bottom")):
             rows, cross = groups[lv], groups[other]
@@ -201,9 +188,7 @@ def _offset(b: BarAxis, n2) -> float:
     return float(b.plan_point(b.t_mid) @ n2)
 
 
-def _samples(
-    row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane: Plane, intr: Intrinsics
-):
+def _samples(row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane: Plane, intr: Intrinsics):
     """Pixels (T, C, 2 int) and in-image flags of the plan grid (t along, p + c across) at
     height ``h``."""
     plan = t[:, None, None] * row.direction + (p + c)[None, :, None] * row.normal
@@ -222,9 +207,7 @@ def _runs(flags: np.ndarray) -> list:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def _examine(
-    row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm
-):
+def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm):
     """The depth's evidence at plan offset ``p`` of ``row``: a dict of lengths (mm) and the
     per-slice states (:func:`_add_mask` adds the colour mask's)."""
     s, r = row.spacing, row.radius
@@ -240,9 +223,7 @@ def _examine(
     # found bars higher than this level hide the spot; lower ones are its support, judged by depth
     other = np.isin(owner, higher) & ~own_row & inside
     z = depth[v, u]
-    h = np.where(
-        z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan
-    )
+    h = np.where(z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
     margin = max(0.35 * r, 3.0 * noise)
     band_lo = row.height - r + margin
     band_hi = top + max(3.0 * noise, 2.0)
@@ -291,13 +272,7 @@ def _examine(
         "centre_sigma": math.nan,
         "t_mask": None,
     }
-    ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = (
-        state,
-        in_view & cause_nd,
-        t,
-        c,
-        in_view,
-    )
+    ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = (state, in_view & cause_nd, t, c, in_view)
     return ev
 
 
@@ -333,9 +308,7 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
     return ev
 
 
-def _place_from_mask(
-    row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, intr: Intrinsics, prm
-) -> tuple:
+def _place_from_mask(row: _Row, p: float, ev: dict, sel: np.ndarray, plane: Plane, intr: Intrinsics, prm) -> tuple:
     """Centre line of the mask over the slices ``sel``: (plan offset, its standard uncertainty,
     t0, t1)."""
     cen = ev["_centre"][sel]

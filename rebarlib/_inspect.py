@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
 import math
 import time
 
@@ -19,6 +18,18 @@ from ._camera import backproject, depth_to_points
 from ._capture import Capture
 from ._checks import RebarInputError
 from ._design import Design
+from ._masks import (  # noqa: F401 (the mask's names are reached through this module too)
+    EDGE_MM,
+    MASK_SOURCES,
+    MODEL_THREADS,
+    REGISTRATION_MIN_PX,
+    REGISTRATION_WARN_PX,
+    _mask,
+    rebar_mask,
+    registered_mask,
+    trim_edge_fattening,
+    widest_bar_px,
+)
 from ._results import InspectionResult, Measurement
 
 __all__ = [
@@ -32,18 +43,11 @@ __all__ = [
 ]
 
 METHODS = ("refined", "paper")
-#: Where the rebar mask of the diameter stage comes from: the colour model alone (the paper),
-#: the depth alone, or both fused (ours: edges from colour, presence from depth).
-MASK_SOURCES = ("fused", "model", "depth")
 
 #: Refined: keep every ``STRIDE``-th pixel in each direction. At 400–600 mm a pixel covers
 #: 0.65–1 mm, so a stride of 2 still puts 5+ samples across the thinnest (Φ8) bar, and the
 #: cloud is 4× smaller.
 STRIDE = 2
-#: Depth step (mm) that marks an occluding edge in prepare_cloud: well above the sensor noise
-#: (σz ≈ 1–2 mm at 600–800 mm) and well below the smallest step of a slab (bar top to formwork,
-#: cover + bar ≥ 20 mm; lower to upper lattice ≥ 40 mm).
-EDGE_MM = 10.0
 #: Paper: voxel grid (mm) and Open3D statistical outlier filter, as in method.md stage 0.
 PAPER_VOXEL_MM, PAPER_NB, PAPER_STD = 2.0, 20, 2.0
 #: Paper constants (method.md): t₁ = 0.8 × cover, k = 170; t₂ = 50 mm; 1.2·d; 1000 points; k = 460.
@@ -56,14 +60,6 @@ MAX_BELOW_FRACTION = 0.02
 MIN_LATTICE_POINTS = 30
 #: Bars shorter than this (mm of visible axis) are not reported: too short to fit an axis.
 MIN_BAR_LENGTH_MM = 50.0
-#: Refined diameters: a colour-depth misregistration (``segmentation.estimate_registration``) of
-#: at least this many pixels is undone before the masks are fused and the bars measured; a
-#: smaller one is left: the estimate's own error is up to 0.4 px on captures without any (three
-#: times the flying pixels of the default sensor; 0.1-0.3 px otherwise), so correcting less
-#: would as often add an error as remove one. Beyond ``REGISTRATION_WARN_PX`` the result says
-#: to check the camera's depth-to-colour alignment.
-REGISTRATION_MIN_PX = 0.5
-REGISTRATION_WARN_PX = 3.0
 #: Nearest plausible distance (mm) from the camera to the formwork: depth cameras of this kind
 #: see nothing nearer than about 150 mm. A nearer formwork means the depth is in another unit
 #: than ``camera.json``'s ``depth_scale_mm`` says (0.1 given for depth stored in mm: 10x too near).
@@ -74,9 +70,7 @@ MIN_CAMERA_HEIGHT_MM = 150.0
 MIN_BAR_PX = 2.0
 
 
-def facing_up(
-    capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2, min_cos: float = 0.5
-) -> np.ndarray:
+def facing_up(capture: Capture, pixels, plane: G.Plane, *, step_px: int = 2, min_cos: float = 0.5) -> np.ndarray:
     """Which of ``pixels`` (N, 2) see a surface facing up, away from the formwork: the normal
     from the depth image (cross product of the neighbours ``step_px`` away) makes an angle under
     60° (``min_cos``) with the plane's normal. Pixels without the neighbours' depth: False."""
@@ -126,13 +120,11 @@ def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | No
 def _check(capture, design, method):
     if not isinstance(capture, Capture):
         raise RebarInputError(
-            "capture: expected a rebarlib.Capture (use rebarlib.load_capture), "
-            f"got {type(capture).__name__}"
+            f"capture: expected a rebarlib.Capture (use rebarlib.load_capture), got {type(capture).__name__}"
         )
     if not isinstance(design, Design):
         raise RebarInputError(
-            "design: expected a rebarlib.Design (use rebarlib.load_design), "
-            f"got {type(design).__name__}"
+            f"design: expected a rebarlib.Design (use rebarlib.load_design), got {type(design).__name__}"
         )
     if method not in METHODS:
         raise RebarInputError(f"method: expected one of {METHODS}, got {method!r}")
@@ -140,9 +132,7 @@ def _check(capture, design, method):
         raise RebarInputError(f"capture {capture.name!r}: the depth image has no valid pixel")
 
 
-def _check_camera_height(
-    capture: Capture, design: Design, height_mm: float, *, formwork: bool
-) -> None:
+def _check_camera_height(capture: Capture, design: Design, height_mm: float, *, formwork: bool) -> None:
     """Refuse a capture whose formwork (else its median depth) lies nearer or farther from the
     camera than any capture could be measured from: its depth unit is almost surely wrong."""
     thinnest = min(design.lattice(la).level(lv).diameter_mm for la in G.LAYERS for lv in G.LEVELS)
@@ -180,18 +170,13 @@ def _formwork_of(capture: Capture, design: Design, rng) -> tuple[G.Plane, bool, 
     thr = max(3.0, min(0.4 * design.cover_mm, 10.0))
     ref, inl = G.fit_formwork(points, threshold_mm=thr, rng=rng)
     found, below = _formwork_found(ref, ref.height(points), inl)
-    _check_camera_height(
-        capture, design, ref.offset_mm if found else float(np.median(points[:, 2])), formwork=found
-    )
+    _check_camera_height(capture, design, ref.offset_mm if found else float(np.median(points[:, 2])), formwork=found)
     return ref, found, below
 
 
 def _same_plane(a: G.Plane, b: G.Plane, band_mm: float) -> bool:
     """Normals within 2° and offsets within ``band_mm``."""
-    return (
-        float(np.dot(a.normal, b.normal)) > math.cos(math.radians(2.0))
-        and abs(a.offset_mm - b.offset_mm) < band_mm
-    )
+    return float(np.dot(a.normal, b.normal)) > math.cos(math.radians(2.0)) and abs(a.offset_mm - b.offset_mm) < band_mm
 
 
 def _camera_pose(plane: G.Plane) -> dict:
@@ -205,9 +190,7 @@ def _design_spacing(design: Design) -> dict:
 
 def _radii(design: Design, layer: str) -> dict:
     lat = design.lattice(layer)
-    from .diameter.barsizes import (
-        barset_width_mm,
-    )  # a plain bar (surface = "plain") is seen at its diameter
+    from .diameter.barsizes import barset_width_mm  # a plain bar (surface = "plain") is seen at its diameter
 
     return {lv: barset_width_mm(lat.level(lv), design.bar_system) / 2 for lv in G.LEVELS}
 
@@ -219,202 +202,6 @@ def _mean_measure(values, *, what: str, extra_var: float = 0.0, n_points: int = 
     se = float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else float("nan")
     unc = math.sqrt((se if np.isfinite(se) else 0.5) ** 2 + extra_var)
     return Measurement(float(v.mean()), unc, int(n_points))
-
-
-#: Threads of the shipped segmentation model's session (None: onnxruntime's default, every
-#: core). A batch's workers set 1 (``rebarlib.batch``): N workers, N cores.
-MODEL_THREADS = None
-
-
-@functools.lru_cache(maxsize=1)
-def _default_model():
-    from .segmentation import SegmentationModel
-
-    return SegmentationModel.default(threads=MODEL_THREADS)
-
-
-def rebar_mask(
-    capture: Capture,
-    *,
-    source: str = "fused",
-    plane=None,
-    model=None,
-    rng=None,
-    soft: bool = False,
-    tiled: bool = False,
-    bar_width_px=None,
-) -> np.ndarray:
-    """The rebar mask of a capture for the diameter stage: (H, W) bool, or float32 with ``soft``.
-
-    ``source``: "model" = the segmentation model on the colour image (the paper's way), "depth" =
-    what stands above the formwork, "fused" (default) = both (``segmentation.fuse_masks``).
-    ``plane``: the formwork plane if known (``(normal, offset_mm)``); ``model``: a
-    ``SegmentationModel`` (default: the shipped one). ``soft``: return (H, W) float32 instead,
-    the model's probability wherever it agrees with the mask (``segmentation.soft_mask``), so
-    the refined diameter stage places the edges to a fraction of a pixel. ``tiled``: run the
-    model on full-resolution tiles of the image (``SegmentationModel.predict_proba``): a bar's
-    edges placed about twice as finely as from the image down-scaled to the model's input; the
-    refined method uses it (docs/diameters.md, "A full-resolution mask"). ``bar_width_px``: the
-    widest bar's width in the image (:func:`widest_bar_px`), so that the tiles are down-scaled
-    where the bars would be wider than the model knows (``SegmentationModel.tile_scale``).
-
-    The mask is the colour image's, as it comes; :func:`registered_mask` also moves it onto the
-    depth image where the two are misregistered.
-    """
-    return _mask(
-        capture,
-        source=source,
-        plane=plane,
-        model=model,
-        rng=rng,
-        soft=soft,
-        tiled=tiled,
-        bar_width_px=bar_width_px,
-        register=False,
-    )[0]
-
-
-def registered_mask(
-    capture: Capture,
-    *,
-    source: str = "fused",
-    plane=None,
-    model=None,
-    rng=None,
-    soft: bool = False,
-    tiled: bool = False,
-    bar_width_px=None,
-):
-    """:func:`rebar_mask` on the depth image's pixels: ``(mask, capture, registration)``.
-
-    The colour image's bars are registered to the depth image's
-    (``segmentation.estimate_registration``); where they lie :data:`REGISTRATION_MIN_PX` or more
-    apart, the model's probability and the colour image are moved onto the depth image before
-    the masks are fused, so that the mask meets the axes fitted to the depth. ``capture`` is
-    then a copy with the moved colour image (the one given is not changed), else the one given.
-    ``registration``: ``{"shift_px": [du, dv], "correlation": cc, "applied": bool,
-    "depth_overreach_px": k}`` (du, dv: where the depth image's content lies from the colour
-    image's; None where it could not be estimated; k: the depth's edge fattening left out of
-    its mask first, ``segmentation.depth_overreach_px``), or None for the "depth" source
-    (nothing to register).
-    """
-    return _mask(
-        capture,
-        source=source,
-        plane=plane,
-        model=model,
-        rng=rng,
-        soft=soft,
-        tiled=tiled,
-        bar_width_px=bar_width_px,
-        register=True,
-    )
-
-
-def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.ndarray:
-    """The depth image without the nearer surface's last ``px`` pixels at every occluding edge.
-
-    A stereo camera's matching window gives the nearer surface's depth to the first pixels
-    beyond its edge (edge fattening, ``docs/sensors.md``): a bar's points then reach past its
-    flank. Seen from one side only (the other in the projector's shadow), a cylinder of the
-    bar's radius fitted to them slides towards the fattened side, and the spacing to the next
-    bar is off by a millimetre or more. A pixel is left out (set to 0) where a pixel within
-    ``px`` (a disk) has depth more than ``edge_mm`` farther; pixels without depth do not count
-    as farther, so a flank beside the projector's shadow keeps its points. ``px`` comes from the
-    capture (``inspect`` uses the depth's over-reach beyond the colour's bars,
-    ``segmentation.depth_overreach_px``); 0 returns the depth image as it is (a copy).
-
-    Examples
-    --------
-    >>> depth = np.full((1, 9), 500.0); depth[0, 3:6] = 470.0; depth[0, 8] = 0
-    >>> trim_edge_fattening(depth, 1)[0].tolist()
-    [500.0, 500.0, 500.0, 0.0, 470.0, 0.0, 500.0, 500.0, 0.0]
-    """
-    import cv2
-
-    depth = np.asarray(depth_mm)
-    if depth.ndim != 2:
-        raise RebarInputError(f"depth_mm: expected an (H, W) depth image, got shape {depth.shape}")
-    if int(px) != px or px < 0:
-        raise RebarInputError(f"px: expected a whole number of pixels >= 0, got {px!r}")
-    out = depth.copy()
-    if px == 0:
-        return out
-    d = depth.astype(np.float32)
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(px) + 1, 2 * int(px) + 1))
-    farthest = cv2.dilate(d, disk)  # (pixels without depth are 0: never the farther surface)
-    out[(d > 0) & (farthest - d > edge_mm)] = 0
-    return out
-
-
-def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
-    from .segmentation import (
-        depth_overreach_px,
-        estimate_registration,
-        fuse_masks,
-        mask_from_depth,
-        shift_image,
-        soft_mask,
-        trim_depth_overreach,
-    )
-
-    if source not in MASK_SOURCES:
-        raise RebarInputError(f"mask source: expected one of {MASK_SOURCES}, got {source!r}")
-    if source == "depth":
-        depth = mask_from_depth(capture, plane=plane, rng=rng)
-        return (depth.astype(np.float32) if soft else depth), capture, None
-    model = model or _default_model()
-    proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
-    depth = (
-        mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
-    )
-    valid = capture.depth_mm > 0
-    colour = proba > model.threshold
-    reach = 0
-    if depth is not None:
-        # the depth's bars reach beyond the colour's on every side where the sensor fattens its
-        # edges: that over-reach would widen the fused mask and, with one side of each bar in
-        # the projector's shadow, pull the registration towards the other (3 px of fattening:
-        # 0.8 px); it is left out of the depth mask for both
-        reach = depth_overreach_px(colour, depth, color_proba=proba, depth_valid=valid)
-        depth = trim_depth_overreach(colour, depth, reach)
-    registration = None
-    if register:
-        du, dv, cc = estimate_registration(proba, depth, depth_valid=valid)
-        applied = bool(math.hypot(du, dv) >= REGISTRATION_MIN_PX)  # False for NaN
-        registration = {
-            "shift_px": [round(du, 3), round(dv, 3)] if math.isfinite(du) else None,
-            "correlation": round(cc, 4) if math.isfinite(cc) else None,
-            "applied": applied,
-            "depth_overreach_px": reach,
-        }
-        if applied:
-            proba = shift_image(proba, du, dv)
-            colour = proba > model.threshold
-            capture = dataclasses.replace(capture, color=shift_image(capture.color, du, dv))
-    if source == "model":
-        mask = soft_mask(colour, proba, threshold=model.threshold) if soft else colour
-    else:
-        fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=valid, overreach_px=0)
-        mask = soft_mask(fused, proba, threshold=model.threshold) if soft else fused
-    return mask, capture, registration
-
-
-def widest_bar_px(capture: Capture, design: Design) -> float:
-    """Width in the image, in pixels, of the widest bar of the design (its rib envelope) at the
-    nearest depth in the capture (1st percentile of the valid depths: the tops of the nearest
-    bars, or anything nearer); NaN without valid depth."""
-    from .diameter.barsizes import observed_width_mm
-
-    z = capture.depth_mm[capture.depth_mm > 0]
-    if z.size == 0:
-        return math.nan
-    widest = max(
-        observed_width_mm(design.lattice(layer).level(level).diameter_mm, system=design.bar_system)
-        for layer in ("lower", "upper")
-        for level in ("bottom", "top")
-    )
-    return float(widest * capture.intrinsics.fx / np.percentile(z, 1))
 
 
 def inspect(
@@ -469,9 +256,7 @@ def inspect(
     if edge_trim_px is not None and (
         isinstance(edge_trim_px, bool) or not isinstance(edge_trim_px, int) or edge_trim_px < 0
     ):
-        raise RebarInputError(
-            f"edge_trim_px: expected None or a whole number of pixels >= 0, got {edge_trim_px!r}"
-        )
+        raise RebarInputError(f"edge_trim_px: expected None or a whole number of pixels >= 0, got {edge_trim_px!r}")
     rng = np.random.default_rng(rng)
     capture, cal = _calibrated(capture, calibration)
     if method == "paper":
@@ -544,11 +329,7 @@ def _budget(res: InspectionResult, capture: Capture, design: Design, cal) -> Ins
     if cal is not None:
         res.extras["calibration"] = {**cal.to_dict(), "file": cal.source, "summary": cal.summary()}
     return apply_budget(
-        res,
-        design,
-        device=capture.metadata.get("device"),
-        calibration=cal,
-        intrinsics=capture.intrinsics,
+        res, design, device=capture.metadata.get("device"), calibration=cal, intrinsics=capture.intrinsics
     )
 
 
@@ -556,8 +337,7 @@ def _note_inputs(res: InspectionResult, capture: Capture) -> InspectionResult:
     """Notes on what the capture's files left to a default."""
     if capture.metadata.get("depth_scale_assumed"):
         res.notes.append(
-            f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit "
-            "was assumed"
+            f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit was assumed"
         )
     return res
 
@@ -569,16 +349,7 @@ def _trimmed(capture: Capture, px: int) -> Capture:
 
 
 def _add_diameters(
-    res: InspectionResult,
-    capture: Capture,
-    design: Design,
-    *,
-    method,
-    mask,
-    mask_source,
-    register,
-    rng,
-    refit=None,
+    res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register, rng, refit=None
 ) -> InspectionResult:
     """``res`` with the diameter columns; ``refit(px)``: ``res`` fitted again on the depth
     trimmed by ``px`` (:func:`trim_edge_fattening`), called where the mask step measures an
@@ -610,9 +381,7 @@ def _add_diameters(
     else:
         mask = np.asarray(mask)
         if mask.shape != capture.depth_mm.shape:
-            raise RebarInputError(
-                f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}"
-            )
+            raise RebarInputError(f"mask: expected shape {capture.depth_mm.shape} (the capture's), got {mask.shape}")
     t_mask = time.perf_counter() - t
     reach = (reg or {}).get("depth_overreach_px") or 0
     if refit is not None and reach:
@@ -653,8 +422,7 @@ def _note_registration(res: InspectionResult, reg: dict) -> None:
         )
     if size > REGISTRATION_WARN_PX:
         res.notes.append(
-            f"colour and depth misregistered by {size:.1f} px: check the camera's "
-            "depth-to-colour alignment"
+            f"colour and depth misregistered by {size:.1f} px: check the camera's depth-to-colour alignment"
         )
 
 
@@ -681,10 +449,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
 
     t = time.perf_counter()
     plane, inl = G.paper_fit_formwork(
-        cloud.points,
-        threshold_mm=PAPER_T1_FACTOR * design.cover_mm,
-        max_trials=PAPER_PLANE_TRIALS,
-        rng=rng,
+        cloud.points, threshold_mm=PAPER_T1_FACTOR * design.cover_mm, max_trials=PAPER_PLANE_TRIALS, rng=rng
     )
     has_formwork = ref_found and _same_plane(ref_plane, plane, PAPER_T1_FACTOR * design.cover_mm)
     T["plane"] = time.perf_counter() - t
@@ -706,9 +471,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
             "(heights above it would be heights above the bars)"
         )
         cover = Measurement.not_measured(why)
-        layer_distance = Measurement.not_measured(
-            why + "; the paper's layer split t2 is a height above the formwork"
-        )
+        layer_distance = Measurement.not_measured(why + "; the paper's layer split t2 is a height above the formwork")
         upper_top = Measurement.not_measured(why)
         notes.append(why)
     T["cover"] = time.perf_counter() - t
@@ -755,9 +518,7 @@ def _paper_heights(q, lower, design: Design, rng, notes: list) -> tuple:
     else:
         s1 = ql[rng.choice(len(ql), min(PAPER_SAMPLE, len(ql)), replace=False), 2]
         m1 = float(s1.mean())
-        cover = Measurement(
-            m1 - PAPER_COVER_FACTOR * d_low, float(s1.std() / math.sqrt(len(s1))), len(s1)
-        )
+        cover = Measurement(m1 - PAPER_COVER_FACTOR * d_low, float(s1.std() / math.sqrt(len(s1))), len(s1))
     if len(qu) == 0 or m1 is None:
         layer_distance = Measurement.not_measured("no point of one of the lattices")
         upper_top = Measurement.not_measured("no point of the upper lattice")

@@ -72,9 +72,7 @@ def manifest_problems(
     Each keyword left None is not compared. An empty list means the result belongs to them.
     """
     if not isinstance(manifest, dict):
-        return [
-            "it has no manifest (written by an older rebarlib or by hand): re-run `rebar inspect`"
-        ]
+        return ["it has no manifest (written by an older rebarlib or by hand): re-run `rebar inspect`"]
     out = []
     if capture_folder is not None:
         cap = Path(capture_folder).resolve()

@@ -52,9 +52,7 @@ def check_out_folder(out: Path, names=(), *, option: str = "--out") -> None:
         raise RebarInputError(f"{option} {out}: exists and is not a folder")
     for parent in out.absolute().parents:
         if parent.exists() and not parent.is_dir():
-            raise RebarInputError(
-                f"{option} {out}: {parent} is a file, so no folder can be made below it"
-            )
+            raise RebarInputError(f"{option} {out}: {parent} is a file, so no folder can be made below it")
     for name in names:
         target = out / name
         if reserved_name(name):
@@ -64,8 +62,7 @@ def check_out_folder(out: Path, names=(), *, option: str = "--out") -> None:
             )
         if target.exists() and not target.is_dir():
             raise RebarInputError(
-                f"{option} {out}: {target} exists and is not a folder; move it "
-                "away or choose another --out"
+                f"{option} {out}: {target} exists and is not a folder; move it away or choose another --out"
             )
 
 
@@ -84,9 +81,7 @@ def locked(out: Path, *, option: str = "--out"):
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise RebarInputError(
-            f"{option} {out}: cannot create the folder ({exc.strerror})"
-        ) from None
+        raise RebarInputError(f"{option} {out}: cannot create the folder ({exc.strerror})") from None
     path = out / LOCK_NAME
     fd = _acquire(path, option=option, out=out)
     try:
@@ -109,9 +104,7 @@ def _acquire(path: Path, *, option: str, out: Path) -> int:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise RebarInputError(
-                f"{option} {out}: cannot write into the folder ({exc.strerror})"
-            ) from None
+            raise RebarInputError(f"{option} {out}: cannot write into the folder ({exc.strerror})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -137,8 +130,7 @@ def _acquire_by_create(path: Path, *, option: str, out: Path) -> int:  # pragma:
         return os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
     except FileExistsError:
         raise RebarInputError(
-            f"{option} {out}: another rebar run is writing into this "
-            f"folder{_holder(path)} (if none is, delete {path})"
+            f"{option} {out}: another rebar run is writing into this folder{_holder(path)} (if none is, delete {path})"
         ) from None
 
 

@@ -64,9 +64,7 @@ class _Lattices:
     names: list
 
 
-def inspect_refined(
-    capture: Capture, design: Design, rng, mask_cache: dict | None = None
-) -> InspectionResult:
+def inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | None = None) -> InspectionResult:
     """The refined method's result for one capture (no diameters: :func:`rebarlib.inspect`
     adds them). ``mask_cache``: a dict the colour mask is kept in between calls."""
     T, notes = {}, []
@@ -110,11 +108,7 @@ def inspect_refined(
         camera=_camera_pose(plane) if ground.found else {},
         timings_s=T,
         notes=notes,
-        extras={
-            "layer_split_mm": lat.split,
-            "n_points": int(len(cloud)),
-            "mesh_boundary": boundary,
-        },
+        extras={"layer_split_mm": lat.split, "n_points": int(len(cloud)), "mesh_boundary": boundary},
     )
     res.positions = positions
     res.bar_points = {i: c for i, c in enumerate(bar_clouds)}
@@ -211,13 +205,9 @@ def _lattices(capture: Capture, design: Design, cloud, ground: _Ground, notes: l
     elif split is None:
         # one lattice: which one, from the design heights (only meaningful over formwork)
         lo = float(np.percentile(q[:, 2], 2))
-        is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(
-            lo - design.cover_mm
-        )
+        is_upper = has_formwork and abs(lo - (design.cover_mm + design.layer_distance_mm)) < abs(lo - design.cover_mm)
         layer_names = ["upper" if is_upper else "lower"]
-        notes.append(
-            f"one lattice only ({layer_names[0]}): no empty band between lattices in the heights"
-        )
+        notes.append(f"one lattice only ({layer_names[0]}): no empty band between lattices in the heights")
     return _Lattices(bar_sel, q, split, layer_of, layer_names)
 
 
@@ -282,11 +272,7 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
     plane, has_formwork, sigma = ground.plane, ground.found, ground.sigma
 
     def undersides(layer, level):
-        return [
-            b.underside_mm
-            for b in bars
-            if b.layer == layer and b.level == level and b.status == MEASURED
-        ]
+        return [b.underside_mm for b in bars if b.layer == layer and b.level == level and b.status == MEASURED]
 
     def npts(layer, level):
         return sum(b.n_points for b in bars if b.layer == layer and b.level == level)
@@ -295,9 +281,7 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
     unclear = {la: _levels_unclear(bars, la) for la in G.LAYERS}
     lower_u = undersides("lower", "bottom")
     if not has_formwork:
-        cover = Measurement.not_measured(
-            "no formwork visible in the capture (no plane with nothing beneath it)"
-        )
+        cover = Measurement.not_measured("no formwork visible in the capture (no plane with nothing beneath it)")
     elif unclear["lower"]:
         cover = Measurement.not_measured(unclear["lower"], npts("lower", "bottom"))
     elif not lower_u:
@@ -305,9 +289,7 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
             "no bar of the lower lattice's bottom level was measured", npts("lower", "bottom")
         )
     else:
-        cover = _mean_measure(
-            lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom")
-        )
+        cover = _mean_measure(lower_u, what="lower bar", extra_var=plane_var, n_points=npts("lower", "bottom"))
     upper_u = undersides("upper", "bottom")
     if unclear["lower"] or unclear["upper"]:
         layer_distance = Measurement.not_measured(unclear["lower"] or unclear["upper"])
@@ -321,30 +303,22 @@ def _heights(bars: list, ground: _Ground, design: Design) -> tuple:
         )
     else:
         which = "upper" if not upper_u else "lower"
-        layer_distance = Measurement.not_measured(
-            f"no bar of the {which} lattice's bottom level was measured"
-        )
-    tops = [
-        b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == MEASURED
-    ]
+        layer_distance = Measurement.not_measured(f"no bar of the {which} lattice's bottom level was measured")
+    tops = [b.top_mm for b in bars if b.layer == "upper" and b.level == "top" and b.status == MEASURED]
     if not has_formwork:
         upper_top = Measurement.not_measured("no formwork visible: heights have no reference")
     elif unclear["upper"]:
         upper_top = Measurement.not_measured(unclear["upper"], npts("upper", "top"))
     else:
         upper_top = (
-            _mean_measure(
-                tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top")
-            )
+            _mean_measure(tops, what="upper top bar", extra_var=plane_var, n_points=npts("upper", "top"))
             if tops
             else Measurement.not_measured("no bar of the upper lattice's top level was measured")
         )
     return cover, layer_distance, upper_top, _top_cover(design, upper_top)
 
 
-def _positions(
-    capture: Capture, design: Design, bars: list, plane: G.Plane, mask_cache: dict | None
-) -> tuple:
+def _positions(capture: Capture, design: Design, bars: list, plane: G.Plane, mask_cache: dict | None) -> tuple:
     """Every empty design position and every close pair examined on evidence (docs/verdicts.md):
     (positions, the bars placed where only the colour shows one, the mesh's boundary). The
     colour mask is computed only when a verdict needs it, and kept in ``mask_cache``."""
@@ -391,9 +365,5 @@ def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
     if design.thickness_mm is None:
         return Measurement.not_measured("the design gives no slab thickness")
     if not upper_top.ok:
-        return Measurement.not_measured(
-            f"top of the upper lattice not measured ({upper_top.reason})"
-        )
-    return Measurement(
-        design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points
-    )
+        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
+    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)

@@ -13,31 +13,13 @@ import numpy as np
 from ._camera import project
 from ._checks import RebarInputError
 from ._design import Design
-from ._status import (
-    BEYOND,
-    BEYOND_MAX,
-    FAIL,
-    HIDDEN,
-    INCOMPLETE,
-    MISSING,
-    NOT_CHECKED,
-    NOT_MEASURED,
-    PASS,
-)
+from ._status import BEYOND, BEYOND_MAX, FAIL, HIDDEN, INCOMPLETE, MISSING, NOT_CHECKED, NOT_MEASURED, PASS
 from .acceptance import is_true
 
 #: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
-BAR_COLOURS = {
-    PASS: "#1b9e77",
-    FAIL: "#d62728",
-    INCOMPLETE: "#e7c21f",
-    NOT_CHECKED: "#f0a30a",
-    HIDDEN: "#7f3fbf",
-}
+BAR_COLOURS = {PASS: "#1b9e77", FAIL: "#d62728", INCOMPLETE: "#e7c21f", NOT_CHECKED: "#f0a30a", HIDDEN: "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
-IMAGE_WIDTH_PX = (
-    720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
-)
+IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
 def _image_data_uri(path: Path) -> tuple[str, float]:
@@ -212,15 +194,10 @@ def _plan_view(
         if corners:
             pts2 = [(float(np.asarray(c) @ e1), float(np.asarray(c) @ e2)) for c in corners]
             outlines.append(
-                {
-                    "points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2),
-                    "colour": LAYER_COLOURS.get(layer, "#555"),
-                }
+                {"points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2), "colour": LAYER_COLOURS.get(layer, "#555")}
             )
     pts = np.array(
-        [[s["x0"], s["y0"]] for s in segs]
-        + [[s["x1"], s["y1"]] for s in segs]
-        + [[s["lx"], s["ly"]] for s in segs]
+        [[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs] + [[s["lx"], s["ly"]] for s in segs]
     )
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     span = max(float((hi - lo).max()), 1.0)
@@ -238,13 +215,7 @@ def _plan_view(
         d = b[1] - b[0]
         pb = b[0] + np.clip((pa - b[0]) @ d / max(d @ d, 1e-9), 0, 1) * d
         mid = (pa + pb) / 2
-        key = (
-            rec.get("capture"),
-            str(rec.get("bar_a")),
-            str(rec.get("bar_b")),
-            rec.get("layer"),
-            rec.get("level"),
-        )
+        key = (rec.get("capture"), str(rec.get("bar_a")), str(rec.get("bar_b")), rec.get("layer"), rec.get("level"))
         status = acc_rows.get(key, "")
         v = rec.get("spacing_mm")
         labels.append(

@@ -125,9 +125,7 @@ class InspectionResult:
     #: every examined bar position: empty design positions and close pairs (``_counts``)
     positions: object = None  # pandas.DataFrame
     formwork: dict = field(default_factory=dict)  # normal, offset_mm, n_inliers (camera frame)
-    camera: dict = field(
-        default_factory=dict
-    )  # height_mm, tilt_deg of the camera over the formwork
+    camera: dict = field(default_factory=dict)  # height_mm, tilt_deg of the camera over the formwork
     timings_s: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     extras: dict = field(default_factory=dict)  # later stages (diameter, mask) put summaries here

@@ -38,6 +38,4 @@ def clean(text) -> str:
     text = str(text)
     if text.isprintable():
         return text
-    return "".join(
-        _escape(ch) if unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp") else ch for ch in text
-    )
+    return "".join(_escape(ch) if unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp") else ch for ch in text)

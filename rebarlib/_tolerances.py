@@ -93,10 +93,7 @@ class ItemTolerance:
         if self.plus_by_thickness_mm:
             h, p = np.asarray(self.plus_by_thickness_mm, dtype=float).T
             plus = float(np.interp(thickness_mm if thickness_mm is not None else h[0], h, p))
-        return (
-            None if minus is None else round(float(minus), 3),
-            None if plus is None else round(float(plus), 3),
-        )
+        return (None if minus is None else round(float(minus), 3), None if plus is None else round(float(plus), 3))
 
     def text(self, design_value: float | None = None, *, thickness_mm: float | None = None) -> str:
         """The limits as printed: ``±3 mm``, ``-10 / +12 mm``, ``-10 mm (no upper limit)``.
@@ -160,10 +157,7 @@ class Tolerances:
         base = "spacing" if key.startswith("spacing_") else key
         if base in self.items:
             return replace(self.items[base], item=key)
-        raise RebarInputError(
-            f"tolerances {self.name!r} ({self.source}): no item {key!r}; "
-            f"it has {sorted(self.items)}"
-        )
+        raise RebarInputError(f"tolerances {self.name!r} ({self.source}): no item {key!r}; it has {sorted(self.items)}")
 
     def rule(self, name: str) -> LotRule:
         if name not in self.lot_rules:
@@ -203,9 +197,7 @@ class Tolerances:
                 continue
             if isinstance(value, dict):
                 if key not in item_names:
-                    raise RebarInputError(
-                        f"{where}: unknown item; expected one of {sorted(item_names)}"
-                    )
+                    raise RebarInputError(f"{where}: unknown item; expected one of {sorted(item_names)}")
                 base = self.item(key)
                 items[key] = _item_from_table(key, {**_item_as_table(base), **value}, where)
                 continue
@@ -217,14 +209,11 @@ class Tolerances:
                     f"{sorted(item_names)} and rule in {sorted(rules)}"
                 )
             if field_ in ("min_pass_ratio", "max_factor"):
-                v = _override_number(
-                    value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0
-                )
+                v = _override_number(value, where, lo=0.0, hi=1.0 if field_ == "min_pass_ratio" else 100.0)
                 r = replace(rules[item], **{field_: v})
                 # The preset's wording no longer describes the rule: print what applies now.
-                text = (
-                    f"{r.name}: at least {r.min_pass_ratio:.0%} of checkpoints within tolerance"
-                    + (f" and none beyond {r.max_factor:g} x the tolerance" if r.max_factor else "")
+                text = f"{r.name}: at least {r.min_pass_ratio:.0%} of checkpoints within tolerance" + (
+                    f" and none beyond {r.max_factor:g} x the tolerance" if r.max_factor else ""
                 )
                 rules[item] = replace(r, text=text + f" (overridden in {Path(source).name})")
                 continue
@@ -232,13 +221,10 @@ class Tolerances:
             if field_ == "lot_rule":
                 if value not in rules:
                     raise RebarInputError(
-                        f"{where}: lot rule {value!r} is not defined; "
-                        f"expected one of {sorted(rules)}"
+                        f"{where}: lot rule {value!r} is not defined; expected one of {sorted(rules)}"
                     )
                 items[item] = replace(
-                    base,
-                    lot_rule=value,
-                    clause=f"{base.clause} — lot rule {value!r} set in {Path(source).name}",
+                    base, lot_rule=value, clause=f"{base.clause} — lot rule {value!r} set in {Path(source).name}"
                 )
                 continue
             v = _override_number(value, where, lo=0.0, hi=1000.0)
@@ -271,9 +257,7 @@ class Tolerances:
             "overrides": list(self.overrides),
             "decision_rule": self.decision_rule,
             "items": {k: _item_as_table(v) for k, v in self.items.items()},
-            "lot_rules": {
-                k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()
-            },
+            "lot_rules": {k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()},
         }
 
 
@@ -328,9 +312,7 @@ def _item_as_table(t: ItemTolerance) -> dict:
         "confirmed": t.confirmed,
         "note": t.note,
         "minus_fraction_of_design": t.minus_fraction_of_design,
-        "plus_by_thickness_mm": [list(p) for p in t.plus_by_thickness_mm]
-        if t.plus_by_thickness_mm
-        else None,
+        "plus_by_thickness_mm": [list(p) for p in t.plus_by_thickness_mm] if t.plus_by_thickness_mm else None,
     }
     return {k: v for k, v in out.items() if v is not None}
 
@@ -338,16 +320,12 @@ def _item_as_table(t: ItemTolerance) -> dict:
 def _item_from_table(key: str, table: dict, where: str) -> ItemTolerance:
     unknown = set(table) - _ITEM_KEYS
     if unknown:
-        raise RebarInputError(
-            f"{where}: unknown keys {sorted(unknown)}; expected some of {sorted(_ITEM_KEYS)}"
-        )
+        raise RebarInputError(f"{where}: unknown keys {sorted(unknown)}; expected some of {sorted(_ITEM_KEYS)}")
     unit = "bars" if key == "bar_count" else "mm"
     nums = {}
     for side in ("minus", "plus"):
         v = table.get(f"{side}_{unit}")
-        nums[side] = (
-            None if v is None else _override_number(v, f"{where}.{side}_{unit}", lo=0, hi=1000)
-        )
+        nums[side] = None if v is None else _override_number(v, f"{where}.{side}_{unit}", lo=0, hi=1000)
     frac = table.get("minus_fraction_of_design")
     if frac is not None:
         frac = _override_number(frac, f"{where}.minus_fraction_of_design", lo=0, hi=1)
@@ -355,18 +333,11 @@ def _item_from_table(key: str, table: dict, where: str) -> ItemTolerance:
     if pbt is not None:
         try:
             arr = np.asarray(pbt, dtype=float)
-            ok = (
-                arr.ndim == 2
-                and arr.shape[1] == 2
-                and len(arr) >= 1
-                and np.all(np.diff(arr[:, 0]) > 0)
-            )
+            ok = arr.ndim == 2 and arr.shape[1] == 2 and len(arr) >= 1 and np.all(np.diff(arr[:, 0]) > 0)
         except (TypeError, ValueError):
             ok = False
         if not ok:
-            raise RebarInputError(
-                f"{where}.plus_by_thickness_mm: expected [[h_mm, plus_mm], ...] with increasing h"
-            )
+            raise RebarInputError(f"{where}.plus_by_thickness_mm: expected [[h_mm, plus_mm], ...] with increasing h")
         pbt = tuple(tuple(float(x) for x in p) for p in arr)
     if "lot_rule" not in table:
         raise RebarInputError(f"{where}: missing 'lot_rule' (the name of a [lot_rules.*] table)")
@@ -431,12 +402,10 @@ def preset_path(name: str) -> Path:
     match = [path for path, spellings in table.values() if _norm(str(name)) in spellings]
     if len(match) != 1:
         listed = "; ".join(
-            f"{n} (also: {', '.join(_aliases(p))})" if _aliases(p) else n
-            for n, (p, _) in sorted(table.items())
+            f"{n} (also: {', '.join(_aliases(p))})" if _aliases(p) else n for n, (p, _) in sorted(table.items())
         )
         raise RebarInputError(
-            f"tolerances: unknown preset {str(name)!r}; expected one of: {listed}; "
-            "or a path to a .toml tolerance file"
+            f"tolerances: unknown preset {str(name)!r}; expected one of: {listed}; or a path to a .toml tolerance file"
         )
     return match[0]
 
@@ -479,35 +448,24 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
     for name, table in (data.get("lot_rules") or {}).items():
         unknown = set(table) - _RULE_KEYS
         if unknown or "min_pass_ratio" not in table:
-            raise RebarInputError(
-                f"{where}: lot_rules.{name}: needs min_pass_ratio; unknown keys {sorted(unknown)}"
-            )
+            raise RebarInputError(f"{where}: lot_rules.{name}: needs min_pass_ratio; unknown keys {sorted(unknown)}")
         mf = table.get("max_factor")
         rules[name] = LotRule(
             name,
-            _override_number(
-                table["min_pass_ratio"], f"{where}: lot_rules.{name}.min_pass_ratio", lo=0, hi=1
-            ),
-            None
-            if mf is None
-            else _override_number(mf, f"{where}: lot_rules.{name}.max_factor", lo=1, hi=100),
+            _override_number(table["min_pass_ratio"], f"{where}: lot_rules.{name}.min_pass_ratio", lo=0, hi=1),
+            None if mf is None else _override_number(mf, f"{where}: lot_rules.{name}.max_factor", lo=1, hi=100),
             str(table.get("text", "")),
             str(table.get("clause", "")),
             bool(table.get("interpretation", False)),
             bool(table.get("confirmed", True)),
         )
-    items = {
-        k: _item_from_table(k, v, f"{where}: items.{k}")
-        for k, v in (data.get("items") or {}).items()
-    }
+    items = {k: _item_from_table(k, v, f"{where}: items.{k}") for k, v in (data.get("items") or {}).items()}
     missing = [k for k in _BASE_ITEMS if k not in items]
     if missing:
         raise RebarInputError(f"{where}: missing [items.*] tables for {missing}")
     for k, v in items.items():
         if v.lot_rule not in rules:
-            raise RebarInputError(
-                f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table"
-            )
+            raise RebarInputError(f"{where}: items.{k}.lot_rule = {v.lot_rule!r} is not a [lot_rules.*] table")
     return Tolerances(
         name=str(data.get("name", path.stem)),
         standard=str(data.get("standard", path.stem)),

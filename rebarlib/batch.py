@@ -87,9 +87,7 @@ def _worst_deviation(spacings):
     return max(devs, key=abs) if devs else None
 
 
-def summary_row(
-    name: str, status: str, data: dict | None = None, seconds=None, reason: str = ""
-) -> dict:
+def summary_row(name: str, status: str, data: dict | None = None, seconds=None, reason: str = "") -> dict:
     """One row of a batch summary from a result dict (``InspectionResult.to_dict()`` or a
     ``result.json``): cover, layer distance, the spacing deviation largest in size (signed),
     mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed)."""
@@ -113,11 +111,7 @@ def summary_table(outcomes):
 
     rows = [
         summary_row(
-            o.capture,
-            "ok" if o.ok else "failed",
-            o.result.to_dict() if o.ok else None,
-            o.seconds,
-            o.error or "",
+            o.capture, "ok" if o.ok else "failed", o.result.to_dict() if o.ok else None, o.seconds, o.error or ""
         )
         for o in sorted(outcomes, key=lambda o: o.index)
     ]
@@ -161,18 +155,16 @@ def _configure_threads(threads) -> None:
         return
     import cv2
 
-    from . import _inspect
+    from . import _masks
 
     cv2.setNumThreads(int(threads))
-    if _inspect.MODEL_THREADS != threads:
-        _inspect.MODEL_THREADS = int(threads)
-        _inspect._default_model.cache_clear()
+    if _masks.MODEL_THREADS != threads:
+        _masks.MODEL_THREADS = int(threads)
+        _masks._default_model.cache_clear()
     _configured_threads = threads
 
 
-def inspect_one(
-    index: int, capture, design, inspect_kw: dict | None = None, *, threads=None
-) -> Outcome:
+def inspect_one(index: int, capture, design, inspect_kw: dict | None = None, *, threads=None) -> Outcome:
     """Load and inspect one capture; never raises for a failure of that capture.
 
     Parameters
@@ -210,27 +202,20 @@ def _check_args(design, jobs, client, inspect_kw):
     if isinstance(design, (str, os.PathLike)):
         design = load_design(design)
     if not isinstance(design, Design):
-        raise RebarInputError(
-            f"design: expected a rebarlib.Design or a design.toml path, got {type(design).__name__}"
-        )
+        raise RebarInputError(f"design: expected a rebarlib.Design or a design.toml path, got {type(design).__name__}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise RebarInputError(f"jobs: expected a whole number of processes >= 1, got {jobs!r}")
     if jobs is not None and client is not None:
-        raise RebarInputError(
-            "jobs: give either jobs (local processes) or client (a dask cluster), not both"
-        )
+        raise RebarInputError("jobs: give either jobs (local processes) or client (a dask cluster), not both")
     rng = inspect_kw.get("rng")
     if rng is not None and (isinstance(rng, bool) or not isinstance(rng, int)):
         raise RebarInputError(
-            "rng: a batch inspects every capture with the same whole-number "
-            f"seed, got {type(rng).__name__}"
+            f"rng: a batch inspects every capture with the same whole-number seed, got {type(rng).__name__}"
         )
     return design
 
 
-def inspect_many(
-    captures, design, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw
-):
+def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw):
     """Inspect many captures; yield one :class:`Outcome` per capture as each is done.
 
     Parameters
@@ -269,9 +254,7 @@ def inspect_many(
     return _drive([(c, design) for c in captures], client, jobs, ordered, progress, inspect_kw)
 
 
-def inspect_pairs(
-    pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw
-):
+def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw):
     """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once."""
     pairs = [(c, _check_args(d, jobs, client, inspect_kw)) for c, d in pairs]
     return _drive(pairs, client, jobs, ordered, progress, inspect_kw)
@@ -375,10 +358,7 @@ def _on_dask(items, client, inspect_kw):
         client = Client(str(client), set_as_default=False)
     try:
         # folders go as absolute paths: the workers' working folder is not the caller's
-        items = [
-            (i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d)
-            for i, c, d in items
-        ]
+        items = [(i, str(Path(c).resolve()) if isinstance(c, (str, os.PathLike)) else c, d) for i, c, d in items]
         width = max(2, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
         todo = iter(items)
         designs = {}  # each design sent to the workers once
@@ -387,9 +367,7 @@ def _on_dask(items, client, inspect_kw):
         def submit(i, c, d):
             if id(d) not in designs:
                 designs[id(d)] = client.scatter(d, broadcast=True)
-            fut = client.submit(
-                inspect_one, i, c, designs[id(d)], inspect_kw, threads=WORKER_THREADS, pure=False
-            )
+            fut = client.submit(inspect_one, i, c, designs[id(d)], inspect_kw, threads=WORKER_THREADS, pure=False)
             running[fut.key] = (i, c)
             return fut
 

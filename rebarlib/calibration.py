@@ -29,14 +29,7 @@ from ._camera import Intrinsics
 from ._capture import Capture
 from ._checks import RebarInputError
 
-__all__ = [
-    "Calibration",
-    "calibrate",
-    "apply_calibration",
-    "load_calibration",
-    "find_board",
-    "calibration_id",
-]
+__all__ = ["Calibration", "calibrate", "apply_calibration", "load_calibration", "find_board", "calibration_id"]
 
 FORMAT = "rebarlib calibration 1"
 #: At least this many captures must show the whole board.
@@ -103,17 +96,8 @@ class Calibration:
             "calibrated_on": self.calibrated_on,
             "captures": list(self.captures),
             "board": self.board,
-            "intrinsics": {
-                "fx": K.fx,
-                "fy": K.fy,
-                "cx": K.cx,
-                "cy": K.cy,
-                "width": K.width,
-                "height": K.height,
-            },
-            "u_intrinsics_px": dict(
-                zip(("fx", "fy", "cx", "cy"), (float(u) for u in self.u_intrinsics))
-            ),
+            "intrinsics": {"fx": K.fx, "fy": K.fy, "cx": K.cx, "cy": K.cy, "width": K.width, "height": K.height},
+            "u_intrinsics_px": dict(zip(("fx", "fy", "cx", "cy"), (float(u) for u in self.u_intrinsics))),
             "depth": {
                 "model": "measured = (1 + scale) * true + offset_mm",
                 "scale": self.depth_scale,
@@ -146,33 +130,18 @@ def load_calibration(path) -> Calibration:
     try:
         d = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise RebarInputError(
-            f"--calibration {path}: not a readable calibration JSON file: {exc}"
-        ) from None
+        raise RebarInputError(f"--calibration {path}: not a readable calibration JSON file: {exc}") from None
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise RebarInputError(
-            f"--calibration {path}: expected a file written by `rebar calibrate` "
-            f'("format": "{FORMAT}")'
+            f'--calibration {path}: expected a file written by `rebar calibrate` ("format": "{FORMAT}")'
         )
     try:
         K, u, dep = d["intrinsics"], d["u_intrinsics_px"], d["depth"]
-        vals = [
-            float(dep[k])
-            for k in ("scale", "offset_mm", "u_scale", "u_offset_mm", "r_scale_offset")
-        ]
-        if (
-            not all(math.isfinite(v) for v in vals)
-            or not -0.5 < vals[0] < 0.5
-            or min(vals[2:4]) < 0
-        ):
+        vals = [float(dep[k]) for k in ("scale", "offset_mm", "u_scale", "u_offset_mm", "r_scale_offset")]
+        if not all(math.isfinite(v) for v in vals) or not -0.5 < vals[0] < 0.5 or min(vals[2:4]) < 0:
             raise ValueError("depth scale, offset or their uncertainties out of range")
         intr = Intrinsics(
-            float(K["fx"]),
-            float(K["fy"]),
-            float(K["cx"]),
-            float(K["cy"]),
-            int(K["width"]),
-            int(K["height"]),
+            float(K["fx"]), float(K["fy"]), float(K["cx"]), float(K["cy"]), int(K["width"]), int(K["height"])
         )
         return Calibration(
             intr,
@@ -232,11 +201,7 @@ def find_board(capture: Capture, cols: int, rows: int):
 def _object_points(cols: int, rows: int, square_mm: float) -> np.ndarray:
     j, i = np.mgrid[0:rows, 0:cols]
     return np.column_stack(
-        (
-            (i.ravel() - (cols - 1) / 2) * square_mm,
-            (j.ravel() - (rows - 1) / 2) * square_mm,
-            np.zeros(cols * rows),
-        )
+        ((i.ravel() - (cols - 1) / 2) * square_mm, (j.ravel() - (rows - 1) / 2) * square_mm, np.zeros(cols * rows))
     ).astype(np.float32)
 
 
@@ -265,12 +230,7 @@ def _line(pairs):
     zm = np.concatenate([p[1] for p in pairs])
     A = np.column_stack((zt, np.ones_like(zt)))
     (a, b), *_ = np.linalg.lstsq(A, zm, rcond=None)
-    return (
-        a - 1.0,
-        b,
-        float(np.sqrt(np.mean((zm - (a * zt + b)) ** 2))),
-        (float(zt.min()), float(zt.max())),
-    )
+    return (a - 1.0, b, float(np.sqrt(np.mean((zm - (a * zt + b)) ** 2))), (float(zt.min()), float(zt.max())))
 
 
 def _estimate(found, obj, K0: Intrinsics, flags) -> dict:
@@ -279,16 +239,9 @@ def _estimate(found, obj, K0: Intrinsics, flags) -> dict:
 
     size = (K0.width, K0.height)
     rms, Kmat, _, rvecs, tvecs, std_in, _, _ = cv2.calibrateCameraExtended(
-        [obj] * len(found),
-        [c.reshape(-1, 1, 2) for _, c in found],
-        size,
-        K0.matrix.copy(),
-        np.zeros(5),
-        flags=flags,
+        [obj] * len(found), [c.reshape(-1, 1, 2) for _, c in found], size, K0.matrix.copy(), np.zeros(5), flags=flags
     )
-    K = Intrinsics(
-        float(Kmat[0, 0]), float(Kmat[1, 1]), float(Kmat[0, 2]), float(Kmat[1, 2]), *size
-    )
+    K = Intrinsics(float(Kmat[0, 0]), float(Kmat[1, 1]), float(Kmat[0, 2]), float(Kmat[1, 2]), *size)
     pairs = [_board_depth_pairs(cap, c, K, r, t) for (cap, c), r, t in zip(found, rvecs, tvecs)]
     s, o, rms_d, zrange = _line(pairs)
     return {
@@ -305,13 +258,7 @@ def _estimate(found, obj, K0: Intrinsics, flags) -> dict:
 
 
 def calibrate(
-    captures,
-    *,
-    cols: int,
-    rows: int,
-    square_mm: float,
-    device: str | None = None,
-    fix_aspect: bool = False,
+    captures, *, cols: int, rows: int, square_mm: float, device: str | None = None, fix_aspect: bool = False
 ) -> Calibration:
     """Calibrate intrinsics and depth from captures of a flat checkerboard.
 
@@ -365,17 +312,13 @@ def calibrate(
     )
     est = _estimate(found, obj, K0, flags)
     if sum(len(p[0]) for p in est["pairs"]) < 100:
-        raise RebarInputError(
-            "captures: fewer than 100 pixels with depth on the board; is the depth image empty?"
-        )
+        raise RebarInputError("captures: fewer than 100 pixels with depth on the board; is the depth image empty?")
     # jackknife over captures (one left out at a time, the whole estimate made again): each
     # capture's pose error is shared by all its corners and pixels, which neither OpenCV's
     # standard deviations nor a pooled fit see; the focal length's error reaches the depth
     # scale through the poses, and the jackknife carries that along
     n = len(found)
-    loo = np.array(
-        [_estimate(found[:i] + found[i + 1 :], obj, K0, flags)["vector"] for i in range(n)]
-    )
+    loo = np.array([_estimate(found[:i] + found[i + 1 :], obj, K0, flags)["vector"] for i in range(n)])
     dev = loo - loo.mean(axis=0)
     cov = (n - 1) / n * dev.T @ dev
     u = np.sqrt(np.clip(np.diag(cov), 0, None))

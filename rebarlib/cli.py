@@ -18,9 +18,7 @@ SUBCOMMANDS = ("synth", "inspect", "inspect-cloud", "report", "calibrate")
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    parser = argparse.ArgumentParser(
-        prog="rebar", description="Rebar inspection from RGB-D captures."
-    )
+    parser = argparse.ArgumentParser(prog="rebar", description="Rebar inspection from RGB-D captures.")
     parser.add_argument("--version", action="version", version=f"rebarlib {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name in SUBCOMMANDS:

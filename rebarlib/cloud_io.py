@@ -58,9 +58,7 @@ class ScanCloud:
 
     def subset(self, index) -> ScanCloud:
         """The cloud restricted to ``index`` (indices or a boolean mask), fields included."""
-        return replace(
-            self, points=self.points[index], fields={k: v[index] for k, v in self.fields.items()}
-        )
+        return replace(self, points=self.points[index], fields={k: v[index] for k, v in self.fields.items()})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -100,8 +98,7 @@ def read_cloud(path, *, units: str, recentre: bool = True) -> ScanCloud:
     reader = _READERS.get(suffix)
     if reader is None:
         raise RebarInputError(
-            f"{p}: unknown point cloud format {suffix!r} "
-            f"(expected one of {', '.join(CLOUD_SUFFIXES)})"
+            f"{p}: unknown point cloud format {suffix!r} (expected one of {', '.join(CLOUD_SUFFIXES)})"
         )
     try:
         xyz, fields = reader(p)
@@ -115,9 +112,7 @@ def read_cloud(path, *, units: str, recentre: bool = True) -> ScanCloud:
 def _finish(xyz, fields, *, units, source, recentre) -> ScanCloud:
     xyz = np.asarray(xyz, np.float64)
     if xyz.ndim != 2 or xyz.shape[1] != 3 or len(xyz) == 0:
-        raise RebarInputError(
-            f"{source}: expected a non-empty cloud of x, y, z points, got shape {xyz.shape}"
-        )
+        raise RebarInputError(f"{source}: expected a non-empty cloud of x, y, z points, got shape {xyz.shape}")
     ok = np.all(np.isfinite(xyz), axis=1)
     xyz = xyz[ok]
     fields = {k: np.asarray(v)[ok] for k, v in fields.items() if len(v) == len(ok)}
@@ -133,28 +128,20 @@ def _check_units(xyz, units, source) -> None:
     extent = float(np.ptp(xyz, axis=0).max())
     if units == "mm" and 0 < extent < 10:
         warnings.warn(
-            f"{source}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)",
-            stacklevel=4,
+            f"{source}: the cloud spans only {extent:.3g} units; are these metres? (units='mm' given)", stacklevel=4
         )
     if units == "m" and extent > 100:
         warnings.warn(
-            f"{source}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)",
-            stacklevel=4,
+            f"{source}: the cloud spans {extent:.3g} units; are these millimetres? (units='m' given)", stacklevel=4
         )
 
 
 def _colour_fields(names, get) -> dict:
     """``colors`` (N, 3) in 0..1 from red/green/blue (or r/g/b) columns, else {}."""
-    for trio in (
-        ("red", "green", "blue"),
-        ("r", "g", "b"),
-        ("diffuse_red", "diffuse_green", "diffuse_blue"),
-    ):
+    for trio in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
         if all(t in names for t in trio):
             rgb = np.column_stack([np.asarray(get(t), np.float64) for t in trio])
-            top = (
-                65535.0 if rgb.max(initial=0) > 255 else (255.0 if rgb.max(initial=0) > 1 else 1.0)
-            )
+            top = 65535.0 if rgb.max(initial=0) > 255 else (255.0 if rgb.max(initial=0) > 1 else 1.0)
             return {"colors": rgb / top}
     return {}
 
@@ -172,17 +159,7 @@ def _structured_fields(arr, skip=("x", "y", "z")) -> tuple[np.ndarray, dict]:
     if fields:
         used |= {
             t
-            for t in (
-                "red",
-                "green",
-                "blue",
-                "r",
-                "g",
-                "b",
-                "diffuse_red",
-                "diffuse_green",
-                "diffuse_blue",
-            )
+            for t in ("red", "green", "blue", "r", "g", "b", "diffuse_red", "diffuse_green", "diffuse_blue")
             if t in col
         }
     for trio in (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z")):
@@ -191,9 +168,7 @@ def _structured_fields(arr, skip=("x", "y", "z")) -> tuple[np.ndarray, dict]:
             used |= set(trio)
     for n in names:
         if n not in used and arr[col[n]].ndim == 1:
-            fields["intensity" if n in ("scalar_intensity", "reflectance") else n] = np.asarray(
-                arr[col[n]]
-            )
+            fields["intensity" if n in ("scalar_intensity", "reflectance") else n] = np.asarray(arr[col[n]])
     return xyz, fields
 
 
@@ -246,9 +221,7 @@ def _read_ply(p: Path):
             if name == "vertex":
                 break
             if count and fmt != "ascii":
-                raise RebarInputError(
-                    f"{p}: PLY element '{name}' precedes the vertices (not supported)"
-                )
+                raise RebarInputError(f"{p}: PLY element '{name}' precedes the vertices (not supported)")
         else:
             raise RebarInputError(f"{p}: PLY file has no 'vertex' element")
         if any(t is None for _, t in props):
@@ -289,10 +262,7 @@ def _read_pcd(p: Path):
         n = int(head["POINTS"][0])
         kind = head["DATA"][0].lower()
         dtype = np.dtype(
-            [
-                (nm, f"<{t.lower()}{s}", () if c == 1 else (c,))
-                for nm, s, t, c in zip(names, sizes, types, counts)
-            ]
+            [(nm, f"<{t.lower()}{s}", () if c == 1 else (c,)) for nm, s, t, c in zip(names, sizes, types, counts)]
         )
         if kind == "ascii":
             rows = np.loadtxt(f, ndmin=2, max_rows=n)
@@ -362,9 +332,7 @@ def _unpack_pcd_rgb(arr):
     if key is None:
         return arr
     packed = (
-        np.ascontiguousarray(arr[key]).view(np.uint32)
-        if arr[key].dtype.itemsize == 4
-        else arr[key].astype(np.uint32)
+        np.ascontiguousarray(arr[key]).view(np.uint32) if arr[key].dtype.itemsize == 4 else arr[key].astype(np.uint32)
     )
     rest = [n for n in arr.dtype.names if n != key]
     cols = [arr[n] for n in rest] + [(packed >> 16) & 255, (packed >> 8) & 255, packed & 255]
@@ -389,14 +357,7 @@ def _read_text(p: Path):
     elif toks and not all(_NUMBER.match(t) for t in toks):
         skip, names = 1, [t.strip().lower() for t in toks]
     df = pd.read_csv(
-        p,
-        sep=sep,
-        header=None,
-        skiprows=skip,
-        comment="#",
-        dtype=np.float64,
-        on_bad_lines="skip",
-        engine="c",
+        p, sep=sep, header=None, skiprows=skip, comment="#", dtype=np.float64, on_bad_lines="skip", engine="c"
     )
     a = df.to_numpy()
     if a.ndim != 2 or a.shape[1] < 3:
@@ -415,14 +376,10 @@ def _text_names(a) -> list:
     rest = a[:, 3:]
 
     def is_rgb(c):
-        return (
-            np.all((c >= 0) & (c <= 255)) and np.allclose(c, np.round(c)) and c.max(initial=0) > 1
-        )
+        return np.all((c >= 0) & (c <= 255)) and np.allclose(c, np.round(c)) and c.max(initial=0) > 1
 
     names = ["x", "y", "z"]
-    if extra in (1, 4, 7) or (
-        extra == 3 and not is_rgb(rest[:, :3]) and np.abs(rest[:, :3]).max() > 1.0
-    ):
+    if extra in (1, 4, 7) or (extra == 3 and not is_rgb(rest[:, :3]) and np.abs(rest[:, :3]).max() > 1.0):
         names.append("intensity")
         rest = rest[:, 1:]
         extra -= 1
@@ -461,9 +418,7 @@ def _read_las(p: Path):
     try:
         import laspy
     except ImportError:  # pragma: no cover - a declared dependency
-        raise RebarInputError(
-            f"{p}: reading LAS/LAZ needs the 'laspy' package (and 'lazrs' for LAZ)"
-        ) from None
+        raise RebarInputError(f"{p}: reading LAS/LAZ needs the 'laspy' package (and 'lazrs' for LAZ)") from None
     try:
         las = laspy.read(str(p))
     except laspy.errors.LaspyException as exc:
@@ -489,19 +444,13 @@ def _read_e57(p: Path):
     e57 = pye57.E57(str(p))
     xyz_all, fields_all = [], []
     for i in range(e57.scan_count):
-        scan = e57.read_scan(
-            i, ignore_missing_fields=True, intensity=True, colors=True, transform=True
-        )
-        xyz_all.append(
-            np.column_stack([scan["cartesianX"], scan["cartesianY"], scan["cartesianZ"]])
-        )
+        scan = e57.read_scan(i, ignore_missing_fields=True, intensity=True, colors=True, transform=True)
+        xyz_all.append(np.column_stack([scan["cartesianX"], scan["cartesianY"], scan["cartesianZ"]]))
         f = {}
         if "intensity" in scan:
             f["intensity"] = np.asarray(scan["intensity"])
         if "colorRed" in scan:
-            f["colors"] = (
-                np.column_stack([scan["colorRed"], scan["colorGreen"], scan["colorBlue"]]) / 255.0
-            )
+            f["colors"] = np.column_stack([scan["colorRed"], scan["colorGreen"], scan["colorBlue"]]) / 255.0
         f["station"] = np.full(len(xyz_all[-1]), i, np.int32)
         fields_all.append(f)
     if not xyz_all:
@@ -540,9 +489,7 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
     xyz = cloud.absolute_mm / UNIT_SCALE[units]
     inten = cloud.fields.get("intensity")
     rgb = cloud.fields.get("colors")
-    rgb8 = (
-        None if rgb is None else np.clip(np.round(np.asarray(rgb) * 255), 0, 255).astype(np.uint8)
-    )
+    rgb8 = None if rgb is None else np.clip(np.round(np.asarray(rgb) * 255), 0, 255).astype(np.uint8)
     if suffix == ".ply":
         _write_ply(p, xyz, inten, rgb8, cloud.fields.get("normals"))
     elif suffix == ".pcd":
@@ -558,8 +505,7 @@ def write_cloud(path, cloud: ScanCloud, *, units: str = "mm") -> Path:
         _write_e57(p, xyz, inten)
     else:
         raise RebarInputError(
-            f"{p}: unknown point cloud format {suffix!r} (expected one of "
-            f"{', '.join(CLOUD_SUFFIXES)})"
+            f"{p}: unknown point cloud format {suffix!r} (expected one of {', '.join(CLOUD_SUFFIXES)})"
         )
     return p
 
@@ -590,9 +536,7 @@ def _write_ply(p, xyz, inten, rgb8, normals=None):
 
 def _write_pcd(p, xyz, inten):
     fields = ["x", "y", "z"] + (["intensity"] if inten is not None else [])
-    arr = np.column_stack([xyz] + ([np.asarray(inten, float)] if inten is not None else [])).astype(
-        "<f8"
-    )
+    arr = np.column_stack([xyz] + ([np.asarray(inten, float)] if inten is not None else [])).astype("<f8")
     k = len(fields)
     head = [
         "# .PCD v0.7",

@@ -39,10 +39,7 @@ def paper_design(*, cover_mm: float = 20, **design_overrides) -> Design:
     >>> paper_design(cover_mm=15).cover_mm
     15.0
     """
-    data = {
-        "slab": dict(_PAPER["slab"]),
-        "design": {**_PAPER["design"], "cover_mm": cover_mm, **design_overrides},
-    }
+    data = {"slab": dict(_PAPER["slab"]), "design": {**_PAPER["design"], "cover_mm": cover_mm, **design_overrides}}
     return design_from_dict(data, source="paper_design()")
 
 

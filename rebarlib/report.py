@@ -115,9 +115,7 @@ def safe_url_fetcher(allowed_dir=None, *, refused=None):
                     return super().fetch(url, headers)
             if refused is not None:
                 refused.append(url)
-            raise ValueError(
-                f"refused to load {url!r}: the report loads only its own template assets"
-            )
+            raise ValueError(f"refused to load {url!r}: the report loads only its own template assets")
 
     return _ProjectOnlyFetcher(allowed_protocols=("data", "file"), allow_redirects=False)
 
@@ -138,9 +136,7 @@ def find_captures(slab_dir) -> list:
     """
     slab = Path(slab_dir)
     if not slab.is_dir():
-        raise RebarInputError(
-            f"{slab}: slab folder not found (expected design.toml and capture folders)"
-        )
+        raise RebarInputError(f"{slab}: slab folder not found (expected design.toml and capture folders)")
     return sorted(p for p in slab.iterdir() if p.is_dir() and (p / "camera.json").is_file())
 
 
@@ -189,11 +185,7 @@ def _signed(v, nd: int = 1) -> str:
 
 
 def _pct(v) -> str:
-    return (
-        "–"
-        if v is None or (isinstance(v, float) and not math.isfinite(v))
-        else f"{100 * float(v):.0f} %"
-    )
+    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{100 * float(v):.0f} %"
 
 
 def _no_image_text(result: dict, has_folder: bool) -> str:
@@ -225,11 +217,7 @@ def _camera_basis(r: dict) -> str:
     if not inp:
         return "not recorded (the result has no uncertainty budget: the uncertainties are the fits' alone)"
     text = f"factory calibration, device profile {inp.get('name')}"
-    return text + (
-        " (no profile matched the device: conservative default)"
-        if inp.get("default_profile")
-        else ""
-    )
+    return text + (" (no profile matched the device: conservative default)" if inp.get("default_profile") else "")
 
 
 def _decision_context(acceptance: Acceptance) -> dict:
@@ -257,8 +245,7 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
 
     if not isinstance(acceptance, Acceptance):
         raise RebarInputError(
-            f"acceptance: expected an Acceptance from rebarlib.acceptance.evaluate, "
-            f"got {type(acceptance).__name__}"
+            f"acceptance: expected an Acceptance from rebarlib.acceptance.evaluate, got {type(acceptance).__name__}"
         )
     slab_dir, folders = _capture_folders(source)
     results = list(acceptance.results)
@@ -436,11 +423,7 @@ def _item_rows(acceptance: Acceptance) -> tuple[list, list]:
         it["rule_no"] = [(r["rule"], r["clause"]) for r in rules].index(key) + 1
         unit = "bars" if it["unit"] == "bars" else "mm"
         w = it["worst_deviation"]
-        it["worst_text"] = (
-            "–"
-            if w is None
-            else (f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
-        )
+        it["worst_text"] = "–" if w is None else (f"{_signed(w, 0)} bars" if unit == "bars" else f"{_signed(w, 1)} mm")
         it["ratio_text"] = _pct(it["pass_ratio"])
         it["extra_text"] = ", ".join(
             t
@@ -485,8 +468,7 @@ def _uncertainty_rows(cp) -> list:
             {
                 "label": "Bar width (each bar's standard uncertainty; its spread along the bar "
                 "where the method gives none)",
-                "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm "
-                f"(median over {len(u_bar)} bars)",
+                "text": f"{u_bar['uncertainty'].astype(float).median():.1f} mm (median over {len(u_bar)} bars)",
             }
         )
     return uncertainty
@@ -549,11 +531,7 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
             vals = []
             for c in (c for c in cps if c["capture"] == cap):
                 if c["status"] == EXCLUDED:
-                    v = (
-                        "not in view"
-                        if str(c.get("reason", "")).startswith("not in view")
-                        else "hidden"
-                    )
+                    v = "not in view" if str(c.get("reason", "")).startswith("not in view") else "hidden"
                 elif c["status"] == NOT_MEASURED:
                     v = "n/m"
                 elif it["item"].startswith("bar_size"):
@@ -664,11 +642,7 @@ def render_html(context: dict) -> str:
         if c.get("plan"):
             p = c["plan"]
             # Page content is 184 mm wide; at most 80 mm high keeps image and plan on one page.
-            c["plan"] = {
-                **p,
-                "uri": _svg_uri(plan.render(plan=p)),
-                "display_mm": min(184.0, 80.0 * p["w"] / p["h"]),
-            }
+            c["plan"] = {**p, "uri": _svg_uri(plan.render(plan=p)), "display_mm": min(184.0, 80.0 * p["w"] / p["h"])}
         captures.append(c)
     return env.get_template("report.html.j2").render(**{**context, "captures": captures})
 
@@ -722,9 +696,7 @@ def build_report(
         import weasyprint
 
         root = templates_dir()
-        weasyprint.HTML(
-            string=html, base_url=str(root) + "/", url_fetcher=safe_url_fetcher(root)
-        ).write_pdf(str(out))
+        weasyprint.HTML(string=html, base_url=str(root) + "/", url_fetcher=safe_url_fetcher(root)).write_pdf(str(out))
     if exports:
         write_exports(acceptance, out)
     return out

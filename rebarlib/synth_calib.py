@@ -32,18 +32,10 @@ class Checkerboard:
     margin_mm: float = 40.0
 
     def __post_init__(self):
-        if (
-            int(self.cols) != self.cols
-            or int(self.rows) != self.rows
-            or min(self.cols, self.rows) < 3
-        ):
-            raise RebarInputError(
-                f"board: expected at least 3 x 3 inner corners, got {self.cols} x {self.rows}"
-            )
+        if int(self.cols) != self.cols or int(self.rows) != self.rows or min(self.cols, self.rows) < 3:
+            raise RebarInputError(f"board: expected at least 3 x 3 inner corners, got {self.cols} x {self.rows}")
         if not self.square_mm > 0:
-            raise RebarInputError(
-                f"board square: expected a positive size in mm, got {self.square_mm!r}"
-            )
+            raise RebarInputError(f"board square: expected a positive size in mm, got {self.square_mm!r}")
 
     def object_points(self) -> np.ndarray:
         """(rows * cols, 3) float32 inner corners on the board (mm, z = 0), centred on the board,
@@ -59,9 +51,7 @@ class Checkerboard:
         half_h = (self.rows + 1) * self.square_mm / 2
         on_board = (np.abs(x) <= half_w + self.margin_mm) & (np.abs(y) <= half_h + self.margin_mm)
         in_pattern = (np.abs(x) < half_w) & (np.abs(y) < half_h)
-        parity = (
-            np.floor((x + half_w) / self.square_mm) + np.floor((y + half_h) / self.square_mm)
-        ) % 2
+        parity = (np.floor((x + half_w) / self.square_mm) + np.floor((y + half_h) / self.square_mm)) % 2
         out = np.where(in_pattern & (parity == 0), 0.08, 0.85)
         return np.where(on_board, out, np.nan)
 
@@ -113,16 +103,7 @@ def render_board(
     on = np.isfinite(board.reflectance(x, y)) & np.isfinite(t)
     z_true = np.where(on, t, 0.0).reshape(H, W)
     depth = _sensor_depth(
-        z_true,
-        None,
-        None,
-        None,
-        pose,
-        lens,
-        replace(sensor, projector_shadow=False),
-        None,
-        rng,
-        None,
+        z_true, None, None, None, pose, lens, replace(sensor, projector_shadow=False), None, rng, None
     )
     truth = {
         "kind": "checkerboard",
@@ -186,12 +167,7 @@ def board_captures(
     rngs = np.random.SeedSequence(seed).spawn(n)
     return [
         render_board(
-            p,
-            board=board,
-            intrinsics=intrinsics,
-            sensor=sensor,
-            rng=np.random.default_rng(r),
-            name=f"board_{i:02d}",
+            p, board=board, intrinsics=intrinsics, sensor=sensor, rng=np.random.default_rng(r), name=f"board_{i:02d}"
         )
         for i, (p, r) in enumerate(zip(board_poses(n, **pose_kw), rngs))
     ]

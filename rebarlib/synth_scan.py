@@ -111,10 +111,7 @@ class ScanTruth:
 
     def bars(self, layer: str, level: str) -> list:
         """The bars of one set, in order across their direction."""
-        return sorted(
-            (b for b in self.scene.bars if b.layer == layer and b.level == level),
-            key=lambda b: b.offset_mm,
-        )
+        return sorted((b for b in self.scene.bars if b.layer == layer and b.level == level), key=lambda b: b.offset_mm)
 
     def spacings(self, layer: str, level: str) -> np.ndarray:
         """True centre-to-centre spacings of adjacent bars of one set."""
@@ -155,9 +152,7 @@ class ScanTruth:
         sets = [(la, lv) for la in ("lower", "upper") for lv in ("bottom", "top")]
         return {
             "bars": bars,
-            "spacings_mm": {
-                f"{la}/{lv}": [round(float(v), 3) for v in self.spacings(la, lv)] for la, lv in sets
-            },
+            "spacings_mm": {f"{la}/{lv}": [round(float(v), 3) for v in self.spacings(la, lv)] for la, lv in sets},
             "layer_distance_mm": round(self.layer_distance_mm, 3),
             "cover_mm": round(self.cover_mm, 3) if self.formwork else None,
             "formwork_in_scan": bool(self.formwork),
@@ -187,9 +182,7 @@ def _station_rays(pos, region, top_mm, scanner: ScannerModel):
         az_grid = np.arange(az.min(), az.max(), scanner.step_az_deg)
         el_grid = np.arange(el.min(), el.max(), scanner.step_el_deg)
     A, E = np.meshgrid(np.radians(az_grid), np.radians(el_grid), indexing="ij")
-    d = np.column_stack(
-        [(np.cos(E) * np.cos(A)).ravel(), (np.cos(E) * np.sin(A)).ravel(), np.sin(E).ravel()]
-    )
+    d = np.column_stack([(np.cos(E) * np.cos(A)).ravel(), (np.cos(E) * np.sin(A)).ravel(), np.sin(E).ravel()])
     return d
 
 
@@ -204,13 +197,7 @@ def _geometry(scene: SlabScene, formwork: bool):
 
 
 def scan_scene(
-    scene: SlabScene,
-    stations,
-    scanner: ScannerModel | None = None,
-    *,
-    formwork: bool = True,
-    region=None,
-    rng=None,
+    scene: SlabScene, stations, scanner: ScannerModel | None = None, *, formwork: bool = True, region=None, rng=None
 ) -> tuple[np.ndarray, ScanTruth, dict]:
     """Scan ``scene`` from ``stations``: world-frame points (mm), the truth and per-point fields.
 
@@ -244,17 +231,11 @@ def scan_scene(
         station_of.append(np.full(len(p), k, np.int16))
     points = np.vstack(pts)
     labels = np.concatenate(labels)
-    truth = ScanTruth(
-        scene, labels, _scanned_lengths(scene, points, labels, region), region, formwork
-    )
+    truth = ScanTruth(scene, labels, _scanned_lengths(scene, points, labels, region), region, formwork)
     return (
         points,
         truth,
-        {
-            "intensity": np.concatenate(inten),
-            "station": np.concatenate(station_of),
-            "normals": np.vstack(normals),
-        },
+        {"intensity": np.concatenate(inten), "station": np.concatenate(station_of), "normals": np.vstack(normals)},
     )
 
 
@@ -269,14 +250,10 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     idx = np.flatnonzero(keep)
     t, o, cos_i, nrm = t[idx], obj[idx], cos_inc[idx], normal[idx]
     kind, bar = geo.obj_kind[o], geo.obj_bar[o]
-    label = np.where(
-        kind == S.K_BAR, bar, np.where(kind == S.K_FORMWORK, LABEL_FORMWORK, LABEL_OTHER)
-    )
+    label = np.where(kind == S.K_BAR, bar, np.where(kind == S.K_FORMWORK, LABEL_FORMWORK, LABEL_OTHER))
     true_p = pos + d[idx] * t[:, None]
     x0, x1, y0, y1 = region
-    inside = (
-        (true_p[:, 0] >= x0) & (true_p[:, 0] <= x1) & (true_p[:, 1] >= y0) & (true_p[:, 1] <= y1)
-    )
+    inside = (true_p[:, 0] >= x0) & (true_p[:, 0] <= x1) & (true_p[:, 1] >= y0) & (true_p[:, 1] <= y1)
     idx, t, label, cos_i, true_p, nrm = (
         idx[inside],
         t[inside],
@@ -302,10 +279,7 @@ def _shoot(pos, d, geo, caster, S, sc: ScannerModel, region, rng):
     label[out] = LABEL_NOISE
     rng_t = rng_t + rng.normal(0.0, sc.range_sigma_mm, len(t))
     points = pos + d[idx] * rng_t[:, None]
-    inten = (
-        np.clip(cos_i * 4.0e6 / np.maximum(t, 100.0) ** 2 * np.where(label >= 0, 0.6, 1.0), 0, 1)
-        * 1000
-    )
+    inten = np.clip(cos_i * 4.0e6 / np.maximum(t, 100.0) ** 2 * np.where(label >= 0, 0.6, 1.0), 0, 1) * 1000
     return points, label.astype(np.int32), inten, nrm
 
 
@@ -336,9 +310,7 @@ def synth_scan(
     frame (z up, formwork at z = 0). Default stations: three round the mesh, 2.5 m off, 1.5 m up."""
     rng = np.random.default_rng(rng)
     scene = make_scene(design, deviations or Deviations(), rng=rng)
-    return scan_scene(
-        scene, stations or ring_stations(), scanner, formwork=formwork, region=region, rng=rng
-    )
+    return scan_scene(scene, stations or ring_stations(), scanner, formwork=formwork, region=region, rng=rng)
 
 
 def frame_rotation(up: str) -> np.ndarray:
@@ -389,9 +361,7 @@ def export_scan(
         import json
         from pathlib import Path
 
-        Path(f"{path}.truth.json").write_text(
-            json.dumps(truth.to_dict(), indent=1) + "\n", encoding="utf-8"
-        )
+        Path(f"{path}.truth.json").write_text(json.dumps(truth.to_dict(), indent=1) + "\n", encoding="utf-8")
     return truth
 
 
@@ -405,9 +375,7 @@ def score_scan(result, truth: ScanTruth, *, min_scanned_mm: float = 100.0) -> di
     (``spacing_errors``, mm) and the cover and layer distance errors (mm, None if not measured).
     """
     res = result.to_dict() if hasattr(result, "to_dict") else result
-    offset = np.asarray(
-        (res.get("extras") or {}).get("cloud", {}).get("offset_mm", [0, 0, 0]), float
-    )
+    offset = np.asarray((res.get("extras") or {}).get("cloud", {}).get("offset_mm", [0, 0, 0]), float)
     design = truth.scene.design
     matched, phantoms, missed, scanned = {}, 0, 0, 0
     found_ids = set()

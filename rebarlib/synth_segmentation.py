@@ -145,12 +145,7 @@ def split_indices(n: int = DATASET_SIZE, *, seed: int = DATASET_SEED) -> dict:
 
 
 def synth_eval_regions(
-    index: int,
-    capture,
-    *,
-    seed: int = DATASET_SEED,
-    margin_px: int | None = None,
-    rib_relief: bool = False,
+    index: int, capture, *, seed: int = DATASET_SEED, margin_px: int | None = None, rib_relief: bool = False
 ) -> dict:
     """The hard-case subsets of a data-set capture, for the shadow / rust breakdown.
 
@@ -186,13 +181,7 @@ def synth_eval_regions(
 
     def black(cast_shadows):
         dark = replace(
-            app,
-            ambient=0.0,
-            exposure=1.0,
-            noise_sigma=0.0,
-            blur_px=0.0,
-            jpeg_quality=None,
-            cast_shadows=cast_shadows,
+            app, ambient=0.0, exposure=1.0, noise_sigma=0.0, blur_px=0.0, jpeg_quality=None, cast_shadows=cast_shadows
         )
         ref = synth_capture(
             design_from_dict(p["design"], source="segmentation data set"),
@@ -208,23 +197,13 @@ def synth_eval_regions(
         )
         return ref.color.max(axis=2) == 0
 
-    margin = (
-        margin_px if margin_px is not None else max(1, round(3 * capture.intrinsics.width / 1280))
-    )
+    margin = margin_px if margin_px is not None else max(1, round(3 * capture.intrinsics.width / 1280))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1))
 
     def grow(mask):
-        return (
-            cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
-            if margin > 0 and mask.any()
-            else mask
-        )
+        return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool) if margin > 0 and mask.any() else mask
 
     unlit = black(True)
     cast = unlit & ~black(False)
     rusty = [b["id"] + 1 for b in capture.truth["bars"] if b["rust"] > 0]
-    return {
-        "shadow": grow(cast & (capture.bar_ids > 0)),
-        "unlit": unlit,
-        "rust": grow(np.isin(capture.bar_ids, rusty)),
-    }
+    return {"shadow": grow(cast & (capture.bar_ids > 0)), "unlit": unlit, "rust": grow(np.isin(capture.bar_ids, rusty))}

@@ -139,14 +139,7 @@ def _t(name, u, unit, c, kind="systematic") -> Term:
 
 
 def height_terms(
-    h_mm: float,
-    u_random_mm: float,
-    inp: Inputs,
-    *,
-    depth_mm: float,
-    tilt_deg: float,
-    envelope_mm=0.0,
-    rib_mm=0.0,
+    h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float, envelope_mm=0.0, rib_mm=0.0
 ) -> list:
     """Budget of a height above the formwork (or a difference of two) whose seen part, the
     depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
@@ -167,9 +160,7 @@ def height_terms(
         _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
         _t("depth scale", inp.u_scale, "1", h),
         _t("depth offset", inp.u_offset_mm, "mm", 0.0),
-        _t(
-            "depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0
-        ),
+        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0),
         _t("focal length", inp.u_focal, "1", h * s2),
         _t("principal point", inp.u_pp_px, "px", 0.0),
         _t("rib envelope (spread between mills)", envelope_mm, "mm", 1.0 if envelope_mm else 0.0),
@@ -178,13 +169,7 @@ def height_terms(
 
 
 def length_terms(
-    L_mm: float,
-    u_random_mm: float,
-    inp: Inputs,
-    *,
-    depth_mm: float,
-    tilt_deg: float,
-    focal_px: float,
+    L_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float, focal_px: float
 ) -> list:
     """Budget of a length across the line of sight (a spacing), ``L_mm`` long, at ``depth_mm``.
 
@@ -200,12 +185,7 @@ def length_terms(
         _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
         _t("depth scale", inp.u_scale, "1", L),
         _t("depth offset", inp.u_offset_mm, "mm", L / z),
-        _t(
-            "depth non-linearity (stereo k z²)",
-            inp.u_quad_mm_per_m2,
-            "mm/m²",
-            z / 1000.0 * L / 1000.0,
-        ),
+        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", z / 1000.0 * L / 1000.0),
         _t("focal length", inp.u_focal, "1", L),
         _t("principal point", inp.u_pp_px, "px", L * math.sin(t) * math.cos(t) / focal_px),
     ]
@@ -225,12 +205,8 @@ def width_terms(
     registration: the mask's edges come from the colour image and its extent from the depth, so
     a residual shift of ``registration_px`` widens or narrows the mask on one side by up to that
     (sensitivity: the pixel's size at ``depth_mm``)."""
-    terms = length_terms(
-        w_mm, u_random_mm, inp, depth_mm=depth_mm, tilt_deg=tilt_deg, focal_px=focal_px
-    )
-    return terms + [
-        _t("colour-depth registration", registration_px / _SQRT3, "px", depth_mm / focal_px)
-    ]
+    terms = length_terms(w_mm, u_random_mm, inp, depth_mm=depth_mm, tilt_deg=tilt_deg, focal_px=focal_px)
+    return terms + [_t("colour-depth registration", registration_px / _SQRT3, "px", depth_mm / focal_px)]
 
 
 def combine(terms) -> float:
@@ -329,18 +305,13 @@ def apply_budget(
         # the assumed shape moves both lattices' undersides the same way, in proportion to
         # their rib heights: in their difference only the difference of the rib heights is left
         "layer_distance": dict(
-            envelope_mm=math.hypot(env("lower"), env("upper")),
-            rib_mm=abs(rib("lower") - rib("upper")),
+            envelope_mm=math.hypot(env("lower"), env("upper")), rib_mm=abs(rib("lower") - rib("upper"))
         ),
         "upper_top": {},
     }
     # what the camera sees of an underside is the bar's top: the depth errors act on the height
     # of that top, the assumed envelope is subtracted after (upper top: seen as it is)
-    seen = {
-        "cover": envelope("lower"),
-        "layer_distance": envelope("upper") - envelope("lower"),
-        "upper_top": 0.0,
-    }
+    seen = {"cover": envelope("lower"), "layer_distance": envelope("upper") - envelope("lower"), "upper_top": 0.0}
     for key, extra in specs.items():
         m = getattr(res, key)
         if not m.ok:
@@ -389,18 +360,10 @@ def _spacing_budget(res, inp, z, tilt, f, out):
             continue
         a, b = (se.get(rec["bar_a"], math.nan), se.get(rec["bar_b"], math.nan))
         u_rand = math.hypot(*(x if np.isfinite(x) else 0.5 for x in (a, b)))
-        zz = (
-            np.nanmean([_bar_depth(bars, rec["bar_a"]), _bar_depth(bars, rec["bar_b"])])
-            if len(bars)
-            else z
-        )
-        terms = length_terms(
-            v, u_rand, inp, depth_mm=zz if np.isfinite(zz) else z, tilt_deg=tilt, focal_px=f
-        )
+        zz = np.nanmean([_bar_depth(bars, rec["bar_a"]), _bar_depth(bars, rec["bar_b"])]) if len(bars) else z
+        terms = length_terms(v, u_rand, inp, depth_mm=zz if np.isfinite(zz) else z, tilt_deg=tilt, focal_px=f)
         us.append(combine(terms))
-        rows.append(
-            {"bar_a": int(rec["bar_a"]), "bar_b": int(rec["bar_b"]), **_budget_dict(terms, v)}
-        )
+        rows.append({"bar_a": int(rec["bar_a"]), "bar_b": int(rec["bar_b"]), **_budget_dict(terms, v)})
     sp["uncertainty_mm"] = np.asarray(us, float)
     out["spacings"] = rows
     return sp
@@ -422,13 +385,7 @@ def _width_budget(res, inp, z, tilt, f, system, out):
             continue
         zb = (rec["start_z_mm"] + rec["end_z_mm"]) / 2
         terms = width_terms(
-            w,
-            u0,
-            inp,
-            depth_mm=zb if np.isfinite(zb) else z,
-            tilt_deg=tilt,
-            focal_px=f,
-            registration_px=reg,
+            w, u0, inp, depth_mm=zb if np.isfinite(zb) else z, tilt_deg=tilt, focal_px=f, registration_px=reg
         )
         u = combine(terms)
         us.append(u)
@@ -445,6 +402,4 @@ def profile_text(inp: Inputs) -> str:
     ..." or "calibrated: FILE"."""
     if inp.source == "calibration":
         return f"calibrated ({inp.name})"
-    return f"factory calibration, device profile {inp.name}" + (
-        " (no profile matched)" if inp.default_profile else ""
-    )
+    return f"factory calibration, device profile {inp.name}" + (" (no profile matched)" if inp.default_profile else "")

@@ -45,14 +45,7 @@ def decimate(n: int, max_points: int, *, rng=None) -> np.ndarray:
 
 
 def cloud_figure(
-    points,
-    *,
-    groups=None,
-    colors=None,
-    max_points: int = 30_000,
-    title: str = "",
-    marker_size: float = 1.5,
-    rng=0,
+    points, *, groups=None, colors=None, max_points: int = 30_000, title: str = "", marker_size: float = 1.5, rng=0
 ):
     """A 3-D scatter of ``points`` (N, 3) mm, decimated to ``max_points`` to stay light.
 
@@ -134,9 +127,7 @@ def plane_mesh_trace(normal, offset_mm, points, *, color=LAYER_COLORS["formwork"
     u /= np.linalg.norm(u)
     v = np.cross(n, u)
     r = float(np.ptp(pts, axis=0).max()) / 2
-    corners = np.array(
-        [centre + r * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-    )
+    corners = np.array([centre + r * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
     return go.Mesh3d(
         x=corners[:, 0],
         y=-corners[:, 1],
@@ -157,9 +148,7 @@ def image_figure(rgb, *, title: str = "", width: int = 800):
     img = np.asarray(rgb)
     h, w = img.shape[:2]
     fig = go.Figure(go.Image(z=img))
-    fig.update_layout(
-        title=title, width=width, height=int(width * h / w) + 60, margin=dict(l=0, r=0, t=40, b=0)
-    )
+    fig.update_layout(title=title, width=width, height=int(width * h / w) + 60, margin=dict(l=0, r=0, t=40, b=0))
     return fig
 
 
@@ -180,9 +169,7 @@ def overlay_mask(rgb, mask, *, color=(255, 0, 0), alpha: float = 0.5) -> np.ndar
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def draw_axes(
-    rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=None, thickness: int = 2
-) -> np.ndarray:
+def draw_axes(rgb, starts, ends, intrinsics: Intrinsics, *, labels=None, colors=None, thickness: int = 2) -> np.ndarray:
     """``rgb`` with bar axes (camera-frame end points, mm) projected and drawn, optionally labelled.
 
     ``colors`` : one RGB tuple per axis (default red).
@@ -209,14 +196,7 @@ def draw_axes(
                 cv2.LINE_AA,
             )
             cv2.putText(
-                out,
-                str(labels[i]),
-                (int(m[0]) + 4, int(m[1]) - 4),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.5,
-                col,
-                1,
-                cv2.LINE_AA,
+                out, str(labels[i]), (int(m[0]) + 4, int(m[1]) - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.5, col, 1, cv2.LINE_AA
             )
     return out
 

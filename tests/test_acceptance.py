@@ -11,13 +11,7 @@ import pytest
 
 from rebarlib import RebarInputError, design_from_dict
 from rebarlib._results import InspectionResult, Measurement
-from rebarlib.acceptance import (
-    Acceptance,
-    design_top_cover_mm,
-    evaluate,
-    list_presets,
-    load_tolerances,
-)
+from rebarlib.acceptance import Acceptance, design_top_cover_mm, evaluate, list_presets, load_tolerances
 
 GB_COVER_MM = 3.0  # GB 50204-2015 Table 5.5.3, slab cover ±3
 GB_SPACING_MM = 10.0  # main bars spacing ±10
@@ -100,10 +94,7 @@ def _result(
             for la, lv in LAYERS
         ]
     if counts is None:
-        counts = [
-            {"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0}
-            for la, lv in LAYERS
-        ]
+        counts = [{"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0} for la, lv in LAYERS]
     return {
         "capture": name,
         "method": "test",
@@ -140,14 +131,8 @@ def test_presets_are_data_with_clauses_and_labels():
     assert gb.item("spacing_lower_top").limits() == (GB_SPACING_MM, GB_SPACING_MM)
     assert gb.item("layer_distance").limits() == (GB_LAYER_MM, GB_LAYER_MM)
     assert gb.item("layer_distance").interpretation  # 排距 row used for a slab: labelled
-    assert (gb.rule("general").min_pass_ratio, gb.rule("general").max_factor) == (
-        GENERAL_RATIO,
-        None,
-    )
-    assert (gb.rule("cover").min_pass_ratio, gb.rule("cover").max_factor) == (
-        COVER_RATIO,
-        MAX_FACTOR,
-    )
+    assert (gb.rule("general").min_pass_ratio, gb.rule("general").max_factor) == (GENERAL_RATIO, None)
+    assert (gb.rule("cover").min_pass_ratio, gb.rule("cover").max_factor) == (COVER_RATIO, MAX_FACTOR)
     assert not load_tolerances("aci").item("spacing").confirmed  # ±76 mm from secondary sources
 
 
@@ -263,20 +248,8 @@ def test_missing_capture_makes_the_slab_incomplete():
 
 def test_bar_sizes_wrong_unmeasured_and_hidden():
     bars = [
-        {
-            "bar_id": 1,
-            "layer": "lower",
-            "level": "bottom",
-            "nominal_mm": 14.0,
-            "diameter_status": "measured",
-        },
-        {
-            "bar_id": 2,
-            "layer": "lower",
-            "level": "bottom",
-            "nominal_mm": 12.0,
-            "diameter_status": "measured",
-        },
+        {"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured"},
+        {"bar_id": 2, "layer": "lower", "level": "bottom", "nominal_mm": 12.0, "diameter_status": "measured"},
         {
             "bar_id": 3,
             "layer": "lower",
@@ -294,20 +267,8 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
             "diameter_reason": "under crossing bars",
             "hidden": True,
         },
-        {
-            "bar_id": 5,
-            "layer": "upper",
-            "level": "bottom",
-            "nominal_mm": 12.0,
-            "diameter_status": "measured",
-        },
-        {
-            "bar_id": 6,
-            "layer": "upper",
-            "level": "top",
-            "nominal_mm": 12.0,
-            "diameter_status": "measured",
-        },
+        {"bar_id": 5, "layer": "upper", "level": "bottom", "nominal_mm": 12.0, "diameter_status": "measured"},
+        {"bar_id": 6, "layer": "upper", "level": "top", "nominal_mm": 12.0, "diameter_status": "measured"},
     ]
     acc = evaluate([_result(bars=bars)], _design())
     items = acc.items.set_index("item")
@@ -375,20 +336,8 @@ def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
             "diameter_status": "not measured",
             "diameter_reason": "ambiguous",
         },
-        {
-            "bar_id": "lb1",
-            "layer": "lower",
-            "level": "bottom",
-            "nominal_mm": 14.0,
-            "diameter_status": "measured",
-        },
-        {
-            "bar_id": "lb2",
-            "layer": "lower",
-            "level": "bottom",
-            "nominal_mm": 14.0,
-            "diameter_status": "measured",
-        },
+        {"bar_id": "lb1", "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured"},
+        {"bar_id": "lb2", "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured"},
     ]
     acc = evaluate([_result(bars=bars, spacing_devs=(0.0, None))], _design())
     bv = acc.bars.set_index("bar_id")["verdict"]
@@ -432,26 +381,11 @@ def test_no_diameter_stage_means_bar_size_not_measured():
 
 
 def test_missing_bars_fail_the_count():
-    counts = [
-        {"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0}
-        for la, lv in LAYERS
-    ]
-    counts[1] = {
-        "layer": "lower",
-        "level": "top",
-        "found": 4,
-        "expected": 5,
-        "missing": 1,
-        "extra": 0,
-    }
+    counts = [{"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0} for la, lv in LAYERS]
+    counts[1] = {"layer": "lower", "level": "top", "found": 4, "expected": 5, "missing": 1, "extra": 0}
     acc = evaluate([_result(counts=counts)], _design())
     cp = acc.checkpoints.set_index("item").loc["bar_count_lower_top"]
-    assert (cp["status"], cp["flag"], cp["deviation"], cp["what"]) == (
-        "beyond",
-        "*",
-        -1,
-        "1 missing, 0 extra",
-    )
+    assert (cp["status"], cp["flag"], cp["deviation"], cp["what"]) == ("beyond", "*", -1, "1 missing, 0 extra")
     assert _verdict(acc, "bar_count_lower_top") == "fail"
     assert _verdict(acc, "bar_count_upper_top") == "pass"
     allowed = evaluate([_result(counts=counts)], _design(bar_count_minus_bars=1))

@@ -63,15 +63,7 @@ def test_inspect_many_reports_a_failure_and_goes_on(tmp_path):
         seen.append((outcome.capture, done, total))
 
     outcomes = list(
-        inspect_many(
-            [a, bad, b],
-            PAPER_DESIGN,
-            jobs=1,
-            ordered=True,
-            diameters=False,
-            rng=0,
-            progress=progress,
-        )
+        inspect_many([a, bad, b], PAPER_DESIGN, jobs=1, ordered=True, diameters=False, rng=0, progress=progress)
     )
     assert [o.capture for o in outcomes] == ["A_400", "broken", "B_500"]
     assert [o.index for o in outcomes] == [0, 1, 2]
@@ -152,11 +144,7 @@ def _inspect(caps, out, *extra):
 
 
 def test_cli_batch_summary_manifest_and_a_failed_capture(tmp_path, capsys):
-    caps = [
-        example_capture("paper_slab", "A_400"),
-        _broken_capture(tmp_path),
-        example_capture("paper_slab", "D_500"),
-    ]
+    caps = [example_capture("paper_slab", "A_400"), _broken_capture(tmp_path), example_capture("paper_slab", "D_500")]
     out = tmp_path / "out"
     assert _inspect(caps, out) == 1  # one capture failed: status 1, the others written
     captured = capsys.readouterr()
@@ -199,23 +187,10 @@ def test_cli_resume_keeps_only_results_of_the_same_inputs(tmp_path, capsys):
     assert _inspect([a, b], out, "--resume", "--seed", "1") == 0
     assert [r["status"] for r in _summary(out)] == ["ok", "ok"]
     other = tmp_path / "design.toml"
-    other.write_text(
-        DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n", encoding="utf-8"
-    )
+    other.write_text(DESIGN_TOML.read_text(encoding="utf-8") + "\n# another file\n", encoding="utf-8")
     assert (
         main(
-            [
-                "inspect",
-                str(a),
-                "--design",
-                str(other),
-                "--out",
-                str(out),
-                "--no-diameters",
-                "--seed",
-                "1",
-                "--resume",
-            ]
+            ["inspect", str(a), "--design", str(other), "--out", str(out), "--no-diameters", "--seed", "1", "--resume"]
         )
         == 0
     )
@@ -382,19 +357,7 @@ def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys)
         == 0
     )
     out = tmp_path / "reports"
-    rc = main(
-        [
-            "report",
-            str(floor),
-            "--results",
-            str(res),
-            "--out",
-            str(out),
-            "--format",
-            "html",
-            "--quiet",
-        ]
-    )
+    rc = main(["report", str(floor), "--results", str(res), "--out", str(out), "--format", "html", "--quiet"])
     assert rc == 1  # S2 could not be reported; S1 was
     rows = {r["slab"]: r for r in _summary_of(out / "floor_summary.csv")}
     assert list(rows) == ["S1", "S2"]
@@ -406,9 +369,7 @@ def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys)
     # only A_400 was inspected
     assert s1["captures"] == "4" and s1["captures_without_result"] == "3"
     failed = [i["item"] for i in saved["items"] if i["verdict"] == "fail"]
-    still_open = [
-        i["item"] for i in saved["items"] if i["verdict"] in ("not measured", "incomplete")
-    ]
+    still_open = [i["item"] for i in saved["items"] if i["verdict"] in ("not measured", "incomplete")]
     assert s1["failed_items"].split(";") == (failed or [""])
     assert s1["open_items"].split(";") == (still_open or [""])
     assert rows["S2"]["verdict"] == "not reported" and "S2/design.toml" in rows["S2"]["reason"]

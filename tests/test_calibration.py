@@ -39,10 +39,7 @@ def cal(boards):
 @pytest.mark.slow
 def test_calibration_recovers_the_known_errors(cal):
     true_fx = GEMINI2.fx * (1 + FOCAL)
-    assert (
-        abs(cal.depth_scale - SCALE) <= max(3 * cal.u_depth_scale, 2e-4)
-        and abs(cal.depth_scale - SCALE) < 1.5e-3
-    )
+    assert abs(cal.depth_scale - SCALE) <= max(3 * cal.u_depth_scale, 2e-4) and abs(cal.depth_scale - SCALE) < 1.5e-3
     assert abs(cal.depth_offset_mm - OFFSET) <= max(3 * cal.u_depth_offset_mm, 0.2)
     assert abs(cal.depth_offset_mm - OFFSET) < 1.0
     for est, true, u in (
@@ -103,17 +100,11 @@ def test_calibration_file_round_trip_and_cli(tmp_path, boards, cal):
     for b in boards[:5]:
         folders.append(str(save_capture(b, tmp_path / b.name)))
     out = tmp_path / "cal" / "camera_cal.json"
-    assert (
-        main(["calibrate", *folders, "--board", "9x6", "--square-mm", "40", "--out", str(out)]) == 0
-    )
+    assert main(["calibrate", *folders, "--board", "9x6", "--square-mm", "40", "--out", str(out)]) == 0
     back = load_calibration(out)
     assert back.n_captures == 5 and abs(back.depth_scale - SCALE) < 2e-3
     d = json.loads(out.read_text())
-    assert d["format"] == "rebarlib calibration 1" and d["board"] == {
-        "cols": 9,
-        "rows": 6,
-        "square_mm": 40.0,
-    }
+    assert d["format"] == "rebarlib calibration 1" and d["board"] == {"cols": 9, "rows": 6, "square_mm": 40.0}
     # the saved file reads back as the object that wrote it
     p = cal.save(tmp_path / "again.json")
     assert load_calibration(p).to_dict() == cal.to_dict()
@@ -127,12 +118,7 @@ def test_bad_inputs_are_refused(tmp_path, capsys):
     bad.write_text("not json")
     with pytest.raises(RebarInputError, match="not a readable calibration"):
         load_calibration(bad)
-    assert (
-        main(
-            ["calibrate", str(tmp_path), "--board", "nine", "--square-mm", "40", "--out", "x.json"]
-        )
-        == 2
-    )
+    assert main(["calibrate", str(tmp_path), "--board", "nine", "--square-mm", "40", "--out", "x.json"]) == 2
     assert "COLSxROWS" in capsys.readouterr().err
     with pytest.raises(RebarInputError, match="3 x 3"):
         Checkerboard(cols=2, rows=6)

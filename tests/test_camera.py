@@ -12,9 +12,7 @@ ROUND_TRIP_TOL_MM = 1e-9
 
 def test_project_backproject_round_trip():
     rng = np.random.default_rng(0)
-    pts = np.column_stack(
-        (rng.uniform(-400, 400, 500), rng.uniform(-300, 300, 500), rng.uniform(200, 1500, 500))
-    )
+    pts = np.column_stack((rng.uniform(-400, 400, 500), rng.uniform(-300, 300, 500), rng.uniform(200, 1500, 500)))
     uv = project(pts, GEMINI2)
     back = backproject(uv, pts[:, 2], GEMINI2)
     assert np.abs(back - pts).max() < ROUND_TRIP_TOL_MM
@@ -31,9 +29,7 @@ def test_pixel_centres_are_at_integer_coordinates():
     assert d.shape == (15, 3)
     # pixel (u=2, v=1) is the principal point: its ray is the optical axis
     assert np.allclose(d[1 * 5 + 2], [0, 0, 1])
-    assert np.allclose(
-        project(d, K), np.column_stack((np.tile(np.arange(5), 3), np.repeat(np.arange(3), 5)))
-    )
+    assert np.allclose(project(d, K), np.column_stack((np.tile(np.arange(5), 3), np.repeat(np.arange(3), 5))))
 
 
 def test_depth_to_points_keeps_pixel_links_and_drops_missing():
@@ -57,12 +53,7 @@ def test_scaled_intrinsics_keep_the_pixel_centre_convention():
 
 @pytest.mark.parametrize(
     "kwargs, what",
-    [
-        (dict(fx=0.0), "fx"),
-        (dict(fy=-5.0), "fy"),
-        (dict(width=0), "width"),
-        (dict(cx=1e6), "principal point"),
-    ],
+    [(dict(fx=0.0), "fx"), (dict(fy=-5.0), "fy"), (dict(width=0), "width"), (dict(cx=1e6), "principal point")],
 )
 def test_impossible_intrinsics_are_refused(kwargs, what):
     args = dict(fx=600.0, fy=600.0, cx=320.0, cy=240.0, width=640, height=480) | kwargs

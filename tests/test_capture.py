@@ -15,9 +15,7 @@ SMALL = GEMINI2.scaled(0.25)
 
 @pytest.fixture(scope="module")
 def capture(paper_design):
-    return synth_capture(
-        paper_design, height_mm=500, tilt_deg=8, intrinsics=SMALL, seed=3, name="c1"
-    )
+    return synth_capture(paper_design, height_mm=500, tilt_deg=8, intrinsics=SMALL, seed=3, name="c1")
 
 
 @pytest.fixture()
@@ -114,10 +112,7 @@ def test_depth_all_zero(saved):
     [
         (lambda d: d.pop("intrinsic_matrix"), "missing key 'intrinsic_matrix'"),
         (lambda d: d.update(intrinsic_matrix=[0, 0, 0, 0, 100, 0, 10, 10, 1]), "fx"),
-        (
-            lambda d: d.update(intrinsic_matrix=[100, 5, 0, 0, 100, 0, 10, 10, 1]),
-            "not a pinhole matrix",
-        ),
+        (lambda d: d.update(intrinsic_matrix=[100, 5, 0, 0, 100, 0, 10, 10, 1]), "not a pinhole matrix"),
         (lambda d: d.update(depth_scale_mm=-1), "depth_scale_mm"),
         (lambda d: d.update(width=999), "says 999x"),
     ],

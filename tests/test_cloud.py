@@ -26,9 +26,7 @@ def test_voxel_downsample_keeps_real_points_and_their_pixels():
 def test_remove_outliers_drops_planted_outliers_only():
     c = _plane_cloud()
     rng = np.random.default_rng(1)
-    out = np.column_stack(
-        (rng.uniform(0, 200, 20), rng.uniform(0, 200, 20), rng.uniform(300, 450, 20))
-    )
+    out = np.column_stack((rng.uniform(0, 200, 20), rng.uniform(0, 200, 20), rng.uniform(300, 450, 20)))
     both = Cloud(np.vstack((c.points, out)), np.vstack((c.pixels, np.zeros((20, 2), np.int32))))
     kept = remove_outliers(both, nb_neighbors=16, std_ratio=2.0)
     assert not np.any(kept.points[:, 2] < 499)

@@ -30,14 +30,7 @@ DESIGN = R.design_from_dict(
 
 def _inspect(dev, *, target, sensor=None, seed=3, height=550.0, tilt=10.0, yaw=20.0):
     cap = S.synth_capture(
-        DESIGN,
-        height_mm=height,
-        tilt_deg=tilt,
-        yaw_deg=yaw,
-        target_mm=target,
-        seed=seed,
-        deviations=dev,
-        sensor=sensor,
+        DESIGN, height_mm=height, tilt_deg=tilt, yaw_deg=yaw, target_mm=target, seed=seed, deviations=dev, sensor=sensor
     )
     return cap, R.inspect(cap, DESIGN, diameters=False, rng=0)
 
@@ -106,8 +99,7 @@ def test_bar_without_depth_counts_as_found_and_is_placed_from_the_mask():
     # its spacings, measured from the mask's centre line, within 3 σ + 1 mm of the truth
     bar_id = int(row["bar_id"])
     sp = res.spacings[
-        ((res.spacings["bar_a"] == bar_id) | (res.spacings["bar_b"] == bar_id))
-        & (res.spacings["status"] == "measured")
+        ((res.spacings["bar_a"] == bar_id) | (res.spacings["bar_b"] == bar_id)) & (res.spacings["status"] == "measured")
     ]
     assert len(sp) >= 1
     truth = {(t["bar_a"], t["bar_b"]): t["spacing_mm"] for t in cap.truth["spacings"]}
@@ -141,9 +133,7 @@ def test_bar_without_depth_is_sized_from_its_mask():
 
 @pytest.mark.slow
 def test_jittered_spacings_are_not_missing_bars():
-    dev = S.Deviations(
-        end_overhang_mm=50, position_sigma_mm=0.0, position_uniform_mm=7.5
-    )  # spacings ±15 mm
+    dev = S.Deviations(end_overhang_mm=50, position_sigma_mm=0.0, position_uniform_mm=7.5)  # spacings ±15 mm
     cap, res = _inspect(dev, target=(100, -50), seed=9, tilt=15)
     c = _counts(res)
     assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
@@ -173,9 +163,7 @@ def test_edge_form_in_view_leaves_the_lattices_and_counts_whole():
     dev = S.Deviations(end_overhang_mm=50, edge_form=True)
     cap, res = _inspect(dev, target=(700, 500), seed=3, height=550, tilt=12, yaw=20)
     t = cap.truth
-    assert (
-        res.layer_distance.ok and abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= 1.5
-    )
+    assert res.layer_distance.ok and abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= 1.5
     assert res.cover.ok and abs(res.cover.value_mm - t["cover_mm"]) <= 1.5
     c = _counts(res)
     assert (c["missing"].fillna(0) == 0).all() and (c["extra"].fillna(0) == 0).all()
@@ -199,9 +187,7 @@ def test_a_tight_mesh_with_long_overhangs_ends_where_its_crossing_bars_end():
         }
     )
     dev = S.Deviations(end_overhang_mm=80, slab_size_mm=1200, position_sigma_mm=0.0)
-    cap = S.synth_capture(
-        tight, height_mm=500, tilt_deg=5, yaw_deg=10, target_mm=(450, 450), seed=2, deviations=dev
-    )
+    cap = S.synth_capture(tight, height_mm=500, tilt_deg=5, yaw_deg=10, target_mm=(450, 450), seed=2, deviations=dev)
     res = R.inspect(cap, tight, diameters=False, rng=0)
     c = _counts(res)
     assert cap.truth["missing"] == []
@@ -227,8 +213,7 @@ def test_a_bar_hidden_under_the_bar_above_is_not_measured_and_the_advised_move_s
     dev = S.Deviations(end_overhang_mm=50, stacked=True, position_sigma_mm=0.5)
     scene = S.make_scene(design, dev, rng=np.random.default_rng(4))
     bar = min(
-        (b for b in scene.bars if b.layer == "lower" and b.level == "bottom"),
-        key=lambda b: abs(b.axis.mean(0)[1]),
+        (b for b in scene.bars if b.layer == "lower" and b.level == "bottom"), key=lambda b: abs(b.axis.mean(0)[1])
     )
     along = (bar.axis[-1] - bar.axis[0])[:2] / np.linalg.norm((bar.axis[-1] - bar.axis[0])[:2])
     across = np.array([-along[1], along[0]])
@@ -247,9 +232,7 @@ def test_a_bar_hidden_under_the_bar_above_is_not_measured_and_the_advised_move_s
     why = res.positions.loc[res.positions["status"] == C.NOT_MEASURED, "reason"].iloc[0]
     assert why.startswith("hidden under another bar")
     move = float(re.search(r"camera about (\d+) mm or more to either side", why).group(1))
-    assert (
-        30 <= move <= 200
-    )  # the lower bar moves against the upper by ~90/560 of the camera's move
+    assert 30 <= move <= 200  # the lower bar moves against the upper by ~90/560 of the camera's move
     for side in (1, -1):  # moved as advised, either way: the bar shows and is found
         cap, res = look(side * move)
         assert next(t for t in cap.truth["bars"] if t["id"] == bar.id)["visible_pixels"] > 1000

@@ -110,9 +110,7 @@ def test_cross_section_direction_and_region_by_hand():
     px = pixels_in_region(corners, (480, 640))
     assert len(px) == 25 * 7  # u 88..112, v 47..53 inclusive
     # an oblique parallelogram: sides along (1, 1)/√2 and (1, −1)/√2, 4√2 × 2√2
-    c2 = diameter_region(
-        [10.0, 10.0], [1.0, 1.0], [1.0, -1.0], long_px=4 * math.sqrt(2), short_px=2 * math.sqrt(2)
-    )
+    c2 = diameter_region([10.0, 10.0], [1.0, 1.0], [1.0, -1.0], long_px=4 * math.sqrt(2), short_px=2 * math.sqrt(2))
     assert np.allclose(sorted(map(tuple, c2.round(9))), [(7, 9), (9, 7), (11, 13), (13, 11)])
     inside = {tuple(p) for p in pixels_in_region(c2, (40, 40))}
     assert (10, 10) in inside and (12, 12) in inside and (11, 9) in inside
@@ -196,15 +194,11 @@ def test_colour_calibration_by_hand():
     mask = [13.9, 14.0, 14.1, 13.8, 14.2, 14.0]
     e = [0.0, 0.0, 0.2, -0.2, 0.4, -0.4]
     results = [
-        BarReading(
-            widths=np.full(prm.min_sections, m), **{"colour_width_mm": m - 0.5 + ei, "px_mm": 0.5}
-        )
+        BarReading(widths=np.full(prm.min_sections, m), **{"colour_width_mm": m - 0.5 + ei, "px_mm": 0.5})
         for m, ei in zip(mask, e)
     ]
     g = imaginary_plane([0.0, 0.0, 500.0], [100.0, 0.0, 500.0])
-    prepared = [
-        _Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, 12.0, 13.9) for k in range(6)
-    ]
+    prepared = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, 12.0, 13.9) for k in range(6)]
     _colour_calibration(results, prepared, prm)
     s_m, s_c = 1.4826 * 0.1, 1.4826 * 0.35
     for r in results:
@@ -215,9 +209,7 @@ def test_colour_calibration_by_hand():
     _mask_between_spread(results, prepared, prm)
     assert results[0].mask_between_mm == pytest.approx(s_m, abs=1e-9)
     # without design sizes the bars' true widths are unknown: offset learnt, weight 1
-    unsized = [
-        _Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, math.nan, 13.9) for k in range(6)
-    ]
+    unsized = [_Bar(k, "upper", "bottom", g.foot_mm, g.foot_mm, g, 100.0, math.nan, 13.9) for k in range(6)]
     _colour_calibration(results, unsized, prm)
     assert results[0].colour_offset_px == pytest.approx(-1.0, abs=GEOM_TOL_MM)
     assert results[0].colour_weight == 1.0
@@ -243,15 +235,9 @@ def test_colour_calibration_by_hand():
         phase_sweep_px=0.0,
     )
     kw = dict(system="GB1499.2", deformed=True, use_cloud=False)
-    ok = _refined_decision(
-        14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw
-    )
-    assert (
-        ok["diameter_status"] == "measured" and ok["nominal_mm"] == 12.0 and ok["confidence"] >= 0.9
-    )
-    off = _refined_decision(
-        14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 - 3.0), False, prm, **kw
-    )
+    ok = _refined_decision(14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 + 0.3), False, prm, **kw)
+    assert ok["diameter_status"] == "measured" and ok["nominal_mm"] == 12.0 and ok["confidence"] >= 0.9
+    off = _refined_decision(14.0, 0.2, 100, replace(info, colour_width_mm=14.0 - 0.5 - 3.0), False, prm, **kw)
     assert off["diameter_status"] == "not measured" and "ambiguous" in off["diameter_reason"]
 
 
@@ -261,12 +247,7 @@ def test_a_bar_reading_is_typed_and_starts_as_an_unread_bar():
     from rebarlib.diameter import BarReading, DiameterParams
 
     r = BarReading()
-    assert (r.colour_offset_px, r.colour_weight, r.mask_between_mm, r.one_sided_share) == (
-        0.0,
-        1.0,
-        0.0,
-        0.0,
-    )
+    assert (r.colour_offset_px, r.colour_weight, r.mask_between_mm, r.one_sided_share) == (0.0, 1.0, 0.0, 0.0)
     assert r.mask_width_mm is None and math.isnan(r.circle_between_mm) and r.edges[0].size == 0
     with pytest.raises(AttributeError):
         r.colour_offset = 1.0
@@ -275,12 +256,7 @@ def test_a_bar_reading_is_typed_and_starts_as_an_unread_bar():
 
 def test_bars_from_truth_and_input_checks():
     cap = synth_capture(
-        _design(14, 12),
-        height_mm=500,
-        tilt_deg=0,
-        sensor=SensorModel.ideal(),
-        intrinsics=GEMINI2.scaled(0.25),
-        seed=0,
+        _design(14, 12), height_mm=500, tilt_deg=0, sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.25), seed=0
     )
     bars = bars_from_truth(cap.truth)
     assert list(bars.columns) == list(BAR_COLUMNS)
@@ -288,9 +264,7 @@ def test_bars_from_truth_and_input_checks():
     assert len(bars) == len(vis)
     b0 = vis[0]
     row = bars.set_index("bar_id").loc[b0["id"]]
-    assert np.allclose(
-        row[["start_x_mm", "start_y_mm", "start_z_mm"]].to_numpy(float), b0["visible_start_mm"]
-    )
+    assert np.allclose(row[["start_x_mm", "start_y_mm", "start_z_mm"]].to_numpy(float), b0["visible_start_mm"])
     with pytest.raises(RebarInputError, match="mask"):
         measure_diameters(cap, bars, np.zeros((3, 3), bool))
     with pytest.raises(RebarInputError, match="method"):
@@ -314,13 +288,7 @@ def ideal_sizes(request):
     lower, upper, h = request.param
     design = _design(lower, upper)
     cap = synth_capture(
-        design,
-        height_mm=h,
-        tilt_deg=8,
-        yaw_deg=10,
-        sensor=SensorModel.ideal(),
-        intrinsics=GEMINI2,
-        seed=lower,
+        design, height_mm=h, tilt_deg=8, yaw_deg=10, sensor=SensorModel.ideal(), intrinsics=GEMINI2, seed=lower
     )
     bars = bars_from_truth(cap.truth)
     return design, cap, bars
@@ -387,9 +355,7 @@ def test_a_biased_mask_is_caught_by_the_point_cloud(ideal_sizes):
     assert (meas.nominal_mm == meas.true_mm).all(), meas[meas.nominal_mm != meas.true_mm]
     assert (t.diameter_reason.str.contains("disagree") | (t.width_source == "cloud")).sum() > 0
     # without the point cloud the same mask gives wrong sizes: the check is what saves it
-    t2 = _truth_table(
-        cap, measure_diameters(cap, bars, fat, design=design, use_cloud=False, colour_edges=False)
-    )
+    t2 = _truth_table(cap, measure_diameters(cap, bars, fat, design=design, use_cloud=False, colour_edges=False))
     m2 = t2[t2.diameter_status == "measured"]
     assert (m2.nominal_mm != m2.true_mm).any()
 
@@ -455,11 +421,7 @@ def _design_radius_scene():
         b = tb[r.bar_id]
         p0 = np.array([r.start_x_mm, r.start_y_mm, r.start_z_mm])
         p1 = np.array([r.end_x_mm, r.end_y_mm, r.end_z_mm])
-        shift = (
-            (rib_envelope_mm(b["design_diameter_mm"]) - b["envelope_mm"])
-            / 2
-            * imaginary_plane(p0, p1).normal
-        )
+        shift = (rib_envelope_mm(b["design_diameter_mm"]) - b["envelope_mm"]) / 2 * imaginary_plane(p0, p1).normal
         bars.loc[bars.index[k], ["start_x_mm", "start_y_mm", "start_z_mm"]] = p0 + shift
         bars.loc[bars.index[k], ["end_x_mm", "end_y_mm", "end_z_mm"]] = p1 + shift
     bars["axis_radius_mm"] = [rib_envelope_mm(tb[i]["design_diameter_mm"]) / 2 for i in bars.bar_id]
@@ -495,10 +457,7 @@ def test_axes_placed_with_the_design_radius_never_confirm_another_size_alone():
     t = measure_diameters(cap, few, cap.labels > 0, design=design).set_index("bar_id")
     w = t.loc[wrong["id"]]
     assert w.diameter_status == "not measured"
-    assert (
-        w.diameter_reason.startswith("possible wrong size")
-        and f"Φ{wrong['diameter_mm']:g}" in w.diameter_reason
-    )
+    assert w.diameter_reason.startswith("possible wrong size") and f"Φ{wrong['diameter_mm']:g}" in w.diameter_reason
 
 
 def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_or_a_circle():
@@ -545,9 +504,7 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, covered=0.3, **kw)
     assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
     # the same bar with the axis where it belongs is measured as Φ10
-    r = _refined_decision(
-        11.5, 0.2, 100, replace(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw
-    )
+    r = _refined_decision(11.5, 0.2, 100, replace(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0
     # A mask width between Φ14 (16.2) and Φ16 (18.4), nearer Φ14, with a large error per bar;
     # the circle fit reads 19.1 ± 1.1 mm. Their weighted mean would snap to Φ16, but the circle's
@@ -565,20 +522,9 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     # a circle that agrees with the mask's nearer size settles it (the mask alone, σ 1.0 mm, is
     # still ambiguous: confidence 0.65)
     r = _refined_decision(
-        16.95,
-        0.3,
-        150,
-        replace(amb, circle_width_mm=16.3, mask_between_mm=1.0),
-        False,
-        prm,
-        assumed_mm=16.2 / 2,
-        **kw,
+        16.95, 0.3, 150, replace(amb, circle_width_mm=16.3, mask_between_mm=1.0), False, prm, assumed_mm=16.2 / 2, **kw
     )
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["width_source"] == "mask+circle"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
 def _veto_bar(**changes) -> BarReading:
@@ -622,58 +568,32 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     # 15.25 (σ 0.6) and 16.1 (σ 0.6) is 15.675 ± 0.42, Φ14
     stack = replace(base, stack_width_mm=16.1, stack_sigma_mm=0.6, stack_between_mm=0.6)
     r = _refined_decision(15.25, 0.3, 150, stack, False, prm, assumed_mm=8.1, **kw)
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["width_source"] == "mask+stack"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+stack"
     assert r["width_used_mm"] == pytest.approx(15.675, abs=0.01)
     assert "16.1 ± 0.6 mm above the bars it rests on" in r["diameter_reason"]
     # without its between-bar spread (too few bars to learn it from) it is not used
-    r = _refined_decision(
-        15.25, 0.3, 150, replace(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw
-    )
+    r = _refined_decision(15.25, 0.3, 150, replace(stack, stack_between_mm=math.nan), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     # A mask width nearer Φ12 (14.9, σ about 0.6: confidence about 0.7) than the Φ14 the axis was placed
     # with: the mask and the assumed size are in conflict, and the stack, which depends on
     # neither, arbitrates alone: 16.4 ± 0.6 mm is Φ14. It is not averaged with the mask (one of
     # the two in conflict is biased).
-    r = _refined_decision(
-        14.9, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw
-    )
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["width_source"] == "stack"
-    )
+    r = _refined_decision(14.9, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
     assert r["width_used_mm"] == pytest.approx(16.4)
-    assert (
-        "mask width 14.9 mm is nearest Φ12, the axis was fitted with the radius of Φ14"
-        in r["diameter_reason"]
-    )
+    assert "mask width 14.9 mm is nearest Φ12, the axis was fitted with the radius of Φ14" in r["diameter_reason"]
     # ... but it never silences a mask clear about another size than designed (14.2: Φ12 at about
     # 0.97): that is the alert a bar of the wrong size gives, and one width (a bar lifted off
     # its supports by a tie reads a size up) does not overrule it
-    r = _refined_decision(
-        14.2, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw
-    )
+    r = _refined_decision(14.2, 0.3, 150, replace(stack, stack_width_mm=16.4), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    assert (
-        r["diameter_reason"].startswith("possible wrong size")
-        and "gives Φ12" in r["diameter_reason"]
-    )
+    assert r["diameter_reason"].startswith("possible wrong size") and "gives Φ12" in r["diameter_reason"]
     # it gives the mask's size where it agrees, also for a bar seen from one edge (whose mask
     # width slides with an axis placed with the assumed radius, so the mask alone never could):
     # a Φ16 bar (envelope 18.4) in a Φ14 design
-    one = replace(
-        stack, one_sided_share=1.0, stack_width_mm=17.9, stack_sigma_mm=0.75, stack_between_mm=0.75
-    )
+    one = replace(stack, one_sided_share=1.0, stack_width_mm=17.9, stack_sigma_mm=0.75, stack_between_mm=0.75)
     r = _refined_decision(18.1, 0.3, 150, one, False, prm, assumed_mm=8.1, **kw)
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 16.0
-        and r["width_source"] == "stack"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 16.0 and r["width_source"] == "stack"
     # but not where the mask only leans to that size (17.5 mm, about 0.65): a size other than
     # designed is not given on one width's word
     r = _refined_decision(17.5, 0.3, 150, one, False, prm, assumed_mm=8.1, **kw)
@@ -682,65 +602,35 @@ def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conf
     # (σ 1.2 mm, more than the smaller half step from Φ16, 1.05 mm) or one that is not clear
     # (17.3 mm, half-way between Φ14 and Φ16) settles nothing
     for change in (dict(stack_width_mm=20.5), dict(stack_sigma_mm=1.2), dict(stack_width_mm=17.3)):
-        r = _refined_decision(
-            18.1, 0.3, 150, replace(one, **change), False, prm, assumed_mm=8.1, **kw
-        )
+        r = _refined_decision(18.1, 0.3, 150, replace(one, **change), False, prm, assumed_mm=8.1, **kw)
         assert r["diameter_status"] == "not measured", change
     # A bar seen from one edge whose mask gives the assumed size (15.6 mm, nearer Φ14) and whose
     # cloud reads 19.0 mm, beyond twice their σ: the two disagree over where the bar's surface
     # lies, not over its size, and a width from one edge cannot be settled with the mask (it
     # slides with the axis). The stack settles it alone, and the reason says what disagreed.
-    far = replace(
-        one, depth_width_mm=19.0, stack_width_mm=16.3, stack_sigma_mm=0.6, stack_between_mm=0.6
-    )
+    far = replace(one, depth_width_mm=19.0, stack_width_mm=16.3, stack_sigma_mm=0.6, stack_between_mm=0.6)
     r = _refined_decision(15.6, 0.3, 150, far, False, prm, assumed_mm=8.1, **kw)
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["width_source"] == "stack"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "stack"
     assert "mask width 15.6 mm and its point cloud, which echoes the radius" in r["diameter_reason"]
     # a circle that settles the mask's size is not enough where the stack contradicts it
-    both = replace(
-        stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0
-    )
+    both = replace(stack, circle_width_mm=15.9, circle_sigma_mm=0.8, circle_between_mm=0.8, stack_width_mm=19.0)
     r = _refined_decision(15.25, 0.3, 150, both, False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
-    r = _refined_decision(
-        15.25, 0.3, 150, replace(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw
-    )
+    r = _refined_decision(15.25, 0.3, 150, replace(both, stack_width_mm=16.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "measured" and r["width_source"] == "mask+stack+circle"
     # a stack height that agrees but could not have told Φ14 from Φ12 or Φ16 confirms nothing:
     # σ 1.2 mm is more than the smaller half step from Φ14 (1.10 mm to Φ16's 18.4) ...
     r = _refined_decision(
-        15.25,
-        0.3,
-        150,
-        replace(stack, stack_sigma_mm=1.2, stack_between_mm=1.2),
-        False,
-        prm,
-        assumed_mm=8.1,
-        **kw,
+        15.25, 0.3, 150, replace(stack, stack_sigma_mm=1.2, stack_between_mm=1.2), False, prm, assumed_mm=8.1, **kw
     )
     assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("ambiguous")
     # ... and so is a circle of σ 5 mm beside it (together σ 1.17 mm); a circle of σ 2 mm beside
     # it brings them to 1.03 mm, within the half step: settled
-    weak = replace(
-        stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0
-    )
-    r = _refined_decision(
-        15.25, 0.3, 150, replace(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw
-    )
+    weak = replace(stack, stack_sigma_mm=1.2, stack_between_mm=1.2, circle_width_mm=16.0, circle_between_mm=5.0)
+    r = _refined_decision(15.25, 0.3, 150, replace(weak, circle_sigma_mm=5.0), False, prm, assumed_mm=8.1, **kw)
     assert r["diameter_status"] == "not measured"
     r = _refined_decision(
-        15.25,
-        0.3,
-        150,
-        replace(weak, circle_sigma_mm=2.0, circle_between_mm=2.0),
-        False,
-        prm,
-        assumed_mm=8.1,
-        **kw,
+        15.25, 0.3, 150, replace(weak, circle_sigma_mm=2.0, circle_between_mm=2.0), False, prm, assumed_mm=8.1, **kw
     )
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0
 
@@ -760,10 +650,7 @@ def test_circle_calibration_by_hand():
     e = [0.0, 0.3, -0.3, 0.1, -0.1, 0.2, 0.0, 5.0]
     env = [16.2] * 6 + [18.4, 16.2]
     results = [
-        BarReading(
-            widths=np.full(prm.min_sections, m),
-            **{"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05},
-        )
+        BarReading(widths=np.full(prm.min_sections, m), **{"circle_width_mm": v + 1.4 + ei, "circle_sigma_mm": 0.05})
         for m, v, ei in zip(masks, env, e)
     ]
     _width_calibration(results, "circle", prm, system="GB1499.2", deformed=True)
@@ -776,12 +663,7 @@ def test_circle_calibration_by_hand():
         assert r.circle_width_mm == pytest.approx(v + ei - np.median(dev), abs=1e-9)
         assert r.circle_sigma_mm == pytest.approx(sigma, abs=1e-9)
     # too few bars to learn from: the circle is not used (its spread unknown)
-    few = [
-        BarReading(
-            widths=np.full(prm.min_sections, 16.2),
-            **{"circle_width_mm": 17.6, "circle_sigma_mm": 0.05},
-        )
-    ] * 3
+    few = [BarReading(widths=np.full(prm.min_sections, 16.2), **{"circle_width_mm": 17.6, "circle_sigma_mm": 0.05})] * 3
     _width_calibration(few, "circle", prm, system="GB1499.2", deformed=True)
     assert math.isnan(few[0].circle_between_mm)
 
@@ -803,9 +685,7 @@ def test_level_calibration_by_hand():
     masks = [16.2] * 5 + [13.9] * 3 + [11.6]
     groups = [("lower", "bottom")] * 5 + [("upper", "bottom")] * 3 + [("upper", "top")]
     results = [
-        BarReading(
-            widths=np.full(prm.min_sections, m), **{"level_width_mm": t, "level_sigma_mm": 0.0}
-        )
+        BarReading(widths=np.full(prm.min_sections, m), **{"level_width_mm": t, "level_sigma_mm": 0.0})
         for m, t in zip(masks, tops)
     ]
     _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=groups)
@@ -826,21 +706,13 @@ def test_level_calibration_by_hand():
     # too few bars over all the levels for a spread (5 bars in 2 levels: k = 3, under the 4 that
     # 5 bars give one level): none is used
     results = [
-        BarReading(
-            widths=np.full(prm.min_sections, 16.2),
-            **{"level_width_mm": 41.2 + e, "level_sigma_mm": 0.0},
-        )
+        BarReading(widths=np.full(prm.min_sections, 16.2), **{"level_width_mm": 41.2 + e, "level_sigma_mm": 0.0})
         for e in e_lo[:3]
     ] + [
-        BarReading(
-            widths=np.full(prm.min_sections, 13.9),
-            **{"level_width_mm": 113.9 + e, "level_sigma_mm": 0.0},
-        )
+        BarReading(widths=np.full(prm.min_sections, 13.9), **{"level_width_mm": 113.9 + e, "level_sigma_mm": 0.0})
         for e in e_up[:2]
     ]
-    _width_calibration(
-        results, "level", prm, system="GB1499.2", deformed=True, groups=[0] * 3 + [1] * 2
-    )
+    _width_calibration(results, "level", prm, system="GB1499.2", deformed=True, groups=[0] * 3 + [1] * 2)
     assert all(math.isnan(r.level_between_mm) for r in results)
 
 
@@ -855,11 +727,7 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     base = _veto_bar(level_width_mm=16.0, level_sigma_mm=0.6, level_between_mm=0.5)
     # 15.25 (σ 0.6) alone is ambiguous between Φ12 and Φ14; with the top 16.0 ± 0.6: 15.625 ± 0.42, Φ14
     r = _refined_decision(15.25, 0.3, 150, base, False, prm, assumed_mm=8.1, **kw)
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["width_source"] == "mask+level"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+level"
     assert r["width_used_mm"] == pytest.approx(15.625, abs=0.01)
     assert "16.0 ± 0.6 mm above its level's supports" in r["diameter_reason"]
     # A bar seen from one edge only (along the image border), its mask clearly Φ10 (11.8 mm)
@@ -867,27 +735,14 @@ def test_a_bar_s_top_above_its_level_s_supports_settles_a_width():
     # the edge to that axis slides with the axis, which was placed with the assumed radius: it
     # cannot overturn the assumed size, whatever agrees with it. Not measured; the reason names Φ10.
     one = replace(
-        base,
-        one_sided_share=1.0,
-        depth_width_mm=13.5,
-        level_width_mm=12.6,
-        level_sigma_mm=0.5,
-        mask_between_mm=0.3,
+        base, one_sided_share=1.0, depth_width_mm=13.5, level_width_mm=12.6, level_sigma_mm=0.5, mask_between_mm=0.3
     )
     r = _refined_decision(11.8, 0.25, 130, one, False, prm, assumed_mm=6.95, **kw)
-    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith(
-        "possible wrong size"
-    )
+    assert r["diameter_status"] == "not measured" and r["diameter_reason"].startswith("possible wrong size")
     assert "Φ10" in r["diameter_reason"]
     # between its two edges the same widths overturn it: a bar of another size than designed
-    r = _refined_decision(
-        11.8, 0.25, 130, replace(one, one_sided_share=0.0), False, prm, assumed_mm=6.95, **kw
-    )
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 10.0
-        and r["width_source"] == "mask+level"
-    )
+    r = _refined_decision(11.8, 0.25, 130, replace(one, one_sided_share=0.0), False, prm, assumed_mm=6.95, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0 and r["width_source"] == "mask+level"
 
 
 def test_circle_fit_by_hand():
@@ -935,9 +790,7 @@ def test_shadow_and_rust_never_give_a_confident_wrong_size():
     for m in (truth_mask, mask):
         t = _truth_table(cap, measure_diameters(cap, bars, m, design=design))
         meas = t[t.diameter_status == "measured"]
-        confident_wrong = meas[
-            (meas.nominal_mm != meas.true_mm) & (meas.confidence >= HIGH_CONFIDENCE)
-        ]
+        confident_wrong = meas[(meas.nominal_mm != meas.true_mm) & (meas.confidence >= HIGH_CONFIDENCE)]
         assert confident_wrong.empty, confident_wrong
         if m is truth_mask:  # with a clean mask, shadow and rust do not matter
             assert (meas.nominal_mm == meas.true_mm).all()
@@ -958,9 +811,7 @@ def test_soft_mask_edges_are_sub_pixel():
     lo = synth_capture(design, intrinsics=GEMINI2.scaled(0.25), **kw)
     hi = synth_capture(design, intrinsics=GEMINI2, **kw)
     coverage = cv2.resize(
-        (hi.labels > 0).astype(np.float32),
-        (lo.intrinsics.width, lo.intrinsics.height),
-        interpolation=cv2.INTER_AREA,
+        (hi.labels > 0).astype(np.float32), (lo.intrinsics.width, lo.intrinsics.height), interpolation=cv2.INTER_AREA
     )
     bars = bars_from_truth(lo.truth)
     env = {b["id"]: b["envelope_mm"] for b in lo.truth["bars"]}
@@ -976,22 +827,14 @@ def test_soft_mask_edges_are_sub_pixel():
 
 def test_soft_mask_input_checks():
     cap = synth_capture(
-        _design(14, 12),
-        height_mm=500,
-        sensor=SensorModel.ideal(),
-        intrinsics=GEMINI2.scaled(0.25),
-        seed=3,
+        _design(14, 12), height_mm=500, sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.25), seed=3
     )
     bars = bars_from_truth(cap.truth)
     same = measure_diameters(cap, bars, (cap.labels > 0).astype(np.float32), use_cloud=False)
     ref = measure_diameters(cap, bars, cap.labels > 0, use_cloud=False)
-    assert np.allclose(
-        same.width_median_mm, ref.width_median_mm, equal_nan=True
-    )  # 0/1 floats = bool
+    assert np.allclose(same.width_median_mm, ref.width_median_mm, equal_nan=True)  # 0/1 floats = bool
     labels = measure_diameters(cap, bars, cap.labels.astype(np.uint8) * 255, use_cloud=False)
-    assert np.allclose(
-        labels.width_median_mm, ref.width_median_mm, equal_nan=True
-    )  # integers: non-zero
+    assert np.allclose(labels.width_median_mm, ref.width_median_mm, equal_nan=True)  # integers: non-zero
     for bad in (cap.labels * 2.0, np.full(cap.labels.shape, np.nan)):
         with pytest.raises(RebarInputError, match="mask.*probability"):
             measure_diameters(cap, bars, bad)
@@ -1018,9 +861,7 @@ def border_scene():
     from rebarlib._camera import project
 
     design = _design(14, 12)
-    cap = synth_capture(
-        design, height_mm=450, tilt_deg=0, seed=3, sensor=SensorModel.ideal(), intrinsics=GEMINI2
-    )
+    cap = synth_capture(design, height_mm=450, tilt_deg=0, seed=3, sensor=SensorModel.ideal(), intrinsics=GEMINI2)
     bars = bars_from_truth(cap.truth)
     r = bars[(bars.layer == "upper") & (bars.level == "top")].iloc[2]
     p = np.array([[r.start_x_mm, r.start_y_mm, r.start_z_mm], [r.end_x_mm, r.end_y_mm, r.end_z_mm]])
@@ -1036,9 +877,7 @@ def test_a_bar_cut_lengthwise_by_the_border_is_sized_from_its_one_edge(border_sc
     design, cap, bar_id, u_axis, width_px = border_scene
     crop = _cropped(cap, int(u_axis + 0.3 * width_px))
     bars = bars_from_truth(crop.truth)
-    t = _truth_table(crop, measure_diameters(crop, bars, crop.labels > 0, design=design)).set_index(
-        "bar_id"
-    )
+    t = _truth_table(crop, measure_diameters(crop, bars, crop.labels > 0, design=design)).set_index("bar_id")
     b = t.loc[bar_id]
     assert b.diameter_status == "measured", b.diameter_reason
     assert b.nominal_mm == 12 and b.matches_design is True
@@ -1046,9 +885,7 @@ def test_a_bar_cut_lengthwise_by_the_border_is_sized_from_its_one_edge(border_sc
     assert b.one_sided_share == 1.0  # the table says where the width came from
     # the same bar in the full image is measured between its two edges, to the same size, and
     # more surely: the axis's own uncertainty counts in a one-edge width
-    full = measure_diameters(
-        cap, bars_from_truth(cap.truth), cap.labels > 0, design=design
-    ).set_index("bar_id")
+    full = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
     assert full.loc[bar_id].nominal_mm == 12 and full.loc[bar_id].one_sided_share == 0.0
     assert b.width_sigma_mm > 1.5 * full.loc[bar_id].width_sigma_mm
     # the paper's method has no one-sided widths
@@ -1067,9 +904,7 @@ def test_a_bar_whose_axis_is_beyond_the_border_is_not_sized(border_scene):
     # and never a size.
     design, cap, bar_id, u_axis, width_px = border_scene
     crop = _cropped(cap, int(u_axis - 0.2 * width_px))
-    t = measure_diameters(
-        crop, bars_from_truth(crop.truth), crop.labels > 0, design=design
-    ).set_index("bar_id")
+    t = measure_diameters(crop, bars_from_truth(crop.truth), crop.labels > 0, design=design).set_index("bar_id")
     b = t.loc[bar_id]
     assert b.diameter_status == "not measured" and not math.isfinite(b.nominal_mm)
     assert "outside the image" in b.diameter_reason
@@ -1093,9 +928,7 @@ def stacked_scene():
     )
     bars = bars_from_truth(cap.truth)
     true_axes = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id")
-    covered = true_axes.index[
-        (true_axes.occluded_fraction == 1.0) & (true_axes.diameter_status == "measured")
-    ]
+    covered = true_axes.index[(true_axes.occluded_fraction == 1.0) & (true_axes.diameter_status == "measured")]
     return design, cap, bars, true_axes, covered
 
 
@@ -1104,9 +937,7 @@ def test_one_edge_widths_beside_an_upper_bar_are_not_checked_against_colour_widt
     # width between them is no check of a one-edge width, and must not sink the confidence.
     # (It did: 0.91 with the colour check against 0.98 without, for one bar of this scene.)
     design, cap, bars, checked, covered = stacked_scene
-    plain = measure_diameters(
-        cap, bars, cap.labels > 0, design=design, colour_edges=False
-    ).set_index("bar_id")
+    plain = measure_diameters(cap, bars, cap.labels > 0, design=design, colour_edges=False).set_index("bar_id")
     assert len(covered) >= 3
     assert (checked.loc[covered, "nominal_mm"] == 14).all()
     assert (checked.loc[covered, "confidence"] == plain.loc[covered, "confidence"]).all()
@@ -1123,9 +954,7 @@ def test_a_sliver_whose_axis_was_not_measured_is_hidden_and_says_why(stacked_sce
     t = measure_diameters(cap, placed, cap.labels > 0, design=design).set_index("bar_id")
     for i in covered:
         assert t.loc[i, "diameter_status"] == "hidden" and not math.isfinite(t.loc[i, "nominal_mm"])
-        assert (
-            "a sliver" in t.loc[i, "diameter_reason"] and "one edge" in t.loc[i, "diameter_reason"]
-        )
+        assert "a sliver" in t.loc[i, "diameter_reason"] and "one edge" in t.loc[i, "diameter_reason"]
     # only the reason of those bars changed
     others = t.index.difference(covered)
     assert (t.loc[others, "diameter_status"] == true_axes.loc[others, "diameter_status"]).all()
@@ -1156,9 +985,7 @@ def test_a_one_edge_bar_s_cloud_width_is_not_read_off_the_bar_over_it():
         appearance=Appearance(rust_fraction=0.3),
         deviations=Deviations(stacked=True, position_sigma_mm=6.0, slab_size_mm=1000),
     )
-    t = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index(
-        "bar_id"
-    )
+    t = measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design).set_index("bar_id")
     env = {b["id"]: b["envelope_mm"] for b in cap.truth["bars"]}
     cloud = t.cloud_width_mm.dropna()
     assert len(cloud) >= 8
@@ -1169,10 +996,7 @@ def test_a_one_edge_bar_s_cloud_width_is_not_read_off_the_bar_over_it():
     measured = t[t.diameter_status == "measured"]
     assert len(measured) >= 8 and all(
         measured.nominal_mm
-        == [
-            b["diameter_mm"]
-            for b in (next(x for x in cap.truth["bars"] if x["id"] == i) for i in measured.index)
-        ]
+        == [b["diameter_mm"] for b in (next(x for x in cap.truth["bars"] if x["id"] == i) for i in measured.index)]
     )
 
 
@@ -1272,9 +1096,7 @@ def test_ribs_in_view_needs_several_bars_and_one_bar_is_not_a_capture():
     assert _ribs_in_view(res([1.0] * 12), prm) == 1.0
     # by hand: two bars with p = e^-5 each: χ²/2 = 10 over 4 dof, P = e^-10 (1 + 10)
     prm2 = DiameterParams(rib_min_bars=2)
-    assert _ribs_in_view(res([math.exp(-5)] * 2), prm2) == pytest.approx(
-        11 * math.exp(-10), rel=1e-9
-    )
+    assert _ribs_in_view(res([math.exp(-5)] * 2), prm2) == pytest.approx(11 * math.exp(-10), rel=1e-9)
 
 
 def test_ribs_in_view_needs_one_pitch_per_size():
@@ -1339,9 +1161,7 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     # so may lock onto another peak where part of it is hidden)
     found = t.dropna(subset=["rib_pitch_mm"])
     assert len(found) >= 0.4 * len(t)
-    assert (
-        abs(found.rib_pitch_mm - found.true_mm.map({12.0: 8.0, 14.0: 9.0})) < 0.3
-    ).mean() >= 0.75
+    assert (abs(found.rib_pitch_mm - found.true_mm.map({12.0: 8.0, 14.0: 9.0})) < 0.3).mean() >= 0.75
     meas = t[t.diameter_status == "measured"]
     assert (meas.nominal_mm == meas.true_mm).all(), meas
     assert len(meas) >= 0.3 * len(t)
@@ -1349,10 +1169,7 @@ def test_ribs_in_relief_are_seen_and_never_give_a_confident_wrong_size(relief_sc
     med_sizes = [snap_diameter(w)[0] for w in t.width_median_mm.dropna()]
     true = t.dropna(subset=["width_median_mm"]).true_mm
     assert np.mean(np.array(med_sizes) < true.to_numpy()) > 0.3
-    s = _truth_table(
-        smooth,
-        measure_diameters(smooth, bars_from_truth(smooth.truth), smooth.labels > 0, design=design),
-    )
+    s = _truth_table(smooth, measure_diameters(smooth, bars_from_truth(smooth.truth), smooth.labels > 0, design=design))
     assert not s.ribs_resolved.any() and s.rib_pitch_mm.isna().all()
     sm = s[s.diameter_status == "measured"]
     assert (sm.nominal_mm == sm.true_mm).all() and len(sm) >= MIN_MEASURED_SHARE * len(s)
@@ -1390,24 +1207,14 @@ def test_ribs_a_mask_smooths_away_are_looked_for_in_the_colour_image_with_axes_o
 @pytest.mark.parametrize(
     "crest_size, core_mm, expected",
     [
-        (
-            14.0,
-            14.6,
-            None,
-        ),  # Φ14 with its longitudinal ribs turned sideways: nearer Φ16's d1, yet below it
+        (14.0, 14.6, None),  # Φ14 with its longitudinal ribs turned sideways: nearer Φ16's d1, yet below it
         (14.0, 13.1, None),  # a little under Φ14's 13.4, within σ
         (14.0, 11.6, 12.0),  # narrower than any Φ14 shows: Φ12's core
         (14.0, 16.9, 16.0),  # wider than Φ14's envelope (16.2) by more than σ
-        (
-            12.0,
-            13.6,
-            14.0,
-        ),  # a Φ12 may show it (up to 13.9), but so may Φ14 (from 13.4): crests alone
+        (12.0, 13.6, 14.0),  # a Φ12 may show it (up to 13.9), but so may Φ14 (from 13.4): crests alone
     ],
 )
-def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s(
-    crest_size, core_mm, expected
-):
+def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s(crest_size, core_mm, expected):
     """GB 1499.2: core d1 Φ12 11.5, Φ14 13.4, Φ16 15.4 mm; envelopes 13.9, 16.2, 18.4 mm. A bar
     sized from its crests keeps its size where its core lies between its d1 and its envelope
     (± its σ, 0.5 mm here) and below the next size's d1; else it is "not measured" and names
@@ -1422,12 +1229,7 @@ def test_a_ribbed_bar_s_core_may_read_up_to_its_envelope_but_not_a_larger_size_s
         "width_sigma_mm": 0.5,
         "diameter_reason": "",
     }
-    _check_core(
-        row,
-        BarReading(core_mm=core_mm, crest_mm=crest_size + 1.5),
-        DiameterParams(),
-        system="GB1499.2",
-    )
+    _check_core(row, BarReading(core_mm=core_mm, crest_mm=crest_size + 1.5), DiameterParams(), system="GB1499.2")
     if expected is None:
         assert row["diameter_status"] == "measured" and row["nominal_mm"] == crest_size
     else:
@@ -1444,9 +1246,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
     from rebarlib.diameter.params import DiameterParams
 
     rows, results, keys = [], [], []
-    for design, p in (
-        [(12.0, q) for q in pitches_12] + [(14.0, q) for q in pitches_14] + [(12.0, pitch_amb)]
-    ):
+    for design, p in [(12.0, q) for q in pitches_12] + [(14.0, q) for q in pitches_14] + [(12.0, pitch_amb)]:
         rows.append(
             {
                 "diameter_status": "measured",
@@ -1461,14 +1261,7 @@ def _pitch_case(pitches_12, pitches_14, pitch_amb, *, pair=(12.0, 14.0), length_
             }
         )
         results.append(
-            BarReading(
-                **{
-                    "rib_pitch_mm": p,
-                    "rib_p": 1e-6,
-                    "rib_length_mm": length_mm,
-                    "mask_width_mm": 13.9,
-                }
-            )
+            BarReading(**{"rib_pitch_mm": p, "rib_p": 1e-6, "rib_length_mm": length_mm, "mask_width_mm": 13.9})
         )
         keys.append(design)
     rows[-1].update(
@@ -1496,12 +1289,8 @@ def test_a_ribbed_bar_s_crests_are_read_where_a_bar_beside_it_cuts_them_off():
     from rebarlib.data import paper_design
 
     design = paper_design()
-    cap = synth_capture(
-        design, height_mm=400, tilt_deg=5, seed=1, deviations=Deviations(rib_relief=True)
-    )
-    t = _truth_table(
-        cap, measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design)
-    )
+    cap = synth_capture(design, height_mm=400, tilt_deg=5, seed=1, deviations=Deviations(rib_relief=True))
+    t = _truth_table(cap, measure_diameters(cap, bars_from_truth(cap.truth), cap.labels > 0, design=design))
     bar = t[t.bar_id == 25].iloc[0]
     assert bar.true_mm == 12.0 and bar.ribs_resolved
     assert bar.crest_width_mm >= 11.5 + 1.2, bar.crest_width_mm
@@ -1519,53 +1308,27 @@ def test_rib_pitch_tells_apart_the_two_sizes_a_width_lies_between():
     # (11 + 1) / (11 + 2).
     from rebarlib.diameter.pitch import _pitch_settle
 
-    rows, results, keys, shadows, prm = _pitch_case(
-        [8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02
-    )
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02)
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
     r = rows[-1]
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["matches_design"] is False
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["matches_design"] is False
     assert r["width_source"] == "mask+pitch" and r["confidence"] == pytest.approx(12 / 13, abs=1e-4)
-    assert r["diameter_reason"].startswith(
-        "size from the rib pitch 9.02 mm: Φ14's is 9 mm, Φ12's 8 mm"
-    )
-    assert all(
-        x["diameter_status"] == "measured" and x["nominal_mm"] == x["design_diameter_mm"]
-        for x in rows[:-1]
-    )
+    assert r["diameter_reason"].startswith("size from the rib pitch 9.02 mm: Φ14's is 9 mm, Φ12's 8 mm")
+    assert all(x["diameter_status"] == "measured" and x["nominal_mm"] == x["design_diameter_mm"] for x in rows[:-1])
 
 
 @pytest.mark.parametrize(
     "case, why",
     [
-        (
-            ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 8.5),
-            "a pitch half-way between the two",
-        ),
-        (
-            ([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 7.0),
-            "Φ10's pitch, neither of the two",
-        ),
+        (([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 8.5), "a pitch half-way between the two"),
+        (([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 7.0), "Φ10's pitch, neither of the two"),
         # a renderer's or another mill's own spacing, 0.6 d: the bars do not follow the table
-        (
-            ([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38], 8.4),
-            "the capture's bars off the table",
-        ),
+        (([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38], 8.4), "the capture's bars off the table"),
         (([8.0], [], 9.02), "too few clear pitches to check the table (2, at least 3)"),
         # pitches ±5 % about the table (each inside its band, 3 x their spread): 9.02 mm fits both
-        (
-            ([7.6, 8.4, 7.7, 8.3, 8.0, 7.8, 8.2], [8.6, 9.4, 9.0], 9.02),
-            "pitches too scattered to tell 8 from 9 mm",
-        ),
+        (([7.6, 8.4, 7.7, 8.3, 8.0, 7.8, 8.2], [8.6, 9.4, 9.0], 9.02), "pitches too scattered to tell 8 from 9 mm"),
         # most pitches tight on the table, but 4 of 12 on no size their bars may be: (8 + 1) / (12 + 2)
-        (
-            ([8.0, 8.01, 7.99, 8.02, 6.2, 6.5, 11.0], [9.0, 9.01, 8.99, 10.9], 9.02),
-            "pitches often on no size",
-        ),
+        (([8.0, 8.01, 7.99, 8.02, 6.2, 6.5, 11.0], [9.0, 9.01, 8.99, 10.9], 9.02), "pitches often on no size"),
     ],
 )
 def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(case, why):
@@ -1575,9 +1338,7 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2")
     assert rows[-1]["diameter_status"] == "not measured" and math.isnan(rows[-1]["nominal_mm"]), why
     # a standard that sets no spacing per size (ASTM A615 only caps it at 0.7 d) never uses it
-    rows, results, keys, shadows, prm = _pitch_case(
-        [8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02
-    )
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02)
     _pitch_settle(rows, results, keys, shadows, prm, system="ASTM-A615")
     assert rows[-1]["diameter_status"] == "not measured"
 
@@ -1585,19 +1346,13 @@ def test_rib_pitch_leaves_a_bar_unmeasured_where_it_cannot_tell_the_sizes_apart(
 @pytest.mark.parametrize(
     "pitch, vetoed, why",
     [
-        (
-            10.02,
-            True,
-            "Φ16's spacing on a bar the widths size Φ14: its core read as Φ14's envelope",
-        ),
+        (10.02, True, "Φ16's spacing on a bar the widths size Φ14: its core read as Φ14's envelope"),
         (9.01, False, "its own size's spacing"),
         (8.0, False, "the size down's: by chance on smooth bars; nothing reads a bar a size up"),
         (9.5, False, "half-way: on no spacing"),
     ],
 )
-def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(
-    pitch, vetoed, why
-):
+def test_a_bar_whose_widths_show_the_next_size_s_rib_pitch_is_not_given_the_smaller_size(pitch, vetoed, why):
     # A ribbed Φ16 bar whose mask smooths its ribs away reads its core, about Φ14's envelope; a
     # capture that as a whole shows no ribs cannot mend that, but the bar's own widths, periodic
     # at 10 mm (Φ16's spacing; Φ14's is 9 mm) at p 10⁻⁹, say it is no Φ14 (300 mm read: a
@@ -1662,9 +1417,7 @@ def test_faces_test_the_table_where_too_few_widths_show_a_pitch():
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
     assert rows[-1]["diameter_status"] == "measured" and rows[-1]["nominal_mm"] == 14.0
     assert "(in the shading along its face)" in rows[-1]["diameter_reason"]
-    rows, results, keys, shadows, prm, face = case(
-        [7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38]
-    )
+    rows, results, keys, shadows, prm, face = case([7.2, 7.22, 7.18, 7.21, 7.19, 7.2, 7.2], [8.4, 8.42, 8.38])
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
     assert rows[-1]["diameter_status"] == "not measured"
 
@@ -1730,27 +1483,12 @@ def test_rib_pitch_band_counts_each_read_s_resolution_like_the_spread():
     "pitches, sizes, expected, why",
     [
         # two of four bars designed Φ12 are Φ14s (their pitch is Φ14's): the design still holds its own
-        (
-            [8.0, 8.05, 9.03, 9.12, 8.96, 9.1],
-            [12.0] * 4 + [14.0] * 2,
-            True,
-            "half the Φ12 group at Φ14's spacing",
-        ),
-        (
-            [9.03, 9.12, 9.05, 8.0, 8.96, 9.1],
-            [12.0] * 4 + [14.0] * 2,
-            False,
-            "most of the Φ12 group at Φ14's",
-        ),
+        ([8.0, 8.05, 9.03, 9.12, 8.96, 9.1], [12.0] * 4 + [14.0] * 2, True, "half the Φ12 group at Φ14's spacing"),
+        ([9.03, 9.12, 9.05, 8.0, 8.96, 9.1], [12.0] * 4 + [14.0] * 2, False, "most of the Φ12 group at Φ14's"),
         # the pixel grid on smooth bars: one common period, here nearest Φ12's 8 mm on bars designed Φ10
         ([8.23] * 5, [10.0] * 5, False, "a common period on another size's spacing"),
         ([8.0, 9.76, 9.1, 9.2], [12.0, 12.0, 14.0, 14.0], True, "3 pitches on their own spacings"),
-        (
-            [8.0, 9.76, 9.1, 11.4],
-            [12.0, 12.0, 14.0, 14.0],
-            False,
-            "two pitches on their own spacings (3 needed)",
-        ),
+        ([8.0, 9.76, 9.1, 11.4], [12.0, 12.0, 14.0, 14.0], False, "two pitches on their own spacings (3 needed)"),
     ],
 )
 def test_pitch_table_lets_a_design_group_hold_bars_of_another_size(pitches, sizes, expected, why):
@@ -1796,15 +1534,11 @@ def test_edge_pitch_reads_the_ribs_a_width_hides():
     pitch_w, p_w = _rib_periodicity(s, hi - lo)
     assert not (p_w < prm.rib_bar_p and abs(pitch_w - 9.0) < 0.5)
     pitch, resolution = _edge_pitch(info, prm)
-    assert pitch == pytest.approx(9.0, abs=0.05) and resolution == pytest.approx(
-        9.0 / 1200, rel=0.02
-    )
+    assert pitch == pytest.approx(9.0, abs=0.05) and resolution == pytest.approx(9.0 / 1200, rel=0.02)
     # an axis askew across the bar (0.6°) tilts each edge along it by 6 mm over the bar: each
     # edge is read against a line, not a level (against a level, its variance would swamp the ribs)
     tilt = 0.01 * s
-    assert _edge_pitch(BarReading(edges=(s, lo + tilt, hi + tilt)), prm)[0] == pytest.approx(
-        9.0, abs=0.05
-    )
+    assert _edge_pitch(BarReading(edges=(s, lo + tilt, hi + tilt)), prm)[0] == pytest.approx(9.0, abs=0.05)
 
 
 @pytest.mark.parametrize(
@@ -1819,10 +1553,7 @@ def test_edge_pitch_needs_both_edges_clear_at_one_pitch(pitch_lo, pitch_hi, why)
     from rebarlib.diameter.params import DiameterParams
     from rebarlib.diameter.ribs import _edge_pitch
 
-    assert (
-        _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), DiameterParams())
-        is None
-    ), why
+    assert _edge_pitch(_edges_info(np.arange(0, 600, 2.2), pitch_lo, pitch_hi), DiameterParams()) is None, why
     # too few sections to read a periodicity from
     assert _edge_pitch(_edges_info(np.arange(0, 40, 2.2), 9.0, 9.0), DiameterParams()) is None
 
@@ -1896,10 +1627,7 @@ def test_face_pitch_reads_the_ribs_shading_a_bar_s_face():
     "kw, why",
     [
         (dict(stripes=0.0), "a face without ribs: noise only"),
-        (
-            dict(stripes=40.0, pitch_mm=40.0),
-            "a pitch beyond the band searched (1.2 x the bar's width)",
-        ),
+        (dict(stripes=40.0, pitch_mm=40.0), "a pitch beyond the band searched (1.2 x the bar's width)"),
     ],
 )
 def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
@@ -1912,10 +1640,7 @@ def test_face_pitch_gives_nothing_where_the_face_shows_no_rib_pitch(kw, why):
     # nor with too few clean sections to read along
     s, lo, hi = info.edges
     bar, info, gray = _striped_bar(9.0)
-    assert (
-        _face_pitch(bar, BarReading(edges=(s[:10], lo[:10], hi[:10])), gray, K, DiameterParams())
-        is None
-    )
+    assert _face_pitch(bar, BarReading(edges=(s[:10], lo[:10], hi[:10])), gray, K, DiameterParams()) is None
 
 
 def _one_sided(info):
@@ -1943,10 +1668,7 @@ def test_face_pitch_reads_a_bar_seen_from_one_side_on_its_visible_half():
     assert _face_pitch(bar, _one_sided(info), gray, K, prm) is None
     bar, info, gray = _striped_bar(9.0)
     s, lo, _ = _one_sided(info).one_edges
-    few = BarReading(
-        edges=(s[:10], lo[:10] * np.nan, lo[:10] * np.nan),
-        one_edges=(s[:10], lo[:10], lo[:10] * np.nan),
-    )
+    few = BarReading(edges=(s[:10], lo[:10] * np.nan, lo[:10] * np.nan), one_edges=(s[:10], lo[:10], lo[:10] * np.nan))
     assert _face_pitch(bar, few, gray, K, prm) is None
 
 
@@ -1968,12 +1690,8 @@ def test_face_pitch_of_a_sliver_leaves_out_the_bar_over_it():
         bar, info, gray = _striped_bar(9.0)
         y1 = edge_y * z1 / 400.0 - r  # the nearer bar's silhouette ends over edge_y
         over = np.abs(a * z1 - y1) <= r
-        gray = np.where(over, 120 + 80 * np.cos(2 * np.pi * (z1 * b) / 12.0), gray).astype(
-            np.float32
-        )
-        fp = _footprints(
-            _prepare(_bars_along_u((0.0, 400.0), (y1, z1)), None, "GB1499.2", True, 2 * r), K
-        )
+        gray = np.where(over, 120 + 80 * np.cos(2 * np.pi * (z1 * b) / 12.0), gray).astype(np.float32)
+        fp = _footprints(_prepare(_bars_along_u((0.0, 400.0), (y1, z1)), None, "GB1499.2", True, 2 * r), K)
         one = _one_sided(info)
         read = _face_pitch(bar, one, gray, K, prm, fp, 0)
         if expected is None:
@@ -1992,9 +1710,7 @@ def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_non
     # shading shows 9.02 mm, Φ14's spacing. It is read for that bar only.
     from rebarlib.diameter.pitch import _pitch_settle
 
-    rows, results, keys, shadows, prm = _pitch_case(
-        [8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02
-    )
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02)
     results[-1].rib_pitch_mm, results[-1].rib_p = math.nan, 1.0
     asked = []
 
@@ -2005,22 +1721,12 @@ def test_rib_pitch_of_a_bar_s_face_settles_it_where_its_width_and_edges_show_non
     _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=face)
     r = rows[-1]
     assert asked == [len(rows) - 1]
-    assert (
-        r["diameter_status"] == "measured"
-        and r["nominal_mm"] == 14.0
-        and r["matches_design"] is False
-    )
-    assert r["diameter_reason"].startswith(
-        "size from the rib pitch 9.02 mm (in the shading along its face): Φ14's"
-    )
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["matches_design"] is False
+    assert r["diameter_reason"].startswith("size from the rib pitch 9.02 mm (in the shading along its face): Φ14's")
     # a face at 8.5 mm, between the two spacings, settles nothing
-    rows, results, keys, shadows, prm = _pitch_case(
-        [8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02
-    )
+    rows, results, keys, shadows, prm = _pitch_case([8.0, 8.03, 7.97, 8.01, 7.99, 8.02, 7.98], [9.0, 9.03, 8.98], 9.02)
     results[-1].rib_pitch_mm, results[-1].rib_p = math.nan, 1.0
-    _pitch_settle(
-        rows, results, keys, shadows, prm, system="GB1499.2", face=lambda i: (8.5, 8.5 / 600)
-    )
+    _pitch_settle(rows, results, keys, shadows, prm, system="GB1499.2", face=lambda i: (8.5, 8.5 / 600))
     assert rows[-1]["diameter_status"] == "not measured"
 
 
@@ -2044,18 +1750,8 @@ def _colour_case(bars, *, seed=0):
 @pytest.mark.parametrize(
     "bars, system, expected, why",
     [
-        (
-            [(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3,
-            "GB1499.2",
-            True,
-            "each size's colour widths at its spacing",
-        ),
-        (
-            [(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3,
-            "ASTM-A615",
-            False,
-            "a system without a spacing per size",
-        ),
+        ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "GB1499.2", True, "each size's colour widths at its spacing"),
+        ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "ASTM-A615", False, "a system without a spacing per size"),
         # the pixel grid along parallel slanted bars: one period on all, not their size's spacing
         ([(10.0, 8.23)] * 5, "GB1499.2", False, "a common period off the table (Φ10's is 7 mm)"),
         ([(12.0, None)] * 5 + [(14.0, None)] * 3, "GB1499.2", False, "no period at all"),
@@ -2095,21 +1791,13 @@ def relief_pitch_scene():
     design = _design(14, 12)
     dev = Deviations(rib_relief=True, spacers=False, chairs=False, ties=False)
     cap = synth_capture(
-        design,
-        deviations=dev,
-        height_mm=450,
-        tilt_deg=5,
-        seed=3,
-        intrinsics=GEMINI2,
-        sensor=SensorModel.ideal(),
+        design, deviations=dev, height_mm=450, tilt_deg=5, seed=3, intrinsics=GEMINI2, sensor=SensorModel.ideal()
     )
     return design, cap
 
 
 @pytest.mark.slow
-def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitch(
-    relief_pitch_scene, monkeypatch
-):
+def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitch(relief_pitch_scene, monkeypatch):
     import rebarlib.diameter.measure as dm
 
     design, cap = relief_pitch_scene
@@ -2128,9 +1816,7 @@ def test_ribs_in_relief_bars_between_two_sizes_are_sized_right_by_their_rib_pitc
     pd.testing.assert_frame_equal(t.loc[rest], u.loc[rest])
 
 
-def _two_bars_capture(
-    peek_px: float, *, hole: bool = False, k: Intrinsics = K, lower: bool = False
-):
+def _two_bars_capture(peek_px: float, *, hole: bool = False, k: Intrinsics = K, lower: bool = False):
     """A hand-built capture (camera ``k``, formwork at 500 mm): an upper Φ12 bar along the image's
     v axis at 400 mm, and a lower Φ14 bar under it at 470 mm, offset so that it peeks out
     ``peek_px`` pixels beside the upper bar's right edge; ideal depth (none on the peeking strip
@@ -2138,15 +1824,9 @@ def _two_bars_capture(
     The bar table holds the upper bar's true axis, and with ``lower`` the lower bar's too."""
     up = (0.0, 400.0, observed_width_mm(12) / 2)  # x, z of the axis, radius (the rib envelope)
     r_lo = observed_width_mm(14) / 2
-    edge_up = math.atan2(up[0], up[1]) + math.asin(
-        up[2] / math.hypot(up[0], up[1])
-    )  # right edge, rad
+    edge_up = math.atan2(up[0], up[1]) + math.asin(up[2] / math.hypot(up[0], up[1]))  # right edge, rad
     edge = math.tan(edge_up) + peek_px / k.fx  # where the lower bar's right edge is to be, x / z
-    lo = (
-        edge * 470.0 - r_lo * math.hypot(1.0, edge),
-        470.0,
-        r_lo,
-    )  # its axis r_lo left of that ray
+    lo = (edge * 470.0 - r_lo * math.hypot(1.0, edge), 470.0, r_lo)  # its axis r_lo left of that ray
     a = (np.arange(k.width) - k.cx) / k.fx  # ray x / z per column (the bars run along v)
     depth = np.full(k.width, 500.0)
     label = np.zeros(k.width, np.uint8)
@@ -2236,9 +1916,7 @@ def test_a_sliver_with_its_axis_given_is_sized_from_its_edge():
         cap, bars = _two_bars_capture(peek_px, k=k, lower=True, hole=True)
         t = measure_diameters(cap, bars, cap.labels > 0, design=design).set_index("bar_id").loc[1]
         assert t.diameter_status == "not measured" and not math.isfinite(t.nominal_mm)
-        assert "too few of its own points are left to check a width from one edge" in (
-            t.diameter_reason
-        )
+        assert "too few of its own points are left to check a width from one edge" in (t.diameter_reason)
 
 
 def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_the_bar_over_it():
@@ -2256,9 +1934,7 @@ def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_th
         # twice half a pixel (a width from one edge to the axis)
         assert abs(t.width_median_mm - env) <= 2 * 0.5 / K.fx * 400, (peek_px, t.width_median_mm)
         assert t.diameter_status == "measured" and t.nominal_mm == 12
-        t = measure_diameters(
-            cap, bars.assign(status="not measured"), cap.labels > 0, design=design
-        ).iloc[0]
+        t = measure_diameters(cap, bars.assign(status="not measured"), cap.labels > 0, design=design).iloc[0]
         assert t.diameter_status == "not measured" and "strip without depth" in t.diameter_reason
     # a bar whose own flank has no depth (nothing peeking out: its runs centred on the axis)
     # keeps both its edges
@@ -2267,11 +1943,7 @@ def test_a_bar_peeking_out_in_the_projector_s_shadow_is_not_taken_for_part_of_th
     edge_px = int(K.cx + K.fx * env / 2 / 400)
     depth[:, edge_px - 4 : edge_px + 1] = 0.0  # the last 5 px inside the bar's right edge
     t = measure_diameters(
-        Capture(cap.color, depth, K, labels=cap.labels),
-        bars,
-        cap.labels > 0,
-        design=design,
-        use_cloud=False,
+        Capture(cap.color, depth, K, labels=cap.labels), bars, cap.labels > 0, design=design, use_cloud=False
     ).iloc[0]
     assert abs(t.width_median_mm - env) <= 0.5 / K.fx * 400 and t.nominal_mm == 12
     assert t.width_sigma_mm < 2 * 0.3  # not a width from one edge (σ twice the axis's tolerance)
@@ -2311,28 +1983,15 @@ def test_a_bar_showing_one_side_beside_nearer_bars_is_hidden_for_its_size(occlud
 
     bar, reading = _one_sided_reading(occluded_share)
     row = _bar_row(
-        bar,
-        reading,
-        None,
-        False,
-        "fuse",
-        False,
-        DiameterParams(),
-        method="refined",
-        system="GB1499.2",
-        deformed=True,
+        bar, reading, None, False, "fuse", False, DiameterParams(), method="refined", system="GB1499.2", deformed=True
     )
     assert row["diameter_status"] == status
     assert "mask not centred on the axis (3.3 mm off" in row["diameter_reason"]
     assert math.isnan(row["nominal_mm"])
 
 
-@pytest.mark.parametrize(
-    "one_sided_share, covered, sized", [(0.0, 1.0, 12.0), (1.0, 0.0, 12.0), (1.0, 1.0, None)]
-)
-def test_a_width_from_one_edge_beside_nearer_bars_never_sizes_against_its_axis(
-    one_sided_share, covered, sized
-):
+@pytest.mark.parametrize("one_sided_share, covered, sized", [(0.0, 1.0, 12.0), (1.0, 0.0, 12.0), (1.0, 1.0, None)])
+def test_a_width_from_one_edge_beside_nearer_bars_never_sizes_against_its_axis(one_sided_share, covered, sized):
     # The mask reads Φ12 (clear, 0.9), the axis was fitted with Φ14's radius, and the bar's top
     # above its level's supports says Φ12: between two edges, or on a bar in the open, that
     # settles it; from one edge of a bar seen beside nearer bars (its axis fitted to the side it
@@ -2340,12 +1999,7 @@ def test_a_width_from_one_edge_beside_nearer_bars_never_sizes_against_its_axis(
     from rebarlib.diameter.decision import _arbitrate
     from rebarlib.diameter.params import DiameterParams
 
-    reading = BarReading(
-        one_sided_share=one_sided_share,
-        level_width_mm=13.8,
-        level_sigma_mm=0.4,
-        level_between_mm=0.3,
-    )
+    reading = BarReading(one_sided_share=one_sided_share, level_width_mm=13.8, level_sigma_mm=0.4, level_between_mm=0.3)
     out = {
         "diameter_status": "not measured",
         "diameter_reason": "mask width 14.6 mm and point-cloud width 15.9 mm disagree",

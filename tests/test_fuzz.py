@@ -55,9 +55,7 @@ JSON = st.recursive(
     | st.integers(-(2**40), 2**40)
     | st.floats(allow_nan=True, allow_infinity=True)
     | st.text(max_size=20),
-    lambda inner: (
-        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=3)
-    ),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=3),
     max_leaves=6,
 )
 
@@ -66,19 +64,14 @@ JSON = st.recursive(
 def tally():
     yield
     for test, counts in sorted(OUTCOMES.items()):
-        print(
-            f"\n{test}: {sum(counts.values())} cases: "
-            + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
-        )
+        print(f"\n{test}: {sum(counts.values())} cases: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
 
 
 @pytest.fixture(scope="module")
 def capture_dir():
     """A small saved capture (320 x 200) to copy and spoil."""
     root = Path(tempfile.mkdtemp(prefix="rebar_fuzz_"))
-    save_capture(
-        synth_capture(paper_design(), intrinsics=GEMINI2.scaled(0.25), seed=2, name="c"), root / "c"
-    )
+    save_capture(synth_capture(paper_design(), intrinsics=GEMINI2.scaled(0.25), seed=2, name="c"), root / "c")
     yield root / "c"
     shutil.rmtree(root, ignore_errors=True)
 
@@ -138,9 +131,7 @@ def test_png_headers_spoilt_or_cut(capture_dir, offset, junk, which, cut):
 
 @FUZZ
 @given(
-    width=st.integers(0, 2**31 - 1),
-    height=st.integers(0, 2**31 - 1),
-    which=st.sampled_from(["depth.png", "color.png"]),
+    width=st.integers(0, 2**31 - 1), height=st.integers(0, 2**31 - 1), which=st.sampled_from(["depth.png", "color.png"])
 )
 def test_png_header_declaring_any_size(capture_dir, width, height, which):
     import zlib
@@ -154,12 +145,7 @@ def test_png_header_declaring_any_size(capture_dir, width, height, which):
 
 
 @FUZZ
-@given(
-    w=st.integers(1, 64),
-    h=st.integers(1, 64),
-    scale=st.floats(1e-4, 200),
-    depth_max=st.integers(0, 65535),
-)
+@given(w=st.integers(1, 64), h=st.integers(1, 64), scale=st.floats(1e-4, 200), depth_max=st.integers(0, 65535))
 def test_images_of_any_size_and_depth_scale(w, h, scale, depth_max):
     import cv2
 
@@ -168,12 +154,7 @@ def test_images_of_any_size_and_depth_scale(w, h, scale, depth_max):
     rng = np.random.default_rng(w * 1000 + h)
     cv2.imwrite(str(folder / "color.png"), rng.integers(0, 255, (h, w, 3), dtype=np.uint8))
     cv2.imwrite(str(folder / "depth.png"), rng.integers(0, depth_max + 1, (h, w)).astype(np.uint16))
-    cam = {
-        "width": w,
-        "height": h,
-        "intrinsic_matrix": [w, 0, 0, 0, w, 0, w / 2, h / 2, 1],
-        "depth_scale_mm": scale,
-    }
+    cam = {"width": w, "height": h, "intrinsic_matrix": [w, 0, 0, 0, w, 0, w / 2, h / 2, 1], "depth_scale_mm": scale}
     (folder / "camera.json").write_text(json.dumps(cam), encoding="utf-8")
     _load(folder, "image sizes and scales", ["camera.json", "depth.png", "color.png"])
 
@@ -193,17 +174,11 @@ def _honest(res, truth) -> str:
 
 @pytest.mark.slow
 @settings(FUZZ, max_examples=max(2, N // 5))
-@given(
-    fraction=st.floats(0.5, 0.99),
-    patch_px=st.sampled_from([0.0, 6.0, 20.0]),
-    seed=st.integers(0, 5),
-)
+@given(fraction=st.floats(0.5, 0.99), patch_px=st.sampled_from([0.0, 6.0, 20.0]), seed=st.integers(0, 5))
 def test_dropout_gives_right_numbers_or_none(fraction, patch_px, seed):
     design = paper_design()
     sensor = SensorModel(dropout=fraction, dropout_patch_px=patch_px)
-    cap = synth_capture(
-        design, intrinsics=GEMINI2.scaled(0.5), sensor=sensor, seed=seed, scene_seed=seed + 10
-    )
+    cap = synth_capture(design, intrinsics=GEMINI2.scaled(0.5), sensor=sensor, seed=seed, scene_seed=seed + 10)
     try:
         res = inspect(cap, design, diameters=False, rng=seed)
     except RebarInputError as exc:  # too few points left at all
@@ -238,11 +213,7 @@ FULL_DESIGN["slab"].update(
         "lot": "l",
     }
 )
-FULL_DESIGN["design"]["lower"] = {
-    "diameter_mm": 14,
-    "spacing_mm": 200,
-    "top": {"diameter_mm": 14, "spacing_mm": 200},
-}
+FULL_DESIGN["design"]["lower"] = {"diameter_mm": 14, "spacing_mm": 200, "top": {"diameter_mm": 14, "spacing_mm": 200}}
 DESIGN_PATHS = [p for p, _ in _paths(FULL_DESIGN)]
 
 
@@ -254,10 +225,7 @@ def _set(data, path, value):
 
 
 @FUZZ
-@given(
-    path=st.sampled_from(DESIGN_PATHS),
-    value=JSON | st.floats(-1e6, 1e6) | st.integers(-(10**6), 10**6),
-)
+@given(path=st.sampled_from(DESIGN_PATHS), value=JSON | st.floats(-1e6, 1e6) | st.integers(-(10**6), 10**6))
 def test_design_any_key_with_any_value(path, value):
     data = copy.deepcopy(FULL_DESIGN)
     _set(data, path, value)
@@ -311,11 +279,7 @@ TARGETS = [
 
 
 def _digest(folder: Path) -> dict:
-    return {
-        str(p): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 @pytest.mark.slow
@@ -327,9 +291,7 @@ def _digest(folder: Path) -> dict:
     results=st.booleans(),
     exports=st.booleans(),
 )
-def test_report_output_paths(
-    capture_dir, monkeypatch, capsys, target, force, fmt, results, exports
-):
+def test_report_output_paths(capture_dir, monkeypatch, capsys, target, force, fmt, results, exports):
     import rebarlib._cli_report as cli_report
 
     root = Path(tempfile.mkdtemp(prefix="rebar_fuzz_"))
@@ -359,13 +321,8 @@ def test_report_output_paths(
             "slab folder": slab,
             "new in results": res / "A" / "r.html",
         }[target]
-        monkeypatch.setattr(
-            cli_report, "collect_results", lambda s, **k: ([], [("A", "no result")])
-        )
-        inputs = {
-            **_digest(slab),
-            **(_digest(res) if results else {}),
-        }  # the results are inputs with --results
+        monkeypatch.setattr(cli_report, "collect_results", lambda s, **k: ([], [("A", "no result")]))
+        inputs = {**_digest(slab), **(_digest(res) if results else {})}  # the results are inputs with --results
         argv = (
             ["report", str(slab), "--out", str(out)]
             + (["--force"] if force else [])
@@ -383,13 +340,9 @@ def test_report_output_paths(
         new = set(after) - set(inputs)  # nothing new inside a capture or a capture's results
         guarded = [slab / "A"] + ([res / "A"] if results else [])
         assert not [k for k in new if Path(k).parent in guarded], new
-        if target in (
-            "design",
-            "capture file",
-            "new in capture",
-            "below a file",
-            "capture folder",
-        ) or (target in ("new in results", "results file") and results):
+        if target in ("design", "capture file", "new in capture", "below a file", "capture folder") or (
+            target in ("new in results", "results file") and results
+        ):
             assert code == 2
         if target == "existing report":
             assert code == (0 if force else 2)

@@ -167,9 +167,7 @@ def test_layer_split_found_from_the_data(cover, layer_distance):
     rng = np.random.default_rng(cover)
     lower = rng.uniform(cover, cover + 28, 5000)
     upper = rng.uniform(cover + layer_distance, cover + layer_distance + 24, 5000)
-    chairs = rng.uniform(
-        cover + 28, cover + layer_distance, 40
-    )  # a few points between the lattices
+    chairs = rng.uniform(cover + 28, cover + layer_distance, 40)  # a few points between the lattices
     h = np.r_[lower, upper, chairs]
     split = find_layer_split(h)
     assert split is not None and cover + 28 < split < cover + layer_distance
@@ -248,12 +246,8 @@ def test_a_bar_laid_askew_keeps_its_skew():
     # A bottom bar laid 4° off its direction over the whole slab (a real defect) fits a parallel
     # axis far worse than its own: the skew check (refit parallel, keep unless the skew fits
     # >10 % better) must not straighten it.
-    q, on_bar, _ = lattice_points(
-        bottom_offsets=[BOTTOM[0], BOTTOM[2]], top_offsets=TOP, angle_deg=33.0
-    )
-    qs, on_s, _ = lattice_points(
-        bottom_offsets=[BOTTOM[1]], top_offsets=[], angle_deg=37.0, formwork=False, rng=1
-    )
+    q, on_bar, _ = lattice_points(bottom_offsets=[BOTTOM[0], BOTTOM[2]], top_offsets=TOP, angle_deg=33.0)
+    qs, on_s, _ = lattice_points(bottom_offsets=[BOTTOM[1]], top_offsets=[], angle_deg=37.0, formwork=False, rng=1)
     pts = np.vstack([q[on_bar], qs[on_s]])
     bars = assign_levels(find_bars(pts, layer="lower", radius_mm=8.1, pitch_mm=PITCH_MM, rng=0))
     bottom = [b for b in bars if b.level == "bottom" and b.status == "measured"]
@@ -290,11 +284,7 @@ def test_a_flank_seen_alone_is_not_fitted_from_its_far_side():
     phi = np.radians(rng.uniform(120, 180, n))
     s = 8 * np.cos(phi) + rng.normal(0, 0.3, n)
     h = 20 + 8 * np.sin(phi) + rng.normal(0, 0.3, n)
-    camera, c, n2 = (
-        np.array([0.0, -300.0, 500.0]),
-        0.0,
-        np.array([0.0, 1.0]),
-    )  # bar along a: offset = b
+    camera, c, n2 = (np.array([0.0, -300.0, 500.0]), 0.0, np.array([0.0, 1.0]))  # bar along a: offset = b
     mirrored = _fit_bar(t, s, h, 8.0, start=(-13.0, 0.0, 21.0, 0.0))
     assert abs(mirrored[0][0] + 13.0) < 1.5  # the far-side solution
     assert _facing_share(mirrored, t, s, h, camera, c, n2) < 0.5
@@ -334,9 +324,7 @@ def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
 
     # through _approximate_axes: two measured bars at height 20 give the level
     d = np.array([1.0, 0.0])
-    _t = rng.uniform(
-        0, 300, n
-    )  # unused, but drawn: the draws after it stay as the test was written
+    _t = rng.uniform(0, 300, n)  # unused, but drawn: the draws after it stay as the test was written
     off_all = np.r_[s, np.full(10, -100.0), np.full(10, 100.0)]
     h_all = np.r_[h, np.full(20, 28.0)]
     sliver = BarAxis(
@@ -357,9 +345,7 @@ def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
         reason="seen only in parts",
     )
     measured = [
-        BarAxis(
-            "lower", d, o, 0.0, 20.0, 0.0, 0.0, 300.0, 8.0, 10, 0.3, np.arange(n + k, n + k + 10), 0
-        )
+        BarAxis("lower", d, o, 0.0, 20.0, 0.0, 0.0, 300.0, 8.0, 10, 0.3, np.arange(n + k, n + k + 10), 0)
         for k, o in ((0, -100.0), (10, 100.0))
     ]
     # offsets along -b: the plan normal of direction (1, 0) is (0, 1)
@@ -369,16 +355,12 @@ def test_a_sliver_s_approximate_axis_is_placed_at_its_level():
     assert out[0].centre_h_mm == 20.0 and out[0].h_slope == 0.0
     assert out[1:] == measured
     # without heights or camera: the median offset, as before
-    assert (
-        abs(_approximate_axes([sliver] + measured, {0: off_all})[0].offset_mm - np.median(s)) < 1e-9
-    )
+    assert abs(_approximate_axes([sliver] + measured, {0: off_all})[0].offset_mm - np.median(s)) < 1e-9
 
 
 def test_measure_spacings_in_order_with_deviation(lattice):
     bars, _ = lattice
-    sp = measure_spacings(
-        bars, design_spacing={("lower", "bottom"): 200.0, ("lower", "top"): 200.0}
-    )
+    sp = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0, ("lower", "top"): 200.0})
     assert len(sp) == 4
     for level, offs in (("bottom", BOTTOM), ("top", TOP)):
         got = np.sort(sp[sp["level"] == level]["spacing_mm"].to_numpy())
@@ -407,69 +389,34 @@ def test_stack_heights_by_hand():
     rb, rt = 8.1, 6.95
 
     def bottom(y):  # along x at plan y = offset across (normal2d of ex is +y)
-        return BarAxis(
-            "lower",
-            ex,
-            y,
-            0.0,
-            20 + rb + 0.01 * y,
-            0.0,
-            -300.0,
-            300.0,
-            rb,
-            100,
-            0.3,
-            level="bottom",
-        )
+        return BarAxis("lower", ex, y, 0.0, 20 + rb + 0.01 * y, 0.0, -300.0, 300.0, rb, 100, 0.3, level="bottom")
 
     def top(x, gap=0.0):  # along y at plan x = -offset (normal2d of ey is -x)
-        return BarAxis(
-            "lower",
-            ey,
-            -x,
-            0.0,
-            20 + 2 * rb + rt + gap,
-            0.01,
-            -300.0,
-            300.0,
-            rt,
-            100,
-            0.3,
-            level="top",
-        )
+        return BarAxis("lower", ey, -x, 0.0, 20 + 2 * rb + rt + gap, 0.01, -300.0, 300.0, rt, 100, 0.3, level="top")
 
     bars = [bottom(y) for y in (-200.0, 0.0, 200.0)] + [top(-100.0), top(100.0, gap=1.0)]
     # from the fitted circles' tops
     got = stack_heights(bars)
     assert np.isnan(got[:3]).all()  # bottom bars rest on spacers, not on bars of the lattice
-    assert got[3] == pytest.approx(2 * rt, abs=1e-9) and got[4] == pytest.approx(
-        2 * rt + 1.0, abs=1e-9
-    )
+    assert got[3] == pytest.approx(2 * rt, abs=1e-9) and got[4] == pytest.approx(2 * rt + 1.0, abs=1e-9)
     # from each bar's points: the tops read off the points near the axis, whatever radius
     # the axes were fitted with (here 1 mm too large for every bar)
     rng = np.random.default_rng(3)
     pts = [_bar_points(b, b.radius_mm, rng, noise=0.2) for b in bars]
     wrong_r = [replace(b, radius_mm=b.radius_mm + 1.0) for b in bars]
     got = stack_heights(wrong_r, pts)
-    assert got[3] == pytest.approx(2 * rt, abs=0.1) and got[4] == pytest.approx(
-        2 * rt + 1.0, abs=0.1
-    )
+    assert got[3] == pytest.approx(2 * rt, abs=0.1) and got[4] == pytest.approx(2 * rt + 1.0, abs=0.1)
     # each bar's top above the formwork at the middle of its extent (t = 0, so the slope
     # drops out): the bottom bars 20 + 16.2 + 0.01 y, the top ones 20 + 16.2 + 13.9 (+ 1 mm),
     # from the circles and, whatever the fitted radius, from the points
-    want = [20 + 2 * rb + 0.01 * y for y in (-200.0, 0.0, 200.0)] + [
-        20 + 2 * rb + 2 * rt,
-        21 + 2 * rb + 2 * rt,
-    ]
+    want = [20 + 2 * rb + 0.01 * y for y in (-200.0, 0.0, 200.0)] + [20 + 2 * rb + 2 * rt, 21 + 2 * rb + 2 * rt]
     assert top_heights(bars) == pytest.approx(want, abs=1e-9)
     assert top_heights(wrong_r, pts) == pytest.approx(want, abs=0.1)
     assert np.isnan(top_heights([replace(bars[0], status="not measured")])[0])
     # fewer crossings than asked for, a bar not measured, a support outside the extent: NaN
     assert np.isnan(stack_heights(bars, min_crossings=4)[3])
     assert np.isnan(stack_heights(bars[:3] + [replace(bars[3], status="not measured")])[3])
-    short = [replace(b, t0_mm=150.0) for b in bars[:3]] + bars[
-        3:
-    ]  # the bottom bars start at x = 150
+    short = [replace(b, t0_mm=150.0) for b in bars[:3]] + bars[3:]  # the bottom bars start at x = 150
     assert np.isnan(stack_heights(short)[3])
 
 
@@ -479,9 +426,7 @@ def test_hidden_bar_beside_a_spacer_is_reported_not_measured():
     dropped, not fitted), its approximate axis at its level's height and level along its length;
     every other bar measured, nothing else found."""
     hidden = 95.0
-    q, on_bar, info = lattice_points(
-        bottom_offsets=BOTTOM + [hidden], top_offsets=TOP, angle_deg=33.0
-    )
+    q, on_bar, info = lattice_points(bottom_offsets=BOTTOM + [hidden], top_offsets=TOP, angle_deg=33.0)
     q = q[on_bar]
     across = q[:, :2] @ info["n1"]
     of_hidden = (np.abs(across - hidden) < 8.1) & (q[:, 2] < info["hb"] + 8.1 + 1.0)
@@ -518,23 +463,7 @@ def test_border_cut_bar_off_its_level_is_not_measured():
     def bar(off, h_axis):
         idx = np.arange(len(pts) * len(t), (len(pts) + 1) * len(t))
         pts.append(np.c_[t, np.full(len(t), off), np.full(len(t), h_axis + r)])
-        bars.append(
-            BarAxis(
-                "upper",
-                np.array([1.0, 0.0]),
-                off,
-                0.0,
-                h_axis,
-                0.0,
-                -100.0,
-                98.0,
-                r,
-                len(t),
-                0.5,
-                idx,
-                0,
-            )
-        )
+        bars.append(BarAxis("upper", np.array([1.0, 0.0]), off, 0.0, h_axis, 0.0, -100.0, 98.0, r, len(t), 0.5, idx, 0))
 
     bar(0.0, level)
     bar(-200.0, level)
@@ -545,10 +474,7 @@ def test_border_cut_bar_off_its_level_is_not_measured():
     assert [b.status for b in out] == ["measured"] * 4 + ["not measured"]
     assert "border" in out[4].reason
     # its approximate axis: level along it, at the other bars' median height
-    assert (
-        out[4].h_slope == 0.0
-        and abs(out[4].axis_height_mm - np.median([40.0, 40.0, 35.0, 39.0])) < 1e-9
-    )
+    assert out[4].h_slope == 0.0 and abs(out[4].axis_height_mm - np.median([40.0, 40.0, 35.0, 39.0])) < 1e-9
 
 
 def test_find_bars_empty_and_tiny_inputs():
@@ -563,16 +489,9 @@ def test_find_bars_empty_and_tiny_inputs():
 
 def test_paper_bars_and_directions():
     q, on_bar, info = lattice_points(
-        bottom_offsets=[-150.0, 50.0],
-        top_offsets=[-100.0, 100.0],
-        angle_deg=-20.0,
-        r_bottom=7.0,
-        r_top=7.0,
-        half=250.0,
+        bottom_offsets=[-150.0, 50.0], top_offsets=[-100.0, 100.0], angle_deg=-20.0, r_bottom=7.0, r_top=7.0, half=250.0
     )
-    bars = paper_find_bars(
-        q[on_bar], layer="lower", threshold_mm=0.5 * 14 + 1.0, max_trials=460, rng=0
-    )
+    bars = paper_find_bars(q[on_bar], layer="lower", threshold_mm=0.5 * 14 + 1.0, max_trials=460, rng=0)
     bars = group_directions(bars, rng=0)
     assert len(bars) >= 4
     groups = {}

@@ -13,15 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rebarlib import (
-    GEMINI2,
-    RebarInputError,
-    design_from_dict,
-    inspect,
-    load_capture,
-    load_design,
-    save_capture,
-)
+from rebarlib import GEMINI2, RebarInputError, design_from_dict, inspect, load_capture, load_design, save_capture
 from rebarlib._manifest import make_manifest
 from rebarlib.acceptance import list_presets, load_tolerances
 from rebarlib.cli import main
@@ -57,16 +49,8 @@ def slab(tmp_path, small_capture):
     return folder
 
 
-def _write_result(
-    results: Path, capture: Path, design: Path, *, method="refined", manifest=True, **changes
-):
-    data = {
-        "capture": capture.name,
-        "method": method,
-        "measurements": {},
-        "bars": [],
-        "spacings": [],
-    }
+def _write_result(results: Path, capture: Path, design: Path, *, method="refined", manifest=True, **changes):
+    data = {"capture": capture.name, "method": method, "measurements": {}, "bars": [], "spacings": []}
     if manifest:
         data["manifest"] = {**make_manifest(capture, design, method=method), **changes}
     (results / capture.name).mkdir(parents=True, exist_ok=True)
@@ -92,11 +76,7 @@ def _no_results(monkeypatch):
         "collect_results",
         lambda slab, **k: (
             [],
-            [
-                (p.name, "no result")
-                for p in sorted(Path(slab).iterdir())
-                if (p / "camera.json").is_file()
-            ],
+            [(p.name, "no result") for p in sorted(Path(slab).iterdir()) if (p / "camera.json").is_file()],
         ),
     )
 
@@ -116,20 +96,10 @@ def _err(capsys) -> str:
 REFUSED_OUTPUTS = {
     "the design file": ("{slab}/design.toml", False, True, "input of this report"),
     "a capture's file": ("{slab}/B/depth.png", False, True, "inside the input folder"),
-    "a new file in a capture folder": (
-        "{slab}/B/new_report.pdf",
-        False,
-        True,
-        "inside the input folder",
-    ),
+    "a new file in a capture folder": ("{slab}/B/new_report.pdf", False, True, "inside the input folder"),
     "a results file": ("{results}/A/result.json", True, True, "input of this report"),
     # rebar inspect replaces a capture's results folder whole
-    "a new file among a capture's results": (
-        "{results}/A/r.pdf",
-        True,
-        False,
-        "inside the input folder",
-    ),
+    "a new file among a capture's results": ("{results}/A/r.pdf", True, False, "inside the input folder"),
     "a path below a file": ("{tmp}/afile/r.pdf", False, False, "is a file"),
 }
 
@@ -169,15 +139,11 @@ def test_report_into_a_folder_is_named_after_the_slab(slab, tmp_path, monkeypatc
     assert (out / "S-101.html").is_file() and (out / "S-101_acceptance.json").is_file()
     assert "IsADirectoryError" not in capsys.readouterr().err
     # a folder that does not exist yet, given with a trailing slash
-    assert (
-        main(["report", str(slab), "--out", str(tmp_path / "new") + "/", "--format", "html"]) == 0
-    )
+    assert main(["report", str(slab), "--out", str(tmp_path / "new") + "/", "--format", "html"]) == 0
     assert (tmp_path / "new" / "S-101.html").is_file()
 
 
-def test_report_does_not_replace_an_existing_report_without_force(
-    slab, tmp_path, monkeypatch, capsys
-):
+def test_report_does_not_replace_an_existing_report_without_force(slab, tmp_path, monkeypatch, capsys):
     _no_results(monkeypatch)
     out = tmp_path / "r.html"
     out.write_text("an earlier report", encoding="utf-8")
@@ -196,10 +162,7 @@ def test_report_does_not_replace_an_existing_report_without_force(
 def test_results_without_a_manifest_are_refused(slab, tmp_path, capsys):
     results = tmp_path / "res"
     _write_result(results, slab / "A", slab / "design.toml", manifest=False)
-    assert (
-        main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")])
-        == 2
-    )
+    assert main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")]) == 2
     err = _err(capsys)
     assert "result of A" in err and "re-run `rebar inspect`" in err
 
@@ -208,18 +171,12 @@ def test_results_of_another_design_or_changed_capture_are_refused(slab, tmp_path
     results = tmp_path / "res"
     other = tmp_path / "other.toml"
     other.write_text(
-        (slab / "design.toml")
-        .read_text(encoding="utf-8")
-        .replace("cover_mm = 20", "cover_mm = 25"),
-        encoding="utf-8",
+        (slab / "design.toml").read_text(encoding="utf-8").replace("cover_mm = 20", "cover_mm = 25"), encoding="utf-8"
     )
     _write_result(results, slab / "A", other)
     _write_result(results, slab / "B", slab / "design.toml")
     (slab / "B" / "notes.txt").write_text("a file added after the inspection", encoding="utf-8")
-    assert (
-        main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")])
-        == 2
-    )
+    assert main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")]) == 2
     err = _err(capsys)
     assert "result of A: it was made against another design file" in err
     assert "result of B: the files of capture B changed" in err
@@ -230,10 +187,7 @@ def test_results_mixing_methods_or_versions_are_refused(slab, tmp_path, capsys):
     results = tmp_path / "res"
     _write_result(results, slab / "A", slab / "design.toml", method="paper")
     _write_result(results, slab / "B", slab / "design.toml", rebarlib_version="0.0.9")
-    assert (
-        main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")])
-        == 2
-    )
+    assert main(["report", str(slab), "--results", str(results), "--out", str(tmp_path / "r.pdf")]) == 2
     err = _err(capsys)
     assert "mix methods: paper, refined" in err and "mix rebarlib versions" in err
 
@@ -263,17 +217,13 @@ def _png_claiming(path: Path, width: int, height: int) -> None:
 
 def test_decompression_bomb_is_refused_from_its_header(slab):
     _png_claiming(slab / "A" / "depth.png", 30000, 30000)
-    with pytest.raises(
-        RebarInputError, match=r"depth\.png: declares 30000 x 30000 pixels, over the limit of 50"
-    ):
+    with pytest.raises(RebarInputError, match=r"depth\.png: declares 30000 x 30000 pixels, over the limit of 50"):
         load_capture(slab / "A")
     cam = slab / "B" / "camera.json"
     data = json.loads(cam.read_text(encoding="utf-8"))
     data["width"], data["height"] = 30000, 30000
     cam.write_text(json.dumps(data), encoding="utf-8")
-    with pytest.raises(
-        RebarInputError, match=r"camera\.json: width x height = 30000 x 30000 is over the limit"
-    ):
+    with pytest.raises(RebarInputError, match=r"camera\.json: width x height = 30000 x 30000 is over the limit"):
         load_capture(slab / "B")
 
 
@@ -306,9 +256,7 @@ def test_missing_depth_scale_is_said_in_the_notes(slab, small_capture):
 def test_depth_in_the_wrong_unit_says_depth_scale_looks_wrong(scale, distance, method):
     cap = load_capture(PAPER / "A_400")
     # depth written in mm but camera.json says `scale` mm per unit: every distance x scale
-    wrong = dataclasses.replace(
-        cap, depth_mm=cap.depth_mm * scale, metadata={**cap.metadata, "depth_scale_mm": scale}
-    )
+    wrong = dataclasses.replace(cap, depth_mm=cap.depth_mm * scale, metadata={**cap.metadata, "depth_scale_mm": scale})
     with pytest.raises(
         RebarInputError,
         match=r"A_400/camera\.json: depth_scale_mm looks wrong: the formwork "
@@ -337,10 +285,7 @@ def _misspell_spacing(data: dict) -> None:
     "misspell, message",
     [
         (_misspell_thickness, "design: unknown key 'thicknes_mm'; did you mean 'thickness_mm'"),
-        (
-            _misspell_spacing,
-            r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'",
-        ),
+        (_misspell_spacing, r"design\.lower\.bottom: unknown key 'spacing'; did you mean 'spacing_mm'"),
     ],
     ids=["thickness_mm", "spacing_mm"],
 )
@@ -375,11 +320,7 @@ def test_preset_aliases_select_their_preset():
 
 def test_report_with_an_unknown_standard_names_the_design_file(slab, monkeypatch, capsys):
     _no_inspection(monkeypatch)
-    text = (
-        (slab / "design.toml")
-        .read_text(encoding="utf-8")
-        .replace('"GB50204-2015"', '"GB50010-2010"')
-    )
+    text = (slab / "design.toml").read_text(encoding="utf-8").replace('"GB50204-2015"', '"GB50010-2010"')
     (slab / "design.toml").write_text(text, encoding="utf-8")
     assert main(["report", str(slab), "--out", str(slab.parent / "r.pdf")]) == 2
     assert "design.toml: slab.standard = 'GB50010-2010'" in _err(capsys)
@@ -408,17 +349,13 @@ def test_a_very_long_id_is_cut_in_the_report(slab, monkeypatch):
 
     _no_results(monkeypatch)
     text = (slab / "design.toml").read_text(encoding="utf-8")
-    (slab / "design.toml").write_text(
-        text.replace('id = "S-101"', f'id = "{"X" * 14000}"'), encoding="utf-8"
-    )
+    (slab / "design.toml").write_text(text.replace('id = "S-101"', f'id = "{"X" * 14000}"'), encoding="utf-8")
     out = slab.parent / "r.html"
     assert main(["report", str(slab), "--out", str(out)]) == 0
     html = out.read_text(encoding="utf-8")
     assert "X" * FIELD_MAX_CHARS not in html and "X" * (FIELD_MAX_CHARS - 1) + "…" in html
     # the export keeps the design as it is; the file name made from it is short
-    assert (
-        main(["report", str(slab), "--out", str(slab.parent / "f") + "/", "--format", "html"]) == 0
-    )
+    assert main(["report", str(slab), "--out", str(slab.parent / "f") + "/", "--format", "html"]) == 0
     assert [len(p.name) for p in (slab.parent / "f").glob("*.html")] == [80 + len(".html")]
 
 
@@ -447,12 +384,7 @@ def test_heavy_random_dropout_on_the_example_is_not_measured_wrongly():
     cap = load_capture(PAPER / "A_400")
     d = cap.depth_mm.copy()
     d[np.random.default_rng(7).random(d.shape) < 0.9] = 0
-    res = inspect(
-        dataclasses.replace(cap, depth_mm=d),
-        load_design(PAPER / "design.toml"),
-        diameters=False,
-        rng=0,
-    )
+    res = inspect(dataclasses.replace(cap, depth_mm=d), load_design(PAPER / "design.toml"), diameters=False, rng=0)
     _assert_honest(res, cap.truth)
     assert not res.cover.ok and "one direction only" in res.cover.reason
 
@@ -464,9 +396,7 @@ def test_synthetic_dropout_from_50_to_99_percent_is_measured_right_or_not_at_all
     measured = 0
     for fraction in (0.5, 0.8, 0.9, 0.95, 0.99):
         sensor = SensorModel(dropout=fraction, dropout_patch_px=patch_px)
-        cap = synth_capture(
-            design, intrinsics=GEMINI2.scaled(0.5), sensor=sensor, seed=3, scene_seed=5
-        )
+        cap = synth_capture(design, intrinsics=GEMINI2.scaled(0.5), sensor=sensor, seed=3, scene_seed=5)
         res = inspect(cap, design, diameters=False, rng=0)
         measured += _assert_honest(res, cap.truth)
     assert measured >= 3  # at 50 % the heights are still measured
@@ -496,7 +426,5 @@ def test_paper_method_with_no_formwork_in_view_does_not_measure_cover():
 
 def test_truth_images_are_checked_before_decoding(slab):
     _png_claiming(slab / "A" / "labels.png", 30000, 30000)
-    with pytest.raises(
-        RebarInputError, match=r"labels\.png: is 30000x30000, not the capture's 320x200"
-    ):
+    with pytest.raises(RebarInputError, match=r"labels\.png: is 30000x30000, not the capture's 320x200"):
         load_capture(slab / "A")

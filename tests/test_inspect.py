@@ -22,15 +22,7 @@ from rebarlib.geometry.scoring import measurable_bars, score_result
 from rebarlib._inspect import inspect
 from rebarlib._results import MEASURED, NOT_MEASURED
 from rebarlib.data import example_capture, example_slab, paper_design
-from rebarlib.synth import (
-    CameraPose,
-    Deviations,
-    SensorModel,
-    make_scene,
-    misregister,
-    render_capture,
-    synth_capture,
-)
+from rebarlib.synth import CameraPose, Deviations, SensorModel, make_scene, misregister, render_capture, synth_capture
 
 K_HALF = GEMINI2.scaled(0.5)
 COVER_TOL_MM = 0.8  # cover, half resolution
@@ -122,11 +114,7 @@ def test_yawed_tilted_mesh_cover_layer_distance_and_top(hard):
         assert m.n_points > 100 and 0 < m.uncertainty_mm < 1.0
     # the camera pose over the formwork
     assert abs(res.camera["tilt_deg"] - 20.0) < 0.5
-    assert (
-        abs(res.camera["height_mm"] - t["camera"]["height_mm"]) < 2.0
-        if "height_mm" in t["camera"]
-        else True
-    )
+    assert abs(res.camera["height_mm"] - t["camera"]["height_mm"]) < 2.0 if "height_mm" in t["camera"] else True
     assert abs(abs(np.dot(res.formwork["normal"], t["formwork_plane"]["normal"])) - 1) < 1e-4
 
 
@@ -136,8 +124,7 @@ def test_every_visible_bar_found_once_with_its_level(hard):
     cut = [
         b
         for b in _visible_measurable(cap)
-        if b["visible_length_mm"]
-        < 0.95 * np.linalg.norm(np.subtract(b["axis_end_mm"], b["axis_start_mm"]))
+        if b["visible_length_mm"] < 0.95 * np.linalg.norm(np.subtract(b["axis_end_mm"], b["axis_start_mm"]))
     ]
     assert len(cut) >= 10
     assert len(_visible_measurable(cap, layer="lower")) >= 6
@@ -150,9 +137,7 @@ def test_every_visible_bar_found_once_with_its_level(hard):
         assert abs(d - 90) < 2.0
 
 
-@pytest.mark.parametrize(
-    "mesh_yaw_deg,height_mm,tilt_deg", [(0.0, 400, 0.0), (45.0, 600, 12.0), (90.0, 500, 6.0)]
-)
+@pytest.mark.parametrize("mesh_yaw_deg,height_mm,tilt_deg", [(0.0, 400, 0.0), (45.0, 600, 12.0), (90.0, 500, 6.0)])
 def test_any_yaw_straight_or_diagonal(mesh_yaw_deg, height_mm, tilt_deg):
     """Bars parallel to the image axes (0°, 90°, no tilt) and diagonal (45°) alike."""
     design = paper_design(cover_mm=25)
@@ -171,9 +156,7 @@ def test_any_yaw_straight_or_diagonal(mesh_yaw_deg, height_mm, tilt_deg):
     assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
     s = _assert_bars_ok(res, cap)
     assert s["found"] == s["measurable"]
-    assert (
-        len(s["spacing_errors_mm"]) >= 4 and np.abs(s["spacing_errors_mm"]).max() <= SPACING_TOL_MM
-    )
+    assert len(s["spacing_errors_mm"]) >= 4 and np.abs(s["spacing_errors_mm"]).max() <= SPACING_TOL_MM
 
 
 def test_spacing_varying_bar_to_bar(hard):
@@ -248,11 +231,7 @@ def test_missing_bar_counted(hard):
     # bar of its direction lies over the empty position in the image: a bar within tolerance of
     # its place could hide under it, so the position is "not measured (hidden)", never accepted.
     pos = res.positions
-    at = pos[
-        (pos["layer"] == key[0])
-        & (pos["level"] == key[1])
-        & pos["status"].isin(["missing", "not measured"])
-    ]
+    at = pos[(pos["layer"] == key[0]) & (pos["level"] == key[1]) & pos["status"].isin(["missing", "not measured"])]
     assert int(c.loc[key, "missing"]) == 1 or (
         int(c.loc[key, "not_measured"]) >= 1 and any("hidden" in r for r in at["reason"])
     )
@@ -265,15 +244,7 @@ def test_missing_bar_counted(hard):
 # Captures of the geometry benchmark (full resolution, realistic sensor) with a bar the thinned
 # cloud of the bar search misses: (cover, height, tilt, mesh yaw, camera yaw, seed, truth bar id)
 SECOND_LOOK = {
-    "lower bar seen as slivers beside the upper bar above it": (
-        15,
-        600,
-        5,
-        157.4924,
-        76.7366,
-        278041,
-        7,
-    ),
+    "lower bar seen as slivers beside the upper bar above it": (15, 600, 5, 157.4924, 76.7366, 278041, 7),
     "bar cut to 7 cm by the image corner": (25, 600, 15, 18.1010, 100.6264, 702891, 8),
 }
 SECOND_LOOK_AXIS_TOL_MM = 3.0  # plan offset of the found axis from the true axis
@@ -301,9 +272,7 @@ def test_second_look_finds_the_bars_the_thinned_cloud_misses(case):
     assert len(hit) == 1, f"truth bar {bar} not found"
     row = res.bars.set_index("bar_id").loc[int(hit["bar_id"].iloc[0])]
     # found by the second look: there, but its axis is not placed to the millimetre
-    assert row["status"] == NOT_MEASURED and row["reason"].startswith(
-        "seen only at full resolution"
-    )
+    assert row["status"] == NOT_MEASURED and row["reason"].startswith("seen only at full resolution")
     assert float(hit["offset_mm"].iloc[0]) < SECOND_LOOK_AXIS_TOL_MM
     # its spacings are not measured (never one spacing twice the real one)
     sp = res.spacings
@@ -364,16 +333,8 @@ def _empty_lower_positions_in_view_under_upper_bars(cap) -> int:
     bars = {(b["layer"], b["level"], b["index"]): b for b in cap.truth["bars"]}
     n = 0
     for m in cap.truth["missing"]:
-        lo, hi = (
-            bars.get(("lower", m["level"], m["index"] - 1)),
-            bars.get(("lower", m["level"], m["index"] + 1)),
-        )
-        if (
-            m["layer"] != "lower"
-            or lo is None
-            or hi is None
-            or ("upper", m["level"], m["index"]) not in bars
-        ):
+        lo, hi = (bars.get(("lower", m["level"], m["index"] - 1)), bars.get(("lower", m["level"], m["index"] + 1)))
+        if m["layer"] != "lower" or lo is None or hi is None or ("upper", m["level"], m["index"]) not in bars:
             continue
         a = 0.5 * (np.array(lo["axis_start_mm"]) + np.array(hi["axis_start_mm"]))
         b = 0.5 * (np.array(lo["axis_end_mm"]) + np.array(hi["axis_end_mm"]))
@@ -422,13 +383,9 @@ def test_formwork_a_disparity_step_above_its_plane_is_not_taken_for_bars():
     # measured). Every bar of both lattices is found and the cover is measured.
     from rebarlib import Intrinsics
 
-    k = Intrinsics(
-        fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480
-    )
+    k = Intrinsics(fx=638.0 * 848 / 1280, fy=638.0 * 848 / 1280, cx=423.5, cy=239.5, width=848, height=480)
     design = paper_design()
-    cap = synth_capture(
-        design, height_mm=600, tilt_deg=0, seed=1, sensor=SensorModel(), intrinsics=k
-    )
+    cap = synth_capture(design, height_mm=600, tilt_deg=0, seed=1, sensor=SensorModel(), intrinsics=k)
     res = inspect(cap, design, diameters=False, rng=0)
     counts = res.counts.set_index(["layer", "level"])
     assert (counts.found > 0).all() and (counts.missing == 0).all()
@@ -454,11 +411,7 @@ def test_no_formwork_visible(hard):
     bare = _bare(cap)
     res = inspect(bare, design, rng=0)
     t = cap.truth
-    assert (
-        res.cover.status == NOT_MEASURED
-        and res.cover.value_mm is None
-        and "formwork" in res.cover.reason
-    )
+    assert res.cover.status == NOT_MEASURED and res.cover.value_mm is None and "formwork" in res.cover.reason
     assert res.top_cover.status == NOT_MEASURED
     # layers and spacing are still measured (relative quantities)
     assert abs(res.layer_distance.value_mm - t["layer_distance_mm"]) <= LAYER_TOL_MM
@@ -474,9 +427,7 @@ def test_bar_with_too_few_points_is_not_measured(hard):
     the stride) is reported as "not measured" with a reason, not dropped silently and not given a
     number."""
     cap, design, _ = hard
-    target = max(
-        _visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"]
-    )
+    target = max(_visible_measurable(cap, layer="upper", level="top"), key=lambda b: b["visible_length_mm"])
     mask = cap.bar_ids == target["id"] + 1
     vv, uu = np.nonzero(mask)
     drop = np.ones(len(vv), bool)
@@ -513,9 +464,7 @@ WRONG_ARGUMENTS = [
 
 
 @pytest.mark.parametrize(
-    "change, names",
-    WRONG_ARGUMENTS,
-    ids=[f"{k}={v!r}" for (c, _) in WRONG_ARGUMENTS for k, v in c.items()],
+    "change, names", WRONG_ARGUMENTS, ids=[f"{k}={v!r}" for (c, _) in WRONG_ARGUMENTS for k, v in c.items()]
 )
 def test_wrong_arguments_are_input_errors(hard, change, names):
     cap, design, _ = hard
@@ -577,10 +526,7 @@ def test_paper_method_on_example():
 def test_same_seed_same_result(hard):
     cap, design, res = hard
     again = inspect(cap, design, rng=0)
-    assert (
-        again.to_json() != ""
-        and json.loads(again.to_json())["bars"] == json.loads(res.to_json())["bars"]
-    )
+    assert again.to_json() != "" and json.loads(again.to_json())["bars"] == json.loads(res.to_json())["bars"]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -670,9 +616,7 @@ def test_cli_never_writes_into_a_capture(tmp_path, capsys):
     folder, _ = example_slab("paper_slab")
     cap = example_capture("paper_slab", "A_400")
     before = sorted(p.name for p in cap.iterdir())
-    rc = main(
-        ["inspect", str(cap), "--design", str(folder / "design.toml"), "--out", str(cap.parent)]
-    )
+    rc = main(["inspect", str(cap), "--design", str(folder / "design.toml"), "--out", str(cap.parent)])
     assert rc == 2 and "capture folder" in capsys.readouterr().err
     assert sorted(p.name for p in cap.iterdir()) == before
 
@@ -696,14 +640,7 @@ def test_cli_duplicate_names_and_missing_capture(tmp_path, capsys):
     )
     assert rc == 2 and "overwrite" in capsys.readouterr().err
     rc = main(
-        [
-            "inspect",
-            str(tmp_path / "nope"),
-            "--design",
-            str(folder / "design.toml"),
-            "--out",
-            str(tmp_path / "out"),
-        ]
+        ["inspect", str(tmp_path / "nope"), "--design", str(folder / "design.toml"), "--out", str(tmp_path / "out")]
     )
     assert rc == 2 and "nope" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()

@@ -20,13 +20,7 @@ import pytest
 from rebarlib import RebarInputError, design_from_dict, load_design
 from rebarlib.acceptance import design_top_cover_mm, evaluate
 from rebarlib.cli import main
-from rebarlib.report import (
-    build_report,
-    render_html,
-    report_context,
-    safe_url_fetcher,
-    templates_dir,
-)
+from rebarlib.report import build_report, render_html, report_context, safe_url_fetcher, templates_dir
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PAPER = EXAMPLES / "paper_slab"
@@ -39,10 +33,7 @@ def with_manifest(result: dict, capture: str) -> dict:
     """The result with the manifest `rebar inspect` stores: made from PAPER's capture and design."""
     from rebarlib._manifest import make_manifest
 
-    return {
-        **result,
-        "manifest": make_manifest(PAPER / capture, PAPER / "design.toml", method="refined"),
-    }
+    return {**result, "manifest": make_manifest(PAPER / capture, PAPER / "design.toml", method="refined")}
 
 
 def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict:
@@ -92,18 +83,10 @@ def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict
     for la in ("lower", "upper"):
         for lv in ("bottom", "top"):
             k = sum(b["layer"] == la and b["level"] == lv for b in bars)
-            counts.append(
-                {"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0}
-            )
+            counts.append({"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0})
 
     def m(v):
-        return {
-            "value_mm": v,
-            "uncertainty_mm": 0.7,
-            "n_points": 1000,
-            "status": "measured",
-            "reason": "",
-        }
+        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
 
     top = design.thickness_mm - t["upper_top_mm"]
     return {
@@ -116,10 +99,7 @@ def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict
             "top_cover": m(top),
         },
         "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
-        "camera": {
-            "height_mm": t["camera"]["height_mm"],
-            "tilt_deg": math.degrees(math.acos(abs(n[2]))),
-        },
+        "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
         "bars": bars,
         "spacings": spacings,
         "counts": counts,
@@ -140,15 +120,10 @@ def paper():
 
 def test_pdf_text_equals_the_tables(paper, tmp_path):
     design, res = paper
-    results = [
-        res["A_400"],
-        result_from_truth(PAPER / "B_500", design, cover_offset_mm=COVER_OFF_MM),
-    ]
+    results = [res["A_400"], result_from_truth(PAPER / "B_500", design, cover_offset_mm=COVER_OFF_MM)]
     acc = evaluate(results, design)
     assert acc.verdict == "rejected"  # the cover of B is off by more than 1.5x
-    cover_b = acc.checkpoints[
-        (acc.checkpoints["item"] == "cover") & (acc.checkpoints["capture"] == "B_500")
-    ].iloc[0]
+    cover_b = acc.checkpoints[(acc.checkpoints["item"] == "cover") & (acc.checkpoints["capture"] == "B_500")].iloc[0]
     assert (cover_b["status"], cover_b["flag"]) == ("beyond max", "#")
     out = build_report(PAPER, design, acc, out_path=tmp_path / "r.pdf")
     text = pdf_text(out)
@@ -157,9 +132,7 @@ def test_pdf_text_equals_the_tables(paper, tmp_path):
     assert "GB 50204-2015" in text
     for it in acc.items.itertuples():
         unit = "bars" if it.unit == "bars" else "mm"
-        worst = (
-            f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
-        )
+        worst = f"{it.worst_deviation:+.0f} bars" if unit == "bars" else f"{it.worst_deviation:+.1f} mm"
         worst = worst.replace("+0.0 mm", "0.0 mm").replace("+0 bars", "0 bars")
         extra = ", ".join(
             t
@@ -177,10 +150,7 @@ def test_pdf_text_equals_the_tables(paper, tmp_path):
     # Exports next to the PDF hold every checkpoint.
     cp = pd.read_csv(tmp_path / "r_checkpoints.csv")
     assert len(cp) == len(acc.checkpoints)
-    assert (
-        json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))["verdict"]
-        == "rejected"
-    )
+    assert json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))["verdict"] == "rejected"
 
 
 def test_html_draws_every_bar_and_writes_the_spacings(paper):
@@ -195,9 +165,7 @@ def test_html_draws_every_bar_and_writes_the_spacings(paper):
     cap = ctx["captures"][0]
     drawn = {b["id"] for b in cap["image"]["bars"]}
     assert drawn == {str(b["bar_id"]) for b in res["A_400"]["bars"]}  # all visible bars are in view
-    assert sum(b["hidden"] for b in cap["image"]["bars"]) == sum(
-        b["hidden"] for b in res["A_400"]["bars"]
-    )
+    assert sum(b["hidden"] for b in cap["image"]["bars"]) == sum(b["hidden"] for b in res["A_400"]["bars"])
     labels = sorted(lab["text"] for lab in cap["plan"]["labels"])
     assert labels == sorted(f"{s['spacing_mm']:.0f}" for s in res["A_400"]["spacings"])
     # Plan coordinates are in the formwork plane: a spacing drawn equals the spacing measured.
@@ -259,9 +227,7 @@ def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     results = tmp_path / "results"
     for name, r in res.items():  # C_600 and D_500 have no result
         (results / name).mkdir(parents=True)
-        (results / name / "result.json").write_text(
-            json.dumps(with_manifest(r, name)), encoding="utf-8"
-        )
+        (results / name / "result.json").write_text(json.dumps(with_manifest(r, name)), encoding="utf-8")
     out = tmp_path / "report" / "S-101.pdf"
     assert main(["report", str(PAPER), "--results", str(results), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -271,9 +237,7 @@ def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     assert [m["capture"] for m in saved["missing_captures"]] == ["C_600", "D_500"]
     text = pdf_text(out)
     assert "NOT ACCEPTED (incomplete" in text and "capture C_600: no result" in text
-    assert (
-        main(["report", str(PAPER), "--results", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
-    )
+    assert main(["report", str(PAPER), "--results", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
 
 
 def test_design_top_cover_used_by_the_report_is_over_the_ribs(paper):
@@ -311,19 +275,7 @@ def test_cli_html_with_another_standard(paper, tmp_path):
     assert "ACI 318-19 / ACI 117-10" in html and "±76 mm" in html
     assert not (tmp_path / "r_checkpoints.csv").exists()
     assert (
-        main(
-            [
-                "report",
-                str(PAPER),
-                "--results",
-                str(tmp_path / "res"),
-                "--out",
-                str(out),
-                "--standard",
-                "BS8110",
-            ]
-        )
-        == 2
+        main(["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out), "--standard", "BS8110"]) == 2
     )
 
 
@@ -370,16 +322,12 @@ def test_cli_inspects_captures_itself_without_results(paper, tmp_path, monkeypat
             raise RebarInputError("depth image empty")
         return result_from_truth(PAPER / capture.name, design_)
 
-    monkeypatch.setitem(
-        sys.modules, "rebarlib._inspect", types.SimpleNamespace(inspect=fake_inspect)
-    )
+    monkeypatch.setitem(sys.modules, "rebarlib._inspect", types.SimpleNamespace(inspect=fake_inspect))
     out = tmp_path / "r.html"
     assert main(["report", str(PAPER), "--out", str(out), "--method", "paper"]) == 0
     assert calls == [(c, "paper") for c in ("A_400", "B_500", "C_600", "D_500")]
     saved = json.loads((tmp_path / "r_acceptance.json").read_text(encoding="utf-8"))
-    assert saved["missing_captures"] == [
-        {"capture": "D_500", "reason": "inspection failed: depth image empty"}
-    ]
+    assert saved["missing_captures"] == [{"capture": "D_500", "reason": "inspection failed: depth image empty"}]
     monkeypatch.setitem(sys.modules, "rebarlib._inspect", None)  # the stage is not installed
     assert main(["report", str(PAPER), "--out", str(out), "--force"]) == 2  # (the report exists)
     assert "--results" in capsys.readouterr().err
@@ -389,9 +337,7 @@ def test_bar_row_does_not_repeat_its_status_and_a_partly_checked_bar_is_not_pass
     design, res = paper
     r = json.loads(json.dumps(res["A_400"]))
     hid = next(b for b in r["bars"] if b["hidden"])
-    hid["diameter_reason"] = (
-        "hidden: 90% of its cross-sections lie wholly or partly under nearer bars"
-    )
+    hid["diameter_reason"] = "hidden: 90% of its cross-sections lie wholly or partly under nearer bars"
     # a bar whose spacings are within tolerance but whose size could not be measured
     spaced = {str(s["bar_a"]) for s in r["spacings"]} | {str(s["bar_b"]) for s in r["spacings"]}
     nm = next(b for b in r["bars"] if not b["hidden"] and str(b["bar_id"]) in spaced)

@@ -108,9 +108,7 @@ def test_scan_without_formwork_y_up_far_origin_in_metres(design, tmp_path):
 def test_up_sign_from_the_normals_without_formwork(design, tmp_path):
     # sigma 15 mm: the crossings cannot tell the sign here, the scanner's normals can
     pts, truth, fields = _scan(design, 15.0, formwork=False, seed=1)
-    export_scan(
-        tmp_path / "geo.ply", pts, truth, fields, units="m", up="-y", origin_mm=(5e8, 3e9, 1.2e5)
-    )
+    export_scan(tmp_path / "geo.ply", pts, truth, fields, units="m", up="-y", origin_mm=(5e8, 3e9, 1.2e5))
     res = inspect_cloud(read_cloud(tmp_path / "geo.ply", units="m"), design)
     s = score_scan(res, truth)
     assert "normals" in res.notes[0]
@@ -124,9 +122,7 @@ def test_up_sign_from_the_crossings_at_low_noise(design, flip):
     res = inspect_cloud(pts * np.array([1.0, -1.0, -1.0]) if flip else pts, design)
     assert "GUESSED" in res.notes[0]
     assert (res.extras["cloud"]["up"][2] < 0) == flip  # up is the world's +z either way
-    assert (
-        res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
-    )
+    assert res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
 
 
 def test_diameter_criterion():
@@ -152,11 +148,7 @@ def test_bar_systems_of_other_markets_and_plain_bars():
                 "cover_mm": 25,
                 "layer_distance_mm": 90,
                 "lower": {"diameter_mm": 12.7, "spacing_mm": 200},
-                "upper": {
-                    "diameter_mm": 12.7,
-                    "spacing_mm": 200,
-                    "top": {"surface": "plain", "diameter_mm": 8},
-                },
+                "upper": {"diameter_mm": 12.7, "spacing_mm": 200, "top": {"surface": "plain", "diameter_mm": 8}},
             },
         }
     )
@@ -200,20 +192,13 @@ def test_cli_inspect_cloud_writes_results_with_manifest(design, tmp_path):
     data = json.loads((tmp_path / "out" / "scan" / "result.json").read_text())
     assert data["method"] == "cloud" and data["manifest"]["cloud_digest"].startswith("sha256:")
     assert data["measurements"]["cover"]["status"] == "measured"
-    assert all(
-        (tmp_path / "out" / "scan" / f).is_file()
-        for f in ("bars.csv", "spacings.csv", "counts.csv")
-    )
+    assert all((tmp_path / "out" / "scan" / f).is_file() for f in ("bars.csv", "spacings.csv", "counts.csv"))
 
 
 @pytest.mark.slow
 def test_diameters_where_the_noise_allows(design):
     pts, truth, _ = synth_scan(
-        design,
-        scanner=ScannerModel(
-            range_sigma_mm=0.5, step_az_deg=0.06, step_el_deg=0.06, mixed_fraction=0.2
-        ),
-        rng=0,
+        design, scanner=ScannerModel(range_sigma_mm=0.5, step_az_deg=0.06, step_el_deg=0.06, mixed_fraction=0.2), rng=0
     )
     bars = inspect_cloud(pts, design).bars
     sized = bars[bars["diameter_status"] == "measured"]
@@ -224,9 +209,7 @@ def test_diameters_where_the_noise_allows(design):
     # at sigma 10 mm nothing is sized, and each bar says why
     pts, truth, _ = _scan(design, 10.0, seed=0)
     bars = inspect_cloud(pts, design).bars
-    assert (bars["diameter_status"] == "not measured").all() and bars[
-        "diameter_reason"
-    ].str.len().min() > 10
+    assert (bars["diameter_status"] == "not measured").all() and bars["diameter_reason"].str.len().min() > 10
 
 
 @pytest.mark.slow
@@ -280,36 +263,12 @@ def test_report_of_a_slab_folder_of_clouds(design, tmp_path):
         )
         == 0
     )
-    assert (
-        main(
-            [
-                "report",
-                str(slab),
-                "--results",
-                str(tmp_path / "res"),
-                "--out",
-                str(tmp_path / "r.pdf"),
-            ]
-        )
-        == 0
-    )
+    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r.pdf")]) == 0
     assert (tmp_path / "r.pdf").stat().st_size > 10_000
     # a changed cloud is not the one the result was made from
     with open(slab / "bay1.ply", "ab") as f:
         f.write(b"\n")
-    assert (
-        main(
-            [
-                "report",
-                str(slab),
-                "--results",
-                str(tmp_path / "res"),
-                "--out",
-                str(tmp_path / "r2.pdf"),
-            ]
-        )
-        == 2
-    )
+    assert main(["report", str(slab), "--results", str(tmp_path / "res"), "--out", str(tmp_path / "r2.pdf")]) == 2
 
 
 @pytest.mark.slow
@@ -321,9 +280,7 @@ def test_outliers(design, fraction):
     # outliers above the mesh, swapped the upper lattice's levels)
     pts, truth, _ = synth_scan(
         design,
-        scanner=ScannerModel(
-            range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1, outlier_fraction=fraction
-        ),
+        scanner=ScannerModel(range_sigma_mm=10.0, step_az_deg=0.1, step_el_deg=0.1, outlier_fraction=fraction),
         rng=6,
     )
     res = inspect_cloud(pts, design)

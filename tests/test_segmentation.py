@@ -26,12 +26,7 @@ from rebarlib.segmentation import (
     soft_mask,
     trim_depth_overreach,
 )
-from rebarlib.synth_segmentation import (
-    DATASET_SEED,
-    split_indices,
-    synth_eval_regions,
-    synth_segmentation_capture,
-)
+from rebarlib.synth_segmentation import DATASET_SEED, split_indices, synth_eval_regions, synth_segmentation_capture
 
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
@@ -152,13 +147,7 @@ def _red_left_blue_right(h=50, w=80):
 
 def test_in_test_logit_model_with_scale_and_padding(tmp_path):
     sidecar = {
-        "input": {
-            "scale": 0.5,
-            "pad_to": 16,
-            "channel_order": "RGB",
-            "layout": "NCHW",
-            "dtype": "float32",
-        },
+        "input": {"scale": 0.5, "pad_to": 16, "channel_order": "RGB", "layout": "NCHW", "dtype": "float32"},
         "output": {"kind": "logits", "rebar_classes": [0], "threshold": 0.5},
     }
     path = _red_minus_blue_model(tmp_path, sidecar)
@@ -175,20 +164,14 @@ def test_in_test_logit_model_with_scale_and_padding(tmp_path):
 
 
 def test_in_test_model_bgr_swaps_the_answer(tmp_path):
-    sidecar = {
-        "input": {"scale": 1.0, "channel_order": "BGR"},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
+    sidecar = {"input": {"scale": 1.0, "channel_order": "BGR"}, "output": {"kind": "logits", "rebar_classes": [0]}}
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="bgr"))
     img, truth = _red_left_blue_right()
     assert np.array_equal(model.predict_mask(img), ~truth)
 
 
 def test_in_test_label_map_model_nhwc_uint8(tmp_path):
-    sidecar = {
-        "input": {"layout": "NHWC", "dtype": "uint8"},
-        "output": {"kind": "labels", "rebar_classes": [0]},
-    }
+    sidecar = {"input": {"layout": "NHWC", "dtype": "uint8"}, "output": {"kind": "labels", "rebar_classes": [0]}}
     model = SegmentationModel(_argmax_label_model(tmp_path, sidecar))
     img, truth = _red_left_blue_right()
     assert np.array_equal(model.predict_mask(img), truth)
@@ -196,9 +179,7 @@ def test_in_test_label_map_model_nhwc_uint8(tmp_path):
 
 def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
     sidecar = {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(
-        _red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40))
-    )
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40)))
     img, truth = _red_left_blue_right(100, 160)
     mask = model.predict_mask(img)
     assert mask.shape == (100, 160)
@@ -207,9 +188,7 @@ def test_in_test_model_fixed_size_resizes_to_full_resolution(tmp_path):
 
 def test_in_test_model_fixed_size_keeps_the_aspect_ratio_and_pads(tmp_path):
     sidecar = {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(
-        _red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40))
-    )
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="fixed", fixed=(25, 40)))
     assert model._input_size(160, 100) == (40, 25)  # the input's own aspect ratio: scaled
     assert model._input_size(160, 120) == (33, 25)  # 4:3 into 16:10: padded on the right
     assert model._input_size(100, 200) == (12, 25)  # portrait
@@ -223,10 +202,7 @@ def test_in_test_model_fixed_size_keeps_the_aspect_ratio_and_pads(tmp_path):
 
 
 def test_in_test_dynamic_model_keeps_the_pixel_scale_at_any_size(tmp_path):
-    sidecar = {
-        "input": {"scale": 0.5, "pad_to": 16},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
+    sidecar = {"input": {"scale": 0.5, "pad_to": 16}, "output": {"kind": "logits", "rebar_classes": [0]}}
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="dyn"))
     for h, w in ((480, 640), (301, 199), (3024, 4032)):
         assert model._input_size(w, h) == (round(w / 2), round(h / 2))
@@ -243,13 +219,8 @@ def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips)
     # the image's own resolution, every pixel gets exactly its own logit whatever tile it lies in
     # and however the overlapping tiles are blended; down-scaled to the input, a one-pixel red
     # line is averaged away with its blue neighbours
-    sidecar = {
-        "input": {"size": [40, 25], "flips": flips},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
-    model = SegmentationModel(
-        _red_minus_blue_model(tmp_path, sidecar, name="tiled" + "_".join(flips), fixed=(25, 40))
-    )
+    sidecar = {"input": {"size": [40, 25], "flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="tiled" + "_".join(flips), fixed=(25, 40)))
     img, _ = _red_left_blue_right(100, 160)
     img[:, 71] = (200, 0, 0)  # the edge one pixel right of the middle
     img[:, 123] = (200, 0, 0)  # a one-pixel red line in the blue half
@@ -268,30 +239,18 @@ def test_in_test_model_fixed_size_tiled_runs_at_full_resolution(tmp_path, flips)
 def test_in_test_model_tiles_are_down_scaled_where_bars_would_be_too_wide(tmp_path):
     # the sidecar says the model knows bars up to 10 input pixels wide: a 20 px bar halves the
     # tiles' resolution, a 40 px bar brings the image down to the input (the plain whole-image run)
-    sidecar = {
-        "input": {"size": [40, 25], "max_bar_px": 10},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
-    model = SegmentationModel(
-        _red_minus_blue_model(tmp_path, sidecar, name="maxbar", fixed=(25, 40))
-    )
+    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="maxbar", fixed=(25, 40)))
     assert model.tile_scale(None) == 1.0 and model.tile_scale(8) == 1.0
-    assert model.tile_scale(20) == pytest.approx(0.5) and model.tile_scale(40) == pytest.approx(
-        0.25
-    )
+    assert model.tile_scale(20) == pytest.approx(0.5) and model.tile_scale(40) == pytest.approx(0.25)
     img, _ = _red_left_blue_right(100, 160)
     img[:, 123] = (200, 0, 0)
     want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
     assert np.allclose(model.predict_proba(img, tiled=True, bar_width_px=8), want, atol=1e-5)
     half = model.predict_proba(img, tiled=True, bar_width_px=20)
     assert half.shape == (100, 160) and not np.allclose(half, want, atol=1e-2)
-    assert np.array_equal(
-        model.predict_proba(img, tiled=True, bar_width_px=40), model.predict_proba(img)
-    )
-    bad = {
-        "input": {"size": [40, 25], "max_bar_px": -3},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
+    assert np.array_equal(model.predict_proba(img, tiled=True, bar_width_px=40), model.predict_proba(img))
+    bad = {"input": {"size": [40, 25], "max_bar_px": -3}, "output": {"kind": "logits", "rebar_classes": [0]}}
     with pytest.raises(RebarInputError, match="max_bar_px"):
         SegmentationModel(_red_minus_blue_model(tmp_path, bad, name="badmax", fixed=(25, 40)))
 
@@ -301,10 +260,7 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     # the smaller ratio, 80 / 60 = 4/3, unless that makes its widest bar wider than the sidecar's
     # 10 px (an 8 px bar: 10 / 8 = 1.25); a bar too wide already shrinks it, as before. Images of
     # twice the input or more, and images no larger than the input, keep their scale.
-    sidecar = {
-        "input": {"size": [40, 25], "max_bar_px": 10},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
+    sidecar = {"input": {"size": [40, 25], "max_bar_px": 10}, "output": {"kind": "logits", "rebar_classes": [0]}}
     model = SegmentationModel(_red_minus_blue_model(tmp_path, sidecar, name="up", fixed=(25, 40)))
     assert model.tile_scale(None, (60, 32)) == pytest.approx(4 / 3)
     assert model.tile_scale(8, (60, 32)) == pytest.approx(1.25)
@@ -334,9 +290,7 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""
-    weight = helper.make_tensor(
-        "w", TensorProto.FLOAT, [1, 3, 1, 3], [1 / 16, 0, 0, 0, 0, 0, 0, 0, 0]
-    )
+    weight = helper.make_tensor("w", TensorProto.FLOAT, [1, 3, 1, 3], [1 / 16, 0, 0, 0, 0, 0, 0, 0, 0])
     bias = helper.make_tensor("b", TensorProto.FLOAT, [1], [-4.0])
     graph = helper.make_graph(
         [helper.make_node("Conv", ["image", "w", "b"], ["logit"], pads=[0, 1, 0, 1])],
@@ -348,16 +302,12 @@ def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     return _save(tmp_path, name, graph, sidecar)
 
 
-@pytest.mark.parametrize(
-    "flips, columns", [([], [21]), (["v"], [21]), (["h"], [19, 21]), (["h", "v", "hv"], [19, 21])]
-)
+@pytest.mark.parametrize("flips, columns", [([], [21]), (["v"], [21]), (["h"], [19, 21]), (["h", "v", "hv"], [19, 21])])
 def test_in_test_model_with_test_time_flips(tmp_path, flips, columns):
     # one red column at x = 20: the plain model marks x = 21 (logit 200/16 - 4 = 8.5); its mirror
     # image marks x = 19, and the mean of the two logits is 200/32 - 4 = 2.25 > 0 at both
     sidecar = {"input": {"flips": flips}, "output": {"kind": "logits", "rebar_classes": [0]}}
-    model = SegmentationModel(
-        _left_neighbour_model(tmp_path, sidecar, name="flips" + "_".join(flips))
-    )
+    model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="flips" + "_".join(flips)))
     img = np.zeros((30, 40, 3), np.uint8)
     img[:, 20, 0] = 200
     mask = model.predict_mask(img)
@@ -371,29 +321,20 @@ def test_in_test_model_tiles_get_the_test_time_flips(tmp_path):
     # the plain and the mirrored run, so the red column at x = 50 marks x = 49 and x = 51 with the
     # mean logit 2.25, as on a whole image (test above); flips=False runs each tile once (x = 51 only, 8.5).
     # x = 49-51 lie inside every 40 px tile that holds them (tiles start every 20 px)
-    sidecar = {
-        "input": {"size": [40, 25], "flips": ["h"]},
-        "output": {"kind": "logits", "rebar_classes": [0]},
-    }
+    sidecar = {"input": {"size": [40, 25], "flips": ["h"]}, "output": {"kind": "logits", "rebar_classes": [0]}}
     model = SegmentationModel(_left_neighbour_model(tmp_path, sidecar, name="tileflips"))
     img = np.zeros((100, 160, 3), np.uint8)
     img[:, 50, 0] = 200
     sig = lambda z: 1 / (1 + np.exp(-z))  # noqa: E731
     both = model.predict_proba(img, tiled=True)
     assert both.shape == (100, 160)
-    assert np.allclose(both[:, [49, 51]], sig(2.25), atol=1e-5) and np.allclose(
-        both[:, 55:100], sig(-4.0), atol=1e-5
-    )
+    assert np.allclose(both[:, [49, 51]], sig(2.25), atol=1e-5) and np.allclose(both[:, 55:100], sig(-4.0), atol=1e-5)
     once = model.predict_proba(img, tiled=True, flips=False)
-    assert np.allclose(once[:, 51], sig(8.5), atol=1e-5) and np.allclose(
-        once[:, 49], sig(-4.0), atol=1e-5
-    )
+    assert np.allclose(once[:, 51], sig(8.5), atol=1e-5) and np.allclose(once[:, 49], sig(-4.0), atol=1e-5)
     # an image of the input's size is scored whole, with its flip or without
     small = np.ascontiguousarray(img[:25, 30:70])
     assert np.allclose(model.predict_proba(small, tiled=True)[:, 19], sig(2.25), atol=1e-5)
-    assert np.allclose(
-        model.predict_proba(small, tiled=True, flips=False)[:, 19], sig(-4.0), atol=1e-5
-    )
+    assert np.allclose(model.predict_proba(small, tiled=True, flips=False)[:, 19], sig(-4.0), atol=1e-5)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -422,9 +363,7 @@ def test_corrupt_model_and_sidecar(tmp_path):
     with pytest.raises(RebarInputError, match=r"badjson\.json: output.kind"):
         SegmentationModel(path)
     for flips, kind in ((["x"], "logits"), (["h", "h"], "logits"), (["h"], "labels")):
-        (tmp_path / "badjson.json").write_text(
-            json.dumps({"input": {"flips": flips}, "output": {"kind": kind}})
-        )
+        (tmp_path / "badjson.json").write_text(json.dumps({"input": {"flips": flips}, "output": {"kind": kind}}))
         with pytest.raises(RebarInputError, match=r"badjson\.json: input.flips"):
             SegmentationModel(path)
 
@@ -432,29 +371,17 @@ def test_corrupt_model_and_sidecar(tmp_path):
 @pytest.mark.parametrize(
     "sidecar, message",
     [
-        (
-            {"input": {"size": [64, 64]}, "output": {"kind": "logits", "rebar_classes": [0]}},
-            "does not match",
-        ),
+        ({"input": {"size": [64, 64]}, "output": {"kind": "logits", "rebar_classes": [0]}}, "does not match"),
         ({"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}, "set input.size"),
         (
-            {
-                "input": {"size": [40, 25], "dtype": "uint8"},
-                "output": {"kind": "logits", "rebar_classes": [0]},
-            },
+            {"input": {"size": [40, 25], "dtype": "uint8"}, "output": {"kind": "logits", "rebar_classes": [0]}},
             "input.dtype",
         ),
         (
-            {
-                "input": {"size": [40, 25], "layout": "NHWC"},
-                "output": {"kind": "logits", "rebar_classes": [0]},
-            },
+            {"input": {"size": [40, 25], "layout": "NHWC"}, "output": {"kind": "logits", "rebar_classes": [0]}},
             "input.layout",
         ),
-        (
-            {"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [1]}},
-            "out of range",
-        ),
+        ({"input": {"size": [40, 25]}, "output": {"kind": "logits", "rebar_classes": [1]}}, "out of range"),
         ({"input": {"size": [40, 25], "name": "rgb"}, "output": {"kind": "logits"}}, "input.name"),
     ],
 )
@@ -467,9 +394,7 @@ def test_mismatched_sidecar(tmp_path, sidecar, message):
 
 def test_bad_color_input(tmp_path):
     model = SegmentationModel(
-        _red_minus_blue_model(
-            tmp_path, {"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}}
-        )
+        _red_minus_blue_model(tmp_path, {"input": {}, "output": {"kind": "logits", "rebar_classes": [0]}})
     )
     with pytest.raises(RebarInputError, match="color"):
         model.predict_mask(np.zeros((10, 10), np.uint8))
@@ -531,8 +456,7 @@ def test_depth_mask_and_plane_against_labels(fresh_captures):
     cap = fresh_captures[1]
     truth = cap.labels > 0
     angle, doff = _plane_error(
-        fit_formwork_plane(depth_to_points(cap.depth_mm, cap.intrinsics).points, rng=0),
-        cap.truth["formwork_plane"],
+        fit_formwork_plane(depth_to_points(cap.depth_mm, cap.intrinsics).points, rng=0), cap.truth["formwork_plane"]
     )
     assert angle < PLANE_MAX_ANGLE_DEG and doff < PLANE_MAX_OFFSET_MM
     dm = mask_from_depth(cap, rng=0)
@@ -570,21 +494,15 @@ def test_registration_finds_how_far_depth_lies_from_colour(fresh_captures, du, d
     cap = fresh_captures[0]
     depth = misregister(cap, du, dv).depth_mm
     dmask = mask_from_depth(depth, cap.intrinsics, rng=0)
-    eu, ev, cc = estimate_registration(
-        (cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0
-    )
+    eu, ev, cc = estimate_registration((cap.labels > 0).astype(np.float32), dmask, depth_valid=depth > 0)
     assert np.hypot(eu - du, ev - dv) <= REGISTRATION_MAX_ERR_PX
     assert cc > 0.8
 
 
 def test_registration_to_a_fraction_of_a_pixel(fresh_captures):
     cap = fresh_captures[1]
-    colour = shift_image(
-        (cap.labels > 0).astype(np.float32), -0.6, 1.4
-    )  # colour moved, depth stays
-    eu, ev, _ = estimate_registration(
-        colour, mask_from_depth(cap, rng=0), depth_valid=cap.depth_mm > 0
-    )
+    colour = shift_image((cap.labels > 0).astype(np.float32), -0.6, 1.4)  # colour moved, depth stays
+    eu, ev, _ = estimate_registration(colour, mask_from_depth(cap, rng=0), depth_valid=cap.depth_mm > 0)
     assert np.hypot(eu - 0.6, ev + 1.4) <= REGISTRATION_FRACTION_MAX_ERR_PX
 
 
@@ -733,17 +651,12 @@ def test_data_set_capture_with_ribs_in_relief_is_the_same_scene():
     relief = synth_segmentation_capture(5, intrinsics=quarter, rib_relief=True)
 
     def axes(c):
-        return [
-            (b["id"], b["axis_start_mm"], b["axis_end_mm"], b["diameter_mm"])
-            for b in c.truth["bars"]
-        ]
+        return [(b["id"], b["axis_start_mm"], b["axis_end_mm"], b["diameter_mm"]) for b in c.truth["bars"]]
 
     assert axes(smooth) == axes(relief)
     a, b = smooth.labels > 0, relief.labels > 0
     assert b.sum() < a.sum() and (b & ~a).sum() < 0.01 * b.sum()
     import cv2
 
-    edge = cv2.morphologyEx(
-        a.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)
-    ).astype(bool)
+    edge = cv2.morphologyEx(a.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)).astype(bool)
     assert ((a != b) & ~edge).sum() < 0.05 * (a != b).sum()

@@ -8,15 +8,7 @@ import pytest
 
 from rebarlib import GEMINI2, save_capture
 from rebarlib._camera import ray_directions
-from rebarlib.synth import (
-    Appearance,
-    CameraPose,
-    Deviations,
-    SensorModel,
-    make_scene,
-    rib_envelope_mm,
-    synth_capture,
-)
+from rebarlib.synth import Appearance, CameraPose, Deviations, SensorModel, make_scene, rib_envelope_mm, synth_capture
 
 IDEAL_DEPTH_TOL_MM = 0.01  # the issue's bound for the ideal sensor
 NOISE_STD_REL_TOL = 0.10  # measured noise std within 10 % of the model
@@ -43,12 +35,7 @@ def ideal(paper_design):
         tilt_deg=12,
         yaw_deg=20,
         deviations=Deviations(
-            position_sigma_mm=3,
-            height_sigma_mm=1,
-            mesh_yaw_deg=33,
-            spacers=False,
-            chairs=False,
-            ties=False,
+            position_sigma_mm=3, height_sigma_mm=1, mesh_yaw_deg=33, spacers=False, chairs=False, ties=False
         ),
         sensor=SensorModel.ideal(),
         intrinsics=GEMINI2.scaled(0.5),
@@ -121,28 +108,14 @@ def test_camera_pose_height_tilt_and_target():
     assert np.degrees(np.arccos(-axis[2])) == pytest.approx(15)
     hit = pose.centre + axis * (500 / -axis[2])
     assert hit[:2] == pytest.approx([100, -50])
-    assert np.allclose(pose.rotation @ pose.rotation.T, np.eye(3)) and np.linalg.det(
-        pose.rotation
-    ) == pytest.approx(1)
+    assert np.allclose(pose.rotation @ pose.rotation.T, np.eye(3)) and np.linalg.det(pose.rotation) == pytest.approx(1)
 
 
 @pytest.mark.parametrize("bias", [0.0, 8.0])
 def test_realistic_noise_matches_the_model(paper_design, bias):
-    sensor = SensorModel(
-        edge_hole_prob=0,
-        flying_pixel_prob=0,
-        edge_fatten_prob=0,
-        bias_mm_per_m2=bias,
-        quantize=False,
-    )
+    sensor = SensorModel(edge_hole_prob=0, flying_pixel_prob=0, edge_fatten_prob=0, bias_mm_per_m2=bias, quantize=False)
     ideal = SensorModel.ideal()
-    kw = dict(
-        height_mm=550,
-        tilt_deg=0,
-        deviations=Deviations.none(),
-        intrinsics=GEMINI2.scaled(0.5),
-        seed=2,
-    )
+    kw = dict(height_mm=550, tilt_deg=0, deviations=Deviations.none(), intrinsics=GEMINI2.scaled(0.5), seed=2)
     real = synth_capture(paper_design, sensor=sensor, **kw)
     exact = synth_capture(paper_design, sensor=ideal, **kw)
     form = cv2.erode((exact.labels == 0).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
@@ -163,12 +136,7 @@ def test_realistic_sensor_makes_holes_at_bar_edges(paper_design):
     cap = synth_capture(paper_design, height_mm=500, intrinsics=GEMINI2.scaled(0.5), seed=3)
     holes = cap.depth_mm == 0
     assert 0.01 < holes.mean() < 0.2
-    edges = (
-        cv2.morphologyEx(
-            (cap.labels > 0).astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)
-        )
-        > 0
-    )
+    edges = cv2.morphologyEx((cap.labels > 0).astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
     assert holes[edges].mean() > 5 * holes[~edges].mean()
 
 
@@ -193,17 +161,10 @@ def test_wider_edge_fattening_gives_the_background_the_nearer_depth_further_out(
 
 
 def test_same_seed_same_bytes(paper_design, tmp_path):
-    kw = dict(
-        height_mm=480,
-        tilt_deg=7,
-        intrinsics=GEMINI2.scaled(0.25),
-        appearance=Appearance(rust_fraction=0.5),
-    )
+    kw = dict(height_mm=480, tilt_deg=7, intrinsics=GEMINI2.scaled(0.25), appearance=Appearance(rust_fraction=0.5))
 
     def digest(folder):
-        return {
-            p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())
-        }
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
 
     a = save_capture(synth_capture(paper_design, seed=9, **kw), tmp_path / "a")
     b = save_capture(synth_capture(paper_design, seed=9, **kw), tmp_path / "b")
@@ -220,21 +181,7 @@ def test_cli_synth(tmp_path, capsys):
         '[slab]\nid="X"\n[design]\ncover_mm=15\nlayer_distance_mm=54\n'
         "[design.lower]\ndiameter_mm=8\nspacing_mm=150\n[design.upper]\ndiameter_mm=8\nspacing_mm=150\n"
     )
-    assert (
-        main(
-            [
-                "synth",
-                "--design",
-                str(design),
-                "--height",
-                "450",
-                "--seed",
-                "1",
-                str(tmp_path / "cap"),
-            ]
-        )
-        == 0
-    )
+    assert main(["synth", "--design", str(design), "--height", "450", "--seed", "1", str(tmp_path / "cap")]) == 0
     assert "cover 1" in capsys.readouterr().out
     assert (tmp_path / "cap" / "truth.json").is_file()
     assert main(["synth", "--design", str(design), str(tmp_path / "cap")]) == 2  # never overwrites
@@ -247,9 +194,7 @@ def test_pixel_samples_mix_colours_at_edges_only(paper_design, tmp_path):
     # and truth (about pixel centres) stay those of the one-ray render
     kw = dict(height_mm=480, tilt_deg=7, intrinsics=GEMINI2.scaled(0.25), seed=4)
     one = synth_capture(paper_design, appearance=Appearance(noise_sigma=0.0), **kw)
-    many = synth_capture(
-        paper_design, appearance=Appearance(noise_sigma=0.0, pixel_samples=3), **kw
-    )
+    many = synth_capture(paper_design, appearance=Appearance(noise_sigma=0.0, pixel_samples=3), **kw)
     a = save_capture(one, tmp_path / "a")
     b = save_capture(many, tmp_path / "b")
     for name in ("depth.png", "labels.png", "bar_ids.png"):
@@ -297,11 +242,7 @@ def test_ribs_in_relief_reach_the_envelope_only_at_their_crests():
     def cast(x, y):
         o = np.array([[x, y, z0 + 50.0]])
         t, n, hit = _ray_relief(
-            o,
-            np.array([[0.0, 0.0, -1.0]]),
-            np.array([[-96.0, 0, z0]]),
-            np.array([[100.0, 0, z0]]),
-            rib[None],
+            o, np.array([[0.0, 0.0, -1.0]]), np.array([[-96.0, 0, z0]]), np.array([[100.0, 0, z0]]), rib[None]
         )
         return t[0], n[0], bool(hit[0])
 
@@ -318,25 +259,13 @@ def test_ribs_in_relief_reach_the_envelope_only_at_their_crests():
 def test_ribs_in_relief_leave_smooth_renders_alone_and_narrow_the_silhouette(paper_design):
     """rib_relief draws the same scene (same bars, same truth) with a silhouette between the core
     and the envelope; without it the render is the envelope's, as before."""
-    kw = dict(
-        height_mm=450,
-        tilt_deg=0,
-        sensor=SensorModel.ideal(),
-        intrinsics=GEMINI2.scaled(0.5),
-        seed=3,
-    )
-    smooth = synth_capture(
-        paper_design, deviations=Deviations(spacers=False, chairs=False, ties=False), **kw
-    )
+    kw = dict(height_mm=450, tilt_deg=0, sensor=SensorModel.ideal(), intrinsics=GEMINI2.scaled(0.5), seed=3)
+    smooth = synth_capture(paper_design, deviations=Deviations(spacers=False, chairs=False, ties=False), **kw)
     relief = synth_capture(
-        paper_design,
-        deviations=Deviations(spacers=False, chairs=False, ties=False, rib_relief=True),
-        **kw,
+        paper_design, deviations=Deviations(spacers=False, chairs=False, ties=False, rib_relief=True), **kw
     )
     same = ("id", "axis_start_mm", "axis_end_mm", "envelope_mm", "underside_mm")
-    assert [[b[k] for k in same] for b in relief.truth["bars"]] == [
-        [b[k] for k in same] for b in smooth.truth["bars"]
-    ]
+    assert [[b[k] for k in same] for b in relief.truth["bars"]] == [[b[k] for k in same] for b in smooth.truth["bars"]]
     a_s, a_r = (smooth.labels > 0).sum(), (relief.labels > 0).sum()
     # the bars' image area shrinks by about the share of the silhouette between ribs, which is
     # below the envelope: between the core's (d1 / (d1 + 2h), 0.83 for Φ12) and 1

@@ -20,9 +20,7 @@ INDEX = 301  # a training-only index (300 and up are never validation or test ca
 @pytest.fixture(scope="module")
 def t():
     """The training script as a module (it is not in a package)."""
-    spec = importlib.util.spec_from_file_location(
-        "train_segmentation", ROOT / "training" / "train_segmentation.py"
-    )
+    spec = importlib.util.spec_from_file_location("train_segmentation", ROOT / "training" / "train_segmentation.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -74,9 +72,7 @@ def test_full_renders_are_kept_for_training_captures_only(t):
 @pytest.fixture(scope="module")
 def dr():
     """The domain-randomised compositor (training/domain_random.py) as a module."""
-    spec = importlib.util.spec_from_file_location(
-        "domain_random", ROOT / "training" / "domain_random.py"
-    )
+    spec = importlib.util.spec_from_file_location("domain_random", ROOT / "training" / "domain_random.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

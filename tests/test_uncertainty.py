@@ -132,9 +132,7 @@ def test_inputs_are_rectangular_standard_uncertainties_of_the_limits():
 # ------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "field, err", [("u_scale", 0.01), ("u_offset_mm", 5.0), ("u_quad_mm_per_m2", 20.0)]
-)
+@pytest.mark.parametrize("field, err", [("u_scale", 0.01), ("u_offset_mm", 5.0), ("u_quad_mm_per_m2", 20.0)])
 def test_length_sensitivities_match_the_depth_error_model(field, err):
     # two points 200 mm apart across the line of sight at depth Z, read through the error
     L = 200.0
@@ -147,8 +145,7 @@ def test_length_sensitivities_match_the_depth_error_model(field, err):
 
 
 @pytest.mark.parametrize(
-    "field, err, first_order",
-    [("u_scale", 0.01, True), ("u_offset_mm", 5.0, True), ("u_quad_mm_per_m2", 20.0, False)],
+    "field, err, first_order", [("u_scale", 0.01, True), ("u_offset_mm", 5.0, True), ("u_quad_mm_per_m2", 20.0, False)]
 )
 def test_height_sensitivities_match_the_depth_error_model(field, err, first_order):
     # a height along the line of sight: two depths h apart, read through the error
@@ -175,14 +172,10 @@ def test_focal_length_stretches_lengths_not_heights_seen_square_on():
 
 
 def test_combined_is_the_root_sum_of_squares_and_keeps_the_random_term():
-    terms = height_terms(
-        85.0, 0.3, _inputs(u_scale=0.004), depth_mm=Z, tilt_deg=0.0, envelope_mm=0.15
-    )
+    terms = height_terms(85.0, 0.3, _inputs(u_scale=0.004), depth_mm=Z, tilt_deg=0.0, envelope_mm=0.15)
     expected = math.sqrt(0.3**2 + (85 * 0.004) ** 2 + 0.15**2)
     assert combine(terms) == pytest.approx(expected)
-    assert (
-        _term(terms, "fits").kind == "random" and _term(terms, "depth scale").kind == "systematic"
-    )
+    assert _term(terms, "fits").kind == "random" and _term(terms, "depth scale").kind == "systematic"
 
 
 def test_registration_reaches_a_width_through_the_pixel_size():
@@ -260,18 +253,13 @@ def test_apply_budget_keeps_every_value_and_records_every_term(paper_design):
         "rib envelope (spread between mills)",
         "assumed bar shape",
     }
-    assert (
-        res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4)
-        and res.cover.uncertainty_mm > 0.05
-    )
+    assert res.cover.uncertainty_mm == pytest.approx(cover["u_mm"], abs=1e-4) and res.cover.uncertainty_mm > 0.05
     assert cover["U_mm"] == pytest.approx(2 * cover["u_mm"], abs=2e-4)
     # the depth errors act on what the camera sees: a lower bar's top (cover + its envelope,
     # Φ14: 16.2 mm), the upper bars' tops over the lower bars' (layer distance + 13.9 - 16.2)
     ld = {t["term"]: t["contribution_mm"] for t in ub["measurements"]["layer_distance"]["terms"]}
     cv = {t["term"]: t["contribution_mm"] for t in cover["terms"]}
-    assert ld["depth scale"] == pytest.approx(
-        cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3
-    )
+    assert ld["depth scale"] == pytest.approx(cv["depth scale"] * (85.3 + 13.9 - 16.2) / (20.4 + 16.2), rel=1e-3)
     # the assumed shape moves both lattices' undersides alike: only the rib heights' difference
     # (Φ14 against Φ12) is left in the layer distance
     assert 0 < ld["assumed bar shape"] < 0.25 * cv["assumed bar shape"]
@@ -302,10 +290,7 @@ def _meas(v, u):
 
 
 def _slab(cover, u_cover, spacing=None, u_sp=None):
-    r = {
-        "capture": "A",
-        "measurements": {"cover": _meas(cover, u_cover), "layer_distance": _meas(85.0, 0.3)},
-    }
+    r = {"capture": "A", "measurements": {"cover": _meas(cover, u_cover), "layer_distance": _meas(85.0, 0.3)}}
     if spacing is not None:
         r["spacings"] = [
             {
@@ -356,10 +341,7 @@ def test_simple_acceptance_marks_a_straddling_interval_but_keeps_the_verdict(pap
 
 def test_beyond_not_proven_and_a_clear_within(paper_design):
     acc = evaluate([_slab(paper_design.cover_mm + 3.3, 0.4)], paper_design)
-    assert (
-        _cp(acc, "cover")["decision"] == "beyond, not proven"
-        and _cp(acc, "cover")["status"] == "beyond"
-    )
+    assert _cp(acc, "cover")["decision"] == "beyond, not proven" and _cp(acc, "cover")["status"] == "beyond"
     acc = evaluate([_slab(paper_design.cover_mm + 0.5, 0.4)], paper_design)
     assert _cp(acc, "cover")["decision"] == "within" and _cp(acc, "cover")["risk"] < 1e-6
 
@@ -367,9 +349,7 @@ def test_beyond_not_proven_and_a_clear_within(paper_design):
 def test_guarded_acceptance_narrows_the_limit_by_U(paper_design):
     from dataclasses import replace
 
-    guarded = replace(
-        paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"}
-    )
+    guarded = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "guarded"})
     # within by 0.4 mm < U = 0.8: accepted under simple acceptance, not under guarded acceptance
     simple = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], paper_design)
     g = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], guarded)

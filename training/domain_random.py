@@ -90,13 +90,7 @@ def tex_concrete(rng, h, w):
 def tex_wood(rng, h, w, film=False):
     if film:
         base = rng.choice(
-            [
-                (0.35, 0.2, 0.12),
-                (0.12, 0.1, 0.09),
-                (0.5, 0.35, 0.1),
-                (0.45, 0.12, 0.08),
-                (0.6, 0.55, 0.4),
-            ]
+            [(0.35, 0.2, 0.12), (0.12, 0.1, 0.09), (0.5, 0.35, 0.1), (0.45, 0.12, 0.08), (0.6, 0.55, 0.4)]
         )
         c = _colour(rng, base, 0.2)
         img = c * (1 + 0.08 * fractal(rng, h, w, rng.uniform(50, 400)))[..., None]
@@ -121,11 +115,7 @@ def tex_wood(rng, h, w, film=False):
 
 
 def tex_plastic(rng, h, w):
-    c = _colour(
-        rng,
-        rng.choice([(0.05, 0.05, 0.06), (0.15, 0.3, 0.6), (0.85, 0.85, 0.85), (0.6, 0.62, 0.6)]),
-        0.15,
-    )
+    c = _colour(rng, rng.choice([(0.05, 0.05, 0.06), (0.15, 0.3, 0.6), (0.85, 0.85, 0.85), (0.6, 0.62, 0.6)]), 0.15)
     ridges = 1 - np.abs(fractal(rng, h, w, rng.uniform(30, 200), 3))
     img = c * (0.7 + 0.3 * ridges)[..., None]
     return img + (np.clip(ridges - 0.8, 0, 1) * rng.uniform(0, 2))[..., None]
@@ -167,9 +157,7 @@ def tex_grass(rng, h, w):
     for _ in range(min(3000, int(h * w / rng.uniform(40, 400)))):
         x, y = rng.uniform(0, w), rng.uniform(0, h)
         ln, a = rng.uniform(5, 40), rng.normal(-math.pi / 2, 0.6)
-        col = _colour(
-            rng, rng.choice([(0.2, 0.45, 0.1), (0.55, 0.55, 0.25), (0.4, 0.35, 0.2)]), 0.3, 0.0
-        )
+        col = _colour(rng, rng.choice([(0.2, 0.45, 0.1), (0.55, 0.55, 0.25), (0.4, 0.35, 0.2)]), 0.3, 0.0)
         cv2.line(
             img,
             (int(x), int(y)),
@@ -207,25 +195,11 @@ def tex_sky(rng, h, w):
         wc = tuple(float(v) for v in _colour(rng, (0.3, 0.35, 0.4), 0.5))
         for yy in np.arange(y0 + pitch / 2, h, pitch):
             for xx in np.arange(x0 + pitch / 2, x1 - pitch / 2, pitch):
-                cv2.rectangle(
-                    img, (int(xx), int(yy)), (int(xx + pitch / 2), int(yy + pitch / 2)), wc, -1
-                )
+                cv2.rectangle(img, (int(xx), int(yy)), (int(xx + pitch / 2), int(yy + pitch / 2)), wc, -1)
     return img
 
 
-GROUNDS = (
-    "concrete",
-    "plywood",
-    "film",
-    "plastic",
-    "soil",
-    "sand",
-    "gravel",
-    "grass",
-    "steel_deck",
-    "sawdust",
-    "snow",
-)
+GROUNDS = ("concrete", "plywood", "film", "plastic", "soil", "sand", "gravel", "grass", "steel_deck", "sawdust", "snow")
 
 
 def texture(rng, h, w, kind):
@@ -318,9 +292,7 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
     d /= length
     n = np.float32([-d[1], d[0]])
     r = max(w0, w1) * 0.62 + 2
-    corners = np.stack(
-        [p0 - d * 2 + n * r, p1 + d * 2 + n * r, p1 + d * 2 - n * r, p0 - d * 2 - n * r]
-    )
+    corners = np.stack([p0 - d * 2 + n * r, p1 + d * 2 + n * r, p1 + d * 2 - n * r, p0 - d * 2 - n * r])
     x0, y0 = np.maximum(np.floor(corners.min(0)).astype(int), 0)
     x1, y1 = np.minimum(np.ceil(corners.max(0)).astype(int) + 1, [w, h])
     if x0 >= x1 or y0 >= y1:
@@ -339,11 +311,7 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
         phase = (s + t * style["rib_angle"]) / period
         rib = np.maximum(0, np.cos(2 * np.pi * phase)) ** 3
         hw = hw * (1 + style["rib_height"] * rib)
-    cov = (
-        np.clip(hw - np.abs(t) + 0.5, 0, 1)
-        * np.clip(s + 0.5, 0, 1)
-        * np.clip(length - s + 0.5, 0, 1)
-    )
+    cov = np.clip(hw - np.abs(t) + 0.5, 0, 1) * np.clip(s + 0.5, 0, 1) * np.clip(length - s + 0.5, 0, 1)
     keep = cov > 0
     s, t, hw, rib, cov, ys, xs = (a[keep] for a in (s, t, hw, rib, cov, ys, xs))
     u = np.clip(t / np.maximum(hw, 0.5), -1, 1)
@@ -355,9 +323,7 @@ def draw_strip(img, cover, p0, p1, w0, w1, style, light, tile, rng):
     tex = tile[ti]
     col = style["albedo"] * (1 + style["contrast"] * tex)[:, None]
     if style.get("rust", 0) > 0:
-        patch = np.clip(
-            (tile[(ti[0] // 7 + 31) % T, (ti[1] // 7 + 53) % T] + 1 - 2 * style["rust"]) * 3, 0, 1
-        )[:, None]
+        patch = np.clip((tile[(ti[0] // 7 + 31) % T, (ti[1] // 7 + 53) % T] + 1 - 2 * style["rust"]) * 3, 0, 1)[:, None]
         col = col * (1 - patch) + RUST * (1 + 0.3 * tex)[:, None] * patch
     if style.get("splash"):
         sp = (tile[(ti[0] // 3 + 11) % T, (ti[1] // 3 + 7) % T] > 0.9)[:, None]
@@ -408,9 +374,7 @@ def _homography(rng, size, tilt):
     k = rng.uniform(0.8, 1.25)
     half = size / 2
     rot = np.array([[c * k, -s * k, 0], [s * k, c * k, 0], [0, 0, 1]])
-    persp = np.array(
-        [[1, 0, 0], [0, 1, 0], [rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), 1]]
-    )
+    persp = np.array([[1, 0, 0], [0, 1, 0], [rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), 1]])
     shift = np.array([[1, 0, half], [0, 1, half], [0, 0, 1]])
     return shift @ persp @ rot
 
@@ -565,11 +529,7 @@ def _light(rng, mode):
         light.update(ambient=rng.uniform(0.15, 0.45), diffuse=rng.uniform(0.7, 1.1))
     elif mode == "flash":
         light.update(
-            ambient=rng.uniform(0.1, 0.3),
-            diffuse=rng.uniform(0.8, 1.2),
-            lx=0.0,
-            lz=1.0,
-            u_spec=rng.normal(0, 0.1),
+            ambient=rng.uniform(0.1, 0.3), diffuse=rng.uniform(0.8, 1.2), lx=0.0, lz=1.0, u_spec=rng.normal(0, 0.1)
         )
     else:  # night floodlight
         light.update(
@@ -589,21 +549,12 @@ def _soft_shapes(rng, size, n, big=True):
             a, c = rng.uniform(0, 2 * math.pi), rng.uniform(0.2, 0.8) * size
             yy, xx = np.mgrid[0:size, 0:size]
             m = np.maximum(
-                m,
-                (
-                    (xx - size / 2) * math.cos(a) + (yy - size / 2) * math.sin(a) > c - size / 2
-                ).astype(np.float32),
+                m, ((xx - size / 2) * math.cos(a) + (yy - size / 2) * math.sin(a) > c - size / 2).astype(np.float32)
             )
         elif kind < 0.7:  # a person: head, body, legs
             x, y, s = rng.uniform(0, size), rng.uniform(0, size), rng.uniform(0.1, 0.5) * size
             cv2.ellipse(m, (int(x), int(y)), (int(s * 0.12), int(s * 0.15)), 0, 0, 360, 1, -1)
-            cv2.rectangle(
-                m,
-                (int(x - s * 0.18), int(y + s * 0.12)),
-                (int(x + s * 0.18), int(y + s * 0.6)),
-                1,
-                -1,
-            )
+            cv2.rectangle(m, (int(x - s * 0.18), int(y + s * 0.12)), (int(x + s * 0.18), int(y + s * 0.6)), 1, -1)
             for lx in (-0.1, 0.1):
                 cv2.line(
                     m,
@@ -666,24 +617,12 @@ def add_clutter(img, cover, rng, light, tile, n, over):
             col = _colour(rng, (0.2, 0.2, 0.22), 0.3)
         elif kind in ("spacer", "boot"):
             cv2.ellipse(
-                layer,
-                (int(x), int(y)),
-                (int(s * 0.3), int(s * 0.2)),
-                rng.uniform(0, 180),
-                0,
-                360,
-                1,
-                -1,
-                cv2.LINE_AA,
+                layer, (int(x), int(y)), (int(s * 0.3), int(s * 0.2)), rng.uniform(0, 180), 0, 360, 1, -1, cv2.LINE_AA
             )
             if kind == "boot":
                 col = _colour(rng, (0.1, 0.1, 0.1), 0.5, 0.2)
         else:  # timber, board or tag, tool: a rotated rectangle (a tool: two)
-            rect = (
-                (x, y),
-                (s * rng.uniform(0.3, 3), s * rng.uniform(0.1, 0.6)),
-                rng.uniform(0, 180),
-            )
+            rect = ((x, y), (s * rng.uniform(0.3, 3), s * rng.uniform(0.1, 0.6)), rng.uniform(0, 180))
             cv2.fillPoly(layer, [cv2.boxPoints(rect).astype(np.int32)], 1, cv2.LINE_AA)
             if kind == "tool":
                 rect2 = ((x, y), (s * 0.2, s * 0.8), rect[2])
@@ -712,14 +651,7 @@ def _cast_bar_shadows(img, bars, rng, light):
     for p0, p1, w0, w1, _ in bars:
         a, b = np.asarray(p0) + off, np.asarray(p1) + off
         if np.all(np.abs(np.r_[a, b]) < 1e5):
-            cv2.line(
-                m,
-                tuple(int(v) for v in a),
-                tuple(int(v) for v in b),
-                1,
-                max(1, int((w0 + w1) / 2)),
-                cv2.LINE_AA,
-            )
+            cv2.line(m, tuple(int(v) for v in a), tuple(int(v) for v in b), 1, max(1, int((w0 + w1) / 2)), cv2.LINE_AA)
     m = cv2.GaussianBlur(m, (0, 0), rng.uniform(0.5, 3) + dist / 15)
     img *= (1 - rng.uniform(0.3, 0.7) * m)[..., None]
 
@@ -728,9 +660,7 @@ def _apply_light(img, rng, light):
     size = img.shape[0]
     mode = light["mode"]
     if mode == "sun" and rng.random() < 0.7:
-        m = cv2.GaussianBlur(
-            _soft_shapes(rng, size, int(rng.integers(1, 4))), (0, 0), rng.uniform(0.7, 8)
-        )
+        m = cv2.GaussianBlur(_soft_shapes(rng, size, int(rng.integers(1, 4))), (0, 0), rng.uniform(0.7, 8))
         sky = np.float32([0.75, 0.85, 1.1])
         img *= 1 - (m * rng.uniform(0.4, 0.75))[..., None] * (2 - sky)
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float32) / size - 0.5
@@ -799,12 +729,7 @@ def scene(index, seed=DR_SEED, size=FULL):
     names = list(LAYOUTS)
     kind = names[int(rng.choice(len(names), p=[LAYOUTS[k][1] for k in names]))]
     bars, behind = LAYOUTS[kind][0](rng, size) if LAYOUTS[kind][0] else ([], "ground")
-    light = _light(
-        rng,
-        str(
-            rng.choice(["overcast", "sun", "sun", "flash", "night"], p=[0.3, 0.25, 0.2, 0.13, 0.12])
-        ),
-    )
+    light = _light(rng, str(rng.choice(["overcast", "sun", "sun", "flash", "night"], p=[0.3, 0.25, 0.2, 0.13, 0.12])))
     if behind == "sky":
         img = texture(rng, size, size, "sky")
         if rng.random() < 0.6:  # ground or a wall below a horizon
@@ -846,11 +771,7 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92) -> bo
     rgb, mask = scene(index, seed, size)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
-    cv2.imwrite(
-        str(tmp),
-        mask.astype(np.uint8) * 255,
-        [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1],
-    )
+    cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
     tmp.replace(f_mask)
     tmp = f_img.with_suffix(".tmp.jpg")
     cv2.imwrite(str(tmp), small[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])

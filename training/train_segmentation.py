@@ -96,9 +96,7 @@ def _render_one(job):
         lab = cap.labels > 0
         tmp_mask = f_mask.with_suffix(".tmp.png")
         cv2.imwrite(
-            str(tmp_mask),
-            lab.astype(np.uint8) * 255,
-            [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1],
+            str(tmp_mask), lab.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1]
         )  # 1 bit per pixel
         tmp_mask.replace(f_mask)
     return key
@@ -138,18 +136,14 @@ def cmd_data(args):
         "train": [int(i) for i in split["train"]]
         + list(range(args.n, first_relief))
         + [f"{i}r" for i in range(first_relief, first_relief + args.relief)],
-        "val": [int(i) for i in split["val"]]
-        + [f"{int(i)}r" for i in split["val"][: args.relief_val]],
+        "val": [int(i) for i in split["val"]] + [f"{int(i)}r" for i in split["val"][: args.relief_val]],
         "test": [int(i) for i in split["test"]],
     }
     # smooth captures first (quick), then the relief ones
     wanted = sorted(split["train"] + split["val"], key=lambda k: _entry(k)[::-1])
     t0 = time.time()
     full = _full_renders(split, args.relief_full, args.full)
-    jobs = [
-        (i, work / "data", args.jpeg_quality, args.relief_label, i in full, args.full_quality)
-        for i in wanted
-    ]
+    jobs = [(i, work / "data", args.jpeg_quality, args.relief_label, i in full, args.full_quality) for i in wanted]
     with ProcessPoolExecutor(args.jobs) as ex:
         for n, _ in enumerate(ex.map(_render_one, jobs, chunksize=4)):
             if n % 20 == 0:
@@ -178,9 +172,7 @@ def _load_dr(folder: Path, val_every: int):
     import cv2
 
     stems = sorted(
-        p.stem
-        for p in folder.glob("*.jpg")
-        if not p.stem.endswith(".tmp") and (folder / f"{p.stem}.png").exists()
+        p.stem for p in folder.glob("*.jpg") if not p.stem.endswith(".tmp") and (folder / f"{p.stem}.png").exists()
     )
     imgs = [cv2.imread(str(folder / f"{s}.jpg"))[:, :, ::-1] for s in stems]
     masks = [cv2.imread(str(folder / f"{s}.png"), cv2.IMREAD_GRAYSCALE) > 0 for s in stems]
@@ -241,9 +233,7 @@ def build_model(arch: str):
             self.full = cbr(3, 8)
             self.e1 = nn.Sequential(cbr(3, 16, s=2), cbr(16, 16))
             self.e2 = nn.Sequential(cbr(16, 32, s=2), cbr(32, 32))
-            self.e3 = nn.Sequential(
-                cbr(32, 64, s=2), cbr(64, 64), cbr(64, 64, d=2), cbr(64, 64, d=4)
-            )
+            self.e3 = nn.Sequential(cbr(32, 64, s=2), cbr(64, 64), cbr(64, 64, d=2), cbr(64, 64, d=4))
             self.d2 = cbr(96, 32)
             self.d1 = cbr(48, 16)
             self.d0 = cbr(24, 8)
@@ -280,9 +270,7 @@ def build_model(arch: str):
             self.a1 = ds(c96, c48, d=2)
             self.a2 = ds(c96, c48, d=4)
             self.a3 = ds(c96, c48, d=8)
-            self.pool = nn.Sequential(
-                nn.AdaptiveAvgPool2d(1), nn.Conv2d(c96, c48, 1), nn.ReLU(inplace=True)
-            )
+            self.pool = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Conv2d(c96, c48, 1), nn.ReLU(inplace=True))
             self.proj = cbr(5 * c48, c64, k=1)
             self.low = cbr(c24, 16, k=1)
             self.dec = nn.Sequential(ds(c64 + 16, c48), ds(c48, c48))
@@ -355,9 +343,9 @@ def _shadow(x, g):
     )
     th = r(B) * 2 * math.pi
     cx, cy = r(B) * W, r(B) * H
-    d = (xx[None] - cx[:, None, None]) * torch.cos(th)[:, None, None] + (
-        yy[None] - cy[:, None, None]
-    ) * torch.sin(th)[:, None, None]
+    d = (xx[None] - cx[:, None, None]) * torch.cos(th)[:, None, None] + (yy[None] - cy[:, None, None]) * torch.sin(th)[
+        :, None, None
+    ]
     band = r(B) < 0.5  # a band (a shadow of a bar or a board) rather than a half-plane
     half_w = 4 + r(B) * 60
     d = torch.where(band[:, None, None], half_w[:, None, None] - d.abs(), d)
@@ -380,9 +368,7 @@ def _colour_jitter(x, g):
 
     B, dev = x.shape[0], x.device
     r = lambda *shape: torch.rand(*shape, generator=g, device=dev)  # noqa: E731
-    grey = (x * torch.tensor([0.299, 0.587, 0.114], device=dev).view(1, 3, 1, 1)).sum(
-        1, keepdim=True
-    )
+    grey = (x * torch.tensor([0.299, 0.587, 0.114], device=dev).view(1, 3, 1, 1)).sum(1, keepdim=True)
     sat = 0.4 + 1.2 * r(B, 1, 1, 1)
     sat = torch.where(r(B, 1, 1, 1) < 0.1, torch.zeros_like(sat), sat)
     x = grey + sat * (x - grey)
@@ -434,15 +420,9 @@ def _batch(imgs, masks, g, size, bs, zoom=0.0, full=None, colour=False):
             im, m = im.transpose(0, 1), m.transpose(0, 1)
         im, m = im.permute(2, 0, 1).float(), m[None].float()
         if c != size:
-            mode = (
-                dict(mode="area")
-                if im.shape[-1] > size
-                else dict(mode="bilinear", align_corners=False)
-            )
+            mode = dict(mode="area") if im.shape[-1] > size else dict(mode="bilinear", align_corners=False)
             im = F.interpolate(im[None], size=(size, size), **mode)[0]
-            m = F.interpolate(
-                m[None], size=(2 * size, 2 * size), mode="bilinear", align_corners=False
-            )[0]
+            m = F.interpolate(m[None], size=(2 * size, 2 * size), mode="bilinear", align_corners=False)[0]
         xs.append(im)
         ys.append(m)
     x = torch.stack(xs)
@@ -541,9 +521,7 @@ def state_from_onnx(model, onnx_path):
         path = node.name.split("/")[-2]  # the conv's module: "l1.0.0", "head", ...
         w, b = inits[node.input[1]], inits[node.input[2]]
         if f"{path}.weight" not in own or tuple(own[f"{path}.weight"].shape) != w.shape:
-            raise ValueError(
-                f"{onnx_path}: Conv {node.name} matches no convolution of this architecture"
-            )
+            raise ValueError(f"{onnx_path}: Conv {node.name} matches no convolution of this architecture")
         state[f"{path}.weight"] = torch.from_numpy(w.copy())
         head, _, last = path.rpartition(".")
         bn = f"{head}.{int(last) + 1}" if last.isdigit() else None
@@ -557,9 +535,7 @@ def state_from_onnx(model, onnx_path):
             state[f"{bn}.running_var"] = torch.full_like(own[f"{bn}.running_var"], 1 - eps)
             done.add(bn)
         else:
-            raise ValueError(
-                f"{onnx_path}: Conv {node.name} has a bias but its module has neither bias nor batch norm"
-            )
+            raise ValueError(f"{onnx_path}: Conv {node.name} has a bias but its module has neither bias nor batch norm")
         done.add(path)
     missing = sorted({k.rsplit(".", 1)[0] for k in own} - done)
     if missing:
@@ -582,9 +558,7 @@ def cmd_train(args):
     import torch
     import torch.nn.functional as F
 
-    dev = torch.device(
-        args.device if args.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
-    )
+    dev = torch.device(args.device if args.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu"))
     if dev.type == "cpu":
         torch.set_num_threads(args.threads)
     torch.manual_seed(TRAIN_SEED)
@@ -608,8 +582,7 @@ def cmd_train(args):
     if args.full_zoom:
         full = {k: torch.from_numpy(a).to(dev) for k, a in _load_full(work, "train").items()}
         print(
-            f"--full-zoom: {len(full)} training captures' enlarged crops from their full-resolution render",
-            flush=True,
+            f"--full-zoom: {len(full)} training captures' enlarged crops from their full-resolution render", flush=True
         )
     model = build_model(args.arch).to(dev)
     if args.init:
@@ -630,23 +603,18 @@ def cmd_train(args):
     if args.init_onnx:
         model.load_state_dict(state_from_onnx(model, args.init_onnx))
         print(f"init from {args.init_onnx} (batch norms folded into the convolutions)", flush=True)
-    if (
-        dev.type == "cuda"
-    ):  # channels-last convolutions, cuDNN's fastest algorithms for the crop size
+    if dev.type == "cuda":  # channels-last convolutions, cuDNN's fastest algorithms for the crop size
         model = model.to(memory_format=torch.channels_last)
         torch.backends.cudnn.benchmark = True
     _train_mode(model, args.freeze_bn)
     n_params = sum(p.numel() for p in model.parameters())
     print(
-        f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, "
-        f"device {dev}",
+        f"{tag}: {args.arch}, {n_params} parameters, {len(imgs)} train / {len(vimgs)} val captures, device {dev}",
         flush=True,
     )
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=1e-4)
     amp = (
-        dict(device_type="cuda", dtype=torch.bfloat16)
-        if dev.type == "cuda"
-        else dict(device_type="cpu", enabled=False)
+        dict(device_type="cuda", dtype=torch.bfloat16) if dev.type == "cuda" else dict(device_type="cpu", enabled=False)
     )
     budget = args.minutes * 60
     t0 = time.time()
@@ -663,16 +631,7 @@ def cmd_train(args):
         for grp in opt.param_groups:
             grp["lr"] = lr
         n_dr = int(round(args.batch * args.dr_share)) if dr is not None else 0
-        x, y = _batch(
-            imgs,
-            masks,
-            g,
-            args.crop,
-            args.batch - n_dr,
-            zoom=args.zoom,
-            full=full,
-            colour=args.colour,
-        )
+        x, y = _batch(imgs, masks, g, args.crop, args.batch - n_dr, zoom=args.zoom, full=full, colour=args.colour)
         if n_dr:
             xd, yd = _batch(dr[0], dr[1], g, args.crop, n_dr, zoom=args.zoom, colour=args.colour)
             x, y = torch.cat([x, xd]), torch.cat([y, yd])
@@ -688,9 +647,7 @@ def cmd_train(args):
         opt.step()
         it += 1
         if it % 200 == 0:
-            print(
-                f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True
-            )
+            print(f"it {it} t {time.time() - t0:.0f}s lr {lr:.2e} loss {loss.item():.4f}", flush=True)
         if time.time() - last_val > args.val_every_s:
             v_iou, v_dice = evaluate(model, vimgs, vmasks)
             entry = {"it": it, "t_s": round(time.time() - t0), "val_iou": v_iou, "val_dice": v_dice}
@@ -699,18 +656,12 @@ def cmd_train(args):
                 # every validation keeps a snapshot: the real-photo benchmark picks among them
                 torch.save(model.state_dict(), out_dir / f"{tag}_it{it}.pt")
                 if args.dr_work and args.dr_reload:  # scenes the data step wrote meanwhile
-                    dr = [
-                        torch.from_numpy(a).to(dev)
-                        for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)
-                    ]
+                    dr = [torch.from_numpy(a).to(dev) for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)]
                     entry["dr_train"] = len(dr[0])
             last_val = time.time()
             log.append(entry)
             print(
-                "VAL "
-                + " ".join(
-                    f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in entry.items()
-                ),
+                "VAL " + " ".join(f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in entry.items()),
                 flush=True,
             )
             if v_iou > best:
@@ -767,16 +718,12 @@ def cmd_eval(args):
     for path in args.models:
         model = build_model(args.arch)
         model.load_state_dict(
-            state_from_onnx(model, path)
-            if str(path).endswith(".onnx")
-            else torch.load(path, map_location="cpu")
+            state_from_onnx(model, path) if str(path).endswith(".onnx") else torch.load(path, map_location="cpu")
         )
         row = []
         for flips in ((), ("h", "v", "hv")):
             for name, sel in parts:
-                iou, _ = evaluate(
-                    model, torch.from_numpy(imgs[sel]), torch.from_numpy(masks[sel]), flips=flips
-                )
+                iou, _ = evaluate(model, torch.from_numpy(imgs[sel]), torch.from_numpy(masks[sel]), flips=flips)
                 row.append(f"{name}{', flips' if flips else ''} {100 * iou:.2f}")
         print(f"{path}: " + "; ".join(row), flush=True)
 
@@ -813,11 +760,7 @@ def cmd_export(args):
     onnx_path = out / f"{args.name}.onnx"
     # --dynamic: any input size (the sidecar then scales a photo by input.scale, keeping its
     # aspect ratio, and pads it to a multiple of input.pad_to instead of squashing it)
-    dynamic = (
-        {"image": {2: "height", 3: "width"}, "logits": {2: "height", 3: "width"}}
-        if args.dynamic
-        else None
-    )
+    dynamic = {"image": {2: "height", 3: "width"}, "logits": {2: "height", 3: "width"}} if args.dynamic else None
     torch.onnx.export(
         model,
         (x,),
@@ -847,19 +790,12 @@ def cmd_export(args):
             "flips": list(args.flips),
             **({"max_bar_px": args.max_bar_px} if args.max_bar_px else {}),
         },
-        "output": {
-            "name": "logits",
-            "kind": "logits",
-            "rebar_classes": [0],
-            "threshold": threshold,
-        },
+        "output": {"name": "logits", "kind": "logits", "rebar_classes": [0], "threshold": threshold},
         "model": {
             "architecture": args.arch,
             "trained_by": "training/train_segmentation.py",
             "parameters": info["parameters"],
-            "best_val_iou": None
-            if info["best_val_iou"] is None
-            else round(info["best_val_iou"], 5),
+            "best_val_iou": None if info["best_val_iou"] is None else round(info["best_val_iou"], 5),
             "val_iou_at_threshold": round(best_iou, 5),
         },
     }
@@ -868,25 +804,14 @@ def cmd_export(args):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
     a = sub.add_parser("data")
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--n", type=int, default=None)
-    a.add_argument(
-        "--extra", type=int, default=0, help="extra training captures beyond the 6:2:2 set"
-    )
-    a.add_argument(
-        "--relief", type=int, default=0, help="extra training captures with ribs in relief"
-    )
-    a.add_argument(
-        "--relief-val",
-        type=int,
-        default=0,
-        help="validation captures also rendered with ribs in relief",
-    )
+    a.add_argument("--extra", type=int, default=0, help="extra training captures beyond the 6:2:2 set")
+    a.add_argument("--relief", type=int, default=0, help="extra training captures with ribs in relief")
+    a.add_argument("--relief-val", type=int, default=0, help="validation captures also rendered with ribs in relief")
     a.add_argument(
         "--relief-label",
         choices=["outline", "silhouette"],
@@ -901,12 +826,8 @@ def main(argv=None):
         default=None,
         help="keep the full-resolution render of the first N relief training captures only (default: all)",
     )
-    a.add_argument(
-        "--full", action="store_true", help="keep every training capture's full-resolution render"
-    )
-    a.add_argument(
-        "--full-quality", type=int, default=95, help="JPEG quality of the full-resolution renders"
-    )
+    a.add_argument("--full", action="store_true", help="keep every training capture's full-resolution render")
+    a.add_argument("--full-quality", type=int, default=95, help="JPEG quality of the full-resolution renders")
     a = sub.add_parser("train")
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--arch", choices=ARCHS, required=True)
@@ -918,19 +839,10 @@ def main(argv=None):
     a.add_argument("--val-every-s", type=float, default=240)
     a.add_argument("--init", default=None, help="state dict to start from (continue training)")
     a.add_argument(
-        "--init-onnx",
-        default=None,
-        help="ONNX model exported by this script to start from (see state_from_onnx)",
+        "--init-onnx", default=None, help="ONNX model exported by this script to start from (see state_from_onnx)"
     )
-    a.add_argument(
-        "--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)"
-    )
-    a.add_argument(
-        "--zoom",
-        type=float,
-        default=0.0,
-        help="share of crops enlarged 1-2 x (bars as tiles show them)",
-    )
+    a.add_argument("--freeze-bn", action="store_true", help="keep the batch norms' statistics (fine-tuning)")
+    a.add_argument("--zoom", type=float, default=0.0, help="share of crops enlarged 1-2 x (bars as tiles show them)")
     a.add_argument(
         "--colour",
         action="store_true",
@@ -942,26 +854,17 @@ def main(argv=None):
         help="take the enlarged crops from the full-resolution render where the data keeps one",
     )
     a.add_argument(
-        "--dr-work",
-        default=None,
-        help="folder of domain-randomised scenes (training/domain_random.py --work)",
+        "--dr-work", default=None, help="folder of domain-randomised scenes (training/domain_random.py --work)"
     )
     a.add_argument("--dr-share", type=float, default=0.5, help="share of each batch from --dr-work")
     a.add_argument(
-        "--dr-val",
-        type=int,
-        default=20,
-        help="scenes of --dr-work whose index is a multiple of this validate",
+        "--dr-val", type=int, default=20, help="scenes of --dr-work whose index is a multiple of this validate"
     )
     a.add_argument(
-        "--dr-reload",
-        action="store_true",
-        help="at every validation, load the scenes the data step wrote meanwhile",
+        "--dr-reload", action="store_true", help="at every validation, load the scenes the data step wrote meanwhile"
     )
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
-    a.add_argument(
-        "--out-dir", default=None, help="where the state dict and log go (default: --work)"
-    )
+    a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
     a = sub.add_parser("export")
     a.add_argument("--work", default="/tmp/rebar_seg")
@@ -969,9 +872,7 @@ def main(argv=None):
     a.add_argument("--out", default="rebarlib/models")
     a.add_argument("--name", default="rebar_seg")
     a.add_argument("--tag", default=None, help="which trained run (default: the arch)")
-    a.add_argument(
-        "--run-dir", default=None, help="where the run's state dict and log are (default: --work)"
-    )
+    a.add_argument("--run-dir", default=None, help="where the run's state dict and log are (default: --work)")
     a.add_argument(
         "--flips",
         nargs="*",
@@ -980,9 +881,7 @@ def main(argv=None):
         help="test-time flips written into the sidecar (the threshold is chosen with them)",
     )
     a.add_argument(
-        "--dynamic",
-        action="store_true",
-        help="any input size: the photo scaled by 0.5 and padded, never squashed",
+        "--dynamic", action="store_true", help="any input size: the photo scaled by 0.5 and padded, never squashed"
     )
     a.add_argument(
         "--max-bar-px",
@@ -994,9 +893,7 @@ def main(argv=None):
     a.add_argument("--work", default="/tmp/rebar_seg")
     a.add_argument("--arch", choices=ARCHS, default="deeplab_fine")
     a.add_argument("--threads", type=int, default=2)
-    a.add_argument(
-        "models", nargs="+", help="ONNX files exported by this script, or runs' state dicts (.pt)"
-    )
+    a.add_argument("models", nargs="+", help="ONNX files exported by this script, or runs' state dicts (.pt)")
     args = ap.parse_args(argv)
     if args.cmd == "data" and args.n is None:
         from rebarlib.synth_segmentation import DATASET_SIZE

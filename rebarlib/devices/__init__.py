@@ -126,14 +126,10 @@ def _from_file(path: Path) -> DeviceProfile:
     where = str(path)
     dep, intr = data.get("depth_error"), data.get("intrinsics")
     if not isinstance(dep, dict) or not isinstance(intr, dict) or "name" not in data:
-        raise RebarInputError(
-            f"{where}: expected 'name', a [depth_error] and an [intrinsics] table"
-        )
+        raise RebarInputError(f"{where}: expected 'name', a [depth_error] and an [intrinsics] table")
     grows = dep.get("grows", "constant")
     if grows not in _GROWS:
-        raise RebarInputError(
-            f"{where}: depth_error.grows: expected one of {_GROWS}, got {grows!r}"
-        )
+        raise RebarInputError(f"{where}: depth_error.grows: expected one of {_GROWS}, got {grows!r}")
     rng = data.get("range_mm", [0, 0])
     return DeviceProfile(
         key=path.stem,
@@ -144,12 +140,8 @@ def _from_file(path: Path) -> DeviceProfile:
         depth_percent=_num(dep, "percent", f"{where}: depth_error", hi=50),
         depth_at_mm=_num(dep, "at_mm", f"{where}: depth_error", lo=1),
         grows=grows,
-        offset_mm=_num(
-            {"o": dep.get("offset_mm", 0.0)}, "o", f"{where}: depth_error.offset_mm", hi=500
-        ),
-        scale_percent=_num(
-            {"s": dep.get("scale_percent", 0.0)}, "s", f"{where}: depth_error.scale_percent", hi=50
-        ),
+        offset_mm=_num({"o": dep.get("offset_mm", 0.0)}, "o", f"{where}: depth_error.offset_mm", hi=500),
+        scale_percent=_num({"s": dep.get("scale_percent", 0.0)}, "s", f"{where}: depth_error.scale_percent", hi=50),
         focal_percent=_num(intr, "focal_percent", f"{where}: intrinsics", hi=20),
         principal_point_px=_num(intr, "principal_point_px", f"{where}: intrinsics", hi=500),
         registration_px=_num(intr, "registration_px", f"{where}: intrinsics", hi=100),

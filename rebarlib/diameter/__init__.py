@@ -35,14 +35,7 @@ Modules, in the order the data flows:
 from __future__ import annotations
 
 from .bars import bars_from_truth
-from .barsizes import (
-    BAR_SYSTEMS,
-    BarSystem,
-    bar_system,
-    barset_width_mm,
-    observed_width_mm,
-    snap_diameter,
-)
+from .barsizes import BAR_SYSTEMS, BarSystem, bar_system, barset_width_mm, observed_width_mm, snap_diameter
 from .measure import measure_diameters
 from .params import BAR_COLUMNS, DIAMETER_COLUMNS, DiameterParams
 from .plane import (

@@ -69,22 +69,16 @@ def _check_inputs(capture, bars, mask, method):
         raise RebarInputError(f"method: expected 'refined' or 'paper', got {method!r}")
     missing = [c for c in BAR_COLUMNS if c not in getattr(bars, "columns", ())]
     if missing:
-        raise RebarInputError(
-            f"bars: expected a DataFrame with columns {list(BAR_COLUMNS)}; missing {missing}"
-        )
+        raise RebarInputError(f"bars: expected a DataFrame with columns {list(BAR_COLUMNS)}; missing {missing}")
     m = np.asarray(mask)
     h, w = capture.intrinsics.height, capture.intrinsics.width
     if m.shape != (h, w):
         raise RebarInputError(f"mask: expected shape ({h}, {w}) like the capture, got {m.shape}")
-    if m.dtype == bool or np.issubdtype(
-        m.dtype, np.integer
-    ):  # integer labels: any non-zero is rebar
+    if m.dtype == bool or np.issubdtype(m.dtype, np.integer):  # integer labels: any non-zero is rebar
         m = m.astype(bool)
         return m, m.astype(np.float32)
     if not np.issubdtype(m.dtype, np.floating):
-        raise RebarInputError(
-            f"mask: expected bool, integer or a float rebar probability in 0..1, got dtype {m.dtype}"
-        )
+        raise RebarInputError(f"mask: expected bool, integer or a float rebar probability in 0..1, got dtype {m.dtype}")
     soft = m.astype(np.float32)
     if not np.isfinite(soft).all():
         raise RebarInputError(
@@ -112,9 +106,7 @@ class _Bar:
     expected_mm: float  # observed width expected from the design size (window sizing)
     axis_radius_mm: float = math.nan  # radius the axis was placed with, if one was assumed
     axis_ok: bool = True  # the axis was measured (not only located): one-sided widths may use it
-    stack_mm: float = (
-        math.nan
-    )  # its top above the tops of the bars it rests on (geometry.stack_heights)
+    stack_mm: float = math.nan  # its top above the tops of the bars it rests on (geometry.stack_heights)
     top_mm: float = math.nan  # its top above the formwork (geometry.top_heights)
 
 
@@ -231,9 +223,7 @@ def _hits_footprints(points_mm, fp: _Footprints, which: np.ndarray):
     x = lam[:, :, None] * d[:, None, :] - fp.p0[which][None, :, :]
     s = np.einsum("nck,ck->nc", x, fp.along[which])
     t = np.einsum("nck,ck->nc", x, fp.across[which])
-    inside = (
-        (lam > 0) & (np.abs(t) <= fp.half_mm[which]) & (s >= fp.s_lo[which]) & (s <= fp.s_hi[which])
-    )
+    inside = (lam > 0) & (np.abs(t) <= fp.half_mm[which]) & (s >= fp.s_lo[which]) & (s <= fp.s_hi[which])
     nearer = inside & (lam < points_mm[:, 2:3])
     return inside, nearer
 
@@ -250,10 +240,5 @@ def _remap(img, u, v):
     import cv2
 
     return cv2.remap(
-        img,
-        u.astype(np.float32),
-        v.astype(np.float32),
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0,
+        img, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
     )

@@ -278,9 +278,7 @@ def bar_system(name: str) -> BarSystem:
     return BAR_SYSTEMS[key]
 
 
-def observed_width_mm(
-    nominal_mm: float, *, system: str = DEFAULT_BAR_SYSTEM, deformed: bool = True
-) -> float:
+def observed_width_mm(nominal_mm: float, *, system: str = DEFAULT_BAR_SYSTEM, deformed: bool = True) -> float:
     """Width a silhouette shows of a bar of ``nominal_mm``: the rib envelope, or the diameter if smooth.
 
     Parameters

@@ -53,11 +53,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
     ``prm.colour_offset_bars`` bars with a design size (at least 3 of a size); else 0.
     """
     dev = _between_bar_deviations(
-        {
-            i: _mask_width(r)
-            for i, r in enumerate(results)
-            if len(r.widths) >= prm.min_sections and _two_sided(r)
-        },
+        {i: _mask_width(r) for i, r in enumerate(results) if len(r.widths) >= prm.min_sections and _two_sided(r)},
         prepared,
     )
     s_m = _robust_sigma(dev) if len(dev) >= prm.colour_offset_bars else 0.0
@@ -107,9 +103,7 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
             continue
         env = observed_width_mm(nominal, system=system, deformed=deformed)
         lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
-        if abs(med - env) <= 0.5 * (
-            lo if med < env else hi
-        ):  # a quarter of the step to the next size
+        if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
             dev[g].append(cw - env)
     if per_group:
         dev = {g: d for g, d in dev.items() if len(d) >= 2}
@@ -157,14 +151,10 @@ def _colour_calibration(results, prepared, prm) -> None:
     off, weight, spread = 0.0, 1.0, 0.0
     if len(have) >= prm.colour_offset_bars:
         med = {i: float(np.median(results[i].widths)) for i in have}
-        off = float(
-            np.median([(results[i].colour_width_mm - med[i]) / results[i].px_mm for i in have])
-        )
+        off = float(np.median([(results[i].colour_width_mm - med[i]) / results[i].px_mm for i in have]))
         # without a design size the bars' true widths are unknown: no between-bar spread
         dm = _between_bar_deviations(med, prepared)
-        dc = _between_bar_deviations(
-            {i: results[i].colour_width_mm - off * results[i].px_mm for i in have}, prepared
-        )
+        dc = _between_bar_deviations({i: results[i].colour_width_mm - off * results[i].px_mm for i in have}, prepared)
         if len(dm) >= prm.colour_offset_bars:
             s_m, s_c = _robust_sigma(dm), _robust_sigma(dc)
             if s_m + s_c > 0:

@@ -18,9 +18,7 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     and with ``unique`` each pixel is taken once."""
     H, W = depth.shape
     t = centres[:, None] + f[None, :] * widths[:, None] / 2
-    uv = np.rint(
-        project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)
-    ).astype(int)
+    uv = np.rint(project((stations[:, None, :] + t[..., None] * plane.across).reshape(-1, 3), intr)).astype(int)
     uv = uv[(uv[:, 0] >= 0) & (uv[:, 0] < W) & (uv[:, 1] >= 0) & (uv[:, 1] < H)]
     if unique:
         # rows sorted by u, then v, as np.unique(uv, axis=0) gives them, on a 1-D key (faster)
@@ -31,9 +29,7 @@ def _section_points(depth, intr, plane: BarPlane, stations, centres, widths, f, 
     return backproject(uv[good], z[good], intr) - plane.foot_mm
 
 
-def _depth_width(
-    depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm, covered=None
-):
+def _depth_width(depth, intr, plane: BarPlane, stations, centres, widths, prm, expected_mm, covered=None):
     """Diameter from the point cloud: twice the median distance from the bar's axis of the points
     on the middle of its mask run at the given cross-sections (mm), its robust spread (mm) and
     how many points.

@@ -76,9 +76,7 @@ def _birge_mean(widths, sigmas) -> tuple[float, float]:
     return width, max(1.0, birge) / math.sqrt(float(wt.sum()))
 
 
-def _arbitrate(
-    out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed, covered: float = 0.0
-):
+def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed, covered: float = 0.0):
     """``out`` as a bar sized by its independent widths alone (:func:`_independent_widths`),
     where its mask width ``med`` and the size its axis was placed with disagree (``pair``: the
     mask's size and the assumed one); None where they cannot tell.
@@ -130,12 +128,8 @@ def _arbitrate(
         else f"its mask width {med:.1f} mm and its point cloud, which echoes the radius its axis was fitted with, "
         "disagree, and these widths depend on neither"
     )
-    reason = (
-        f"size from {' and '.join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)}: {why}"
-    )
-    return _sized(
-        out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm
-    )
+    reason = f"size from {' and '.join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)}: {why}"
+    return _sized(out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm)
 
 
 def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
@@ -161,30 +155,14 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     # together within a half size step at one σ (a circle fitted to a few millimetres of arc
     # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
     wt = 1 / np.array([sg for _, _, sg in used]) ** 2
-    if 1 / math.sqrt(float(wt.sum())) > min(
-        size_half_gaps_mm(size, system=system, deformed=deformed)
-    ):
+    if 1 / math.sqrt(float(wt.sum())) > min(size_half_gaps_mm(size, system=system, deformed=deformed)):
         return None
-    width, sigma = _birge_mean(
-        [med] + [w for _, w, _ in used], [sigma_m] + [sg for _, _, sg in used]
-    )
+    width, sigma = _birge_mean([med] + [w for _, w, _ in used], [sigma_m] + [sg for _, _, sg in used])
     nominal, conf = snap_diameter(width, system=system, deformed=deformed, sigma_mm=sigma)
     if nominal != size or conf < prm.min_confidence:
         return None
-    reason = "size from the mask and " + " and ".join(
-        _INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used
-    )
-    return _sized(
-        out,
-        nominal,
-        conf,
-        width,
-        sigma,
-        "mask+" + "+".join(k for k, _, _ in used),
-        reason,
-        in_shadow,
-        prm,
-    )
+    reason = "size from the mask and " + " and ".join(_INDEPENDENT[k].format(w=w, s=sg) for k, w, sg in used)
+    return _sized(out, nominal, conf, width, sigma, "mask+" + "+".join(k for k, _, _ in used), reason, in_shadow, prm)
 
 
 def _sized(out, nominal, conf, width, sigma, source, reason, in_shadow, prm) -> dict:
@@ -243,11 +221,7 @@ def _check_core(row: dict, info, prm, *, system) -> None:
     )
     # (the two sizes they point to: the rib pitch may tell them apart, _pitch_settle)
     row.update(
-        nominal_mm=math.nan,
-        confidence=0.0,
-        diameter_status=NOT_MEASURED,
-        diameter_reason=reason,
-        _pair=(nominal, core),
+        nominal_mm=math.nan, confidence=0.0, diameter_status=NOT_MEASURED, diameter_reason=reason, _pair=(nominal, core)
     )
 
 
@@ -359,9 +333,7 @@ def _refined_decision(
         # the mask alone is ambiguous: the shape of the cloud (a circle fit) may settle it, for
         # the size the mask is nearest to only: the circle's errors have heavy tails, so it may
         # confirm what the mask leans to but never overturn it
-        settled = _settle(
-            out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nominal
-        )
+        settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nominal)
         if settled is not None:
             return settled
     if conf < prm.min_confidence:
@@ -389,11 +361,7 @@ def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
     # (shading towards the limbs): that common offset of the capture is not the mask's error
     cdiff = 0.0
     if math.isfinite(info.colour_width_mm):
-        r = abs(
-            info.colour_width_mm
-            - (med if mask_median is None else mask_median)
-            - info.colour_offset_px * px_mm
-        )
+        r = abs(info.colour_width_mm - (med if mask_median is None else mask_median) - info.colour_offset_px * px_mm)
         typical = prm.veto_k * info.colour_spread_mm
         cdiff = info.colour_weight * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
@@ -460,19 +428,7 @@ def _off_bar_reason(info) -> str:
 
 
 def _mask_and_cloud(
-    out,
-    med,
-    sigma_m,
-    sigma_c,
-    info,
-    in_shadow,
-    prm,
-    *,
-    system,
-    deformed,
-    veto_only,
-    assumed_mm,
-    covered,
+    out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system, deformed, veto_only, assumed_mm, covered
 ):
     """A sound mask width against a point-cloud width: ``(done, width, sigma, source)``, where
     ``done`` is the bar's finished row where they disagree (else None, and the width to snap:
@@ -494,13 +450,9 @@ def _mask_and_cloud(
         nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
     strict = veto_only and nom_c != nom_m
     if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
-        out["diameter_reason"] = (
-            f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree"
-        )
+        out["diameter_reason"] = f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree"
         if not veto_only:  # (veto mode has snapped both above)
-            nom_m, nom_c = (
-                snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw)
-            )
+            nom_m, nom_c = (snap_diameter(x, system=system, deformed=deformed)[0] for x in (med, dw))
         out["_pair"] = (nom_m, nom_c)  # the rib pitch may tell them apart (_pitch_settle)
         if not veto_only:
             return out, None, None, None
@@ -510,17 +462,7 @@ def _mask_and_cloud(
         # width from one edge to the axis: the axis was placed with the assumed radius (a
         # fit over part of the bar's arc slides with it), so that width cannot overturn it
         if conf_m >= prm.min_confidence and _two_sided(info):
-            settled = _settle(
-                out,
-                med,
-                sigma_m,
-                info,
-                in_shadow,
-                prm,
-                system=system,
-                deformed=deformed,
-                size=nom_m,
-            )
+            settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nom_m)
             if settled is not None:
                 return settled, None, None, None
         # else the widths that depend on neither the mask nor the axis may tell the

@@ -159,9 +159,7 @@ def measure_diameters(
         design,
         system,
         deformed,
-        default_expected_mm=observed_width_mm(
-            prm.default_size_mm, system=DEFAULT_BAR_SYSTEM, deformed=deformed
-        ),
+        default_expected_mm=observed_width_mm(prm.default_size_mm, system=DEFAULT_BAR_SYSTEM, deformed=deformed),
     )
     _check_options(use_cloud, colour_edges)
     fp = _footprints(prepared, intr, prm.footprint_margin_rel, prm.footprint_margin_px)
@@ -169,9 +167,7 @@ def measure_diameters(
     # an axis placed with an assumed radius: its cloud width echoes that radius, so it may only
     # veto, and the circle fitted to its cloud is what can size the bar (the refined decision
     # only: the paper's method never reads it)
-    cloud_mode = [
-        "veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud for bar in prepared
-    ]
+    cloud_mode = ["veto" if use_cloud and math.isfinite(bar.axis_radius_mm) else use_cloud for bar in prepared]
     results = [
         _refined_bar(
             i,
@@ -189,13 +185,7 @@ def measure_diameters(
         for i, bar in enumerate(prepared)
     ]
     sizes, ribs = _capture_ribs(
-        results,
-        prepared,
-        prm,
-        method=method,
-        system=system,
-        deformed=deformed,
-        colour_edges=colour_edges,
+        results, prepared, prm, method=method, system=system, deformed=deformed, colour_edges=colour_edges
     )
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
@@ -210,9 +200,7 @@ def measure_diameters(
         # is, so its size is never reported with high confidence
         in_shadow = bool(np.isfinite(ref_lum) and reading.lum < prm.shadow_ratio * ref_lum)
         paper_w = (
-            _paper_bar(i, bar, m, edge, intr, paper_points, owner, prm.paper_short_px)
-            if method == "paper"
-            else None
+            _paper_bar(i, bar, m, edge, intr, paper_points, owner, prm.paper_short_px) if method == "paper" else None
         )
         rows.append(
             _bar_row(
@@ -251,9 +239,7 @@ def _check_options(use_cloud, colour_edges) -> None:
     if use_cloud not in (True, False, "veto"):
         raise RebarInputError(f"use_cloud: expected True, False or 'veto', got {use_cloud!r}")
     if colour_edges not in ("check", "replace", False, None):
-        raise RebarInputError(
-            f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}"
-        )
+        raise RebarInputError(f"colour_edges: expected 'check', 'replace' or False, got {colour_edges!r}")
 
 
 def _images(capture, use_depth, use_cloud):
@@ -268,11 +254,7 @@ def _images(capture, use_depth, use_cloud):
         rgb = np.ascontiguousarray(capture.color, dtype=np.float32)
         gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)  # luminance: only compared with itself
     depth = np.asarray(capture.depth_mm, np.float32) if use_depth else None
-    depth_img = (
-        np.asarray(capture.depth_mm, np.float32)
-        if (use_cloud and capture.depth_mm is not None)
-        else None
-    )
+    depth_img = np.asarray(capture.depth_mm, np.float32) if (use_cloud and capture.depth_mm is not None) else None
     return gray, rgb, depth, depth_img
 
 
@@ -339,12 +321,7 @@ def _calibrate(results, prepared, cloud_mode, prm, *, system, deformed) -> None:
     # the bars of one level rest on the same supports: a bar's top above the formwork less the
     # supports' height, learnt from its level's bars that the mask sizes clearly
     _width_calibration(
-        results,
-        "level",
-        prm,
-        system=system,
-        deformed=deformed,
-        groups=[(b.layer, b.level) for b in prepared],
+        results, "level", prm, system=system, deformed=deformed, groups=[(b.layer, b.level) for b in prepared]
     )
     for r in results:  # a bar's own top counts once: where it has a stack height, that is its top
         if math.isfinite(r.stack_width_mm) and math.isfinite(r.stack_between_mm):
@@ -381,9 +358,7 @@ def _new_row(bar, reading, occ_frac, ribs, prm, method) -> dict:
     }
 
 
-def _bar_row(
-    bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method, system, deformed
-) -> dict:
+def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method, system, deformed) -> dict:
     """One bar's row of :data:`DIAMETER_COLUMNS`: its widths' statistics and its size, or why
     it has none (outside the image, hidden, too few clean sections, no size). ``paper_w``: the
     paper's widths of the bar (None for the refined method)."""
@@ -397,23 +372,14 @@ def _bar_row(
     med = math.nan
     if len(w):
         q1, med, q3 = np.percentile(w, [25, 50, 75])
-        row.update(
-            width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w)
-        )
+        row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
     few = len(w) < (1 if method == "paper" else prm.min_sections)
     if n_in == 0:
         row["diameter_reason"] = "bar axis is outside the image"
     elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
-        row.update(
-            diameter_status=HIDDEN,
-            hidden=True,
-            diameter_reason=_hidden_reason(bar, reading, occ_frac, prm),
-        )
+        row.update(diameter_status=HIDDEN, hidden=True, diameter_reason=_hidden_reason(bar, reading, occ_frac, prm))
     elif few:
-        why = max(
-            ("crossing", "no_edge", "border", "shadow", "outlier", "holed"),
-            key=lambda k: getattr(reading, k),
-        )
+        why = max(("crossing", "no_edge", "border", "shadow", "outlier", "holed"), key=lambda k: getattr(reading, k))
         row["diameter_reason"] = (
             f"too few clean cross-sections ({len(w)} of {reading.stations}; most lost {_LOST[why]})"
         )
@@ -428,9 +394,7 @@ def _bar_row(
                 width_used_mm=float(med),
             )
         else:
-            row["diameter_reason"] = (
-                f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
-            )
+            row["diameter_reason"] = f"no width within ±1 mm of a {system} size (median {med:.1f} mm)"
     elif ribs and not math.isfinite(reading.crest_mm):
         row["diameter_reason"] = (
             f"ribs resolved in this capture: {len(w)} clean cross-sections "

@@ -47,9 +47,7 @@ def _paper_bar(i, bar: _Bar, mask, edge, intr, n_points: int, owner, short_px: f
             continue
         across, along = cross_section_direction(p, pl.direction, intr)
         long_px = 2 * design * intr.fx / p[2]
-        region = pixels_in_region(
-            diameter_region(c, across, along, long_px=long_px, short_px=short_px), mask.shape
-        )
+        region = pixels_in_region(diameter_region(c, across, along, long_px=long_px, short_px=short_px), mask.shape)
         if len(region) == 0:
             continue
         bp = region[edge[region[:, 1], region[:, 0]]]

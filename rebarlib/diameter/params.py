@@ -16,28 +16,11 @@ from dataclasses import dataclass
 
 from .._status import HIDDEN, MEASURED, NOT_MEASURED
 
-__all__ = [
-    "BAR_COLUMNS",
-    "DIAMETER_COLUMNS",
-    "DiameterParams",
-    "MEASURED",
-    "NOT_MEASURED",
-    "HIDDEN",
-]
+__all__ = ["BAR_COLUMNS", "DIAMETER_COLUMNS", "DiameterParams", "MEASURED", "NOT_MEASURED", "HIDDEN"]
 
 
 #: Columns the bars table must have (camera frame axis end points, mm).
-BAR_COLUMNS = (
-    "bar_id",
-    "layer",
-    "level",
-    "start_x_mm",
-    "start_y_mm",
-    "start_z_mm",
-    "end_x_mm",
-    "end_y_mm",
-    "end_z_mm",
-)
+BAR_COLUMNS = ("bar_id", "layer", "level", "start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm", "end_y_mm", "end_z_mm")
 
 
 #: Columns of the table :func:`measure_diameters` returns (one row per bar, merge on bar_id).

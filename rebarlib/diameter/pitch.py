@@ -60,8 +60,7 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
     members = [i for v in groups.values() for i in v]
     agree = sum(
         any(
-            abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1)
-            <= _pitch_band(spread, clear[i][1], prm)
+            abs(clear[i][0] / (scale * rib_pitch_mm(sz, system=system)) - 1) <= _pitch_band(spread, clear[i][1], prm)
             for sz in sizes_of(i)
         )
         for i in members
@@ -101,9 +100,7 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
         s, cw = r.colour_widths
         good = np.isfinite(cw)
         enough = good.sum() >= prm.rib_min_sections
-        reads.append(
-            _rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0)
-        )
+        reads.append(_rib_periodicity(s[good], cw[good], band=prm.rib_band) if enough else (math.nan, 1.0))
         lengths.append(float(np.ptp(s[good])) if enough else 0.0)
     if _ribs_in_view(reads, prm, keys) >= prm.rib_capture_p:
         return False
@@ -157,9 +154,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
 
     def sizes_of(i):  # what bar i may be: its design size, what its widths gave or left it between
         row = rows[i]
-        return {keys[i]} | (
-            {row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ()))
-        )
+        return {keys[i]} | ({row["nominal_mm"]} if row["diameter_status"] == MEASURED else set(row.get("_pair", ())))
 
     faces = {}  # bar index -> its face's read (None: none clear), each read once
 
@@ -171,9 +166,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     fit = _pitch_table(clear, keys, prm, system=system, sizes_of=sizes_of)
     if (fit is None or fit[2] < prm.min_confidence) and face is not None:
         # too few widths clearly periodic to test the table: the faces of the others may show it
-        more = {
-            i: c for i in range(len(rows)) if i not in clear and (c := face_read(i)) is not None
-        }
+        more = {i: c for i in range(len(rows)) if i not in clear and (c := face_read(i)) is not None}
         fit = _pitch_table({**clear, **more}, keys, prm, system=system, sizes_of=sizes_of)
     if fit is None or fit[2] < prm.min_confidence:
         return
@@ -184,21 +177,15 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
             continue
         # a bar whose width shows no clear pitch may show it along each of its edges, or in the
         # shading of its face
-        read, where = (
-            (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
-        )
+        read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
         if read is None:
             read, where = face_read(i), " (in the shading along its face)"
         if read is None:
             continue
-        _size_by_pitch(
-            row, read, where, results[i], shadows[i], scale, spread, conf, prm, system=system
-        )
+        _size_by_pitch(row, read, where, results[i], shadows[i], scale, spread, conf, prm, system=system)
 
 
-def _size_by_pitch(
-    row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system
-) -> None:
+def _size_by_pitch(row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system) -> None:
     """Size a bar left between two sizes (``row["_pair"]``) by its rib pitch ``read``
     (``(pitch, relative resolution)``, read ``where``) where it lies within the band of exactly
     one of the sizes from one of the two to the other (the capture's ``scale`` and ``spread``

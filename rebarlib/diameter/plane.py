@@ -64,9 +64,7 @@ def imaginary_plane(start_mm, end_mm) -> BarPlane:
     p0 = np.asarray(start_mm, float).reshape(3)
     p1 = np.asarray(end_mm, float).reshape(3)
     if not (np.all(np.isfinite(p0)) and np.all(np.isfinite(p1))):
-        raise RebarInputError(
-            f"bar axis: end points must be finite, got {p0.tolist()} and {p1.tolist()}"
-        )
+        raise RebarInputError(f"bar axis: end points must be finite, got {p0.tolist()} and {p1.tolist()}")
     length = np.linalg.norm(p1 - p0)
     if length < 1e-9:
         raise RebarInputError(f"bar axis: start and end points coincide at {p0.tolist()}")
@@ -109,9 +107,7 @@ def intersect_rays_plane(pixels, intrinsics: Intrinsics, plane: BarPlane) -> np.
     return d * lam[:, None]
 
 
-def cross_section_direction(
-    point_mm, direction, intrinsics: Intrinsics
-) -> tuple[np.ndarray, np.ndarray]:
+def cross_section_direction(point_mm, direction, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
     """Image directions of the cross-section and of the axis at the axis point ``point_mm``.
 
     The cross-section direction is that of p → q with q = p + (p − O) × v (method.md 3.3, step 4);
@@ -141,9 +137,7 @@ def cross_section_direction(
     return across / np.linalg.norm(across), along / np.linalg.norm(along)
 
 
-def diameter_region(
-    center_px, across_px, along_px, *, long_px: float, short_px: float = 6.0
-) -> np.ndarray:
+def diameter_region(center_px, across_px, along_px, *, long_px: float, short_px: float = 6.0) -> np.ndarray:
     """Corners of the parallelogram diameter-calculation region (method.md 3.3, step 5).
 
     Centred on ``center_px``; two sides of length ``long_px`` run along the cross-section

@@ -214,9 +214,7 @@ def _face_pitch(bar, info, gray, intr, prm, fp=None, i=None) -> tuple[float, flo
     if not varied.any():
         return None
     nfft = 1 << int(math.ceil(math.log2(prm.face_oversample * n)))
-    power = (
-        np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (cnt[varied] * var[varied])[:, None]
-    ).sum(axis=0)
+    power = (np.abs(np.fft.rfft(x[varied], nfft, axis=1)) ** 2 / (cnt[varied] * var[varied])[:, None]).sum(axis=0)
     f = np.fft.rfftfreq(nfft, ds)
     fmin, fmax = 1 / (prm.rib_band[1] * width), min(1 / (prm.rib_band[0] * width), 0.5 / ds)
     k = _band_peak(f, power, fmin, fmax, length)
@@ -246,15 +244,12 @@ def _detrended(lum, m, width, ds, n, prm):
     shadows: a Gaussian over three of the longest pitches searched, normalised over the samples
     read, ``m``) and their means: ``(x, samples read per line, variance per line)``."""
     sig = 3 * prm.rib_band[1] * width / ds
-    half = min(
-        int(3 * sig), (n - 1) // 2
-    )  # (np.convolve "same" keeps n samples while n >= the kernel)
+    half = min(int(3 * sig), (n - 1) // 2)  # (np.convolve "same" keeps n samples while n >= the kernel)
     x_g = np.arange(-half, half + 1)
     g = np.exp(-0.5 * (x_g / sig) ** 2)
     x = np.array(
         [
-            (row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9))
-            * mk
+            (row - np.convolve(row * mk, g, "same") / np.maximum(np.convolve(mk, g, "same"), 1e-9)) * mk
             for row, mk in zip(lum, m)
         ]
     )
@@ -283,10 +278,7 @@ def _ribs_in_view(reads, prm, sizes=None) -> float:
     for (pitch, p), key in zip(reads, sizes):
         if p < prm.rib_bar_p and math.isfinite(pitch):
             clear[key].append(pitch)
-    agree = sum(
-        int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol))
-        for v in clear.values()
-    )
+    agree = sum(int(np.sum(np.abs(np.array(v) / np.median(v) - 1) <= prm.rib_pitch_tol)) for v in clear.values())
     if agree < prm.rib_min_bars:
         return 1.0
     ps = [max(p, prm.rib_p_floor) for pitch, p in reads if math.isfinite(pitch)]

@@ -166,17 +166,7 @@ class _Sections:
 
 
 def _refined_bar(
-    i,
-    bar: _Bar,
-    maskf,
-    gray,
-    depth,
-    intr,
-    fp,
-    prm: DiameterParams,
-    rgb=None,
-    depth_img=None,
-    circle=False,
+    i, bar: _Bar, maskf, gray, depth, intr, fp, prm: DiameterParams, rgb=None, depth_img=None, circle=False
 ) -> BarReading:
     """Read one bar's cross-sections (refined method).
 
@@ -265,14 +255,8 @@ def _occlusion(i, bar: _Bar, sec: _Sections, fp, prm):
     """Mark the stations whose section lies under a nearer bar across the expected width (for
     "hidden"); the bars whose footprints reach the bar's window (their indices)."""
     u, v, in_img, st, M = sec.u, sec.v, sec.in_img, sec.st, len(sec.st)
-    win_uv = (
-        np.column_stack((u[in_img].ravel(), v[in_img].ravel()))
-        if in_img.any()
-        else np.zeros((1, 2))
-    )
-    cand = _candidates(
-        i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(), win_uv[:, 1].max()]
-    )
+    win_uv = np.column_stack((u[in_img].ravel(), v[in_img].ravel())) if in_img.any() else np.zeros((1, 2))
+    cand = _candidates(i, fp, [win_uv[:, 0].min(), win_uv[:, 1].min(), win_uv[:, 0].max(), win_uv[:, 1].max()])
     probe_t = np.array(prm.probe_fractions) * bar.expected_mm
     occluded = np.zeros(M, bool)
     if len(cand):
@@ -312,9 +296,7 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
         # unless the bar itself has none (then the pixels without depth are its own)
         deep = b & (dz > z + bar.expected_mm / 2 + prm.behind_mm)
         core = np.abs(t) <= bar.expected_mm / 4
-        own_none = (
-            in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
-        )
+        own_none = in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
         behind = deep if own_none else deep | (b & (dz <= 0))
     kc = K // 2
     idx = np.arange(K)
@@ -348,9 +330,7 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
     sec.strip_side = (
-        ""
-        if depth is None
-        else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
+        "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
     )
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
@@ -400,9 +380,7 @@ def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
     sec.cut[rows] = two & (cut_lo | cut_hi)
     if rgb is not None and prm.colour_edges and two.any():
         _colour_check(sec, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading)
-    bad_lo, bad_hi = _edges_at_other_bars(
-        i, sec, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading
-    )
+    bad_lo, bad_hi = _edges_at_other_bars(i, sec, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading)
     if sec.strip_side:  # nor is the end at a strip without depth beside the bar (_mask_runs)
         reading.holed = int(two.sum())
         bad_lo |= sec.strip_side == "lo"
@@ -437,17 +415,13 @@ def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
         sec.one_sided[:] = False
 
 
-def _colour_check(
-    sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading
-) -> None:
+def _colour_check(sec: _Sections, rows, two, t_lo, t_hi, cut_lo, cut_hi, rgb, intr, prm, reading) -> None:
     """The colour edges next to the two-edged sections' mask edges: their widths
     (``sec.colour_w``), and with ``prm.colour_edges == "replace"`` the edges themselves (in
     place in ``t_lo``, ``t_hi``; never an edge cut at a depth step)."""
     r2 = rows[two]
     g = _remap(rgb, sec.u[r2], sec.v[r2])
-    c_lo, c_hi, moved = _colour_edges_rgb(
-        g, sec.t, t_lo[two], t_hi[two], sec.st[r2, 2] / intr.fx, prm
-    )
+    c_lo, c_hi, moved = _colour_edges_rgb(g, sec.t, t_lo[two], t_hi[two], sec.st[r2, 2] / intr.fx, prm)
     reading.colour_edges = int(moved.sum())
     both = ~cut_lo[two] & ~cut_hi[two] & (c_lo != t_lo[two]) & (c_hi != t_hi[two])
     sec.colour_w[r2[both]] = (c_hi - c_lo)[both]
@@ -456,9 +430,7 @@ def _colour_check(
         t_hi[two] = np.where(cut_hi[two], t_hi[two], c_hi)
 
 
-def _edges_at_other_bars(
-    i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading
-):
+def _edges_at_other_bars(i, sec: _Sections, rows, t_lo, t_hi, two, has_lo, has_hi, cand, pl, intr, fp, reading):
     """Per section of ``rows``, whether its low and its high edge may belong to another bar:
     inside the footprint of a nearer bar (ours is occluded there), or beyond our own expected
     width and inside a farther bar's footprint (our run merged with the bar behind)."""
@@ -467,9 +439,7 @@ def _edges_at_other_bars(
     if len(cand):
         st = sec.st
         px_mm = st[rows, 2] / intr.fx
-        tt = np.column_stack(
-            (t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm)
-        )
+        tt = np.column_stack((t_lo - 1.5 * px_mm, t_lo, t_lo + px_mm, t_hi - px_mm, t_hi, t_hi + 1.5 * px_mm))
         P = (st[rows][:, None, :] + tt[:, :, None] * pl.across).reshape(-1, 3)
         inside, nearer = _hits_footprints(P, fp, cand)
         beyond = (np.abs(tt) > fp.half_mm[i]).reshape(-1)
@@ -489,10 +459,7 @@ def _shadowed_sections(bar: _Bar, sec: _Sections, gray, intr, prm, reading) -> N
     rows = np.flatnonzero(ok | one_sided)
     if len(rows) >= prm.min_sections:
         pos = np.where(
-            ok[rows],
-            0.0,
-            (t[np.clip(sec.left[rows] + 1, 0, K - 1)] + t[np.clip(sec.right[rows] - 1, 0, K - 1)])
-            / 2,
+            ok[rows], 0.0, (t[np.clip(sec.left[rows] + 1, 0, K - 1)] + t[np.clip(sec.right[rows] - 1, 0, K - 1)]) / 2
         )
         uvc = project(sec.st[rows] + pos[:, None] * bar.plane.across, intr)
         lum = _remap(gray, uvc[:, 0:1], uvc[:, 1:2])[:, 0]
@@ -537,9 +504,7 @@ def _read_ribs(i, bar: _Bar, sec: _Sections, w, kept, cut_off, s_k, intr, fp, pr
     grid's steps, the period of the widths along the bar (its rib pitch)."""
     st = sec.st
     if len(w) >= prm.rib_min_sections:  # a high quantile of fewer sections is their largest one
-        reading.crest_mm, reading.core_mm = (
-            float(q) for q in np.quantile(w, [prm.crest_quantile, prm.core_quantile])
-        )
+        reading.crest_mm, reading.core_mm = (float(q) for q in np.quantile(w, [prm.crest_quantile, prm.core_quantile]))
     # A binary mask's width along a slanted bar steps by a pixel periodically as its edges cross
     # the pixel rows: a periodicity within that is the pixel grid's, not ribs'
     if math.isfinite(reading.crest_mm) and reading.crest_mm - reading.core_mm >= (
@@ -567,23 +532,8 @@ def _read_cloud(bar: _Bar, sec: _Sections, kept, depth_img, circle, intr, prm, r
     st, pl, occluded = sec.st, bar.plane, sec.occluded
     # the point cloud gives several points per section: every few sections of a long bar suffice
     ck = _thinned(kept, prm.cloud_sections)
-    (
-        reading.depth_width_mm,
-        reading.depth_spread_mm,
-        reading.depth_points,
-        reading.depth_off_share,
-    ) = (
-        _depth_width(
-            depth_img,
-            intr,
-            pl,
-            st[ck],
-            sec.d_centre[ck],
-            sec.d_width[ck],
-            prm,
-            bar.expected_mm,
-            occluded[ck],
-        )
+    (reading.depth_width_mm, reading.depth_spread_mm, reading.depth_points, reading.depth_off_share) = (
+        _depth_width(depth_img, intr, pl, st[ck], sec.d_centre[ck], sec.d_width[ck], prm, bar.expected_mm, occluded[ck])
         if depth_img is not None
         else (math.nan, math.nan, 0, math.nan)
     )
@@ -610,9 +560,7 @@ def _read_colour_and_place(sec: _Sections, c, cw, kept, s_k, gray, intr, prm, re
     # A mask run off-centre from the axis has lost one side (shadow, poor segmentation) or
     # the axis is off: either way the width may be wrong by twice the offset.
     two_kept = ~sec.one_sided[kept]  # a one-sided section has no centre of its own
-    reading.centre_mm = (
-        float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
-    )
+    reading.centre_mm = float(np.median(c[two_kept])) if two_kept.any() else (0.0 if len(c) else math.nan)
     reading.px_mm = float(np.median(st[:, 2])) / intr.fx
     # How many pixel phases the bar's edges sweep over the sections kept: a binary mask puts an
     # edge on the pixel grid, so along a bar parallel to a pixel row every section has the same

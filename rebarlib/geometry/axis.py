@@ -64,17 +64,12 @@ class BarAxis:
 
     def plan_point(self, t) -> np.ndarray:
         t = np.asarray(t, float)
-        return (
-            t[..., None] * self.direction
-            + (self.offset_mm + self.slope * t)[..., None] * self.normal2d
-        )
+        return t[..., None] * self.direction + (self.offset_mm + self.slope * t)[..., None] * self.normal2d
 
     def axis_points(self, t) -> np.ndarray:
         """(…, 3) slab-frame points of the axis at ``t``."""
         t = np.asarray(t, float)
-        return np.concatenate(
-            [self.plan_point(t), (self.centre_h_mm + self.h_slope * t)[..., None]], axis=-1
-        )
+        return np.concatenate([self.plan_point(t), (self.centre_h_mm + self.h_slope * t)[..., None]], axis=-1)
 
     @property
     def axis_height_mm(self) -> float:

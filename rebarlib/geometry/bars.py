@@ -36,9 +36,7 @@ def direction_sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
     return out
 
 
-def bar_directions(
-    plan, *, max_points: int = 5000, min_separation_deg: float = 30.0, rng=None
-) -> list:
+def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 30.0, rng=None) -> list:
     """The dominant bar directions (plan angles in degrees, [0, 180)) of one lattice's points.
 
     Bars are long and straight, so offsets across the true direction pile up into narrow peaks:
@@ -58,9 +56,7 @@ def bar_directions(
     plan = np.asarray(plan, float)
     if len(plan) < 20:
         return []
-    sub = (
-        plan if len(plan) <= max_points else plan[rng.choice(len(plan), max_points, replace=False)]
-    )
+    sub = plan if len(plan) <= max_points else plan[rng.choice(len(plan), max_points, replace=False)]
     coarse = np.radians(np.arange(0.0, 180.0, 1.0))
     s = direction_sharpness(sub, coarse, 4.0)
     dirs = []
@@ -81,14 +77,7 @@ def bar_directions(
 
 
 def _bar_candidates(
-    off,
-    along,
-    *,
-    radius_mm,
-    min_length_mm,
-    cell_mm: float = 5.0,
-    max_gap_mm: float = 10.0,
-    min_cell_points: int = 2,
+    off, along, *, radius_mm, min_length_mm, cell_mm: float = 5.0, max_gap_mm: float = 10.0, min_cell_points: int = 2
 ):
     """Offsets (mm) across a direction at which the points run continuously along it.
 
@@ -294,18 +283,9 @@ def _direction_band(g, ang, plan, r, min_extent, pitch_mm, window_mm, prm) -> _D
     n2 = np.array([-d[1], d[0]])
     off = plan @ n2
     along = plan @ d
-    min_cell = (
-        2
-        if pitch_mm is None
-        else max(2, int(prm.min_cell_share * prm.cell_mm * 2 * r / pitch_mm**2))
-    )
+    min_cell = 2 if pitch_mm is None else max(2, int(prm.min_cell_share * prm.cell_mm * 2 * r / pitch_mm**2))
     centres, _ = _bar_candidates(
-        off,
-        along,
-        radius_mm=r,
-        min_length_mm=min_extent,
-        cell_mm=prm.cell_mm,
-        min_cell_points=min_cell,
+        off, along, radius_mm=r, min_length_mm=min_extent, cell_mm=prm.cell_mm, min_cell_points=min_cell
     )
     win = window_mm if window_mm is not None else r + prm.window_margin_mm
     if len(centres):
@@ -349,9 +329,7 @@ def _candidate_bar(
     t = along[idx]
     # the bar's extent: the longest run of occupied 5 mm cells (a peak can also catch a
     # few stray points far away along the line)
-    t0, t1 = _longest_run(
-        t, cell_mm=prm.run_cell_mm, max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r)
-    )
+    t0, t1 = _longest_run(t, cell_mm=prm.run_cell_mm, max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r))
     sel = (t >= t0) & (t <= t1)
     idx, t = idx[sel], t[sel]
     length = float(t1 - t0)
@@ -487,10 +465,7 @@ def _refit_band(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, min_points, prm
         (a0, a1, b0, b1), w, rms, _ = fit
         pred = c + a0 + a1 * along
         h_axis = b0 + b1 * along
-        reach = r + max(
-            prm.refit_reach_mm,
-            prm.refit_reach_rms * rms if np.isfinite(rms) else prm.refit_reach_mm,
-        )
+        reach = r + max(prm.refit_reach_mm, prm.refit_reach_rms * rms if np.isfinite(rms) else prm.refit_reach_mm)
         near_axis = (
             (np.abs(off - pred) < win)
             & ~ambiguous
@@ -515,11 +490,7 @@ def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
         hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
         if len(hs) >= 2:
             med, tol = float(np.median(hs)), prm.level_tol_radii * radii.get(g, max_r)
-            bars = [
-                b
-                for b in bars
-                if b.group != g or b.status != "measured" or b.axis_height_mm >= med - tol
-            ]
+            bars = [b for b in bars if b.group != g or b.status != "measured" or b.axis_height_mm >= med - tol]
             bars = [
                 replace(
                     b,
@@ -558,8 +529,7 @@ def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> l
                 or b.arc_deg > max_arc_deg
                 or (
                     b.arc_deg < min_arc_deg
-                    and b.n_points / max(b.t1_mm - b.t0_mm, 1.0)
-                    < prm.sparse_density_share * typical
+                    and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < prm.sparse_density_share * typical
                 )
             )
             else b
@@ -586,9 +556,7 @@ def _sparse_bars(
         axis_h = float(np.median([b.axis_height_mm for b in same]))
         top = axis_h + r
         known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
-        loose, _ = _bar_candidates(
-            off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1
-        )
+        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1)
         for c in loose:
             if len(known) and np.min(np.abs(known - c)) < 2.5 * r:
                 continue

@@ -9,18 +9,7 @@ import math
 import numpy as np
 
 
-def _fit_bar(
-    t,
-    s,
-    h,
-    radius,
-    *,
-    iters: int = 12,
-    max_fit_points: int = 1500,
-    start=None,
-    parallel=False,
-    ray=None,
-):
+def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None, parallel=False, ray=None):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
     Model: across-offset ``a0 + a1·t``, height ``b0 + b1·t``; residual = distance to the axis −
@@ -197,11 +186,5 @@ def _refit_along_rays(fit, t, s, h, r, camera, c, d, n2):
     vh = h - float(cam[2])
     norm = np.sqrt(vs**2 + vt**2 + vh**2) + 1e-9
     return _fit_bar(
-        t,
-        s,
-        h,
-        r,
-        start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1),
-        parallel=a1 == 0.0,
-        ray=(vs / norm, vh / norm),
+        t, s, h, r, start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1), parallel=a1 == 0.0, ray=(vs / norm, vh / norm)
     )

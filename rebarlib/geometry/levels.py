@@ -93,14 +93,10 @@ def _tops(bars: list, crest: list) -> np.ndarray:
     return np.array([np.nan if c is None else c[0] + c[1] * b.t_mid for b, c in zip(bars, crest)])
 
 
-_MIN_CROSSINGS = (
-    2  # stack_heights: crossings with measured bottom bars a top bar's stack height needs
-)
+_MIN_CROSSINGS = 2  # stack_heights: crossings with measured bottom bars a top bar's stack height needs
 
 
-def stack_heights(
-    bars: list, points: list | None = None, *, min_crossings: int = _MIN_CROSSINGS
-) -> np.ndarray:
+def stack_heights(bars: list, points: list | None = None, *, min_crossings: int = _MIN_CROSSINGS) -> np.ndarray:
     """Per bar, how far its top stands above the tops of the bars it rests on: the top-level bars
     of a lattice lie on its bottom-level bars, so at each crossing the top bar's top is one
     diameter (its rib envelope) above the bottom bar's top. Measured at the crossings of the
@@ -138,9 +134,7 @@ def _stacks(bars: list, crest: list, min_crossings: int) -> np.ndarray:
             if c.layer != b.layer or c.level != "bottom" or crest[j] is None:
                 continue
             # crossing in plan: b.plan_point(t) = c.plan_point(s), both linear in their argument
-            A = np.column_stack(
-                (b.direction + b.slope * b.normal2d, -(c.direction + c.slope * c.normal2d))
-            )
+            A = np.column_stack((b.direction + b.slope * b.normal2d, -(c.direction + c.slope * c.normal2d)))
             if abs(np.linalg.det(A)) < 1e-6:
                 continue
             t, s = np.linalg.solve(A, c.offset_mm * c.normal2d - b.offset_mm * b.normal2d)

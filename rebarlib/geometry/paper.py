@@ -64,16 +64,12 @@ def paper_find_bars(
     n_total = len(q)
     remaining = np.arange(n_total)
     found = []
-    while (
-        len(remaining) > stop_fraction * n_total and len(found) < max_bars and len(remaining) >= 2
-    ):
+    while len(remaining) > stop_fraction * n_total and len(found) < max_bars and len(remaining) >= 2:
         pts_all = q[remaining]
         # hypotheses are scored on a random subset (the count ranks hypotheses the same way up
         # to sampling noise); the chosen line's inliers are then taken from all points
         pts = (
-            pts_all
-            if len(pts_all) <= score_points
-            else pts_all[rng.choice(len(pts_all), score_points, replace=False)]
+            pts_all if len(pts_all) <= score_points else pts_all[rng.choice(len(pts_all), score_points, replace=False)]
         )
         best_n, best = -1, None
         for s in range(0, max_trials, chunk):
@@ -151,9 +147,7 @@ def group_directions(bars: list, *, rng=None) -> list:
         if not members:
             continue
         # common direction of the group, so offsets are comparable
-        mean_ang = 0.5 * math.atan2(
-            np.sin(2 * ang[members]).mean(), np.cos(2 * ang[members]).mean()
-        )
+        mean_ang = 0.5 * math.atan2(np.sin(2 * ang[members]).mean(), np.cos(2 * ang[members]).mean())
         d = np.array([math.cos(mean_ang), math.sin(mean_ang)])
         for i in members:
             b = bars[i]
@@ -164,24 +158,14 @@ def group_directions(bars: list, *, rng=None) -> list:
             t = p @ bd
             out.append(
                 replace(
-                    b,
-                    direction=bd,
-                    offset_mm=float(p[0] @ n2),
-                    t0_mm=float(t.min()),
-                    t1_mm=float(t.max()),
-                    group=g,
+                    b, direction=bd, offset_mm=float(p[0] @ n2), t0_mm=float(t.min()), t1_mm=float(t.max()), group=g
                 )
             )
     return out
 
 
 def paper_spacings(
-    bars: list,
-    points_by_layer: dict,
-    *,
-    design_spacing: dict | None = None,
-    n_sample: int = 1000,
-    rng=None,
+    bars: list, points_by_layer: dict, *, design_spacing: dict | None = None, n_sample: int = 1000, rng=None
 ) -> pd.DataFrame:
     """The paper's spacing: mean distance of ``n_sample`` random points of one bar to the fitted
     axis of its neighbour (3-D, slab frame).

@@ -26,22 +26,13 @@ def _approximate_axes(bars: list, offsets: dict, h=None, camera=None) -> list:
     noise = _layer_noise(bars)
     out = []
     for b in bars:
-        if (
-            b.status == "measured"
-            or b.point_index is None
-            or len(b.point_index) == 0
-            or b.group not in offsets
-        ):
+        if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
             out.append(b)
             continue
         height = levels.get(b.group, b.axis_height_mm)
         hb = None if h is None or b.group not in levels else h[b.point_index]
         out.append(
-            _level_axis(
-                b,
-                _placed_offset(b, offsets[b.group][b.point_index], hb, height, camera, noise),
-                height,
-            )
+            _level_axis(b, _placed_offset(b, offsets[b.group][b.point_index], hb, height, camera, noise), height)
         )
     return out
 
@@ -54,13 +45,7 @@ def _placed_offset(b: BarAxis, s, h, height_mm: float, camera, noise_mm: float) 
     off = None
     if h is not None and camera is not None:
         off = _offset_at_height(
-            s,
-            h,
-            height_mm,
-            b.radius_mm,
-            float(np.asarray(camera[:2]) @ b.normal2d),
-            float(camera[2]),
-            noise_mm,
+            s, h, height_mm, b.radius_mm, float(np.asarray(camera[:2]) @ b.normal2d), float(camera[2]), noise_mm
         )
     return float(np.median(s)) if off is None else off
 
@@ -122,13 +107,7 @@ def _offset_at_height(
 
 
 def flag_border_cut(
-    bars: list,
-    points,
-    *,
-    plane: Plane,
-    intrinsics: Intrinsics,
-    min_whole_fraction: float = 0.5,
-    margin_px: float = 1.0,
+    bars: list, points, *, plane: Plane, intrinsics: Intrinsics, min_whole_fraction: float = 0.5, margin_px: float = 1.0
 ) -> list:
     """Bars of one lattice that the image border cuts lengthwise, fitted off their level, become
     "not measured".
@@ -174,11 +153,7 @@ def flag_border_cut(
         ax = b.axis_points(grid)
         n3 = np.r_[b.normal2d, 0.0]
         whole = np.ones(len(grid), bool)
-        for probe in (
-            ax - b.radius_mm * n3,
-            ax + b.radius_mm * n3,
-            ax + np.array([0.0, 0.0, b.radius_mm]),
-        ):
+        for probe in (ax - b.radius_mm * n3, ax + b.radius_mm * n3, ax + np.array([0.0, 0.0, b.radius_mm])):
             cam = from_slab_frame(probe, plane)
             uv = project(cam, intrinsics)
             whole &= (
@@ -188,23 +163,15 @@ def flag_border_cut(
                 & (uv[:, 1] <= H - 1 - margin_px)
                 & (cam[:, 2] > 0)
             )
-        pw = whole[
-            np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)
-        ]
-        others = [
-            o.axis_height_mm
-            for o in bars
-            if o.group == b.group and o.status == "measured" and o is not b
-        ]
+        pw = whole[np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)]
+        others = [o.axis_height_mm for o in bars if o.group == b.group and o.status == "measured" and o is not b]
         level = float(np.median(others)) if len(others) >= 2 else b.axis_height_mm
         dh = b.axis_height_mm - level
         if pw.mean() >= min_whole_fraction or abs(dh) <= 0.5 * b.radius_mm:
             out.append(b)
             continue
         seen = _run_length(t[pw], cell_mm=_POSITION_STEP_MM, max_gap_mm=max(60.0, 8 * b.radius_mm))
-        off = _placed_offset(
-            b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise
-        )
+        off = _placed_offset(b, q[b.point_index, :2] @ b.normal2d, q[b.point_index, 2], level, camera, noise)
         out.append(
             _level_axis(
                 b,

@@ -69,9 +69,7 @@ def _lsq_plane(points) -> tuple[np.ndarray, float]:
     return _oriented(n, -float(n @ c))
 
 
-def paper_fit_formwork(
-    points, *, threshold_mm: float, max_trials: int = 170, rng=None
-) -> tuple[Plane, np.ndarray]:
+def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rng=None) -> tuple[Plane, np.ndarray]:
     """The paper's plane: Open3D RANSAC, inliers within ``threshold_mm`` (t₁ = 0.8 × design
     cover), ``max_trials`` hypotheses (k = 170). Returns ``(plane, inlier mask)``.
 
@@ -87,9 +85,7 @@ def paper_fit_formwork(
 
     pts = np.asarray(points, float)
     if len(pts) < 3:
-        raise RebarInputError(
-            f"points: need at least 3 points to fit the formwork plane, got {len(pts)}"
-        )
+        raise RebarInputError(f"points: need at least 3 points to fit the formwork plane, got {len(pts)}")
     rng = np.random.default_rng(rng)
     model, idx = ransac_plane(
         pts, threshold_mm=threshold_mm, iterations=max_trials, seed=int(rng.integers(0, 2**31 - 1))
@@ -129,9 +125,7 @@ def fit_formwork(
     """
     pts = np.asarray(points, float)
     if len(pts) < 3:
-        raise RebarInputError(
-            f"points: need at least 3 points to fit the formwork plane, got {len(pts)}"
-        )
+        raise RebarInputError(f"points: need at least 3 points to fit the formwork plane, got {len(pts)}")
     rng = np.random.default_rng(rng)
     sub = pts if len(pts) <= sample else pts[rng.choice(len(pts), sample, replace=False)]
     plane, _ = paper_fit_formwork(sub, threshold_mm=threshold_mm, max_trials=max_trials, rng=rng)

@@ -104,17 +104,7 @@ def match_bars(bars: pd.DataFrame, truth: dict) -> pd.DataFrame:
                 taken[t["id"]] = len(rows)
         rows.append(rec)
     return pd.DataFrame(
-        rows,
-        columns=[
-            "bar_id",
-            "layer",
-            "level",
-            "truth_id",
-            "truth_level",
-            "offset_mm",
-            "angle_deg",
-            "phantom",
-        ],
+        rows, columns=["bar_id", "layer", "level", "truth_id", "truth_level", "offset_mm", "angle_deg", "phantom"]
     )
 
 

@@ -13,9 +13,7 @@ from .plane import Plane, from_slab_frame, to_slab_frame
 from .spacing import _order_across
 
 
-_POSITION_STEP_MM = (
-    5.0  # sampling of a would-be bar's axis when checking what the camera sees there
-)
+_POSITION_STEP_MM = 5.0  # sampling of a would-be bar's axis when checking what the camera sees there
 
 
 _POSITION_T = np.arange(-3000.0, 3000.0, _POSITION_STEP_MM)  # along a would-be bar, mm
@@ -105,9 +103,7 @@ def find_missed_bars(
             for off, inside in _empty_positions(ref, offs, s, h_axis, r, plane, intrinsics):
                 if np.min(np.abs(offs - off)) < 0.5 * s:
                     continue
-                found = _look_at_position(
-                    ref, off, inside, half, h_axis, r, depth, intrinsics, plane, eye, look
-                )
+                found = _look_at_position(ref, off, inside, half, h_axis, r, depth, intrinsics, plane, eye, look)
                 if found is None:
                     continue
                 c, t0, t1, cloud = found
@@ -210,9 +206,7 @@ def _look_at_position(
 
     def on_cylinder(c):
         ro, rh = o - c, hz - h_axis
-        return (np.abs(np.hypot(ro, rh) - r) < look.tol) & (
-            ro * (eye_o - o) + rh * (eye_h - hz) > 0
-        )
+        return (np.abs(np.hypot(ro, rh) - r) < look.tol) & (ro * (eye_o - o) + rh * (eye_h - hz) > 0)
 
     c = _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look)
     if c is None:
@@ -221,10 +215,7 @@ def _look_at_position(
     t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
     on &= (t >= t0) & (t <= t1)
     along = (t_all >= t0) & (t_all <= t1)
-    if (
-        _seen_through(c, o_all[along], h_all[along], h_axis, r, eye_o, eye_h, look.tol)
-        > 0.5 * on.sum()
-    ):
+    if _seen_through(c, o_all[along], h_all[along], h_axis, r, eye_o, eye_h, look.tol) > 0.5 * on.sum():
         return None
     # a bar in view is a continuous stripe in the image, a sliver of it at least a pixel wide:
     # along its run, at least ``min_fill`` of the pixels' length must hold one of its points.
@@ -288,9 +279,7 @@ def _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look: _Look
     near = np.zeros(len(offsets), int)
     for k in range(0, len(offsets), 64):
         c_ = offsets[k : k + 64, None]
-        near[k : k + 64] = (
-            np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < look.tol
-        ).sum(axis=1)
+        near[k : k + 64] = (np.abs(np.hypot(o[None, :] - c_, (hz - h_axis)[None, :]) - r) < look.tol).sum(axis=1)
     scores = []  # (offset, run start, run end, points on the cylinder along the run)
     for c in offsets[near >= look.min_points]:
         on = on_cylinder(c)
@@ -298,9 +287,7 @@ def _best_offset(o, t, hz, off, half, h_axis, r, pitch, on_cylinder, look: _Look
             continue
         t0, t1 = _longest_run(t[on], cell_mm=5.0, max_gap_mm=10.0, by="length")
         scores.append((float(c), t0, t1, int(np.sum(on & (t >= t0) & (t <= t1)))))
-    ok = [
-        x for x in scores if x[2] - x[1] >= look.min_length_mm - pitch and x[3] >= look.min_points
-    ]
+    ok = [x for x in scores if x[2] - x[1] >= look.min_length_mm - pitch and x[3] >= look.min_points]
     if not ok:
         return None
     # the offsets that explain the most points along a long run; several neighbouring offsets do
@@ -350,10 +337,4 @@ def _surface_in_image(
 
 
 def _in_image(uv, cam, intr: Intrinsics) -> np.ndarray:
-    return (
-        (uv[:, 0] >= 0)
-        & (uv[:, 0] < intr.width)
-        & (uv[:, 1] >= 0)
-        & (uv[:, 1] < intr.height)
-        & (cam[:, 2] > 0)
-    )
+    return (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height) & (cam[:, 2] > 0)

@@ -78,13 +78,7 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     # "not measured" spacings instead of one spacing twice the real one
     for layer, level, a, b in _adjacent_pairs(bars):
         ds = (design_spacing or {}).get((layer, level))
-        row = {
-            "layer": layer,
-            "level": level,
-            "bar_a": ids[id(a)],
-            "bar_b": ids[id(b)],
-            "design_spacing_mm": ds,
-        }
+        row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)], "design_spacing_mm": ds}
         bad = [x for x in (a, b) if x.status != "measured"]
         if bad:
             rows.append(
@@ -99,13 +93,7 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
             continue
         s = _pair_spacing(a, b)
         rows.append(
-            {
-                **row,
-                "spacing_mm": s,
-                "deviation_mm": None if ds is None else s - ds,
-                "status": "measured",
-                "reason": "",
-            }
+            {**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds, "status": "measured", "reason": ""}
         )
     return _spacing_frame(rows)
 
@@ -120,17 +108,7 @@ def _adjacent_pairs(bars: list):
 
 
 def _spacing_frame(rows) -> pd.DataFrame:
-    cols = [
-        "layer",
-        "level",
-        "bar_a",
-        "bar_b",
-        "spacing_mm",
-        "design_spacing_mm",
-        "deviation_mm",
-        "status",
-        "reason",
-    ]
+    cols = ["layer", "level", "bar_a", "bar_b", "spacing_mm", "design_spacing_mm", "deviation_mm", "status", "reason"]
     df = pd.DataFrame(rows, columns=cols)
     for c in ("spacing_mm", "design_spacing_mm", "deviation_mm"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
@@ -173,14 +151,7 @@ def count_bars(bars: list, *, design_spacing: dict) -> pd.DataFrame:
             found = len(grp)
             if not grp or s is None:
                 rows.append(
-                    {
-                        "layer": layer,
-                        "level": level,
-                        "found": found,
-                        "expected": None,
-                        "missing": None,
-                        "extra": None,
-                    }
+                    {"layer": layer, "level": level, "found": found, "expected": None, "missing": None, "extra": None}
                 )
                 continue
             n2 = np.array([-grp[0].direction[1], grp[0].direction[0]])
@@ -237,9 +208,7 @@ def bars_table(bars: list, plane: Plane, points: list | None = None) -> pd.DataF
         =======================  ===========================================================
     """
     rows = []
-    slab_points = (
-        None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
-    )
+    slab_points = None if points is None else [None if p is None else to_slab_frame(p, plane) for p in points]
     crest = _crest_lines(bars, slab_points)  # read once: the stack and top heights both use them
     stack, top = _stacks(bars, crest, _MIN_CROSSINGS), _tops(bars, crest)
     for i, b in enumerate(bars):

@@ -15,9 +15,7 @@ from ._datum import Datum, split_lattices
 from ._util import _dot, _slab_frame
 
 
-_SURFACE_MEAN = (
-    2.0 / math.pi
-)  # mean height of points spread evenly over a bar's upper half, x radius
+_SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar's upper half, x radius
 
 
 def _envelope(design: Design, layer: str, level: str) -> float:
@@ -135,9 +133,7 @@ def _layer_points(q, split, layer, datum: Datum) -> np.ndarray:
     return np.flatnonzero((h > floor) & (h < split))
 
 
-def _layer_axes(
-    q, split, layer, design: Design, datum: Datum, min_length_mm, rng
-) -> tuple[list, tuple]:
+def _layer_axes(q, split, layer, design: Design, datum: Datum, min_length_mm, rng) -> tuple[list, tuple]:
     """The bar axes of one lattice, and the noise (plan, height) measured on its bars.
 
     Two passes: the first with the formwork's noise (or 10 mm) finds the bars; their spread
@@ -150,23 +146,13 @@ def _layer_axes(
     spacing = min(lat.bottom.spacing_mm, lat.top.spacing_mm)
     guess = max(datum.noise_mm or 10.0, 3.0)
     found = lattice_bars(
-        qs,
-        radius_mm={0: r, 1: r},
-        spacing_mm=spacing,
-        noise_mm=guess,
-        min_length_mm=min_length_mm,
-        rng=rng,
+        qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=guess, min_length_mm=min_length_mm, rng=rng
     )
     if not found:
         return [], (guess, guess)
     sig_plan = _noise_across(found, r)
     found = lattice_bars(
-        qs,
-        radius_mm={0: r, 1: r},
-        spacing_mm=spacing,
-        noise_mm=sig_plan,
-        min_length_mm=min_length_mm,
-        rng=rng,
+        qs, radius_mm={0: r, 1: r}, spacing_mm=spacing, noise_mm=sig_plan, min_length_mm=min_length_mm, rng=rng
     )
     if not found:
         return [], (sig_plan, guess)
@@ -241,9 +227,7 @@ def _levels(found: list) -> dict:
     return {g: G.LEVELS[min(k, 1)] for k, g in enumerate(order)}
 
 
-def _bar_height(
-    qb, proj, b: _Bar, other: list, half_cross, half, sig_h, *, formwork: bool, radius_mm: float
-):
+def _bar_height(qb, proj, b: _Bar, other: list, half_cross, half, sig_h, *, formwork: bool, radius_mm: float):
     """Mean height of a bar's surface points away from the crossing bars, and their number.
 
     Over a formwork the band beside a low bar also holds formwork points: the heights are then

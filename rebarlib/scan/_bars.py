@@ -21,9 +21,7 @@ class _Candidate:
     z: float  # excess over its counting noise
 
 
-def _offset_peaks(
-    off, *, kernel_mm: float, min_sep_mm: float, background_mm: float, z_min: float
-) -> list:
+def _offset_peaks(off, *, kernel_mm: float, min_sep_mm: float, background_mm: float, z_min: float) -> list:
     """Peaks of the smoothed offset histogram standing out of a running background (the lower
     envelope over ``background_mm``) by ``z_min`` times its counting noise."""
     if len(off) < 20:
@@ -36,18 +34,13 @@ def _offset_peaks(
     eff = 2 * math.sqrt(math.pi) * max(kernel_mm, 0.5)
     noise = np.sqrt(np.maximum(bg, 1.0 / eff) / eff)
     z = (s - bg) / noise
-    cand = [
-        i for i in range(1, len(s) - 1) if s[i] >= s[i - 1] and s[i] > s[i + 1] and z[i] >= z_min
-    ]
+    cand = [i for i in range(1, len(s) - 1) if s[i] >= s[i - 1] and s[i] > s[i + 1] and z[i] >= z_min]
     cand.sort(key=lambda i: -(s[i] - bg[i]))
     kept = []
     for i in cand:
         if all(abs(x[i] - x[j]) >= min_sep_mm for j in kept):
             kept.append(i)
-    return sorted(
-        (_Candidate(float(x[i]), float(s[i] - bg[i]), float(z[i])) for i in kept),
-        key=lambda cnd: cnd.centre,
-    )
+    return sorted((_Candidate(float(x[i]), float(s[i] - bg[i]), float(z[i])) for i in kept), key=lambda cnd: cnd.centre)
 
 
 def _running_min(x, w: int) -> np.ndarray:
@@ -163,11 +156,7 @@ def _crossing_free(along, crossings, half_width):
     if len(crossings) == 0:
         return np.ones(len(along), bool)
     cr = np.sort(np.asarray(crossings))
-    j = (
-        np.clip(np.searchsorted(cr, along), 1, len(cr) - 1)
-        if len(cr) > 1
-        else np.zeros(len(along), int)
-    )
+    j = np.clip(np.searchsorted(cr, along), 1, len(cr) - 1) if len(cr) > 1 else np.zeros(len(along), int)
     d = np.abs(along - cr[j])
     if len(cr) > 1:
         d = np.minimum(d, np.abs(along - cr[j - 1]))
@@ -175,13 +164,7 @@ def _crossing_free(along, crossings, half_width):
 
 
 def lattice_bars(
-    q,
-    *,
-    radius_mm: dict,
-    spacing_mm: float,
-    noise_mm: float,
-    min_length_mm: float = 100.0,
-    rng=None,
+    q, *, radius_mm: dict, spacing_mm: float, noise_mm: float, min_length_mm: float = 100.0, rng=None
 ) -> list:
     """The bars of one lattice: ``[(direction index, _Bar), ...]`` from its slab-frame points.
 

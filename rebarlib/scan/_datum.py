@@ -36,9 +36,7 @@ def mesh_up(points, *, up=None, rng=None) -> tuple[np.ndarray, str]:
     if u is None:
         return n, "the thin direction of the cloud (its sign settled below)"
     if abs(float(n @ u)) >= math.cos(math.radians(30)):
-        return (
-            n if n @ u > 0 else -n
-        ), f"up = {up} given; the mesh plane's own tilt from the cloud"
+        return (n if n @ u > 0 else -n), f"up = {up} given; the mesh plane's own tilt from the cloud"
     return u, f"up = {up} given (the cloud's thin direction is more than 30° off it: kept as given)"
 
 
@@ -117,8 +115,7 @@ def find_datum(points, normal, *, rng=None) -> Datum:
             False,
             None,
             share,
-            "the lowest dense layer of points is made of bars, not a plane (no formwork or "
-            "ground in the scan)",
+            "the lowest dense layer of points is made of bars, not a plane (no formwork or ground in the scan)",
         )
     # refine the plane's tilt on its own points (a band around the mode, below the bars)
     band = np.abs(sign * h - mode) < max(1.5 * sigma, 1.5)

@@ -21,15 +21,11 @@ def as_scan_cloud(cloud, *, units: str | None = None) -> ScanCloud:
         return cloud
     if isinstance(cloud, (str, Path)):
         if units is None:
-            raise RebarInputError(
-                f"units: the unit of {Path(cloud).name} must be given ('mm' or 'm')"
-            )
+            raise RebarInputError(f"units: the unit of {Path(cloud).name} must be given ('mm' or 'm')")
         return read_cloud(cloud, units=units)
     pts = np.asarray(cloud, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-        raise RebarInputError(
-            f"cloud: expected a file, a ScanCloud or a non-empty (N, 3) array, got shape {pts.shape}"
-        )
+        raise RebarInputError(f"cloud: expected a file, a ScanCloud or a non-empty (N, 3) array, got shape {pts.shape}")
     scale = {"mm": 1.0, None: 1.0, "m": 1000.0}.get(units)
     if scale is None:
         raise RebarInputError(f"units: expected 'mm' or 'm', got {units!r}")
@@ -57,9 +53,7 @@ def parse_up(up) -> np.ndarray | None:
     return v / np.linalg.norm(v)
 
 
-def cloud_manifest(
-    cloud_path, design_path, *, method: str = METHOD, options: dict | None = None
-) -> dict:
+def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: dict | None = None) -> dict:
     """The result manifest of a cloud file (as :func:`rebarlib._manifest.make_manifest` writes for
     a capture folder): the cloud's path and SHA-256 digest stand for the capture's."""
     from .. import __version__

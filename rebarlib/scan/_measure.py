@@ -22,9 +22,7 @@ from ._input import METHOD
 from ._util import _dot, _mad
 
 
-def diameter_resolvable(
-    noise_mm: float, radius_mm: float, half_gap_mm: float, n_points: int
-) -> tuple[bool, str]:
+def diameter_resolvable(noise_mm: float, radius_mm: float, half_gap_mm: float, n_points: int) -> tuple[bool, str]:
     """Whether a bar's size can be read from its points, and why not.
 
     A circle fitted to noisy points of a bar's upper half is biased by the noise unless the noise
@@ -56,34 +54,16 @@ def _mean_measure(values, ses, n_points: int) -> Measurement:
 
 
 def _assemble(
-    sc: ScanCloud,
-    design: Design,
-    plane,
-    datum: Datum,
-    bars: list,
-    noise,
-    notes,
-    diameters,
-    q,
-    *,
-    name,
-    t_start,
-    up_how,
+    sc: ScanCloud, design: Design, plane, datum: Datum, bars: list, noise, notes, diameters, q, *, name, t_start, up_how
 ) -> InspectionResult:
     """The result of a cloud: spacings, layer distance, cover (with a datum), top of the upper
     lattice, the bar table (with sizes where ``diameters``), counts found, and how it was made."""
     order = sorted(
         range(len(bars)),
-        key=lambda i: (
-            G.LAYERS.index(bars[i].layer),
-            G.LEVELS.index(bars[i].level),
-            bars[i].offset_mm,
-        ),
+        key=lambda i: (G.LAYERS.index(bars[i].layer), G.LEVELS.index(bars[i].level), bars[i].offset_mm),
     )
     bars = [bars[i] for i in order]
-    spacing = {
-        (la, lv): design.lattice(la).level(lv).spacing_mm for la in G.LAYERS for lv in G.LEVELS
-    }
+    spacing = {(la, lv): design.lattice(la).level(lv).spacing_mm for la in G.LAYERS for lv in G.LEVELS}
     spacings = G.measure_spacings(bars, design_spacing=spacing)
     table = G.bars_table(bars, plane)
     if diameters:
@@ -94,17 +74,12 @@ def _assemble(
         for lv in G.LEVELS
     }
     npts = {
-        (la, lv): sum(b.n_points for b in bars if b.layer == la and b.level == lv)
-        for la in G.LAYERS
-        for lv in G.LEVELS
+        (la, lv): sum(b.n_points for b in bars if b.layer == la and b.level == lv) for la in G.LAYERS for lv in G.LEVELS
     }
     ses = {k: [b.axis_se_mm for b in bars if (b.layer, b.level) == k] for k in und}
     lo, hi = und[("lower", "bottom")], und[("upper", "bottom")]
     if lo and hi:
-        m_lo, m_hi = (
-            _mean_measure(lo, ses[("lower", "bottom")], 0),
-            _mean_measure(hi, ses[("upper", "bottom")], 0),
-        )
+        m_lo, m_hi = (_mean_measure(lo, ses[("lower", "bottom")], 0), _mean_measure(hi, ses[("upper", "bottom")], 0))
         layer_distance = Measurement(
             m_hi.value_mm - m_lo.value_mm,
             math.hypot(m_lo.uncertainty_mm, m_hi.uncertainty_mm),
@@ -112,8 +87,7 @@ def _assemble(
         )
     else:
         layer_distance = Measurement.not_measured(
-            "the bottom bars of both lattices are needed; "
-            f"found {len(lo)} lower and {len(hi)} upper"
+            f"the bottom bars of both lattices are needed; found {len(lo)} lower and {len(hi)} upper"
         )
     if not datum.found:
         cover = Measurement.not_measured(f"{datum.reason}: heights have no datum")
@@ -196,9 +170,7 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
         i = min(range(len(sysm.sizes_mm)), key=lambda k: abs(sysm.sizes_mm[k] - bs.diameter_mm))
         gap = min(size_half_gaps_mm(sysm.sizes_mm[i], system=system, deformed=deformed))
         cross = [
-            c
-            for c in (_cross_axes(b, x) for x in bars if x.layer == b.layer and x.level != b.level)
-            if np.isfinite(c)
+            c for c in (_cross_axes(b, x) for x in bars if x.layer == b.layer and x.level != b.level) if np.isfinite(c)
         ]
         fit = _cross_section_width(b, q, noise, cross)
         if fit is not None and not 0.7 < fit[0] / (2 * b.radius_mm) < 1.4:
@@ -215,16 +187,7 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
             )
             continue
         if fit is None:
-            rows.append(
-                (
-                    None,
-                    None,
-                    None,
-                    None,
-                    "not measured",
-                    "its cross-section points do not fix a circle",
-                )
-            )
+            rows.append((None, None, None, None, "not measured", "its cross-section points do not fix a circle"))
             continue
         w, sd, sigma, n = fit
         ok, why = diameter_resolvable(sigma, b.radius_mm, gap, n)
@@ -245,9 +208,7 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
     return table
 
 
-def _cross_section_width(
-    b: G.BarAxis, q, noise, crossings=()
-) -> tuple[float, float, float, int] | None:
+def _cross_section_width(b: G.BarAxis, q, noise, crossings=()) -> tuple[float, float, float, int] | None:
     """Width (2 × radius) of the circle through a bar's points in its cross-section, its standard
     error (from three independent thirds of the bar), the noise about the circle (robust σ of the
     residuals) and the points used; None if no circle fits."""
@@ -255,9 +216,7 @@ def _cross_section_width(
     t = _dot(p[:, :2], b.direction)
     s_ = _dot(p[:, :2], b.normal2d) - (b.offset_mm + b.slope * t)
     h = p[:, 2]
-    keep = (np.abs(s_) < b.radius_mm + 3 * noise) & (
-        np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 3 * noise
-    )
+    keep = (np.abs(s_) < b.radius_mm + 3 * noise) & (np.abs(h - b.axis_height_mm) < 2 * b.radius_mm + 3 * noise)
     keep &= _crossing_free(t, list(crossings), 3 * b.radius_mm)  # away from the bars crossing it
     cut = noise
     for _ in range(4):

@@ -51,25 +51,19 @@ def inspect_cloud(
     """
     if not isinstance(design, Design):
         raise RebarInputError(
-            "design: expected a rebarlib.Design (use rebarlib.load_design), "
-            f"got {type(design).__name__}"
+            f"design: expected a rebarlib.Design (use rebarlib.load_design), got {type(design).__name__}"
         )
     t_start = time.perf_counter()
     sc = as_scan_cloud(cloud, units=units)
     pts = sc.points
     if len(pts) < 500:
-        raise RebarInputError(
-            f"cloud {sc.source or 'array'}: {len(pts)} points, at least 500 needed for a mesh"
-        )
+        raise RebarInputError(f"cloud {sc.source or 'array'}: {len(pts)} points, at least 500 needed for a mesh")
     rng = np.random.default_rng(rng)
     notes = []
     normal, up_how = mesh_up(pts, up=up, rng=rng)
     datum = find_datum(pts, normal, rng=rng)
     if datum.found and up is None:
-        normal, up_how = (
-            datum.plane.normal,
-            "away from the formwork/ground plane found under the mesh",
-        )
+        normal, up_how = (datum.plane.normal, "away from the formwork/ground plane found under the mesh")
     elif datum.found and float(datum.plane.normal @ normal) < 0:
         datum = Datum(
             G.Plane(normal, 0.0),
@@ -96,13 +90,7 @@ def inspect_cloud(
                 result_bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
         else:
             (plane, q, split, result_bars, noise), up_how = _sign_from_crossings(
-                pts,
-                normal,
-                datum,
-                design,
-                (plane, q, split, result_bars, noise),
-                min_length_mm,
-                rng,
+                pts, normal, datum, design, (plane, q, split, result_bars, noise), min_length_mm, rng
             )
     notes.append(f"up: {up_how}")
     sig = float(np.median([v[0] for v in noise.values()]))
@@ -113,18 +101,7 @@ def inspect_cloud(
         else f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)"
     )
     return _assemble(
-        sc,
-        design,
-        plane,
-        datum,
-        result_bars,
-        sig,
-        notes,
-        diameters,
-        q,
-        name=name,
-        t_start=t_start,
-        up_how=up_how,
+        sc, design, plane, datum, result_bars, sig, notes, diameters, q, name=name, t_start=t_start, up_how=up_how
     )
 
 
@@ -154,9 +131,7 @@ def _sign_from_crossings(pts, normal, datum: Datum, design: Design, current, min
     else:
         bars, noise = _all_axes(q, split, design, datum, min_length_mm, rng)
         other, lift_other = (plane, q, split, bars, noise), crossing_lift(q, bars, noise)
-    best, (hi, lo) = (
-        (other, (lift_other, lift)) if lift_other > lift else (current, (lift, lift_other))
-    )
+    best, (hi, lo) = (other, (lift_other, lift)) if lift_other > lift else (current, (lift, lift_other))
     how = (
         "the mesh plane from the bars (no formwork in the scan); its sign GUESSED from the crossings, "
         f"where the bar on top hides the one beneath (heights {hi:+.1f} mm there against {lo:+.1f} mm "

@@ -21,9 +21,7 @@ def _dot(a, v) -> np.ndarray:
 def _slab_frame(points, plane: G.Plane) -> np.ndarray:
     """:func:`rebarlib.geometry.to_slab_frame` without a matrix product (see :func:`_dot`)."""
     R = G.plane_frame(plane)
-    return np.column_stack(
-        [_dot(points, R[0]), _dot(points, R[1]), _dot(points, R[2]) + plane.offset_mm]
-    )
+    return np.column_stack([_dot(points, R[0]), _dot(points, R[1]), _dot(points, R[2]) + plane.offset_mm])
 
 
 def _sample(n: int, k: int, rng) -> np.ndarray:

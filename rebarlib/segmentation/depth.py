@@ -14,9 +14,7 @@ from .._checks import RebarInputError
 __all__ = ["fit_formwork_plane", "height_above_plane", "mask_from_depth"]
 
 
-def fit_formwork_plane(
-    points_mm, *, distance_mm: float = 4.0, max_points: int = 30_000, rng=None
-) -> tuple:
+def fit_formwork_plane(points_mm, *, distance_mm: float = 4.0, max_points: int = 30_000, rng=None) -> tuple:
     """Fit the formwork plane to camera-frame points with a seeded RANSAC (Open3D).
 
     Self-contained on purpose (the geometry stage has its own, finer fit): the formwork is the
@@ -56,9 +54,7 @@ def fit_formwork_plane(
     for _ in range(4):
         if len(cand) < 3:
             break
-        (a, b, c, d), _ = ransac_plane(
-            cand, threshold_mm=distance_mm, iterations=300, seed=int(rng.integers(2**31))
-        )
+        (a, b, c, d), _ = ransac_plane(cand, threshold_mm=distance_mm, iterations=300, seed=int(rng.integers(2**31)))
         n = np.array([a, b, c], float)
         s = np.linalg.norm(n)
         n, d = n / s, d / s
@@ -134,9 +130,7 @@ def mask_from_depth(
         depth, intr = capture_or_depth.depth_mm, capture_or_depth.intrinsics
     else:
         if intrinsics is None:
-            raise RebarInputError(
-                "intrinsics: required when a depth map is given instead of a Capture"
-            )
+            raise RebarInputError("intrinsics: required when a depth map is given instead of a Capture")
         depth, intr = np.asarray(capture_or_depth, float), intrinsics
     rng = np.random.default_rng(rng)
     if plane is None:

@@ -19,9 +19,7 @@ def _two_masks(color_mask, depth_mask):
     c = np.asarray(color_mask).astype(bool)
     d = np.asarray(depth_mask).astype(bool)
     if c.shape != d.shape or c.ndim != 2:
-        raise RebarInputError(
-            f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}"
-        )
+        raise RebarInputError(f"depth_mask: expected the shape of color_mask {c.shape}, got {d.shape}")
     return c, d
 
 
@@ -75,8 +73,7 @@ def depth_overreach_px(
     p = np.where(c, 1.0, 0.0) if color_proba is None else np.asarray(color_proba, dtype=np.float32)
     if p.shape != c.shape or valid.shape != c.shape:
         raise RebarInputError(
-            f"color_proba, depth_valid: expected the shape of color_mask "
-            f"{c.shape}, got {p.shape}, {valid.shape}"
+            f"color_proba, depth_valid: expected the shape of color_mask {c.shape}, got {p.shape}, {valid.shape}"
         )
     outside = cv2.distanceTransform((~c).astype(np.uint8), cv2.DIST_L2, 5)
     inside = cv2.distanceTransform(c.astype(np.uint8), cv2.DIST_L2, 5)
@@ -87,9 +84,7 @@ def depth_overreach_px(
     sides = (horiz & (gx > 0), horiz & (gx < 0), ~horiz & (gy > 0), ~horiz & (gy < 0))
     rim = (inside > 0.5) & (inside <= 1.5) & (p > 1 - low_proba) & valid
     rim_n = [int((rim & s).sum()) for s in sides]
-    rim_held = all(
-        n < min_pixels or 2 * int((rim & s & d).sum()) >= n for s, n in zip(sides, rim_n)
-    )
+    rim_held = all(n < min_pixels or 2 * int((rim & s & d).sum()) >= n for s, n in zip(sides, rim_n))
     reach = 0
     for j in range(1, max_px + 1):
         ring = (outside > j - 0.5) & (outside <= j + 0.5) & (p < low_proba)
@@ -188,17 +183,11 @@ def fuse_masks(
         min_fill_px = 1
     valid = np.ones_like(c) if depth_valid is None else np.asarray(depth_valid).astype(bool)
     if valid.shape != c.shape:
-        raise RebarInputError(
-            f"depth_valid: expected the shape of color_mask {c.shape}, got {valid.shape}"
-        )
+        raise RebarInputError(f"depth_valid: expected the shape of color_mask {c.shape}, got {valid.shape}")
     if color_proba is not None and np.shape(color_proba) != c.shape:
-        raise RebarInputError(
-            f"color_proba: expected the shape of color_mask {c.shape}, got {np.shape(color_proba)}"
-        )
+        raise RebarInputError(f"color_proba: expected the shape of color_mask {c.shape}, got {np.shape(color_proba)}")
     if overreach_px is None:
-        overreach_px = depth_overreach_px(
-            c, d, color_proba=color_proba, low_proba=low_proba, depth_valid=valid
-        )
+        overreach_px = depth_overreach_px(c, d, color_proba=color_proba, low_proba=low_proba, depth_valid=valid)
     d = trim_depth_overreach(c, d, overreach_px)
     if support_px > 0:
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * support_px + 1, 2 * support_px + 1))
@@ -247,12 +236,8 @@ def soft_mask(mask, proba, *, threshold: float = 0.5) -> np.ndarray:
     if p.shape != m.shape or m.ndim != 2:
         raise RebarInputError(f"proba: expected the shape of mask {m.shape}, got {p.shape}")
     if not 0 < threshold < 1:
-        raise RebarInputError(
-            f"threshold: expected a probability strictly between 0 and 1, got {threshold!r}"
-        )
+        raise RebarInputError(f"threshold: expected a probability strictly between 0 and 1, got {threshold!r}")
     p = np.nan_to_num(np.clip(p, 0, 1), nan=0.0)
     if threshold != 0.5:
-        p = np.where(
-            p < threshold, 0.5 * p / threshold, 0.5 + 0.5 * (p - threshold) / (1 - threshold)
-        )
+        p = np.where(p < threshold, 0.5 * p / threshold, 0.5 + 0.5 * (p - threshold) / (1 - threshold))
     return np.where(m, np.where(p >= 0.5, p, 1.0), np.where(p >= 0.5, 0.0, p)).astype(np.float32)

@@ -52,9 +52,7 @@ class SegmentationModel:
         if not self.onnx_path.is_file():
             raise _bad(self.onnx_path, "ONNX model file not found")
         self.sidecar_path = (
-            Path(sidecar_json_path)
-            if sidecar_json_path is not None
-            else self.onnx_path.with_suffix(".json")
+            Path(sidecar_json_path) if sidecar_json_path is not None else self.onnx_path.with_suffix(".json")
         )
         spec = read_sidecar(self.sidecar_path)
         self.spec = spec
@@ -72,13 +70,9 @@ class SegmentationModel:
         # batch's workers), take it from them; the numbers computed are the same either way
         so.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
-            self._session = ort.InferenceSession(
-                str(self.onnx_path), so, providers=["CPUExecutionProvider"]
-            )
+            self._session = ort.InferenceSession(str(self.onnx_path), so, providers=["CPUExecutionProvider"])
         except Exception as e:  # onnxruntime raises its own exception types for unreadable models
-            raise _bad(
-                self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})"
-            ) from None
+            raise _bad(self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})") from None
         self._check_io()
 
     @classmethod
@@ -101,23 +95,19 @@ class SegmentationModel:
         names = [i.name for i in inputs]
         name = self._inp.get("name") or names[0]
         if name not in names:
-            raise RebarInputError(
-                f"{where}: input.name {name!r} is not an input of the model (it has {names})"
-            )
+            raise RebarInputError(f"{where}: input.name {name!r} is not an input of the model (it has {names})")
         if len(inputs) != 1:
             raise RebarInputError(f"{where}: expected a model with one image input, it has {names}")
         node = inputs[0]
         want_type, self._np_dtype = _DTYPES[self._inp["dtype"]]
         if node.type != want_type:
             raise RebarInputError(
-                f"{where}: input.dtype {self._inp['dtype']!r} does not match the "
-                f"model's input type {node.type}"
+                f"{where}: input.dtype {self._inp['dtype']!r} does not match the model's input type {node.type}"
             )
         shape = node.shape
         if len(shape) != 4:
             raise RebarInputError(
-                f"{where}: expected a 4-D image input ({self._inp['layout']}), "
-                f"the model's input has shape {shape}"
+                f"{where}: expected a 4-D image input ({self._inp['layout']}), the model's input has shape {shape}"
             )
         c_axis, h_axis, w_axis = (1, 2, 3) if self._inp["layout"] == "NCHW" else (3, 1, 2)
         if isinstance(shape[c_axis], int) and shape[c_axis] != 3:
@@ -135,17 +125,14 @@ class SegmentationModel:
                 )
             if [size[1], size[0]] != fixed:
                 raise RebarInputError(
-                    f"{where}: input.size {size} (width, height) does not match the "
-                    f"model's input shape {shape}"
+                    f"{where}: input.size {size} (width, height) does not match the model's input shape {shape}"
                 )
         self._input_name = name
         outputs = self._session.get_outputs()
         onames = [o.name for o in outputs]
         oname = self._out.get("name") or onames[0]
         if oname not in onames:
-            raise RebarInputError(
-                f"{where}: output.name {oname!r} is not an output of the model (it has {onames})"
-            )
+            raise RebarInputError(f"{where}: output.name {oname!r} is not an output of the model (it has {onames})")
         self._output_name = oname
         oshape = next(o.shape for o in outputs if o.name == oname)
         if self._out["kind"] == "labels":
@@ -169,8 +156,7 @@ class SegmentationModel:
             if n_cls is not None:
                 if self._out["kind"] == "probability" and n_cls != 1:
                     raise RebarInputError(
-                        f"{where}: output.kind 'probability' expects one channel, "
-                        f"the model's output has shape {oshape}"
+                        f"{where}: output.kind 'probability' expects one channel, the model's output has shape {oshape}"
                     )
                 bad = [c for c in self._out["rebar_classes"] if c >= n_cls]
                 if bad:
@@ -185,9 +171,7 @@ class SegmentationModel:
 
         img = np.asarray(color)
         if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-            raise RebarInputError(
-                f"color: expected an (H, W, 3) uint8 RGB image, got {img.shape} {img.dtype}"
-            )
+            raise RebarInputError(f"color: expected an (H, W, 3) uint8 RGB image, got {img.shape} {img.dtype}")
         H, W = img.shape[:2]
         inp = self._inp
         w, h = self._input_size(W, H)
@@ -359,9 +343,7 @@ class SegmentationModel:
         thr, is_logit = 0.5, False
         for y0 in starts(H, th):
             for x0 in starts(W, tw):
-                tile, thr, is_logit = self._score(
-                    np.ascontiguousarray(img[y0 : y0 + th, x0 : x0 + tw]), flips
-                )
+                tile, thr, is_logit = self._score(np.ascontiguousarray(img[y0 : y0 + th, x0 : x0 + tw]), flips)
                 wgt = np.outer(ramp(th, y0 > 0, y0 + th < H), ramp(tw, x0 > 0, x0 + tw < W))
                 acc[y0 : y0 + th, x0 : x0 + tw] += wgt * tile
                 wsum[y0 : y0 + th, x0 : x0 + tw] += wgt
@@ -370,9 +352,7 @@ class SegmentationModel:
             score = cv2.resize(score, (W0, H0), interpolation=cv2.INTER_LINEAR)
         return score, thr, is_logit
 
-    def predict_proba(
-        self, color, *, tiled: bool = False, bar_width_px=None, flips: bool = True
-    ) -> np.ndarray:
+    def predict_proba(self, color, *, tiled: bool = False, bar_width_px=None, flips: bool = True) -> np.ndarray:
         """Rebar probability per pixel, (H, W) float32 in [0, 1] at the image's resolution.
 
         Label-map models give 0 or 1. ``tiled``: for an image larger than the model's fixed
@@ -386,9 +366,7 @@ class SegmentationModel:
         image or tile instead of once per flip and once more (the shipped model: 4 runs; faster,
         a less exact mask: docs/benchmarks.md, "Full-resolution tiles").
         """
-        score, _, is_logit = (
-            self._score_tiled(color, bar_width_px, flips) if tiled else self._score(color, flips)
-        )
+        score, _, is_logit = self._score_tiled(color, bar_width_px, flips) if tiled else self._score(color, flips)
         if is_logit:
             return (1.0 / (1.0 + np.exp(-score))).astype(np.float32)
         return np.clip(score, 0, 1).astype(np.float32)

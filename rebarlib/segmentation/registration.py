@@ -60,18 +60,10 @@ def estimate_registration(
     a0 = np.asarray(color_proba, np.float32)
     b0 = np.asarray(depth_mask, np.float32)
     if a0.ndim != 2 or a0.shape != b0.shape:
-        raise RebarInputError(
-            f"depth_mask: expected the shape of color_proba {a0.shape}, got {b0.shape}"
-        )
-    valid = (
-        np.ones(a0.shape, np.uint8)
-        if depth_valid is None
-        else np.asarray(depth_valid).astype(np.uint8)
-    )
+        raise RebarInputError(f"depth_mask: expected the shape of color_proba {a0.shape}, got {b0.shape}")
+    valid = np.ones(a0.shape, np.uint8) if depth_valid is None else np.asarray(depth_valid).astype(np.uint8)
     if valid.shape != a0.shape:
-        raise RebarInputError(
-            f"depth_valid: expected the shape of color_proba {a0.shape}, got {valid.shape}"
-        )
+        raise RebarInputError(f"depth_valid: expected the shape of color_proba {a0.shape}, got {valid.shape}")
     fail = (math.nan, math.nan, math.nan)
     if not (b0.any() and (a0 > 0.5).any()):
         return fail

@@ -37,8 +37,7 @@ def read_sidecar(path: Path) -> dict:
     if not path.is_file():
         raise _bad(
             path,
-            "sidecar JSON not found (expected next to the ONNX file, same name, .json; "
-            "docs/formats.md lists its keys)",
+            "sidecar JSON not found (expected next to the ONNX file, same name, .json; docs/formats.md lists its keys)",
         )
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
@@ -53,11 +52,7 @@ def read_sidecar(path: Path) -> dict:
     inp, out = dict(spec["input"]), dict(spec["output"])
     size = inp.get("size")
     if size is not None:
-        if not (
-            isinstance(size, list)
-            and len(size) == 2
-            and all(isinstance(v, int) and v > 0 for v in size)
-        ):
+        if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size)):
             raise _bad(path, f"input.size: expected [width, height] in pixels, got {size!r}")
     resize = inp.get("resize", "keep_aspect")
     if resize not in _RESIZE:
@@ -79,12 +74,8 @@ def read_sidecar(path: Path) -> dict:
         raise _bad(path, f"input.dtype: expected one of {tuple(_DTYPES)}, got {dtype!r}")
     for key, default in (("mean", [0.0, 0.0, 0.0]), ("std", [1.0, 1.0, 1.0])):
         v = inp.get(key, default)
-        if not (
-            isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)
-        ):
-            raise _bad(
-                path, f"input.{key}: expected 3 numbers (0-255 units, in channel_order), got {v!r}"
-            )
+        if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)):
+            raise _bad(path, f"input.{key}: expected 3 numbers (0-255 units, in channel_order), got {v!r}")
         if key == "std" and min(v) <= 0:
             raise _bad(path, f"input.std: expected positive numbers, got {v!r}")
         inp[key] = [float(x) for x in v]
@@ -92,22 +83,13 @@ def read_sidecar(path: Path) -> dict:
     if not isinstance(value_scale, (int, float)) or value_scale <= 0:
         raise _bad(path, f"input.value_scale: expected a positive number, got {value_scale!r}")
     flips = inp.get("flips", [])
-    if not (
-        isinstance(flips, list)
-        and all(f in _FLIPS for f in flips)
-        and len(set(flips)) == len(flips)
-    ):
-        raise _bad(
-            path, f"input.flips: expected a list of distinct flips from {_FLIPS}, got {flips!r}"
-        )
+    if not (isinstance(flips, list) and all(f in _FLIPS for f in flips) and len(set(flips)) == len(flips)):
+        raise _bad(path, f"input.flips: expected a list of distinct flips from {_FLIPS}, got {flips!r}")
     max_bar_px = inp.get("max_bar_px")
     if max_bar_px is not None and (
         isinstance(max_bar_px, bool) or not isinstance(max_bar_px, (int, float)) or max_bar_px <= 0
     ):
-        raise _bad(
-            path,
-            f"input.max_bar_px: expected a positive number of input pixels, got {max_bar_px!r}",
-        )
+        raise _bad(path, f"input.max_bar_px: expected a positive number of input pixels, got {max_bar_px!r}")
     inp.update(
         size=size,
         resize=resize,
@@ -124,20 +106,10 @@ def read_sidecar(path: Path) -> dict:
     if kind not in _KINDS:
         raise _bad(path, f"output.kind: expected one of {_KINDS}, got {kind!r}")
     if flips and kind == "labels":
-        raise _bad(
-            path,
-            "input.flips: a label-map output cannot be averaged over flips; use logits or probability",
-        )
+        raise _bad(path, "input.flips: a label-map output cannot be averaged over flips; use logits or probability")
     classes = out.get("rebar_classes", [1] if kind != "probability" else [0])
-    if not (
-        isinstance(classes, list)
-        and classes
-        and all(isinstance(c, int) and c >= 0 for c in classes)
-    ):
-        raise _bad(
-            path,
-            f"output.rebar_classes: expected a non-empty list of class indices, got {classes!r}",
-        )
+    if not (isinstance(classes, list) and classes and all(isinstance(c, int) and c >= 0 for c in classes)):
+        raise _bad(path, f"output.rebar_classes: expected a non-empty list of class indices, got {classes!r}")
     thr = out.get("threshold", 0.5)
     if not isinstance(thr, (int, float)) or not 0 < thr < 1:
         raise _bad(path, f"output.threshold: expected a probability in (0, 1), got {thr!r}")

@@ -34,19 +34,14 @@ def _prism(p0, p1, r, n=_N_SIDES):
     j = (i + 1) % n
     side = np.vstack((np.column_stack((i, j, n + i)), np.column_stack((j, n + j, n + i))))
     caps = np.vstack(
-        (
-            np.column_stack((np.full(n, 2 * n), j, i)),
-            np.column_stack((np.full(n, 2 * n + 1), n + i, n + j)),
-        )
+        (np.column_stack((np.full(n, 2 * n), j, i)), np.column_stack((np.full(n, 2 * n + 1), n + i, n + j)))
     )
     return verts, np.vstack((side, caps))
 
 
 def _box(c, hs, yaw):
     """Triangles of a box of half-sizes ``hs`` centred on ``c``, turned ``yaw`` rad about z."""
-    corners = (
-        np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * hs
-    )
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * hs
     cy, sy = math.cos(yaw), math.sin(yaw)
     R = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1.0]])
     verts = corners @ R.T + c
@@ -138,13 +133,7 @@ def _build_geometry(scene: SlabScene) -> _Geometry:
         for p0, p1 in zip(b.axis[:-1], b.axis[1:]):
             v, t = _prism(p0, p1, b.radius_mm)
             V.append(v), T.append(t)
-            (
-                kinds.append(K_BAR),
-                barid.append(b.id),
-                p0s.append(p0),
-                p1s.append(p1),
-                rs.append(b.radius_mm),
-            )
+            (kinds.append(K_BAR), barid.append(b.id), p0s.append(p0), p1s.append(p1), rs.append(b.radius_mm))
             ribs.append(bar_rib + [s0] if relief else no_rib)
             s0 += float(np.linalg.norm(p1 - p0))
     for c, hs, yaw, kind in scene.boxes:
@@ -255,16 +244,12 @@ class _Caster:
         todo = np.arange(len(origins))
         own = np.full(len(origins), -1) if own is None else np.array(own)  # (a copy: cleared below)
         for _ in range(2):  # at most once through its own prism
-            rays = np.hstack((origins[todo] + dirs[todo] * start[todo, None], dirs[todo])).astype(
-                np.float32
-            )
+            rays = np.hstack((origins[todo] + dirs[todo] * start[todo, None], dirs[todo])).astype(np.float32)
             ans = self.scene.cast_rays(self.o3d.core.Tensor(rays))
             t_k = ans["t_hit"].numpy().astype(np.float64)
             prim = ans["primitive_ids"].numpy().astype(np.int64)
             hit = np.isfinite(t_k)
-            self_hit = (
-                hit & (own[todo] >= 0) & (self.geo.tri_obj[np.where(hit, prim, 0)] == own[todo])
-            )
+            self_hit = hit & (own[todo] >= 0) & (self.geo.tri_obj[np.where(hit, prim, 0)] == own[todo])
             th[todo] = start[todo] + t_k
             own[todo] = -1
             start[todo[self_hit]] += t_k[self_hit] + 1e-3
@@ -322,9 +307,7 @@ def _relief_gap(x, p0, a, u, w, rib):
     radial = rel - s[..., None] * a
     rho = np.linalg.norm(radial, axis=-1)
     psi = np.arctan2((radial * w).sum(-1), (radial * u).sum(-1)) - rib[..., 4]
-    return rho - _relief_radius(
-        s + rib[..., 5], psi, rib[..., 0], rib[..., 1], rib[..., 2], rib[..., 3]
-    ), s
+    return rho - _relief_radius(s + rib[..., 5], psi, rib[..., 0], rib[..., 1], rib[..., 2], rib[..., 3]), s
 
 
 def _ray_relief(o, d, p0, p1, rib, step_mm=0.03, block=48, bisections=12):
@@ -353,9 +336,7 @@ def _ray_relief(o, d, p0, p1, rib, step_mm=0.03, block=48, bisections=12):
         i = active
         T = np.minimum(t_cur[i, None] + step_mm * k[None, :], t_out[i, None])  # (m, block+1)
         X = o[i, None, :] + T[..., None] * d[i, None, :]
-        f, s = _relief_gap(
-            X, p0[i, None, :], a[i, None, :], u[i, None, :], w[i, None, :], rib[i, None, :]
-        )
+        f, s = _relief_gap(X, p0[i, None, :], a[i, None, :], u[i, None, :], w[i, None, :], rib[i, None, :])
         inside = (f <= 0) & (s >= 0) & (s <= L[i, None])
         first = np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
         found = first >= 0

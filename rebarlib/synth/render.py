@@ -76,8 +76,7 @@ class Appearance:
             or not 1 <= self.pixel_samples <= 8
         ):
             raise RebarInputError(
-                f"pixel_samples: expected a whole number of rays per pixel side "
-                f"from 1 to 8, got {self.pixel_samples!r}"
+                f"pixel_samples: expected a whole number of rays per pixel side from 1 to 8, got {self.pixel_samples!r}"
             )
 
 
@@ -107,9 +106,7 @@ class CameraPose:
         pitch = np.array([[1.0, 0, 0], [0, ct, -st], [0, st, ct]])  # about the camera x axis
         rotation = pitch @ down @ yaw.T
         axis_world = rotation.T @ np.array([0, 0, 1.0])
-        centre = np.array([target_mm[0], target_mm[1], 0.0]) - axis_world * (
-            height_mm / -axis_world[2]
-        )
+        centre = np.array([target_mm[0], target_mm[1], 0.0]) - axis_world * (height_mm / -axis_world[2])
         return cls(rotation, centre)
 
     @property
@@ -166,9 +163,7 @@ def _formwork_albedo(kind, p, rng, extent):
         base = np.array([0.78, 0.60, 0.40]) * rng.uniform(0.85, 1.1)
         grain = 0.5 + 0.5 * np.sin(2 * np.pi * (x + 60 * n1) / rng.uniform(6, 12))
         shade = 0.82 + 0.12 * grain + 0.18 * (n2 - 0.5)
-        seams = (np.abs(((y + extent) % 1220) - 610) > 608) | (
-            np.abs(((x + extent) % 2440) - 1220) > 1218
-        )
+        seams = (np.abs(((y + extent) % 1220) - 610) > 608) | (np.abs(((x + extent) % 2440) - 1220) > 1218)
         shade = np.where(seams, 0.45, shade)
     elif kind == "film":
         base = np.array([0.20, 0.14, 0.11]) * rng.uniform(0.8, 1.2)
@@ -176,15 +171,9 @@ def _formwork_albedo(kind, p, rng, extent):
         dust = n2 > 0.72
         shade = np.where(dust, shade * 1.8, shade)
     else:  # plastic
-        base = [
-            np.array([0.25, 0.45, 0.75]),
-            np.array([0.55, 0.57, 0.58]),
-            np.array([0.3, 0.6, 0.35]),
-        ][rng.integers(3)]
+        base = [np.array([0.25, 0.45, 0.75]), np.array([0.55, 0.57, 0.58]), np.array([0.3, 0.6, 0.35])][rng.integers(3)]
         shade = 0.92 + 0.1 * (n2 - 0.5)
-        seams = (np.abs(((y + extent) % 500) - 250) > 247) | (
-            np.abs(((x + extent) % 500) - 250) > 247
-        )
+        seams = (np.abs(((y + extent) % 500) - 250) > 247) | (np.abs(((x + extent) % 500) - 250) > 247)
         shade = np.where(seams, 0.6, shade)
     return np.clip(shade[:, None] * base, 0, 1)
 
@@ -266,19 +255,13 @@ def render_capture(
     caster = _Caster(geo)
     hits = _cast(geo, caster, lens, pose)
     z_true = np.where(hits.hit, hits.t, 0.0).reshape(H, W)
-    layer_of_bar = np.array(
-        [LABEL_LOWER if b.layer == "lower" else LABEL_UPPER for b in scene.bars] + [0]
-    )
+    layer_of_bar = np.array([LABEL_LOWER if b.layer == "lower" else LABEL_UPPER for b in scene.bars] + [0])
     labels = layer_of_bar[hits.bar_of].astype(np.uint8).reshape(H, W)
     bar_ids = (hits.bar_of + 1).astype(np.int32).reshape(H, W)
-    depth = _sensor_depth(
-        z_true, hits.p, hits.normal, hits.hit, pose, intrinsics, sensor, caster, rng, hits.leave
-    )
+    depth = _sensor_depth(z_true, hits.p, hits.normal, hits.hit, pose, intrinsics, sensor, caster, rng, hits.leave)
     img, formwork, light, rust_of_bar = _colour(scene, pose, lens, app, geo, caster, hits, rng)
     # the truth is about the pixel centres
-    truth = _truth(
-        scene, pose, intrinsics, bar_ids, hits.p, formwork, light, rust_of_bar, sensor, app
-    )
+    truth = _truth(scene, pose, intrinsics, bar_ids, hits.p, formwork, light, rust_of_bar, sensor, app)
     no_depth = _remove_bar_depth(depth, bar_ids, truth, sensor.bars_without_depth, rng)
     for tb in truth["bars"]:
         tb["no_depth"] = tb["id"] in no_depth
@@ -292,14 +275,7 @@ def render_capture(
 
 
 def _colour(
-    scene: SlabScene,
-    pose: CameraPose,
-    lens: Intrinsics,
-    app: Appearance,
-    geo,
-    caster,
-    hits: _Hits,
-    rng,
+    scene: SlabScene, pose: CameraPose, lens: Intrinsics, app: Appearance, geo, caster, hits: _Hits, rng
 ) -> tuple:
     """The colour image (H, W, 3 uint8) and what it was drawn with: the formwork's kind, the
     light's direction (world) and each bar's rust (0..1, one more entry for "no bar").
@@ -308,21 +284,13 @@ def _colour(
     so every capture of one slab agrees; the sun and the sensor noise from ``rng``."""
     slab_rng = np.random.default_rng([scene.key, 1])
     formwork = app.formwork or FORMWORKS[slab_rng.integers(len(FORMWORKS))]
-    elev = math.radians(
-        app.sun_elevation_deg if app.sun_elevation_deg is not None else rng.uniform(35, 75)
-    )
-    azim = math.radians(
-        app.sun_azimuth_deg if app.sun_azimuth_deg is not None else rng.uniform(0, 360)
-    )
-    light = np.array(
-        [math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)]
-    )
+    elev = math.radians(app.sun_elevation_deg if app.sun_elevation_deg is not None else rng.uniform(35, 75))
+    azim = math.radians(app.sun_azimuth_deg if app.sun_azimuth_deg is not None else rng.uniform(0, 360))
+    light = np.array([math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)])
     rust_of_bar = np.zeros(len(scene.bars) + 1)
     n_rusty = int(round(app.rust_fraction * len(scene.bars)))
     if n_rusty:
-        rust_of_bar[slab_rng.permutation(len(scene.bars))[:n_rusty]] = slab_rng.uniform(
-            0.5, 1.0, n_rusty
-        )
+        rust_of_bar[slab_rng.permutation(len(scene.bars))[:n_rusty]] = slab_rng.uniform(0.5, 1.0, n_rusty)
     n_s = int(app.pixel_samples)
     if n_s > 1:  # the colour pass casts n_s² rays spread over each pixel (see Appearance)
         hits = _cast(geo, caster, lens, pose, _subpixels(lens.height, lens.width, n_s))
@@ -338,12 +306,7 @@ def _subpixels(H: int, W: int, n_s: int) -> np.ndarray:
     off = (np.arange(n_s) + 0.5) / n_s - 0.5
     oy, ox = np.meshgrid(off, off, indexing="ij")
     v, u = np.mgrid[0:H, 0:W]
-    px = np.stack(
-        [
-            np.column_stack(((u + dx).ravel(), (v + dy).ravel()))
-            for dx, dy in zip(ox.ravel(), oy.ravel())
-        ]
-    )
+    px = np.stack([np.column_stack(((u + dx).ravel(), (v + dy).ravel())) for dx, dy in zip(ox.ravel(), oy.ravel())])
     return px.reshape(-1, 2)
 
 
@@ -382,9 +345,7 @@ def _shade(app: Appearance, caster, hits: _Hits, albedo, light, rust_of_bar, for
     half_v = (view + light) / np.linalg.norm(view + light, axis=1, keepdims=True)
     fw = kind == K_FORMWORK
     spec_k = np.where(
-        kind == K_BAR,
-        0.25 * (1 - rust_of_bar[bar_of]),
-        np.where(fw & (formwork != "plywood"), 0.15, 0.0),
+        kind == K_BAR, 0.25 * (1 - rust_of_bar[bar_of]), np.where(fw & (formwork != "plywood"), 0.15, 0.0)
     )
     spec = spec_k * np.clip((normal * half_v).sum(1), 0, 1) ** 30 * (~shadow)
     shade = app.ambient + (1 - app.ambient) * 1.25 * direct
@@ -404,9 +365,7 @@ def _to_image(rgb, n_s: int, H: int, W: int, app: Appearance, rng) -> np.ndarray
     noisy = rgb ** (1 / 1.8) * 255 + rng.normal(0, app.noise_sigma, rgb.shape)
     img = np.clip(noisy, 0, 255).astype(np.uint8)
     if app.jpeg_quality:
-        ok, buf = cv2.imencode(
-            ".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(app.jpeg_quality)]
-        )
+        ok, buf = cv2.imencode(".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(app.jpeg_quality)])
         img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
     return img
 
@@ -445,9 +404,7 @@ def synth_capture(
     if scene_seed is not None:
         scene_rng = np.random.SeedSequence(scene_seed)
     scene = make_scene(design, deviations, rng=np.random.default_rng(scene_rng))
-    pose = CameraPose.looking_down(
-        height_mm, tilt_deg=tilt_deg, yaw_deg=yaw_deg, target_mm=target_mm
-    )
+    pose = CameraPose.looking_down(height_mm, tilt_deg=tilt_deg, yaw_deg=yaw_deg, target_mm=target_mm)
     return render_capture(
         scene,
         pose,

@@ -80,14 +80,7 @@ class Deviations:
     @classmethod
     def none(cls) -> "Deviations":
         """A mesh exactly as designed (no jitter, no ribs, no accessories): for unit tests."""
-        return cls(
-            position_sigma_mm=0.0,
-            height_sigma_mm=0.0,
-            ribs=False,
-            spacers=False,
-            chairs=False,
-            ties=False,
-        )
+        return cls(position_sigma_mm=0.0, height_sigma_mm=0.0, ribs=False, spacers=False, chairs=False, ties=False)
 
 
 @dataclass(frozen=True)
@@ -255,9 +248,7 @@ def _place_bars(
         s_mid, s_half = 0.5 * (s_lo + s_hi), 0.5 * (s_hi - s_lo)
         spacing = lat.level(level).spacing_mm
         placed = [(k, off, False) for k, off in enumerate(offsets)]
-        placed += [
-            (k, off + spacing / 2, True) for k, off in enumerate(offsets) if (si, k) in extra_slots
-        ]
+        placed += [(k, off + spacing / 2, True) for k, off in enumerate(offsets) if (si, k) in extra_slots]
         for k, off, is_extra in sorted(placed, key=lambda x: x[1]):
             if not is_extra and (si, k) in missing_slots:
                 missing.append((layer, level, k))
@@ -287,20 +278,12 @@ def _place_bars(
             off_true = off + rng.normal(0, dev.position_sigma_mm) if dev.position_sigma_mm else off
             if dev.position_uniform_mm:
                 off_true += rng.uniform(-dev.position_uniform_mm, dev.position_uniform_mm)
-            z0 = (
-                base[layer] + rng.normal(0, dev.height_sigma_mm)
-                if dev.height_sigma_mm
-                else base[layer]
-            )
+            z0 = base[layer] + rng.normal(0, dev.height_sigma_mm) if dev.height_sigma_mm else base[layer]
             # bottom bars rest on the spacers; top bars rest on the bottom bars of their lattice
             zc = z0 + e / 2 if level == "bottom" else z0 + bottom_env + e / 2
             n_seg = 12 if dev.bow_mm else 1
             s = np.linspace(s_lo, s_hi, n_seg + 1)
-            bow = (
-                dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2)
-                if dev.bow_mm
-                else 0 * s
-            )
+            bow = dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2) if dev.bow_mm else 0 * s
             axis = s[:, None] * along + (off_true + bow)[:, None] * across + np.array([0, 0, zc])
             bars.append(
                 Bar(
@@ -341,14 +324,7 @@ def _accessories(design: Design, dev: Deviations, bars: list, yaw: float) -> tup
             for d_mm in np.arange(300.0, _length(b), 900.0):
                 p = b.axis[0] + d_mm * b.direction
                 z_top = b.axis[:, 2].mean() - b.radius_mm
-                rods.append(
-                    (
-                        np.array([p[0], p[1], top_of_lower]),
-                        np.array([p[0], p[1], z_top]),
-                        5.0,
-                        "chair",
-                    )
-                )
+                rods.append((np.array([p[0], p[1], top_of_lower]), np.array([p[0], p[1], z_top]), 5.0, "chair"))
     if dev.ties:
         rods.extend(_ties(bars))
     return boxes, rods

@@ -100,9 +100,7 @@ class SensorModel:
 
     def sigma_z_mm(self, z_mm, focal_px: float):
         """Model axial noise (mm) at depth ``z_mm``."""
-        return (
-            np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
-        )
+        return np.asarray(z_mm, float) ** 2 * self.disparity_sigma_px / (focal_px * self.baseline_mm)
 
     def true_intrinsics(self, written: Intrinsics) -> Intrinsics:
         """The intrinsics the rays are cast through, where ``written`` are those saved with the
@@ -244,9 +242,7 @@ def _remove_bar_depth(depth, bar_ids, truth: dict, n: int, rng) -> set:
     if not n:
         return set()
     seen = [
-        tb["id"]
-        for tb in truth["bars"]
-        if tb["layer"] == "lower" and tb["visible"] and tb["visible_length_mm"] >= 400
+        tb["id"] for tb in truth["bars"] if tb["layer"] == "lower" and tb["visible"] and tb["visible_length_mm"] >= 400
     ]
     ids = {seen[i] for i in rng.permutation(len(seen))[:n]}
     if ids:

@@ -25,9 +25,7 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
     ids = bar_ids.ravel() - 1
     counts = np.bincount(ids[ids >= 0], minlength=len(scene.bars))
     bars = [
-        _bar_truth(
-            b, pose, p[ids == b.id] if counts[b.id] else None, int(counts[b.id]), rust_of_bar
-        )
+        _bar_truth(b, pose, p[ids == b.id] if counts[b.id] else None, int(counts[b.id]), rust_of_bar)
         for b in scene.bars
     ]
     by = {(bb["layer"], bb["level"]): [] for bb in bars}
@@ -46,9 +44,7 @@ def _truth(scene, pose, intr, bar_ids, p, formwork, light, rust_of_bar, sensor, 
     return {
         "units": "mm, camera frame (OpenCV: x right, y down, z forward); heights above the formwork",
         "cover_mm": round(cover, 4) if cover is not None else None,
-        "layer_distance_mm": (
-            round(upper_bottom - cover, 4) if None not in (cover, upper_bottom) else None
-        ),
+        "layer_distance_mm": (round(upper_bottom - cover, 4) if None not in (cover, upper_bottom) else None),
         "upper_top_mm": mean_of("top_mm", "upper", "top"),
         "formwork_plane": {"normal": normal_c.round(8).tolist(), "offset_mm": round(offset_c, 4)},
         "camera": {
@@ -146,13 +142,7 @@ def _ghost_truth(scene, i: int, pose, intr) -> dict:
     pts = a0 + t[:, None] * (a1 - a0) + np.array([0, 0, g.radius_mm])
     cam = pose.to_camera(pts)
     uv = project(cam, intr)
-    inside = (
-        (cam[:, 2] > 0)
-        & (uv[:, 0] >= 0)
-        & (uv[:, 0] < intr.width)
-        & (uv[:, 1] >= 0)
-        & (uv[:, 1] < intr.height)
-    )
+    inside = (cam[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height)
     step = float(np.linalg.norm(a1 - a0)) / 400
     return {
         "offset_mm": round(g.offset_mm, 4),
