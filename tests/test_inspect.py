@@ -683,7 +683,7 @@ def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b50
     # (0.06, 0.05) px, not applied), 14 with the depth 2 px right and 1 px up and the registration
     # undone (estimated (2.06, -0.98) px), 6 without undoing it. No bar of the example is of another size
     # than designed, so a size that does not match the design is a wrong one.
-    import rebarlib._inspect as I
+    import rebarlib._masks as M  # where the mask step reads its registration threshold
 
     cap, design = example_b500
     aligned = inspect(cap, design, rng=0)
@@ -699,7 +699,7 @@ def test_colour_depth_misregistration_is_undone_before_the_diameters(example_b50
     assert np.array_equal(moved.color, colour)  # the capture given is not changed
     n_moved, wrong = _diameters(res)
     assert wrong == 0 and n_moved >= n_aligned - 1
-    monkeypatch.setattr(I, "REGISTRATION_MIN_PX", math.inf)  # the same without undoing it
+    monkeypatch.setattr(M, "REGISTRATION_MIN_PX", math.inf)  # the same without undoing it
     n_left, _ = _diameters(inspect(moved, design, rng=0))
     assert n_left < n_aligned - 3
     assert json.loads(res.to_json())["extras"]["registration"]["applied"] is True
