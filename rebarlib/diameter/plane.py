@@ -113,6 +113,12 @@ def cross_section_direction(point_mm, direction, intrinsics: Intrinsics) -> tupl
     The cross-section direction is that of p → q with q = p + (p − O) × v (method.md 3.3, step 4);
     the axis direction that of p → p + v.
 
+    Parameters
+    ----------
+    point_mm : (3,) a point of the bar's axis, camera frame (mm)
+    direction : (3,) the axis's direction, camera frame (any length)
+    intrinsics : Intrinsics of the image the directions are taken in
+
     Returns
     -------
     across_px, along_px : (2,) float, unit vectors in the image (u, v)
@@ -142,6 +148,14 @@ def diameter_region(center_px, across_px, along_px, *, long_px: float, short_px:
 
     Centred on ``center_px``; two sides of length ``long_px`` run along the cross-section
     direction ``across_px``, the other two (``short_px``) along the projected axis ``along_px``.
+
+    Parameters
+    ----------
+    center_px : (2,) the region's centre (u, v), on the projected axis
+    across_px, along_px : (2,) unit image directions of the cross-section and of the axis
+        (:func:`cross_section_direction`)
+    long_px : length of the sides across the bar, px
+    short_px : length of the sides along the bar, px
 
     Returns
     -------

@@ -129,7 +129,16 @@ def paper_find_bars(
 
 def group_directions(bars: list, *, rng=None) -> list:
     """The paper's K-means (k = 2) on bar directions; angles are doubled so θ and θ + 180° agree.
-    Returns the bars with ``group`` set (0 or 1)."""
+
+    Parameters
+    ----------
+    bars : list of BarAxis of one lattice
+    rng : seed or Generator of the K-means initialisation
+
+    Returns
+    -------
+    list of BarAxis, the same bars with ``group`` set (0 or 1)
+    """
     if not bars:
         return []
     ang = np.radians([b.plan_angle_deg for b in bars])

@@ -137,6 +137,11 @@ def measurable_bars(capture) -> list:
 def score_result(result, capture) -> dict:
     """Errors of one result against the truth of the synthetic ``capture`` it was measured on.
 
+    Parameters
+    ----------
+    result : InspectionResult (or its dict) of ``capture``
+    capture : Capture rendered by :mod:`rebarlib.synth`, with its ``truth``
+
     Returns
     -------
     dict with ``cover_err_mm``, ``layer_distance_err_mm``, ``upper_top_err_mm`` (detected − true,
