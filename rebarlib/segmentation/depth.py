@@ -108,7 +108,8 @@ def mask_from_depth(
         default ``max(6 mm, 4 sigma)`` with sigma the robust spread of the formwork's points
         (noise grows with distance, so the default adapts to the capture)
     max_height_mm : higher points are not rebar (a boot, a tool)
-    plane : (normal, offset_mm) of the formwork if known, else fitted with
+    plane : tuple, optional
+        the formwork's ``(normal, offset_mm)`` if known, else fitted with
         :func:`fit_formwork_plane`
     open_px : radius of a morphological opening that removes isolated (flying) pixels; 0 = none
     rng : seed or Generator of the plane fit
