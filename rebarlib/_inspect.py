@@ -426,10 +426,14 @@ def _note_registration(res: InspectionResult, reg: dict) -> None:
         )
 
 
-def _paper_top_cover(design: Design, upper_top: Measurement) -> Measurement:
-    from ._refined import _top_cover
-
-    return _top_cover(design, upper_top)
+def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
+    """The top cover predicted from the design's thickness and the measured top of the upper
+    lattice (both methods)."""
+    if design.thickness_mm is None:
+        return Measurement.not_measured("the design gives no slab thickness")
+    if not upper_top.ok:
+        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
+    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)
 
 
 def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
@@ -492,7 +496,7 @@ def _inspect_paper(capture: Capture, design: Design, rng) -> InspectionResult:
         cover=cover,
         layer_distance=layer_distance,
         upper_top=upper_top,
-        top_cover=_paper_top_cover(design, upper_top),
+        top_cover=_top_cover(design, upper_top),
         bars=G.bars_table(bars, plane),
         spacings=spacings,
         counts=counts,

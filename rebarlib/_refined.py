@@ -31,6 +31,7 @@ from ._inspect import (
     _formwork_found,
     _mean_measure,
     _radii,
+    _top_cover,
     facing_up,
     prepare_cloud,
     registered_mask,
@@ -359,11 +360,3 @@ def _levels_unclear(bars: list, layer: str) -> str:
         f"bars of the {layer} lattice were measured in one direction only: whether they are its "
         "bottom or its top level cannot be told (too few depth points on the other direction's bars)"
     )
-
-
-def _top_cover(design: Design, upper_top: Measurement) -> Measurement:
-    if design.thickness_mm is None:
-        return Measurement.not_measured("the design gives no slab thickness")
-    if not upper_top.ok:
-        return Measurement.not_measured(f"top of the upper lattice not measured ({upper_top.reason})")
-    return Measurement(design.thickness_mm - upper_top.value_mm, upper_top.uncertainty_mm, upper_top.n_points)

@@ -9,7 +9,7 @@ import math
 
 from ._design import DEFAULT_BAR_SYSTEM, Design
 from ._results import table_records
-from ._status import EXCLUDED, NOT_MEASURED
+from ._status import EXCLUDED, NOT_IN_VIEW, NOT_MEASURED
 from .acceptance import COVERAGE_K, Acceptance
 
 
@@ -190,7 +190,7 @@ def _checkpoint_rows(items: list, checkpoints: list, bar_system: str) -> list:
             vals = []
             for c in (c for c in cps if c["capture"] == cap):
                 if c["status"] == EXCLUDED:
-                    v = "not in view" if str(c.get("reason", "")).startswith("not in view") else "hidden"
+                    v = NOT_IN_VIEW if str(c.get("reason", "")).startswith(NOT_IN_VIEW) else "hidden"
                 elif c["status"] == NOT_MEASURED:
                     v = "n/m"
                 elif it["item"].startswith("bar_size"):

@@ -19,6 +19,7 @@ from ._status import (
     HIDDEN,
     INCOMPLETE,
     NOT_CHECKED,
+    NOT_IN_VIEW,
     NOT_MEASURED,
     PASS,
     REJECTED,
@@ -197,8 +198,8 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
         else:
             continue
         status = rec.status
-        if status == EXCLUDED and str(rec.reason).startswith("not in view"):
-            status = "not in view"
+        if status == EXCLUDED and str(rec.reason).startswith(NOT_IN_VIEW):
+            status = NOT_IN_VIEW
         for b in ids:
             per_bar.setdefault((rec.capture, b), []).append(status)
     for b in bar_rows:
@@ -207,7 +208,7 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
             v = FAIL
         elif EXCLUDED in st:
             v = HIDDEN
-        elif "not in view" in st:  # its size is for another capture to check
+        elif NOT_IN_VIEW in st:  # its size is for another capture to check
             v = NOT_CHECKED
         elif WITHIN in st:
             v = INCOMPLETE if (b["capture"], str(b["bar_id"])) in own_open else PASS

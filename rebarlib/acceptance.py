@@ -17,7 +17,7 @@ from ._checks import RebarInputError
 from ._decision import WITHIN_NP, decide, decide_size, risk_summary
 from ._design import Design
 from ._results import table_records
-from ._status import ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, HIDDEN, MEASURED, NOT_MEASURED, WITHIN
+from ._status import ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, HIDDEN, MEASURED, NOT_IN_VIEW, NOT_MEASURED, WITHIN
 
 from ._verdicts import _bar_verdicts, _design_value, _item_row, _slab_verdict, _tol_key, design_top_cover_mm
 
@@ -442,37 +442,21 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
     for la, lv, item, dv, rec in _group_records(bars, "bar_size", design):
         what = f"bar {rec.get('bar_id')}"
         ddv = _num(rec.get("design_diameter_mm")) or dv
-        if is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN:
-            sheet.add(
-                item,
-                cap,
-                la,
-                lv,
-                what,
-                ddv,
-                None,
-                status=EXCLUDED,
-                reason=rec.get("diameter_reason") or "hidden under crossing bars",
-            )
-            continue
         nominal = _num(rec.get("nominal_mm"))
         ok = has_diam and rec.get("diameter_status", MEASURED) == MEASURED and nominal is not None
         seen_mm = _num(rec.get("visible_length_mm"))
-        if has_diam and not ok and seen_mm is not None and seen_mm < in_view_mm:
+        excluded = None
+        if is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN:
+            excluded = rec.get("diameter_reason") or "hidden under crossing bars"
+        elif has_diam and not ok and seen_mm is not None and seen_mm < in_view_mm:
             # a bar the capture shows over less than a bar position needs to be judged in view
             # (docs/verdicts.md): outside what this capture inspects, as such a position is
-            sheet.add(
-                item,
-                cap,
-                la,
-                lv,
-                what,
-                ddv,
-                None,
-                status=EXCLUDED,
-                reason=f"not in view: only {seen_mm:.0f} mm of it in the capture (a bar is checked "
-                f"over at least {in_view_mm:.0f} mm); " + (rec.get("diameter_reason") or "diameter not measured"),
+            excluded = (
+                f"{NOT_IN_VIEW}: only {seen_mm:.0f} mm of it in the capture (a bar is checked over at least "
+                f"{in_view_mm:.0f} mm); " + (rec.get("diameter_reason") or "diameter not measured")
             )
+        if excluded is not None:
+            sheet.add(item, cap, la, lv, what, ddv, None, status=EXCLUDED, reason=excluded)
             continue
         reason = (
             ""
@@ -555,7 +539,7 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     if thickness_mm is None:
         notes.append("The design gives no slab thickness: the top cover is not checked.")
     excluded = cp[cp["status"] == EXCLUDED]
-    n_view = int(excluded["reason"].astype(str).str.startswith("not in view").sum())
+    n_view = int(excluded["reason"].astype(str).str.startswith(NOT_IN_VIEW).sum())
     n_hidden = len(excluded) - n_view
     if n_hidden:
         notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
