@@ -42,27 +42,36 @@ All lengths are in mm; the decisions are in ``docs/verdicts.md``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from ._camera import Intrinsics, project
-from ._status import EXTRA, MEASURED, MISSING, NOT_EXTRA, NOT_IN_VIEW, NOT_MEASURED, OUTSIDE, PRESENT, PRESENT_NO_DEPTH
+from ._camera import Intrinsics
+from ._count_tables import count_table, settle_spacings
 from ._evidence import (  # noqa: F401 (names tests and callers reach through this module)
-    _add_mask,
-    _examine,
     _footprints,
     _heights,
     _offset,
-    _place_from_mask,
     _Row,
     _runs,
     _samples,
     mesh_boundary,
 )
-from ._count_tables import count_table, settle_spacings
-from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
+from ._extras import _lattice_index, _mask_along, _pairs  # noqa: F401 (reached through this module)
+from ._position_verdict import _judge, _present, _t_range  # noqa: F401 (reached through this module)
+from ._status import (  # noqa: F401 (the position words, reached through this module)
+    EXTRA,
+    MEASURED,
+    MISSING,
+    NOT_EXTRA,
+    NOT_IN_VIEW,
+    NOT_MEASURED,
+    OUTSIDE,
+    PRESENT,
+    PRESENT_NO_DEPTH,
+)
+from .geometry import LAYERS, LEVELS, BarAxis, Plane, from_slab_frame, to_slab_frame
 
 __all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings", "POSITION_COLUMNS"]
 
@@ -127,31 +136,7 @@ class CountParams:
 
 
 # ----------------------------------------------------------------------------------------------
-# Rows, positions, extras
-
-
-def _lattice_index(offsets: np.ndarray, s: float) -> np.ndarray:
-    """Integer lattice position of each bar: offsets referred to the row's phase (the circular
-    median of offset mod spacing), rounded to spacings."""
-    ang = 2 * np.pi * offsets / s
-    phase = math.atan2(float(np.median(np.sin(ang))), float(np.median(np.cos(ang)))) * s / (2 * np.pi)
-    return np.round((offsets - phase) / s).astype(int), phase
-
-
-def _mask_along(b: BarAxis, plane: Plane, intr: Intrinsics, foot, own: int, mask) -> float:
-    """Share of a bar's axis samples (in the image, not under another found bar) on which the
-    rebar mask is set."""
-    t = np.arange(b.t0_mm, b.t1_mm + 1e-9, 5.0)
-    if len(t) < 2:
-        return math.nan
-    cam = from_slab_frame(b.axis_points(t), plane)
-    uv = np.round(project(cam, intr)).astype(int)
-    ok = _in_image(uv, cam, intr)
-    u, v = uv[ok, 0], uv[ok, 1]
-    free = np.isin(foot[v, u], (0, own))
-    if free.sum() < 4:
-        return math.nan
-    return float(mask[v[free], u[free]].mean())
+# Rows and positions
 
 
 def examine_positions(
@@ -191,82 +176,165 @@ def examine_positions(
     depth = np.asarray(depth_mm, float)
     intr = intrinsics
     foot = _footprints(bars, plane, intr)
+    get_mask = _lazy_mask(mask)
+    boundary = mesh_boundary(bars, plane=plane, depth_mm=depth, intrinsics=intr, noise_mm=noise)
+    rows_out, new_bars = [], []
+    for layer in LAYERS:
+        for level in LEVELS:
+            row = _row_of(bars, layer, level, design_spacing.get((layer, level)))
+            if row is None:
+                continue
+            rows_out.extend(
+                _examine_row(
+                    row,
+                    bars,
+                    new_bars,
+                    boundary,
+                    plane=plane,
+                    depth=depth,
+                    intr=intr,
+                    foot=foot,
+                    mask=get_mask,
+                    noise=noise,
+                    prm=prm,
+                )
+            )
+    df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
+    return df, new_bars, boundary
+
+
+def _lazy_mask(mask):
+    """The rebar mask, computed once on first need.
+
+    Parameters
+    ----------
+    mask : callable or None
+        Returns the (H, W) rebar mask (or None) when called.
+
+    Returns
+    -------
+    callable or None
+        Returns the mask as a bool array (or None), calling ``mask`` at most once; None where
+        ``mask`` is None.
+    """
+    if mask is None:
+        return None
     cache = {}
 
     def get_mask():
-        if mask is None:
-            return None
         if "m" not in cache:
             m = mask()
             cache["m"] = None if m is None else np.asarray(m, bool)
         return cache["m"]
 
-    boundary = mesh_boundary(bars, plane=plane, depth_mm=depth, intrinsics=intr, noise_mm=noise)
-    rows_out, new_bars = [], []
-    for layer in LAYERS:
-        for level in LEVELS:
-            s = design_spacing.get((layer, level))
-            idx = [i for i, b in enumerate(bars) if b.layer == layer and b.level == level]
-            if not idx or not s:
-                continue
-            n2 = bars[idx[0]].normal2d
-            order = sorted(idx, key=lambda i: _offset(bars[i], n2))
-            meas = [bars[i] for i in order if bars[i].status == MEASURED]
-            if not meas:
-                continue
-            hs = np.array([b.axis_height_mm for b in meas])
-            row = _Row(
-                layer,
-                level,
-                [bars[i] for i in order],
-                order,
-                np.array([_offset(bars[i], n2) for i in order]),
-                float(s),
-                float(np.median(hs)),
-                float(1.4826 * np.median(np.abs(hs - np.median(hs)))) if len(hs) > 2 else 1.0,
-                float(np.median([b.radius_mm for b in meas])),
-                bars[idx[0]].direction,
-                n2,
-            )
-            reach = _reach(boundary, layer, level, row.normal)
-            higher = [i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius]
-            # the higher bars along this row (offset across, axis height, radius): where one
-            # hides a position, they say from where it would show
-            over = [
-                (_offset(b, n2), b.axis_height_mm, b.radius_mm)
-                for b in bars
-                if b.axis_height_mm > row.height + row.radius and abs(float(b.direction @ row.direction)) > 0.95
-            ]
-            for kind, p, nb in _candidates(row, reach, plane, intr, prm):
-                rec = _judge(
-                    row,
-                    kind,
-                    p,
-                    nb,
-                    reach,
-                    plane=plane,
-                    depth=depth,
-                    intr=intr,
-                    foot=foot,
-                    higher=higher,
-                    mask=get_mask if mask is not None else None,
-                    noise=noise,
-                    prm=prm,
-                )
-                if rec["status"] == NOT_MEASURED and rec["reason"].startswith("hidden under"):
-                    rec["reason"] += _where_it_shows(row, p, over, plane)
-                if rec.pop("_bar", None) is not None:
-                    nb_bar = rec.pop("_new")
-                    new_bars.append(nb_bar)
-                    rec["bar_id"] = len(bars) + len(new_bars) - 1
-                rec.update(_line_ends(row, float(rec["offset_mm"]), _t_range(nb), plane))
-                rows_out.append({"layer": layer, "level": level, **rec})
-            rows_out.extend(
-                {"layer": layer, "level": level, **rec}
-                for rec in _pairs(row, plane, intr, foot, get_mask if mask is not None else None, prm)
-            )
-    df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
-    return df, new_bars, boundary
+    return get_mask
+
+
+def _row_of(bars: list, layer: str, level: str, spacing) -> _Row | None:
+    """The row of one lattice's level: its found bars in order across, its height, height
+    spread and radius from its measured bars.
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+        All the found bars.
+    layer, level : str
+        The lattice and its level.
+    spacing : float or None
+        The row's design spacing (mm).
+
+    Returns
+    -------
+    _Row or None
+        None where the row has no design spacing, no bar or no measured bar.
+    """
+    idx = [i for i, b in enumerate(bars) if b.layer == layer and b.level == level]
+    if not idx or not spacing:
+        return None
+    n2 = bars[idx[0]].normal2d
+    order = sorted(idx, key=lambda i: _offset(bars[i], n2))
+    meas = [bars[i] for i in order if bars[i].status == MEASURED]
+    if not meas:
+        return None
+    hs = np.array([b.axis_height_mm for b in meas])
+    return _Row(
+        layer,
+        level,
+        [bars[i] for i in order],
+        order,
+        np.array([_offset(bars[i], n2) for i in order]),
+        float(spacing),
+        float(np.median(hs)),
+        float(1.4826 * np.median(np.abs(hs - np.median(hs)))) if len(hs) > 2 else 1.0,
+        float(np.median([b.radius_mm for b in meas])),
+        bars[idx[0]].direction,
+        n2,
+    )
+
+
+def _examine_row(row: _Row, bars: list, new_bars: list, boundary: dict, *, plane, depth, intr, foot, mask, noise, prm):
+    """The ``positions`` rows of one row: each empty design position judged, then each pair of
+    found bars on one position.
+
+    Parameters
+    ----------
+    row : _Row
+    bars : list of BarAxis
+        All the found bars.
+    new_bars : list of BarAxis
+        The bars placed so far; a bar placed here is appended (``bar_id`` counts on from
+        ``len(bars)``).
+    boundary : dict
+        :func:`mesh_boundary`.
+    plane, depth, intr, foot : Plane, ndarray, Intrinsics, ndarray
+        The formwork plane, the depth image (mm), the camera and the found bars' footprints.
+    mask : callable or None
+        Returns the rebar mask when called (:func:`_lazy_mask`).
+    noise : float
+        The depth noise on the formwork (mm).
+    prm : CountParams
+
+    Returns
+    -------
+    list of dict
+        The rows, with their ``layer`` and ``level``.
+    """
+    layer, level, n2 = row.layer, row.level, row.normal
+    reach = _reach(boundary, layer, level, row.normal)
+    higher = [i + 1 for i, b in enumerate(bars) if b.axis_height_mm > row.height + row.radius]
+    # the higher bars along this row (offset across, axis height, radius): where one
+    # hides a position, they say from where it would show
+    over = [
+        (_offset(b, n2), b.axis_height_mm, b.radius_mm)
+        for b in bars
+        if b.axis_height_mm > row.height + row.radius and abs(float(b.direction @ row.direction)) > 0.95
+    ]
+    out = []
+    for kind, p, nb in _candidates(row, reach, plane, intr, prm):
+        rec = _judge(
+            row,
+            kind,
+            p,
+            nb,
+            reach,
+            plane=plane,
+            depth=depth,
+            intr=intr,
+            foot=foot,
+            higher=higher,
+            mask=mask,
+            noise=noise,
+            prm=prm,
+        )
+        if rec["status"] == NOT_MEASURED and rec["reason"].startswith("hidden under"):
+            rec["reason"] += _where_it_shows(row, p, over, plane)
+        if rec.pop("_bar", None) is not None:
+            new_bars.append(rec.pop("_new"))
+            rec["bar_id"] = len(bars) + len(new_bars) - 1
+        rec.update(_line_ends(row, float(rec["offset_mm"]), _t_range(nb), plane))
+        out.append({"layer": layer, "level": level, **rec})
+    out.extend({"layer": layer, "level": level, **rec} for rec in _pairs(row, plane, intr, foot, mask, prm))
+    return out
 
 
 def _where_it_shows(row: _Row, p: float, over: list, plane: Plane) -> str:
@@ -367,274 +435,3 @@ def _line_ends(row: _Row, p: float, t_range, plane: Plane) -> dict:
         for i, end in enumerate(("start", "end"))
         for j, c in enumerate("xyz")
     }
-
-
-def _t_range(nb) -> tuple:
-    return min(b.t0_mm for b in nb), max(b.t1_mm for b in nb)
-
-
-def _judge(row: _Row, kind: str, p: float, nb, reach, *, plane, depth, intr, foot, higher, mask, noise, prm) -> dict:
-    """The verdict on one empty position (a ``positions`` row, with ``_bar``/``_new`` when a bar
-    is placed there): outside the mesh, not in view, present (no depth), present, missing or not
-    measured, in that order of tests (module docstring)."""
-    s = row.spacing
-    base = {"kind": kind, "offset_mm": round(p, 1), "bar_id": None, "position_sigma_mm": math.nan}
-    if kind == "end":
-        side = "plus" if p > row.offsets[-1] else "minus"
-        if reach is None:
-            return {
-                **base,
-                "status": NOT_MEASURED,
-                "reason": "no crossing bar found: where the mesh ends cannot be "
-                "told, so this position beyond the outermost bar is not judged",
-            }
-        r_edge = reach[f"reach_{side}_mm"]
-        beyond = (p - r_edge) if side == "plus" else (r_edge - p)
-        if beyond > prm.inside_mm:
-            edge = reach[f"edge_{side}"]
-            return {
-                **base,
-                "status": OUTSIDE,
-                "reason": (
-                    f"the crossing bars end {beyond:.0f} mm before it"
-                    + (" (the mesh's edge is in view)" if edge else " (where they leave the view or are hidden)")
-                ),
-            }
-    row_ids = [i + 1 for i in row.index]
-    ev = _examine(
-        row,
-        p,
-        _t_range(nb),
-        plane=plane,
-        depth=depth,
-        intr=intr,
-        foot=foot,
-        row_ids=row_ids,
-        higher=higher,
-        noise=noise,
-        prm=prm,
-    )
-    E = prm.min_evidence_mm
-    seen = ev["empty_mm"] + ev["occupied_mm"]
-    # the colour mask is read only where the depth leaves a verdict that needs it
-    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E)
-    m = mask() if (mask is not None and needs) else None
-    if m is not None:
-        ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
-    rec = {
-        **base,
-        **{
-            k: round(ev[k], 1) for k in ("in_view_mm", "empty_mm", "occupied_mm", "no_depth_mm", "hidden_mm", "mask_mm")
-        },
-    }
-    if ev["in_view_mm"] < E:
-        return {**rec, "status": NOT_IN_VIEW, "reason": f"only {ev['in_view_mm']:.0f} mm of it in view (needs {E:.0f})"}
-    has_mask = "_shows" in ev
-    if ev["occupied_mm"] >= E and ev["occupied_mm"] >= 0.5 * seen:
-        share = ev["mask_occupied_share"]
-        if has_mask and share >= prm.min_share:
-            return _present(
-                row,
-                p,
-                ev,
-                ev["_state"] == 2,
-                plane,
-                intr,
-                prm,
-                rec,
-                PRESENT,
-                f"points at the bar's height along {ev['occupied_mm']:.0f} mm and the colour mask "
-                "along it: a bar the fit did not take",
-            )
-        return {
-            **rec,
-            "status": NOT_MEASURED,
-            "reason": (
-                f"points at the bar's height along {ev['occupied_mm']:.0f} mm, but "
-                + ("the colour mask does not show a bar there (another object?)" if has_mask else "no colour mask")
-            ),
-        }
-    if ev["empty_mm"] >= E and ev["occupied_mm"] <= prm.max_share * seen:
-        if not has_mask:
-            return {
-                **rec,
-                "status": NOT_MEASURED,
-                "reason": (
-                    f"the depth shows the support and nothing at the bar's height along {ev['empty_mm']:.0f} mm, "
-                    "but no colour mask was available to confirm it"
-                ),
-            }
-        share = ev["mask_empty_share"]
-        if share <= prm.max_share:
-            return {
-                **rec,
-                "status": MISSING,
-                "reason": (
-                    f"empty: the {'formwork' if row.level == 'bottom' and row.layer == 'lower' else 'support'} "
-                    f"is seen with depth and nothing at the bar's height along {ev['empty_mm']:.0f} mm of the "
-                    f"corridor (± {s / 2:.0f} mm), and the colour mask shows no bar there"
-                ),
-            }
-        return {
-            **rec,
-            "status": NOT_MEASURED,
-            "reason": (
-                f"the depth shows the corridor empty along {ev['empty_mm']:.0f} mm, but the colour mask shows a bar "
-                f"on {share:.0%} of it"
-            ),
-        }
-    if ev["no_depth_mm"] >= E:
-        share = ev["mask_nodepth_share"]
-        sel = ev["_nd"] & ev["_shows"] if has_mask else None
-        if has_mask and share >= prm.min_share and sel.sum() * prm.step_mm >= E:
-            return _present(row, p, ev, sel, plane, intr, prm, rec, PRESENT_NO_DEPTH, "")
-    if ev["no_depth_mm"] >= E and ev["no_depth_mm"] >= ev["hidden_mm"]:
-        share = ev["mask_nodepth_share"]
-        return {
-            **rec,
-            "status": NOT_MEASURED,
-            "reason": (
-                f"no depth along {ev['no_depth_mm']:.0f} mm of it"
-                + (
-                    f", and the colour mask shows a bar on only {share:.0%} of that"
-                    if has_mask and math.isfinite(share)
-                    else ""
-                    if has_mask
-                    else " and no colour mask"
-                )
-            ),
-        }
-    if ev["hidden_mm"] >= ev["no_depth_mm"] and ev["hidden_mm"] > 0:
-        return {
-            **rec,
-            "status": NOT_MEASURED,
-            "reason": (
-                f"hidden under another bar along {ev['hidden_mm']:.0f} mm; only {ev['empty_mm']:.0f} mm seen empty"
-            ),
-        }
-    return {
-        **rec,
-        "status": NOT_MEASURED,
-        "reason": (
-            f"too little evidence: {ev['empty_mm']:.0f} mm seen empty, {ev['occupied_mm']:.0f} mm occupied, "
-            f"{ev['no_depth_mm']:.0f} mm without depth (needs {E:.0f} mm of one)"
-        ),
-    }
-
-
-def _present(
-    row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str, why: str
-) -> dict:
-    """A position found holding a bar: the bar placed on the mask's centre line over the slices
-    ``sel`` at its level's height, status "not measured" (its axis is not fitted to points)."""
-    off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
-    ok = sd <= prm.max_position_sigma_mm
-    how = (
-        f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
-        + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured")
-        + ")"
-    )
-    reason = ("no depth on it: " if status == PRESENT_NO_DEPTH else why + "; ") + how
-    ref = row.bars[0]
-    bar = BarAxis(
-        layer=row.layer,
-        direction=ref.direction.copy(),
-        offset_mm=float(off),
-        slope=0.0,
-        centre_h_mm=row.height,
-        h_slope=0.0,
-        t0_mm=t0,
-        t1_mm=t1,
-        radius_mm=row.radius,
-        n_points=0,
-        rms_mm=math.nan,
-        point_index=np.zeros(0, int),
-        group=ref.group,
-        level=row.level,
-        status=NOT_MEASURED,
-        reason=reason,
-    )
-    bar = replace(bar, axis_se_mm=float(sd))
-    return {
-        **rec,
-        "status": status,
-        "reason": reason,
-        "position_sigma_mm": round(sd, 2),
-        "offset_mm": round(off, 1),
-        "_bar": True,
-        "_new": bar,
-    }
-
-
-def _pairs(row: _Row, plane, intr, foot, mask, prm):
-    """Extra bars: two found bars on one lattice position."""
-    if len(row.bars) < 2:
-        return
-    m_idx, phase = _lattice_index(row.offsets, row.spacing)
-    for m in np.unique(m_idx):
-        twins = np.flatnonzero(m_idx == m)
-        if len(twins) < 2:
-            continue
-        # the one farther from the lattice position is the extra one
-        dev = np.abs(row.offsets[twins] - (phase + m * row.spacing))
-        k_extra = int(twins[np.argmax(dev)])
-        others = [int(k) for k in twins if k != k_extra]
-        k_twin = min(others, key=lambda k: abs(row.offsets[k] - row.offsets[k_extra]))
-        a, b = row.bars[k_extra], row.bars[k_twin]
-        base = {
-            "kind": "pair",
-            "offset_mm": round(float(row.offsets[k_extra]), 1),
-            "bar_id": row.index[k_extra],
-            "position_sigma_mm": math.nan,
-            "in_view_mm": math.nan,
-            "empty_mm": math.nan,
-            "occupied_mm": math.nan,
-            "no_depth_mm": math.nan,
-            "hidden_mm": math.nan,
-            "mask_mm": math.nan,
-        }
-        gap = abs(float(row.offsets[k_extra] - row.offsets[k_twin]))
-        overlap = min(a.t1_mm, b.t1_mm) - max(a.t0_mm, b.t0_mm)
-        shorter = min(a.t1_mm - a.t0_mm, b.t1_mm - b.t0_mm)
-        what = f"bars {row.index[k_extra]} and {row.index[k_twin]}, {gap:.0f} mm apart on one design position"
-        if overlap < prm.overlap_fraction * shorter or overlap < prm.min_evidence_mm:
-            yield {
-                **base,
-                "status": NOT_EXTRA,
-                "reason": (
-                    f"{what}, side by side over {max(overlap, 0):.0f} mm only: a lap or a loose piece, not an extra bar"
-                ),
-            }
-            continue
-        weak = [(row.index[k], x) for x, k in ((a, k_extra), (b, k_twin)) if x.status != MEASURED]
-        if weak:
-            # the position has its bar; the other is no evidence of an extra one
-            yield {
-                **base,
-                "status": NOT_EXTRA,
-                "reason": (
-                    f"{what}: bar {weak[0][0]} is not a measured bar ({weak[0][1].reason[:80]}), so it is no "
-                    "evidence of an extra bar"
-                ),
-            }
-            continue
-        m_img = mask() if mask is not None else None
-        if m_img is None:
-            yield {**base, "status": NOT_MEASURED, "reason": f"{what}: no colour mask to confirm an extra bar"}
-            continue
-        shares = [_mask_along(x, plane, intr, foot, row.index[k] + 1, m_img) for x, k in ((a, k_extra), (b, k_twin))]
-        if all(math.isfinite(x) and x >= prm.min_share for x in shares):
-            yield {
-                **base,
-                "status": EXTRA,
-                "reason": (
-                    f"{what}, both fitted to points at bar height over {overlap:.0f} mm, the colour mask along both "
-                    f"({shares[0]:.0%}, {shares[1]:.0%})"
-                ),
-            }
-        else:
-            yield {
-                **base,
-                "status": NOT_MEASURED,
-                "reason": (f"{what}: the colour mask runs along only {min(shares):.0%} of one of them"),
-            }
