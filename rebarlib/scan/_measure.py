@@ -14,6 +14,7 @@ from .. import geometry as G
 from .._design import Design
 from .._refined import _top_cover
 from .._results import InspectionResult, Measurement
+from .._status import MEASURED, NOT_MEASURED
 from ..cloud_io import ScanCloud
 from ._axes import _cross_axes
 from ._bars import _crossing_free
@@ -57,7 +58,37 @@ def _assemble(
     sc: ScanCloud, design: Design, plane, datum: Datum, bars: list, noise, notes, diameters, q, *, name, t_start, up_how
 ) -> InspectionResult:
     """The result of a cloud: spacings, layer distance, cover (with a datum), top of the upper
-    lattice, the bar table (with sizes where ``diameters``), counts found, and how it was made."""
+    lattice, the bar table (with sizes where ``diameters``), counts found, and how it was made.
+
+    Parameters
+    ----------
+    sc : ScanCloud
+        The cloud, re-centred.
+    design : Design
+    plane : Plane
+        The formwork plane (or the datum's stand-in where none was found).
+    datum : Datum
+        Whether the formwork was found, and why not.
+    bars : list of BarAxis
+        The bars, in the plane's frame.
+    noise : float
+        The scan's range noise (mm).
+    notes : list of str
+    diameters : bool
+        Whether to read the bar sizes (:func:`_add_diameters`).
+    q : ndarray
+        The cloud's points in the plane's frame (for the sizes).
+    name : str or None
+        The capture's name (default: the file's stem).
+    t_start : float
+        ``time.perf_counter()`` at the start, for the timing.
+    up_how : str
+        How the up direction was chosen.
+
+    Returns
+    -------
+    InspectionResult
+    """
     order = sorted(
         range(len(bars)),
         key=lambda i: (G.LAYERS.index(bars[i].layer), G.LEVELS.index(bars[i].level), bars[i].offset_mm),
@@ -68,6 +99,44 @@ def _assemble(
     table = G.bars_table(bars, plane)
     if diameters:
         table = _add_diameters(table, bars, q, design, noise)
+    cover, layer_distance, upper_top = _height_measures(bars, datum)
+    fw = plane.to_dict() | {"found": bool(datum.found)}
+    if not datum.found:
+        fw["reason"] = datum.reason
+    return InspectionResult(
+        capture=name or (Path(sc.source).stem if sc.source else "cloud"),
+        method=METHOD,
+        cover=cover,
+        layer_distance=layer_distance,
+        upper_top=upper_top,
+        top_cover=_top_cover(design, upper_top),
+        bars=table,
+        spacings=spacings,
+        counts=_found_counts(bars),
+        formwork=fw,
+        camera={},
+        timings_s={"total": time.perf_counter() - t_start},
+        notes=notes,
+        extras={"cloud": _cloud_extras(sc, plane, datum, noise, up_how)},
+    )
+
+
+def _height_measures(bars: list, datum: Datum) -> tuple:
+    """The cover, the layer distance and the upper lattice's top, from the bars' heights.
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+        The bars, in the plane's frame.
+    datum : Datum
+        Whether the formwork (the heights' datum) was found.
+
+    Returns
+    -------
+    cover, layer_distance, upper_top : Measurement
+        The cover and the upper top need the datum; the layer distance (between the two
+        lattices' bottom bars) does not.
+    """
     und = {
         (la, lv): [b.underside_mm for b in bars if b.layer == la and b.level == lv]
         for la in G.LAYERS
@@ -104,8 +173,23 @@ def _assemble(
             if tops
             else Measurement.not_measured("no top bar of the upper lattice found")
         )
-    top_cover = _top_cover(design, upper_top)
-    counts = pd.DataFrame(
+    return cover, layer_distance, upper_top
+
+
+def _found_counts(bars: list) -> pd.DataFrame:
+    """The counts table of a cloud: the bars found per lattice and level (no design positions
+    are examined, so ``expected``, ``missing`` and ``extra`` are None).
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+
+    Returns
+    -------
+    DataFrame
+        Columns ``layer, level, found, expected, missing, extra``.
+    """
+    return pd.DataFrame(
         [
             {
                 "layer": la,
@@ -119,38 +203,32 @@ def _assemble(
             for lv in G.LEVELS
         ]
     )
-    fw = plane.to_dict() | {"found": bool(datum.found)}
-    if not datum.found:
-        fw["reason"] = datum.reason
-    res = InspectionResult(
-        capture=name or (Path(sc.source).stem if sc.source else "cloud"),
-        method=METHOD,
-        cover=cover,
-        layer_distance=layer_distance,
-        upper_top=upper_top,
-        top_cover=top_cover,
-        bars=table,
-        spacings=spacings,
-        counts=counts,
-        formwork=fw,
-        camera={},
-        timings_s={"total": time.perf_counter() - t_start},
-        notes=notes,
-        extras={
-            "cloud": {
-                "source": sc.source,
-                "units": sc.units,
-                "n_points": int(len(sc)),
-                "offset_mm": [round(float(v), 3) for v in sc.offset_mm],
-                "up": [round(float(v), 6) for v in plane.normal],
-                "up_how": up_how,
-                "noise_mm": round(float(noise), 3),
-                "formwork": bool(datum.found),
-                "frame": "the cloud's frame re-centred: add offset_mm for the file's frame (mm)",
-            }
-        },
-    )
-    return res
+
+
+def _cloud_extras(sc: ScanCloud, plane, datum: Datum, noise, up_how: str) -> dict:
+    """The result's ``extras["cloud"]``: the file, its units and size, the re-centring offset,
+    the up direction and how it was chosen, the noise and whether the formwork was found.
+
+    Parameters
+    ----------
+    sc, plane, datum, noise, up_how
+        As for :func:`_assemble`.
+
+    Returns
+    -------
+    dict
+    """
+    return {
+        "source": sc.source,
+        "units": sc.units,
+        "n_points": int(len(sc)),
+        "offset_mm": [round(float(v), 3) for v in sc.offset_mm],
+        "up": [round(float(v), 6) for v in plane.normal],
+        "up_how": up_how,
+        "noise_mm": round(float(noise), 3),
+        "formwork": bool(datum.found),
+        "frame": "the cloud's frame re-centred: add offset_mm for the file's frame (mm)",
+    }
 
 
 def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) -> pd.DataFrame:
@@ -180,22 +258,22 @@ def _add_diameters(table: pd.DataFrame, bars: list, q, design: Design, noise) ->
                     None,
                     None,
                     None,
-                    "not measured",
+                    NOT_MEASURED,
                     f"the circle through its cross-section is {fit[0]:.1f} mm wide against the set's "
                     f"{2 * b.radius_mm:.1f} mm: something else lies in its cross-section",
                 )
             )
             continue
         if fit is None:
-            rows.append((None, None, None, None, "not measured", "its cross-section points do not fix a circle"))
+            rows.append((None, None, None, None, NOT_MEASURED, "its cross-section points do not fix a circle"))
             continue
         w, sd, sigma, n = fit
         ok, why = diameter_resolvable(sigma, b.radius_mm, gap, n)
         if not ok:
-            rows.append((None, None, None, None, "not measured", why))
+            rows.append((None, None, None, None, NOT_MEASURED, why))
             continue
         nominal, conf = snap_diameter(w, system=system, deformed=deformed, sigma_mm=sd)
-        rows.append((nominal, w, sd, conf, "measured", ""))
+        rows.append((nominal, w, sd, conf, MEASURED, ""))
     table = table.copy()
     for k, col in enumerate(("nominal_mm", "width_mm", "width_sigma_mm", "confidence")):
         table[col] = pd.to_numeric(pd.Series([r[k] for r in rows], dtype=object), errors="coerce")
