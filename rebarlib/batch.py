@@ -90,7 +90,33 @@ def _worst_deviation(spacings):
 def summary_row(name: str, status: str, data: dict | None = None, seconds=None, reason: str = "") -> dict:
     """One row of a batch summary from a result dict (``InspectionResult.to_dict()`` or a
     ``result.json``): cover, layer distance, the spacing deviation largest in size (signed),
-    mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed)."""
+    mm as the result rounds them; ``seconds`` as text with 2 decimals ("" where not computed).
+
+    Parameters
+    ----------
+    name : str
+        The capture's name.
+    status : str
+        "ok" or "failed".
+    data : dict or None
+        The result as a dict; None for a failed capture.
+    seconds : float or None
+        The time the capture took.
+    reason : str
+        Why it failed ("" where it did not).
+
+    Returns
+    -------
+    dict
+        Keys :data:`SUMMARY_COLUMNS`.
+
+    Examples
+    --------
+    >>> row = summary_row("A_400", "ok", {"cover_mm": 25.1, "spacings": [{"deviation_mm": -3.2},
+    ...                   {"deviation_mm": 4.0}]}, seconds=1.234)
+    >>> row["worst_spacing_deviation_mm"], row["seconds"], row["layer_distance_mm"]
+    (4.0, '1.23', None)
+    """
     data = data or {}
     sec = "" if seconds is None else f"{seconds:.2f}"
     return {
@@ -106,7 +132,18 @@ def summary_row(name: str, status: str, data: dict | None = None, seconds=None, 
 
 def summary_table(outcomes):
     """A pandas DataFrame with one :func:`summary_row` per outcome (status "ok" or "failed"),
-    in the order of the captures."""
+    in the order of the captures.
+
+    Parameters
+    ----------
+    outcomes : iterable of Outcome
+        As :func:`inspect_many` yields them, in any order.
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`SUMMARY_COLUMNS`; ``seconds`` numeric (NaN where not computed).
+    """
     import pandas as pd
 
     rows = [
@@ -121,7 +158,13 @@ def summary_table(outcomes):
 
 
 def default_jobs() -> int:
-    """The cores this process may run on (all of them by default)."""
+    """The cores this process may run on (all of them by default).
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux
@@ -255,7 +298,21 @@ def inspect_many(captures, design, *, client=None, jobs=None, ordered: bool = Fa
 
 
 def inspect_pairs(pairs, *, client=None, jobs=None, ordered: bool = False, progress=None, **inspect_kw):
-    """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once."""
+    """:func:`inspect_many` over ``(capture, design)`` pairs: captures of several slabs at once.
+
+    Parameters
+    ----------
+    pairs : iterable of (capture, design)
+        Each capture (a folder or a :class:`~rebarlib.Capture`) with its own design (a
+        :class:`~rebarlib.Design` or the path of a ``design.toml``).
+    client, jobs, ordered, progress, **inspect_kw
+        As for :func:`inspect_many`.
+
+    Yields
+    ------
+    Outcome
+        One per pair, as for :func:`inspect_many`.
+    """
     pairs = [(c, _check_args(d, jobs, client, inspect_kw)) for c, d in pairs]
     return _drive(pairs, client, jobs, ordered, progress, inspect_kw)
 
