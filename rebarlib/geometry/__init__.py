@@ -42,6 +42,8 @@ Modules, in the order the data flows:
 - :mod:`~rebarlib.geometry.layers`: the split between the two lattices
 - :mod:`~rebarlib.geometry.bars`, :mod:`~rebarlib.geometry.fit`, :mod:`~rebarlib.geometry.axis`:
   the bars of one lattice, the cylinder fitted to each, a fitted bar
+- :mod:`~rebarlib.geometry.directions`: a lattice's bar directions and the bars' places across
+  each; :mod:`~rebarlib.geometry.bar_checks`: the checks on the fitted bars
 - :mod:`~rebarlib.geometry.partial`: bars seen only in part
 - :mod:`~rebarlib.geometry.levels`: bottom and top levels, tops and stack heights
 - :mod:`~rebarlib.geometry.spacing`: spacings, the paper's counts, the bars table

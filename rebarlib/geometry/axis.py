@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._design import DEFAULT_BAR_SYSTEM
+from .._status import MEASURED
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ class BarAxis:
     point_index: np.ndarray = field(repr=False, default=None)  # indices into the layer's points
     group: int = -1
     level: str = ""
-    status: str = "measured"
+    status: str = MEASURED
     reason: str = ""
     arc_deg: float = float("nan")  # span of the cross-section covered by the fitted points
     axis_se_mm: float = float("nan")  # standard error of the axis position (offset / height)

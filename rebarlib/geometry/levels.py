@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._status import MEASURED
 from .axis import BarAxis
 
 
@@ -24,7 +25,7 @@ def level_heights(bars: list) -> dict:
     """
     out = {}
     for g in sorted({b.group for b in bars}):
-        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == "measured"]
+        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == MEASURED]
         if hs:
             out[g] = float(np.median(hs))
     return out
@@ -61,7 +62,7 @@ def _crest_lines(bars: list, points: list | None) -> list:
     ``points``; from the fitted circle without them); None for a bar not measured."""
 
     def top_line(i, b):
-        if b.status != "measured":
+        if b.status != MEASURED:
             return None
         if points is None:
             return b.centre_h_mm + b.radius_mm, b.h_slope

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from .._status import MEASURED
 from .axis import BarAxis
 from .spacing import _adjacent_pairs, _spacing_frame
 
@@ -211,7 +212,7 @@ def paper_spacings(
                 "spacing_mm": s,
                 "design_spacing_mm": ds,
                 "deviation_mm": None if ds is None else s - ds,
-                "status": "measured",
+                "status": MEASURED,
                 "reason": "",
             }
         )

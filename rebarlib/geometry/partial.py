@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._camera import Intrinsics, project
+from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis, _level_axis, _run_length
 from .levels import level_heights
 from .plane import Plane, from_slab_frame, to_slab_frame
@@ -26,7 +27,7 @@ def _approximate_axes(bars: list, offsets: dict, h=None, camera=None) -> list:
     noise = _layer_noise(bars)
     out = []
     for b in bars:
-        if b.status == "measured" or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
+        if b.status == MEASURED or b.point_index is None or len(b.point_index) == 0 or b.group not in offsets:
             out.append(b)
             continue
         height = levels.get(b.group, b.axis_height_mm)
@@ -53,7 +54,7 @@ def _placed_offset(b: BarAxis, s, h, height_mm: float, camera, noise_mm: float) 
 def _layer_noise(bars: list) -> float:
     """Depth noise on the bars of one lattice: the median residual of its measured bars' cylinder
     fits (at least 0.3 mm; 1 mm when none was measured)."""
-    rms = [b.rms_mm for b in bars if b.status == "measured" and np.isfinite(b.rms_mm)]
+    rms = [b.rms_mm for b in bars if b.status == MEASURED and np.isfinite(b.rms_mm)]
     return max(float(np.median(rms)), 0.3) if rms else 1.0
 
 
@@ -145,7 +146,7 @@ def flag_border_cut(
     noise = _layer_noise(bars)
     out = []
     for b in bars:
-        if b.status != "measured" or b.point_index is None or len(b.point_index) == 0:
+        if b.status != MEASURED or b.point_index is None or len(b.point_index) == 0:
             out.append(b)
             continue
         t = q[b.point_index, :2] @ b.direction
@@ -164,7 +165,7 @@ def flag_border_cut(
                 & (cam[:, 2] > 0)
             )
         pw = whole[np.clip(np.round((t - grid[0]) / _POSITION_STEP_MM).astype(int), 0, len(grid) - 1)]
-        others = [o.axis_height_mm for o in bars if o.group == b.group and o.status == "measured" and o is not b]
+        others = [o.axis_height_mm for o in bars if o.group == b.group and o.status == MEASURED and o is not b]
         level = float(np.median(others)) if len(others) >= 2 else b.axis_height_mm
         dh = b.axis_height_mm - level
         if pw.mean() >= min_whole_fraction or abs(dh) <= 0.5 * b.radius_mm:
@@ -177,7 +178,7 @@ def flag_border_cut(
                 b,
                 off,
                 level,
-                status="not measured",
+                status=NOT_MEASURED,
                 reason=f"the image border cuts it lengthwise ({pw.mean():.0%} of its points, "
                 f"over {seen:.0f} mm, at whole cross-sections) and the circle fitted to "
                 f"the strip seen sits {dh:+.1f} mm off the other bars of its direction: "

@@ -26,6 +26,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from .._status import MEASURED
+
 __all__ = [
     "MAX_OFFSET_MM",
     "MEASURABLE_AREA_FRACTION",
@@ -164,7 +166,7 @@ def score_result(result, capture) -> dict:
     sp = result.spacings
     if sp is not None:
         for r in sp.itertuples():
-            if r.status != "measured" or not np.isfinite(r.spacing_mm):
+            if r.status != MEASURED or not np.isfinite(r.spacing_mm):
                 continue
             key = frozenset((to_truth.get(int(r.bar_a)), to_truth.get(int(r.bar_b))))
             if key in true_sp:

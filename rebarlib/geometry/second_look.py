@@ -7,11 +7,11 @@ from typing import NamedTuple
 import numpy as np
 
 from .._camera import Cloud, Intrinsics, backproject, project
+from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis, _longest_run
 from .layers import LAYERS, LEVELS
 from .plane import Plane, from_slab_frame, to_slab_frame
 from .spacing import _order_across
-
 
 _POSITION_STEP_MM = 5.0  # sampling of a would-be bar's axis when checking what the camera sees there
 
@@ -92,7 +92,7 @@ def find_missed_bars(
         for level in LEVELS:
             grp = _order_across([b for b in bars if b.layer == layer and b.level == level])
             s = design_spacing.get((layer, level))
-            measured = [b for b in grp if b.status == "measured"]
+            measured = [b for b in grp if b.status == MEASURED]
             if not measured or not s or not np.isfinite(s):
                 continue
             ref = measured[0]
@@ -153,7 +153,7 @@ def _bar_seen_at(ref: BarAxis, layer, level, c, t0, t1, h_axis, r, cloud) -> Bar
         None,
         ref.group,
         level=level,
-        status="not measured",
+        status=NOT_MEASURED,
         reason=(
             f"seen only at full resolution, {len(cloud)} depth pixels over "
             f"{t1 - t0:.0f} mm (slivers beside a bar above it, or cut by the "

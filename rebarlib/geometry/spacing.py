@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis
 from .layers import LAYERS, LEVELS
 from .levels import _MIN_CROSSINGS, _crest_lines, _stacks, _tops
@@ -79,21 +80,21 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     for layer, level, a, b in _adjacent_pairs(bars):
         ds = (design_spacing or {}).get((layer, level))
         row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)], "design_spacing_mm": ds}
-        bad = [x for x in (a, b) if x.status != "measured"]
+        bad = [x for x in (a, b) if x.status != MEASURED]
         if bad:
             rows.append(
                 {
                     **row,
                     "spacing_mm": None,
                     "deviation_mm": None,
-                    "status": "not measured",
+                    "status": NOT_MEASURED,
                     "reason": f"bar {ids[id(bad[0])]} not measured: {bad[0].reason}",
                 }
             )
             continue
         s = _pair_spacing(a, b)
         rows.append(
-            {**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds, "status": "measured", "reason": ""}
+            {**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds, "status": MEASURED, "reason": ""}
         )
     return _spacing_frame(rows)
 

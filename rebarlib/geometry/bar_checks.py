@@ -1,0 +1,222 @@
+"""The checks on the bars fitted in one lattice (refined method, :func:`~rebarlib.geometry.find_bars`):
+bars found from a few points where the depth is mostly lost, things off their direction's level,
+bars seen only in parts, overlapping axes, and fits far worse than the lattice's typical one.
+A bar that fails a check is kept "not measured" with the reason, or left out where it is not a
+bar of the lattice at all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .._status import MEASURED, NOT_MEASURED
+from .axis import BarAxis, _longest_run
+from .directions import _bar_candidates
+
+__all__: list = []
+
+
+def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
+    """Something lying well below the other bars of its direction (a spacer block's top, the
+    stub of a chair) is not a bar of this lattice level and is left out; a bar fitted well
+    above them was fitted on a sliver (seen beside a bar over it) and its axis is not where it
+    seems: "not measured"."""
+    for g in {b.group for b in bars}:
+        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == MEASURED]
+        if len(hs) >= 2:
+            med, tol = float(np.median(hs)), prm.level_tol_radii * radii.get(g, max_r)
+            bars = [b for b in bars if b.group != g or b.status != MEASURED or b.axis_height_mm >= med - tol]
+            bars = [
+                replace(
+                    b,
+                    status=NOT_MEASURED,
+                    reason=f"axis {b.axis_height_mm - med:.1f} mm above the other bars of "
+                    "its direction: fitted on the sliver of it that is seen, its axis cannot be placed",
+                )
+                if b.group == g and b.status == MEASURED and b.axis_height_mm > med + tol
+                else b
+                for b in bars
+            ]
+    return bars
+
+
+def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> list:
+    """A bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
+    along the visible arc. "Not measured": under 2/3 of ``min_arc_deg`` of its cross-section
+    seen, or under ``min_arc_deg`` and sparsely sampled (under a quarter of the layer's typical
+    points per mm), or over ``max_arc_deg`` (two flanks of a bar under a bar above it)."""
+    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == MEASURED]
+    if dens:
+        typical = float(np.median(dens))
+        bars = [
+            replace(
+                b,
+                status=NOT_MEASURED,
+                reason=(
+                    f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
+                    f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
+                    f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"
+                ),
+            )
+            if b.status == MEASURED
+            and (
+                b.arc_deg < prm.arc_min_share * min_arc_deg
+                or b.arc_deg > max_arc_deg
+                or (
+                    b.arc_deg < min_arc_deg
+                    and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < prm.sparse_density_share * typical
+                )
+            )
+            else b
+            for b in bars
+        ]
+    return bars
+
+
+def _sparse_bars(
+    bars: list, cand: list, ambiguous, h, *, layer: str, min_extent_mm: float, min_points: int = 8
+) -> list:
+    """Bars whose depth is mostly lost: a stretch along a direction with too few points for the
+    density test of the candidates, whose few points (not already fitted to a bar) sit at the
+    direction's bar height over at least 80 % of its 5 mm cells. Each is reported "not
+    measured", never dropped silently and never given a number.
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+        The bars fitted so far (their points are not evidence of another bar).
+    cand : list of _Direction
+        Each direction's band of points (:func:`rebarlib.geometry.bars._direction_band`).
+    ambiguous : ndarray of bool
+        Points in both directions' bands (left out).
+    h : ndarray
+        The points' heights (mm).
+    layer : str
+    min_extent_mm : float
+        The least sampled extent of a bar.
+    min_points : int
+        The least points at the bar's height.
+
+    Returns
+    -------
+    list of BarAxis
+        The bars found this way (status "not measured", no fit: ``rms_mm`` NaN).
+    """
+    out = []
+    # points already fitted as part of a bar (the crossing bars above or below, a neighbour)
+    # are not evidence of another bar: without them, what is left along a loose run is the
+    # hidden bar's own few points and whatever else lies there (spacers, ties)
+    claimed = np.zeros(len(h), bool)
+    for b in bars:
+        if b.point_index is not None:
+            claimed[b.point_index] = True
+    for g, d, n2, off, along, r, centres, near, member, win in cand:
+        same = [b for b in bars if b.group == g and b.status == MEASURED]
+        if len(same) < 2:
+            continue
+        axis_h = float(np.median([b.axis_height_mm for b in same]))
+        top = axis_h + r
+        known = np.array([float(b.plan_point(b.t_mid) @ n2) for b in bars if b.group == g])
+        loose, _ = _bar_candidates(off, along, radius_mm=r, min_length_mm=min_extent_mm, min_cell_points=1)
+        for c in loose:
+            if len(known) and np.min(np.abs(known - c)) < 2.5 * r:
+                continue
+            sel = (np.abs(off - c) < r) & ~ambiguous & ~claimed
+            hs = h[sel]
+            # the points of a bar seen from above lie on its upper half: between the axis and the top
+            on_bar = (hs > axis_h - 0.5 * r) & (hs < top + 0.5 * r)
+            if on_bar.sum() < min_points:
+                continue
+            idx = np.where(sel)[0][on_bar]
+            t = along[idx]
+            t0, t1 = _longest_run(t, cell_mm=5.0, max_gap_mm=max(60.0, 8 * r))
+            if t1 - t0 < min_extent_mm:
+                continue
+            # along that stretch, what lies at the position must be at the bar's height: at least
+            # 80 % of the 5 mm cells holding points there hold points at the bar's height. Counted
+            # in cells, not points: a spacer block under the bar is sampled far more densely than
+            # the hidden bar's few specks, yet covers only a few cm of it
+            ta = along[sel]
+            inside = (ta >= t0) & (ta <= t1)
+            n_cells = len(np.unique(np.floor(ta[inside] / 5.0)))
+            if len(np.unique(np.floor(ta[inside & on_bar] / 5.0))) < 0.8 * n_cells:
+                continue
+            keep = (t >= t0) & (t <= t1)
+            out.append(
+                BarAxis(
+                    layer,
+                    d,
+                    float(np.median(off[idx][keep])),
+                    0.0,
+                    axis_h,
+                    0.0,
+                    float(t0),
+                    float(t1),
+                    r,
+                    int(keep.sum()),
+                    float("nan"),
+                    idx[keep],
+                    g,
+                    status=NOT_MEASURED,
+                    reason=f"only {int(keep.sum())} points over {t1 - t0:.0f} mm (its depth is mostly "
+                    "missing): too few to fit its cross-section",
+                )
+            )
+            known = np.append(known, c)
+    return out
+
+
+def _drop_overlaps(bars: list) -> list:
+    """Two bars of one direction cannot overlap: of two axes closer than the sum of their radii
+    along a common stretch, the one with more points is kept (the other is its edge or shadow
+    fringe).
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+
+    Returns
+    -------
+    list of BarAxis
+        The bars kept, in their order.
+    """
+    keep = sorted(bars, key=lambda b: -b.n_points)
+    out = []
+    for b in keep:
+        clash = False
+        for o in out:
+            if o.group != b.group:
+                continue
+            p = b.plan_point(np.array([b.t_mid]))[0]
+            d = abs(float((p - o.plan_point(np.array([float(p @ o.direction)]))[0]) @ o.normal2d))
+            overlap_t = min(b.t1_mm, o.t1_mm) - max(b.t0_mm, o.t0_mm)
+            if d < b.radius_mm + o.radius_mm and overlap_t > 0:
+                clash = True
+                break
+        if not clash:
+            out.append(b)
+    order = {id(b): i for i, b in enumerate(bars)}
+    return sorted(out, key=lambda b: order[id(b)])
+
+
+def _rms_outliers(bars: list, max_rms_ratio: float) -> list:
+    """The bars without the measured ones whose fit residual exceeds ``max_rms_ratio`` times the
+    lattice's median (the median is the sensor noise on bars; a far worse fit is not a bar).
+
+    Parameters
+    ----------
+    bars : list of BarAxis
+    max_rms_ratio : float
+
+    Returns
+    -------
+    list of BarAxis
+        The bars kept, in their order; all of them where fewer than 3 are measured.
+    """
+    rms = [b.rms_mm for b in bars if b.status == MEASURED]
+    if len(rms) >= 3:
+        limit = max_rms_ratio * float(np.median(rms))
+        bars = [b for b in bars if b.status != MEASURED or b.rms_mm <= limit]
+    return bars
