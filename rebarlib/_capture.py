@@ -68,14 +68,17 @@ class Capture:
 
     @property
     def name(self) -> str:
+        """The capture's name (its folder's name when loaded; "capture" where unnamed)."""
         return str(self.metadata.get("name", "capture"))
 
     @property
     def truth(self) -> dict | None:
+        """A synthetic capture's ground truth (``truth.json``), None for a real one."""
         return self.metadata.get("truth")
 
     @property
     def depth_scale_mm(self) -> float:
+        """mm per unit of the 16-bit depth image (``camera.json``'s ``depth_scale_mm``)."""
         return float(self.metadata.get("depth_scale_mm", DEFAULT_DEPTH_SCALE_MM))
 
 
@@ -94,7 +97,21 @@ def _read_json(path: Path) -> dict:
 def read_intrinsics(path) -> tuple[Intrinsics, dict]:
     """Read ``camera.json`` (Open3D's pinhole intrinsic keys plus ``depth_scale_mm``).
 
-    Returns the intrinsics and the remaining keys (depth scale, device, capture time).
+    Parameters
+    ----------
+    path : str or Path
+        The ``camera.json`` file.
+
+    Returns
+    -------
+    intrinsics : Intrinsics
+    meta : dict
+        The remaining keys (depth scale, device, capture time).
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file and the key, for a missing file, invalid JSON or a bad value.
     """
     path = Path(path)
     data = _read_json(path)
@@ -156,6 +173,15 @@ def _image_side(value, where: str) -> int:
 
 def image_size(path) -> tuple[int, int]:
     """``(width, height)`` of a PNG or JPEG file from its header alone (nothing is decoded).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    tuple of int
+        ``(width, height)`` in pixels.
 
     Raises
     ------
@@ -219,6 +245,16 @@ def _check_image_headers(color: Path, depth: Path, intr: Intrinsics, camera_json
 
 
 def write_intrinsics(path, intrinsics: Intrinsics, **extra) -> None:
+    """Write ``camera.json`` as :func:`read_intrinsics` reads it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    intrinsics : Intrinsics
+    **extra
+        Further keys written as given (``depth_scale_mm``, ``device``, ``captured_at``).
+    """
     K = intrinsics.matrix
     data = {
         "width": intrinsics.width,
@@ -258,6 +294,30 @@ def load_capture(path) -> Capture:
 
     Synthetic captures also carry ``truth.json``, ``labels.png`` and ``bar_ids.png``, which are
     read when present. Every problem raises :class:`RebarInputError` naming the file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The capture folder.
+
+    Returns
+    -------
+    Capture
+        Colour (H, W, 3) uint8 RGB, depth (H, W) in mm (0 where none), the intrinsics, and the
+        metadata (``name``: the folder's name, ``source``, ``depth_scale_mm``, ...).
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file: a missing folder or file, an unreadable image, sizes that disagree,
+        a depth image with no depth at all.
+
+    Examples
+    --------
+    >>> from rebarlib.data import example_capture
+    >>> cap = load_capture(example_capture("paper_slab", "A_400"))
+    >>> cap.name, cap.color.shape, cap.intrinsics.width
+    ('A_400', (800, 1280, 3), 1280)
     """
     import cv2
 
@@ -324,6 +384,27 @@ def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite
     Depth is stored as ``round(depth_mm / depth_scale_mm)`` in a 16-bit PNG; a depth already on
     that grid (every loaded or synthetic capture) round-trips exactly. An existing non-empty
     folder is never written into unless ``overwrite=True``.
+
+    Parameters
+    ----------
+    capture : Capture
+    path : str or Path
+        The folder to write (created where missing).
+    color_format : str
+        "png" (lossless) or "jpg" (quality 92).
+    overwrite : bool
+        Write into a folder that is not empty.
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Raises
+    ------
+    RebarInputError
+        For a non-empty folder without ``overwrite``, an unknown ``color_format``, or a depth
+        that does not fit 16 bits at the capture's depth scale.
     """
     import cv2
 
@@ -368,6 +449,23 @@ def load_cloud(path, *, units: str) -> np.ndarray:
     like the other unit (under 10 units across when said to be mm, over 100 when said to be m)
     gets a warning rather than a silent thousand-fold error. The readers (and the per-point
     fields this drops) are in :mod:`rebarlib.cloud_io`; ``read_cloud`` keeps them.
+
+    Parameters
+    ----------
+    path : str or Path
+        The cloud file.
+    units : str
+        "mm" or "m", the unit of the file's coordinates (required: never guessed).
+
+    Returns
+    -------
+    ndarray
+        (N, 3) float64 points in mm, the file's frame (non-finite points left out).
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file when it is missing, of an unknown format, unreadable or empty.
     """
     from .cloud_io import read_cloud
 
