@@ -109,9 +109,11 @@ class Lattice:
 
     @property
     def thickness_mm(self) -> float:
+        """The lattice's depth: its two bar diameters (mm)."""
         return self.bottom.diameter_mm + self.top.diameter_mm
 
     def level(self, name: str) -> BarSet:
+        """The bar set of level ``name`` ("bottom" or "top")."""
         return getattr(self, name)
 
 
@@ -134,6 +136,8 @@ class Design:
     source: str = ""
 
     def lattice(self, layer: str) -> Lattice:
+        """The lattice ``layer`` ("lower" or "upper"); another name raises
+        :class:`RebarInputError`."""
         if layer not in ("lower", "upper"):
             raise RebarInputError(f"layer: expected 'lower' or 'upper', got {layer!r}")
         return getattr(self, layer)
@@ -145,6 +149,7 @@ class Design:
 
     @property
     def top_cover_mm(self) -> float | None:
+        """Design cover over the upper lattice (thickness less its top), None without a thickness."""
         return None if self.thickness_mm is None else self.thickness_mm - self.upper_top_mm
 
 
@@ -189,6 +194,23 @@ def _lattice(table: dict, where: str) -> Lattice:
 
 def design_from_dict(data: dict, *, source: str = "design") -> Design:
     """Build a :class:`Design` from the parsed TOML tables (docs/formats.md, "Design files").
+
+    Parameters
+    ----------
+    data : dict
+        The tables ``slab``, ``design`` (with ``lower`` and ``upper``) and, optionally,
+        ``tolerances``.
+    source : str
+        What the data came from, named in every error.
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    RebarInputError
+        Naming the key, for a missing table or key, an unknown key, or an implausible value.
 
     Examples
     --------
@@ -260,10 +282,26 @@ def design_from_dict(data: dict, *, source: str = "design") -> Design:
 def load_design(path) -> Design:
     """Read a slab's ``design.toml``.
 
+    Parameters
+    ----------
+    path : str or Path
+        The file, or a folder holding ``design.toml``.
+
+    Returns
+    -------
+    Design
+
     Raises
     ------
     RebarInputError
         Naming the file and the key when the file is missing, not TOML, or a value is absent or absurd.
+
+    Examples
+    --------
+    >>> from rebarlib.data import examples_dir
+    >>> d = load_design(examples_dir() / "paper_slab")
+    >>> d.cover_mm, d.lower.bottom.spacing_mm
+    (20.0, 200.0)
     """
     p = Path(path)
     if p.is_dir():
