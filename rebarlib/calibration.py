@@ -89,6 +89,8 @@ class Calibration:
         )
 
     def to_dict(self) -> dict:
+        """The calibration as the JSON object :meth:`save` writes and :func:`load_calibration`
+        reads (intrinsics, their uncertainties, the depth line and its fit)."""
         K = self.intrinsics
         return {
             "format": FORMAT,
@@ -123,7 +125,22 @@ class Calibration:
 
 
 def load_calibration(path) -> Calibration:
-    """Read a calibration file written by :meth:`Calibration.save` (``rebar calibrate``)."""
+    """Read a calibration file written by :meth:`Calibration.save` (``rebar calibrate``).
+
+    Parameters
+    ----------
+    path : str, Path or Calibration
+        The file (a Calibration is returned as it is).
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file when it is missing, not JSON, of another format or malformed.
+    """
     if isinstance(path, Calibration):
         return path
     path = Path(path)
@@ -163,7 +180,17 @@ def load_calibration(path) -> Calibration:
 
 def calibration_id(path) -> dict:
     """``{"file": name, "sha256": digest}`` of a calibration file, after checking that it reads
-    (for a result's manifest options: a result made with another calibration is not the same)."""
+    (for a result's manifest options: a result made with another calibration is not the same).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    dict
+        The file's name and the SHA-256 of its bytes (hex).
+    """
     import hashlib
 
     load_calibration(path)
@@ -172,7 +199,24 @@ def calibration_id(path) -> dict:
 
 
 def apply_calibration(capture: Capture, calibration: Calibration) -> Capture:
-    """A copy of ``capture`` with the calibration's intrinsics and its depth corrected."""
+    """A copy of ``capture`` with the calibration's intrinsics and its depth corrected.
+
+    Parameters
+    ----------
+    capture : Capture
+    calibration : Calibration, str or Path
+        The calibration or its file.
+
+    Returns
+    -------
+    Capture
+        The copy (the capture given is not changed).
+
+    Raises
+    ------
+    RebarInputError
+        Where the calibration was made for another image size.
+    """
     cal = load_calibration(calibration)
     K, k = capture.intrinsics, cal.intrinsics
     if (K.width, K.height) != (k.width, k.height):
@@ -184,7 +228,19 @@ def apply_calibration(capture: Capture, calibration: Calibration) -> Capture:
 
 
 def find_board(capture: Capture, cols: int, rows: int):
-    """The board's inner corners in the colour image, (rows * cols, 2) float32, or None."""
+    """The board's inner corners in the colour image, (rows * cols, 2) float32, or None.
+
+    Parameters
+    ----------
+    capture : Capture
+    cols, rows : int
+        Inner corners of the board (OpenCV's ``patternSize``).
+
+    Returns
+    -------
+    ndarray or None
+        The corners to a fraction of a pixel, None where the whole board is not found.
+    """
     import cv2
 
     gray = capture.color[..., 0] if capture.color.ndim == 3 else capture.color
@@ -272,6 +328,20 @@ def calibrate(
     device : the camera's name for the file (default: the first capture's ``device``)
     fix_aspect : keep fx / fy as the captures' intrinsics have it
 
+    Returns
+    -------
+    Calibration
+        The intrinsics, the depth line ``measured = (1 + scale) * true + offset_mm`` and their
+        standard uncertainties.
+
+    Raises
+    ------
+    RebarInputError
+        For a bad board or square size, fewer than 3 captures showing the board, or captures
+        of different image sizes.
+
+    Notes
+    -----
     Distortion is not estimated (the inspection uses a pinhole model): the captures should come
     undistorted, as depth cameras' SDKs give them.
     """
