@@ -16,6 +16,20 @@ def direction_sharpness(plan, angles_rad, bin_mm) -> np.ndarray:
     """How concentrated the plan offsets (N, 2) mm across each direction are: the sum of squared
     counts of a ``bin_mm`` histogram of the offsets, for each angle (radians) in ``angles_rad``.
 
+    Parameters
+    ----------
+    plan : (N, 2) array
+        Plan coordinates of the points (mm).
+    angles_rad : array
+        The directions to score (radians).
+    bin_mm : float
+        The histogram's bin across each direction.
+
+    Returns
+    -------
+    ndarray
+        One sharpness per angle: higher where the offsets pile up in fewer bins.
+
     Examples
     --------
     >>> pts = np.c_[np.arange(100.0), np.zeros(100)]          # a line along x
@@ -38,6 +52,23 @@ def bar_directions(plan, *, max_points: int = 5000, min_separation_deg: float = 
     scan the angle coarsely (1°, 4 mm bins), then finely (0.05°, 1 mm bins) around the best angle
     and around the best one at least ``min_separation_deg`` away. The second direction is kept
     only if its sharpness stands out of the scan's background.
+
+    Parameters
+    ----------
+    plan : (N, 2) array
+        Plan coordinates of one lattice's points (mm).
+    max_points : int
+        The scan reads a random sample of at most this many points.
+    min_separation_deg : float
+        The second direction lies at least this far from the first.
+    rng : int, Generator or None
+        Seed of the sample.
+
+    Returns
+    -------
+    list of float
+        One or two plan angles (degrees, [0, 180)), the sharpest first; empty for under 20
+        points.
 
     Examples
     --------

@@ -17,6 +17,22 @@ def find_layer_split(
     A bin is "empty" when it holds less than ``empty_fraction`` of the 95th-percentile bin count
     (chairs and tie wire put a few points between the lattices).
 
+    Parameters
+    ----------
+    heights : array
+        Heights of the bar points above the formwork (mm).
+    bin_mm : float
+        The histogram's bin.
+    min_gap_mm : float
+        The least width of the empty band.
+    empty_fraction : float
+        A bin under this share of the 95th-percentile count is empty.
+
+    Returns
+    -------
+    float or None
+        The split height (mm), or None (under 10 points, too narrow a spread, or no band).
+
     Examples
     --------
     >>> h = np.r_[np.linspace(20, 50, 300), np.linspace(105, 130, 300)]

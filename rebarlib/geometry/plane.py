@@ -71,7 +71,25 @@ def _lsq_plane(points) -> tuple[np.ndarray, float]:
 
 def paper_fit_formwork(points, *, threshold_mm: float, max_trials: int = 170, rng=None) -> tuple[Plane, np.ndarray]:
     """The paper's plane: Open3D RANSAC, inliers within ``threshold_mm`` (t₁ = 0.8 × design
-    cover), ``max_trials`` hypotheses (k = 170). Returns ``(plane, inlier mask)``.
+    cover), ``max_trials`` hypotheses (k = 170).
+
+    Parameters
+    ----------
+    points : (N, 3) array
+        Camera-frame points (mm).
+    threshold_mm : float
+        Inlier distance t₁.
+    max_trials : int
+        RANSAC hypotheses k.
+    rng : int, Generator or None
+        Seed of the hypotheses.
+
+    Returns
+    -------
+    plane : Plane
+        Its normal oriented so that the camera lies on the positive side.
+    inliers : ndarray of bool
+        (N,) the points within ``threshold_mm``.
 
     Examples
     --------
@@ -146,6 +164,16 @@ def fit_formwork(
 def plane_frame(plane: Plane) -> np.ndarray:
     """Rotation R (3, 3) taking camera-frame vectors to the slab frame: rows are two in-plane axes
     and the normal (a single Rodrigues-like choice; method.md allows any rotation taking n to z).
+
+    Parameters
+    ----------
+    plane : Plane
+
+    Returns
+    -------
+    ndarray
+        (3, 3) orthonormal rows: the camera's x axis projected into the plane, the second
+        in-plane axis, the normal.
 
     Examples
     --------
