@@ -24,6 +24,7 @@ Modules, in the order the data flows:
 - :mod:`~rebarlib.diameter.plane`: the plane γ and the paper's regions
 - :mod:`~rebarlib.diameter.bars`: the bars table read in, each bar's footprint in the image
 - :mod:`~rebarlib.diameter.sections`: cross-sections and their edges (refined)
+- :mod:`~rebarlib.diameter.runs`: the mask run through the axis in each section, cut at depth steps
 - :mod:`~rebarlib.diameter.cloud`: widths from the point cloud
 - :mod:`~rebarlib.diameter.ribs`, :mod:`~rebarlib.diameter.pitch`: ribs and rib pitches
 - :mod:`~rebarlib.diameter.calibration`: what the capture's own bars teach

@@ -77,7 +77,7 @@ def measure_diameters(
     system : bar-size standard for snapping; default the design's ``bar_system`` or "GB1499.2"
     deformed : snap to the rib envelope (deformed bars) or to the nominal size (smooth bars)
     use_depth : refined: cut a mask run where it runs on into a bar behind, by the depth
-        (:func:`~rebarlib.diameter.sections._mask_runs`)
+        (:func:`~rebarlib.diameter.runs._mask_runs`)
     colour_edges : refined: ``"check"`` (default) widens a width's uncertainty by how far the
         colour edges next to the mask's disagree with them, less the capture's shading offset
         (:func:`~rebarlib.diameter.calibration._colour_calibration`); ``"replace"`` measures
@@ -190,14 +190,71 @@ def measure_diameters(
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
     _calibrate(results, prepared, cloud_mode, prm, system=system, deformed=deformed)
+    rows, shadows = _bar_rows(
+        prepared,
+        results,
+        m,
+        intr,
+        cloud_mode,
+        ribs,
+        prm,
+        method=method,
+        system=system,
+        deformed=deformed,
+        paper_points=paper_points,
+    )
+    if method == "refined" and ribs:
+        _pitch_settle(
+            rows,
+            results,
+            sizes,
+            shadows,
+            prm,
+            system=system,
+            face=lambda i: _face_pitch(prepared[i], results[i], gray, intr, prm, fp, i),
+        )
+    if method == "refined" and deformed:
+        _pitch_veto(rows, results, prm, system=system)
+    df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
+    df["matches_design"] = df["matches_design"].astype(object)
+    return df
+
+
+def _bar_rows(prepared, results, m, intr, cloud_mode, ribs, prm, *, method, system, deformed, paper_points):
+    """Each bar's row of the table, from its reading (and, for the paper's method, its own
+    detect-points on the mask's boundary), and whether it lies in shadow.
+
+    Parameters
+    ----------
+    prepared : list of _Bar
+        The bars as :func:`~rebarlib.diameter.bars._prepare` gives them.
+    results : list of BarReading
+        Each bar's reading (:func:`_refined_bar`).
+    m : ndarray of bool
+        The rebar mask.
+    intr : Intrinsics
+    cloud_mode : list
+        Each bar's ``use_cloud`` (True, False or "veto").
+    ribs : bool
+        Whether the capture resolves ribs.
+    prm : DiameterParams
+    method, system, deformed, paper_points
+        As for :func:`measure_diameters`.
+
+    Returns
+    -------
+    rows : list of tuple
+        One row of :data:`DIAMETER_COLUMNS` per bar.
+    shadows : list of bool
+        Whether each bar is in shadow over its whole length (its mask edges the least
+        reliable there are, so its size is never reported with high confidence).
+    """
     edge, owner = _paper_owners(m, prepared, intr) if method == "paper" else (None, None)
     lums = np.array([r.lum for r in results], float)
     ref_lum = float(np.nanmedian(lums)) if np.isfinite(lums).any() else math.nan
     rows, shadows = [], []
     for i, bar in enumerate(prepared):
         reading = results[i]
-        # a bar in shadow over its whole length: its mask edges are the least reliable there
-        # is, so its size is never reported with high confidence
         in_shadow = bool(np.isfinite(ref_lum) and reading.lum < prm.shadow_ratio * ref_lum)
         paper_w = (
             _paper_bar(i, bar, m, edge, intr, paper_points, owner, prm.paper_short_px) if method == "paper" else None
@@ -217,21 +274,7 @@ def measure_diameters(
             )
         )
         shadows.append(in_shadow)
-    if method == "refined" and ribs:
-        _pitch_settle(
-            rows,
-            results,
-            sizes,
-            shadows,
-            prm,
-            system=system,
-            face=lambda i: _face_pitch(prepared[i], results[i], gray, intr, prm, fp, i),
-        )
-    if method == "refined" and deformed:
-        _pitch_veto(rows, results, prm, system=system)
-    df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
-    df["matches_design"] = df["matches_design"].astype(object)
-    return df
+    return rows, shadows
 
 
 def _check_options(use_cloud, colour_edges) -> None:

@@ -15,49 +15,8 @@ from .bars import _Bar, _candidates, _hits_footprints, _remap, _stations
 from .cloud import _cloud_circle, _depth_width
 from .params import DiameterParams
 from .reading import BarReading
+from .runs import _mask_runs
 from .ribs import _rib_periodicity
-
-
-def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
-    """Per section (rows of the (M, K) profiles), whether the mask run's end ``end`` (an index
-    into the profile) went on past the depth step at ``end2`` (the same end with the deep samples
-    left out) over at least ``min_px`` pixels (``sample_px``: the profile's step in pixels, per
-    section) whose depth mostly lies well behind the bar (``deep``: valid depth, not a hole): a
-    surface there, not a lone flying pixel."""
-    # the samples between the two ends, the run's own end (not a bar sample) left out
-    lo, hi = np.minimum(end, end2), np.maximum(end, end2)
-    idx = np.arange(deep.shape[1])[None, :]
-    part = (idx >= lo[:, None]) & (idx <= hi[:, None]) & (idx != end[:, None])
-    n = hi - lo
-    return (n * sample_px >= min_px) & (2 * (part & deep).sum(axis=1) >= np.maximum(n, 1))
-
-
-def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
-    """ "lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
-    ``t``; ``left2``, ``right2``: the same ends with the samples behind the bar or without depth
-    left out) end, at that side only, in a strip behind the bar or without depth at least
-    ``prm.sliver_min_px`` wide and half that wider than at the other end (medians over the
-    sections ``rows``), and are off the axis towards it by at least a quarter of the difference
-    and twice the axis's lateral tolerance: what a sliver of a bar under this one does in the
-    projector's shadow. "" otherwise (a bar's own edges lose a pixel or so of depth at grazing
-    angles, on both sides alike, and its runs stay centred)."""
-    rows = np.flatnonzero(rows & (left >= 0) & (right < len(t)))
-    if len(rows) < prm.min_sections:
-        return ""
-    px = sample_px[rows]
-    s_lo = float(np.median((left2 - left)[rows] * px))
-    s_hi = float(np.median((right - right2)[rows] * px))
-    px_mm = float(np.median((t[1] - t[0]) / px))
-    centre = float(np.median(t[left[rows] + 1] + t[right[rows] - 1])) / 2 / px_mm  # px, + to hi
-    for side, strip, other, sign in (("hi", s_hi, s_lo, 1.0), ("lo", s_lo, s_hi, -1.0)):
-        # off-centre by more than the axis's own lateral error could make it
-        if (
-            strip >= prm.sliver_min_px
-            and strip - other >= prm.sliver_min_px / 2
-            and sign * centre >= max((strip - other) / 4, 2 * prm.axis_sigma_mm / px_mm)
-        ):
-            return side
-    return ""
 
 
 def _tangent_correct(width_mm, distance_mm):
@@ -266,94 +225,6 @@ def _occlusion(i, bar: _Bar, sec: _Sections, fp, prm):
     occluded &= in_img
     sec.occluded = occluded
     return cand
-
-
-def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, reading) -> None:
-    """The mask run through the axis in every section, its ends cut where it runs on into a
-    bar behind (by the depth), and which sections have both edges, or one edge and the image
-    border on the other side."""
-    u, v, t, z, st = sec.u, sec.v, sec.t, sec.z, sec.st
-    inside_px, in_img = sec.inside_px, sec.in_img
-    M, K = u.shape
-    m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
-    b = m >= 0.5
-    behind = np.zeros_like(b)
-    deep = np.zeros_like(b)  # behind, with a valid depth
-    if depth is not None:
-        # Mask pixels whose depth lies well behind this bar belong to a bar under it that peeks
-        # out beside it: the mask alone cannot separate the two, the point cloud can.
-        import cv2
-
-        dz = cv2.remap(
-            depth,
-            u.astype(np.float32),
-            v.astype(np.float32),
-            cv2.INTER_NEAREST,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=0,
-        )
-        # no depth counts too: beside a bar the projector's shadow often hides the bar behind,
-        # unless the bar itself has none (then the pixels without depth are its own)
-        deep = b & (dz > z + bar.expected_mm / 2 + prm.behind_mm)
-        core = np.abs(t) <= bar.expected_mm / 4
-        own_none = in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
-        behind = deep if own_none else deep | (b & (dz <= 0))
-    kc = K // 2
-    idx = np.arange(K)
-    rr = np.arange(M)
-    # seed: the bar pixel nearest the expected axis within a third of the expected width
-    near = np.abs(t) <= bar.expected_mm / 3
-    dist = np.where(b & ~behind & near[None, :], np.abs(idx - kc)[None, :], K + 1)
-    seed = dist.argmin(axis=1)
-    has_seed = dist.min(axis=1) <= K
-
-    def run_ends(fg):
-        lo = np.where(~fg & (idx[None, :] < seed[:, None]), idx[None, :], -1).max(axis=1)
-        hi = np.where(~fg & (idx[None, :] > seed[:, None]), idx[None, :], K).min(axis=1)
-        return lo, hi
-
-    left, right = run_ends(b)
-    # Only where the mask run reaches beyond this bar's footprint is it cut at the depth step:
-    # a lone deep pixel at an ordinary edge is a flying pixel, not another bar.
-    left2, right2 = run_ends(b & ~behind)
-    too_far_lo = (left < 0) | (t[np.clip(left, 0, K - 1)] < -fp.half_mm[i])
-    too_far_hi = (right >= K) | (t[np.clip(right, 0, K - 1)] > fp.half_mm[i])
-    # Nor where the run goes on over a few pixels of a surface well behind: a bar under this one
-    # peeking out beside it by a few pixels stays within this bar's footprint (which has room
-    # for a size larger), and the run would take the sliver for part of this bar.
-    sample_px = (t[1] - t[0]) * intr.fx / st[:, 2]
-    too_far_lo |= _deep_end(left, left2, deep, sample_px, prm.sliver_min_px)
-    too_far_hi |= _deep_end(right, right2, deep, sample_px, prm.sliver_min_px)
-    # A strip behind the bar or without depth at one end of the runs only, with the runs off the
-    # axis towards it: most likely a bar under this one peeking out, in the projector's shadow
-    # where the depth cannot cut it off (and where it can, the sections cut there and those
-    # whose runs merged with it within the footprint disagree). That end is then no edge of this
-    # bar (below).
-    sec.strip_side = (
-        "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
-    )
-    left = np.where(too_far_lo, left2, left)
-    right = np.where(too_far_hi, right2, right)
-    # An edge is where the run meets a non-bar sample inside the image; a run that meets the
-    # image border there has that side cut off by the border (not the bar's edge).
-    in_lo = inside_px[rr, np.clip(left, 0, K - 1)]
-    in_hi = inside_px[rr, np.clip(right, 0, K - 1)]
-    lo_edge, hi_edge = has_seed & (left >= 0) & in_lo, has_seed & (right < K) & in_hi
-    lo_border, hi_border = has_seed & (left >= 0) & ~in_lo, has_seed & (right < K) & ~in_hi
-    edged = has_seed & (left >= 0) & (right < K)
-    at_border = edged & ~(in_lo & in_hi)
-    edged &= ~at_border
-    reading.border += int((sec.ok & at_border).sum())
-    reading.no_edge = int((sec.ok & ~edged & ~at_border).sum())
-    sec.ok &= edged
-    # One-sided sections: one edge, the other side cut by the image border (or, below, inside
-    # another bar's footprint). The width is then twice the edge's distance from the axis: it
-    # needs the axis in the bar's middle to a fraction of a millimetre, so only for axes the
-    # geometry stage measured, only where the axis itself is in view (at least half the bar's
-    # width is), and only where too few sections show both edges (see below).
-    sec.one_lo = lo_edge & hi_border & in_img & bar.axis_ok  # the low edge only
-    sec.one_hi = hi_edge & lo_border & in_img & bar.axis_ok
-    sec.m, sec.behind, sec.left, sec.right = m, behind, left, right
 
 
 def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm, reading) -> None:
