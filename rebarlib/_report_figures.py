@@ -134,8 +134,76 @@ def _plan_view(
 ) -> dict | None:
     """Bars and spacing labels in plan (mm, formwork frame) for the SVG drawing; with
     ``positions`` (the result's examined positions) the missing and unjudged positions, with
-    ``boundary`` (``extras["mesh_boundary"]``) each lattice's outline in the view."""
+    ``boundary`` (``extras["mesh_boundary"]``) each lattice's outline in the view.
+
+    Parameters
+    ----------
+    bars, spacings : list of dict
+        The result's bars and spacings table rows.
+    acc_rows : dict
+        Each spacing's checkpoint status, keyed ``(capture, bar_a, bar_b, layer, level)``.
+    formwork : dict
+        The result's formwork (its ``normal`` sets the plan's axes).
+    design : Design
+        For the bars' drawn widths.
+    positions : list of dict or None
+    boundary : dict or None
+
+    Returns
+    -------
+    dict or None
+        What the template draws: ``segments``, ``labels``, ``marks``, ``outlines``, the view box
+        (``x``, ``y``, ``w``, ``h``), ``font``, the scale bar (``scale_mm``, ``sx``, ``sy``); None
+        where no bar has an axis.
+    """
     e1, e2 = _plan_basis((formwork or {}).get("normal"))
+    segs, by_id = _plan_segments(bars, design, e1, e2)
+    if not segs:
+        return None
+    marks = _plan_marks(positions, e1, e2)
+    outlines = _plan_outlines(boundary, e1, e2)
+    pts = np.array(
+        [[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs] + [[s["lx"], s["ly"]] for s in segs]
+    )
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    span = max(float((hi - lo).max()), 1.0)
+    pad = 0.06 * span
+    labels = _spacing_labels(spacings, by_id, acc_rows)
+    return {
+        "segments": segs,
+        "labels": labels,
+        "marks": marks,
+        "outlines": outlines,
+        "x": lo[0] - pad,
+        "y": lo[1] - pad,
+        # An extra strip at the bottom holds the scale bar, clear of the bar ids.
+        "w": (hi - lo)[0] + 2 * pad,
+        "h": (hi - lo)[1] + 3 * pad,
+        "font": span / 45,
+        "scale_mm": _scale_bar(span),
+        "sx": lo[0],
+        "sy": hi[1] + pad * 2.0,
+    }
+
+
+def _plan_segments(bars: list, design: Design, e1, e2) -> tuple:
+    """Each bar with an axis as a segment in plan, with its id's label place, width and colour.
+
+    Parameters
+    ----------
+    bars : list of dict
+        The bars table rows.
+    design : Design
+    e1, e2 : ndarray
+        The plan's axes (camera frame).
+
+    Returns
+    -------
+    segs : list of dict
+        One per drawn bar.
+    by_id : dict
+        The plan ends ``(a, b)`` of each drawn bar, by its id as text.
+    """
     segs, by_id = [], {}
     for rec in bars:
         ax = _axis(rec)
@@ -167,8 +235,23 @@ def _plan_view(
                 "hidden": is_true(rec.get("hidden")) or rec.get("diameter_status") == HIDDEN,
             }
         )
-    if not segs:
-        return None
+    return segs, by_id
+
+
+def _plan_marks(positions, e1, e2) -> list:
+    """The missing and the unjudged design positions as marks in plan.
+
+    Parameters
+    ----------
+    positions : list of dict or None
+        The result's examined positions.
+    e1, e2 : ndarray
+        The plan's axes.
+
+    Returns
+    -------
+    list of dict
+    """
     marks = []
     for rec in positions or []:
         ax = _axis(rec)
@@ -188,6 +271,23 @@ def _plan_view(
                 "ly": (a[1] + b[1]) / 2,
             }
         )
+    return marks
+
+
+def _plan_outlines(boundary, e1, e2) -> list:
+    """Each lattice's outline in the view, as an SVG polygon's points.
+
+    Parameters
+    ----------
+    boundary : dict or None
+        ``extras["mesh_boundary"]``.
+    e1, e2 : ndarray
+        The plan's axes.
+
+    Returns
+    -------
+    list of dict
+    """
     outlines = []
     for layer, info in (boundary or {}).items():
         corners = (info or {}).get("corners_camera_mm") if isinstance(info, dict) else None
@@ -196,12 +296,26 @@ def _plan_view(
             outlines.append(
                 {"points": " ".join(f"{x:.1f},{y:.1f}" for x, y in pts2), "colour": LAYER_COLOURS.get(layer, "#555")}
             )
-    pts = np.array(
-        [[s["x0"], s["y0"]] for s in segs] + [[s["x1"], s["y1"]] for s in segs] + [[s["lx"], s["ly"]] for s in segs]
-    )
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    span = max(float((hi - lo).max()), 1.0)
-    pad = 0.06 * span
+    return outlines
+
+
+def _spacing_labels(spacings: list, by_id: dict, acc_rows: dict) -> list:
+    """A label for each spacing between two drawn bars, placed across the gap it describes and
+    marked where its checkpoint is beyond tolerance.
+
+    Parameters
+    ----------
+    spacings : list of dict
+        The spacings table rows.
+    by_id : dict
+        The drawn bars' plan ends (:func:`_plan_segments`).
+    acc_rows : dict
+        Each spacing's checkpoint status.
+
+    Returns
+    -------
+    list of dict
+    """
     labels = []
     for rec in spacings:
         a, b = by_id.get(str(rec.get("bar_a"))), by_id.get(str(rec.get("bar_b")))
@@ -231,21 +345,7 @@ def _plan_view(
                 "layer": rec.get("layer"),
             }
         )
-    return {
-        "segments": segs,
-        "labels": labels,
-        "marks": marks,
-        "outlines": outlines,
-        "x": lo[0] - pad,
-        "y": lo[1] - pad,
-        # An extra strip at the bottom holds the scale bar, clear of the bar ids.
-        "w": (hi - lo)[0] + 2 * pad,
-        "h": (hi - lo)[1] + 3 * pad,
-        "font": span / 45,
-        "scale_mm": _scale_bar(span),
-        "sx": lo[0],
-        "sy": hi[1] + pad * 2.0,
-    }
+    return labels
 
 
 def _scale_bar(span: float) -> float:

@@ -33,7 +33,56 @@ def _bad(path, problem):
 
 
 def read_sidecar(path: Path) -> dict:
-    """The sidecar at ``path``, checked, with every optional key filled in with its default."""
+    """The sidecar at ``path``, checked, with every optional key filled in with its default.
+
+    Parameters
+    ----------
+    path : Path
+        The sidecar JSON (next to the ONNX file, same name; ``docs/formats.md`` lists its keys).
+
+    Returns
+    -------
+    dict
+        The sidecar's object, its ``input`` and ``output`` objects checked and completed.
+
+    Raises
+    ------
+    RebarInputError
+        Naming the file and the key, for a missing file, invalid JSON or a value out of range.
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     p = Path(d) / "model.json"
+    ...     _ = p.write_text(json.dumps({"input": {}, "output": {"kind": "logits"}}))
+    ...     spec = read_sidecar(p)
+    >>> spec["input"]["layout"], spec["output"]["rebar_classes"], spec["output"]["threshold"]
+    ('NCHW', [1], 0.5)
+    """
+    spec = _load_json(path)
+    inp = _input_section(path, dict(spec["input"]))
+    out = _output_section(path, dict(spec["output"]), inp["flips"])
+    return {**spec, "input": inp, "output": out}
+
+
+def _load_json(path: Path) -> dict:
+    """The sidecar's JSON object, with ``input`` and ``output`` objects.
+
+    Parameters
+    ----------
+    path : Path
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    RebarInputError
+        For a missing file, invalid JSON, or an object without the two objects.
+    """
     if not path.is_file():
         raise _bad(
             path,
@@ -49,7 +98,25 @@ def read_sidecar(path: Path) -> dict:
         or not isinstance(spec.get("output"), dict)
     ):
         raise _bad(path, "expected a JSON object with 'input' and 'output' objects")
-    inp, out = dict(spec["input"]), dict(spec["output"])
+    return spec
+
+
+def _input_section(path: Path, inp: dict) -> dict:
+    """The sidecar's ``input`` object checked, its defaults filled in.
+
+    Parameters
+    ----------
+    path : Path
+        The sidecar (named in the errors).
+    inp : dict
+        A copy of its ``input`` object (completed in place).
+
+    Returns
+    -------
+    dict
+        ``inp``, with ``size``, ``resize``, ``scale``, ``pad_to``, ``channel_order``, ``layout``,
+        ``dtype``, ``mean``, ``std``, ``value_scale``, ``flips`` and ``max_bar_px`` set.
+    """
     size = inp.get("size")
     if size is not None:
         if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size)):
@@ -102,6 +169,26 @@ def read_sidecar(path: Path) -> dict:
         flips=list(flips),
         max_bar_px=None if max_bar_px is None else float(max_bar_px),
     )
+    return inp
+
+
+def _output_section(path: Path, out: dict, flips: list) -> dict:
+    """The sidecar's ``output`` object checked, its defaults filled in.
+
+    Parameters
+    ----------
+    path : Path
+        The sidecar (named in the errors).
+    out : dict
+        A copy of its ``output`` object (completed in place).
+    flips : list
+        The input's flips (a label map cannot be averaged over them).
+
+    Returns
+    -------
+    dict
+        ``out``, with ``kind``, ``rebar_classes``, ``threshold`` and ``layout`` set.
+    """
     kind = out.get("kind")
     if kind not in _KINDS:
         raise _bad(path, f"output.kind: expected one of {_KINDS}, got {kind!r}")
@@ -117,4 +204,4 @@ def read_sidecar(path: Path) -> dict:
     if out_layout not in _LAYOUTS:
         raise _bad(path, f"output.layout: expected one of {_LAYOUTS}, got {out_layout!r}")
     out.update(kind=kind, rebar_classes=classes, threshold=float(thr), layout=out_layout)
-    return {**spec, "input": inp, "output": out}
+    return out
