@@ -2021,3 +2021,53 @@ def test_a_width_from_one_edge_beside_nearer_bars_never_sizes_against_its_axis(o
         assert got is None
     else:
         assert got["nominal_mm"] == sized and got["diameter_status"] == "measured"
+
+
+def test_a_bar_seen_from_one_edge_along_most_of_its_length_under_nearer_bars_is_hidden_for_its_size():
+    # A lower Φ10 bar (envelope 11.6 mm) with 90 % of its stations partly under nearer bars and
+    # every kept section sized from its one visible edge and the axis: no section shows its whole
+    # width. Its mask runs are centred on the axis (the edge-to-axis width is symmetric by
+    # construction), so "runs off the axis" cannot tell; the one-sided share does. Such a bar is
+    # hidden for its size, as a bar wholly under nearer bars is, not "not measured" (which would
+    # leave the slab's bar-size item incomplete for a bar no view from above can size).
+    from types import SimpleNamespace
+
+    from rebarlib.diameter import DiameterParams
+    from rebarlib.diameter.measure import _bar_row
+
+    prm = DiameterParams()
+    n = 120
+    occluded = np.zeros(n, bool)
+    occluded[: int(0.9 * n)] = True
+    reading = BarReading(
+        widths=np.full(100, 9.6),
+        occluded=occluded,
+        in_image=np.ones(n, bool),
+        stations=n,
+        one_sided_share=1.0,
+        depth_width_mm=10.0,
+        depth_spread_mm=1.0,
+        depth_points=2000,
+        px_mm=0.8,
+        centre_mm=0.0,
+        z_mm=550.0,
+        phase_sweep_px=20.0,
+        mask_between_mm=0.3,
+        mask_width_mm=9.6,
+    )
+    bar = SimpleNamespace(bar_id=3, design_mm=10.0, axis_radius_mm=11.6 / 2, axis_ok=True)
+    kw = dict(method="refined", system="GB1499.2", deformed=True)
+    row = _bar_row(bar, reading, None, False, "veto", False, prm, **kw)
+    assert row["diameter_status"] == "hidden" and row["hidden"]
+    assert row["diameter_reason"].startswith("hidden: 90% of its cross-sections lie partly under nearer bars")
+    assert "mask shows one side only" in row["diameter_reason"]
+    # the same bar showing both its edges in every kept section stays "not measured": its
+    # width is its own, and mask and cloud disagree on it
+    row = _bar_row(bar, replace(reading, one_sided_share=0.0), None, False, "veto", False, prm, **kw)
+    assert row["diameter_status"] == "not measured" and not row["hidden"]
+    # and one seen from one edge but mostly in the open keeps its "not measured" (its width
+    # from one edge may still name another size)
+    few = np.zeros(n, bool)
+    few[:30] = True
+    row = _bar_row(bar, replace(reading, occluded=few), None, False, "veto", False, prm, **kw)
+    assert row["diameter_status"] == "not measured" and not row["hidden"]

@@ -466,10 +466,12 @@ def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method,
         if (
             row["diameter_status"] == NOT_MEASURED
             and occ_frac >= prm.hidden_fraction
-            and _off_centre(reading, med, prm)
+            and (_off_centre(reading, med, prm) or reading.one_sided_share >= prm.hidden_fraction)
         ):
             # the side the mask lacks is under the nearer bars along most of the bar: no section
-            # shows its whole width, so it is hidden for its size, as a bar wholly under them is
+            # shows its whole width, so it is hidden for its size, as a bar wholly under them is.
+            # Seen as runs centred off the axis, or as most sections sized from one edge and the
+            # axis (docs/decisions/024-one-sided-bars-under-nearer-bars.md)
             row.update(
                 diameter_status=HIDDEN,
                 hidden=True,
