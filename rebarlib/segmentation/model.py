@@ -7,6 +7,8 @@ synthetic captures by ``training/train_segmentation.py``). The runtime never imp
 from __future__ import annotations
 
 import math
+import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,15 @@ from .._checks import RebarInputError
 from .sidecar import _DTYPES, _bad, read_sidecar
 
 __all__ = ["SegmentationModel", "MODELS_DIR", "DEFAULT_MODEL"]
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_MODEL = "rebar_seg"
@@ -27,7 +38,10 @@ class SegmentationModel:
     ----------
     onnx_path : path of the ``.onnx`` file
     sidecar_json_path : path of the sidecar; default: next to the model, same name, ``.json``
-    threads : onnxruntime intra-op threads (default: onnxruntime's choice)
+    threads : onnxruntime intra-op threads (default: onnxruntime's choice). By default, the
+        several runs of one image or tile (its test-time flips) run at once instead, one per
+        core, each on one thread: the same numbers as one run after the other, with less CPU
+        time than each run split over the cores (docs/batch.md, "Speed")
 
     Notes
     -----
@@ -74,6 +88,10 @@ class SegmentationModel:
         except Exception as e:  # onnxruntime raises its own exception types for unreadable models
             raise _bad(self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})") from None
         self._check_io()
+        # several runs at once (threads=None): a one-thread session and a thread per core, made
+        # at the first image with more than one run
+        self._parallel = _cores() if threads is None else 1
+        self._pool, self._pool_session, self._pool_lock = None, None, threading.Lock()
 
     @classmethod
     def default(cls, *, threads: int | None = None) -> "SegmentationModel":
@@ -209,6 +227,26 @@ class SegmentationModel:
         f = min(w / W, h / H)
         return max(1, min(w, round(W * f))), max(1, min(h, round(H * f)))
 
+    def _run_all(self, inputs: list) -> list:
+        """The network's output for each of ``inputs``, in their order: one after the other, or
+        (threads=None, more than one input, more than one core) at once, one per core."""
+        if len(inputs) == 1 or self._parallel == 1:
+            return [self._run(self._session, x) for x in inputs]
+        with self._pool_lock:
+            if self._pool is None:
+                import onnxruntime as ort
+                from concurrent.futures import ThreadPoolExecutor
+
+                so = ort.SessionOptions()
+                so.intra_op_num_threads, so.inter_op_num_threads = 1, 1
+                so.log_severity_level = 3
+                self._pool_session = ort.InferenceSession(str(self.onnx_path), so, providers=["CPUExecutionProvider"])
+                self._pool = ThreadPoolExecutor(self._parallel, thread_name_prefix="rebarlib-model")
+        return list(self._pool.map(lambda x: self._run(self._pool_session, x), inputs))
+
+    def _run(self, session, x):
+        return np.asarray(session.run([self._output_name], {self._input_name: x})[0])
+
     def _score(self, color, flips: bool = True):
         """The rebar score map at full resolution and the threshold it is compared with."""
         import cv2
@@ -217,19 +255,21 @@ class SegmentationModel:
         t, (h, w), (hp, wp) = self._prepare(color)
         is_logit = False
         out = self._out
-        run = lambda x: np.asarray(self._session.run([self._output_name], {self._input_name: x})[0])  # noqa: E731
-        y = run(t)
         if flips and self._inp["flips"]:
             # test-time flips: the outputs (logits or probabilities) of the mirrored images,
             # mirrored back, are averaged with the plain one (a network's errors at edges differ
             # between an image and its mirror image, so the mean is closer to the truth)
             t_hw = (2, 3) if self._inp["layout"] == "NCHW" else (1, 2)
-            y_hw = (2, 3) if y.ndim == 4 and out["layout"] == "NCHW" else (1, 2)
             axes = lambda hw, f: tuple(a for a, c in zip(hw, "vh") if c in f)  # noqa: E731
+            ys = self._run_all([t] + [np.ascontiguousarray(np.flip(t, axes(t_hw, f))) for f in self._inp["flips"]])
+            y = ys[0]
+            y_hw = (2, 3) if y.ndim == 4 and out["layout"] == "NCHW" else (1, 2)
             acc = y.astype(np.float32)
-            for f in self._inp["flips"]:
-                acc += np.flip(run(np.ascontiguousarray(np.flip(t, axes(t_hw, f)))), axes(y_hw, f))
+            for f, yf in zip(self._inp["flips"], ys[1:]):
+                acc += np.flip(yf, axes(y_hw, f))
             y = acc / (1 + len(self._inp["flips"]))
+        else:
+            y = self._run_all([t])[0]
         y = y[0]
         if out["kind"] == "labels":
             if y.ndim == 3:  # (1, H, W) or (H, W, 1)
