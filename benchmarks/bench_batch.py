@@ -10,9 +10,14 @@ printed with each table, and CPU seconds beside wall seconds):
    (PDF), wall time including the interpreter's start-up. Targets: 0.3 s and 3 s.
 3. ``batch``: ``rebar inspect --jobs J`` over N copies of the paper slab's 4 captures (hard
    links): captures per minute and the peak memory of the whole process tree. Target:
-   >= 100 captures/min for ``--jobs 2`` on 24 captures; 1000 captures in <= 10 min (``--big``).
+   >= 100 captures/min for ``--jobs 2`` on 24 captures.
 4. ``dask``: the same batch on a local dask.distributed cluster of 1, then 2 worker processes
    (one thread each): captures per minute and the scaling.
+5. ``many`` (only when asked for, it is long): one ``rebar inspect --jobs 2`` over ``--count``
+   copies (default 1000) made in a temporary folder and deleted afterwards: wall time, captures
+   per minute, CPU seconds per capture, the peak memory of the process tree and of its largest
+   process, and how many captures came out ``ok`` in ``summary.csv``. Target: 1000 captures in
+   <= 10 min on 2 cores.
 
 ``--dump FILE`` writes the results of the five example captures (seed 0, timings left out) as
 JSON; ``--check FILE`` runs them again and says whether every bar, spacing, count and measurement
@@ -20,7 +25,7 @@ is identical to the dump (a speed change must leave them so).
 
     python benchmarks/bench_batch.py                   # all tables, 24 captures, 3 repeats
     python benchmarks/bench_batch.py --only batch --n 200 --jobs 2
-    python benchmarks/bench_batch.py --big 1000        # the 1000-capture run (long)
+    python benchmarks/bench_batch.py --only many --count 1000   # the 1000-capture run (long)
     python benchmarks/bench_batch.py --dump before.json ; ...change... ; --check before.json
 """
 
@@ -179,12 +184,13 @@ def copies(folder: Path, n: int) -> list:
 
 
 class PeakMemory:
-    """Peak resident memory of this process's children (the whole tree), sampled every 0.2 s."""
+    """Peak resident memory of a process and its children (the whole tree, ``peak``; the largest
+    single process, ``peak_one``), sampled every 0.2 s."""
 
     def __init__(self, pid: int):
         import psutil
 
-        self.proc, self.peak, self._stop = psutil.Process(pid), 0, threading.Event()
+        self.proc, self.peak, self.peak_one, self._stop = psutil.Process(pid), 0, 0, threading.Event()
         self._t = threading.Thread(target=self._run, daemon=True)
         self._t.start()
 
@@ -197,9 +203,11 @@ class PeakMemory:
                 rss = 0
                 for p in procs:
                     try:
-                        rss += p.memory_info().rss
+                        one = p.memory_info().rss
                     except psutil.Error:
-                        pass
+                        continue
+                    rss += one
+                    self.peak_one = max(self.peak_one, one)
                 self.peak = max(self.peak, rss)
             except psutil.Error:
                 pass
@@ -211,9 +219,10 @@ class PeakMemory:
         return self.peak / 2**20
 
 
-def run_batch(caps: list, out: Path, *extra) -> tuple:
+def run_batch(caps: list, out: Path, *extra, memory: list | None = None) -> tuple:
     """``rebar inspect`` over ``caps``: (wall s, peak MiB of the process tree, exit status, CPU s
-    of the command and its worker processes)."""
+    of the command and its worker processes). ``memory``: a list the peak MiB of the largest
+    single process is appended to."""
     import resource
 
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -234,6 +243,8 @@ def run_batch(caps: list, out: Path, *extra) -> tuple:
     _, err = p.communicate()
     wall = time.perf_counter() - t
     peak = mem.stop()
+    if memory is not None:
+        memory.append(mem.peak_one / 2**20)
     cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     if p.returncode != 0:
@@ -304,6 +315,50 @@ def bench_dask(n: int, repeats: int) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
+# 5. many captures: the 1000-capture run
+
+
+def bench_many(count: int, jobs: int = 2) -> int:
+    """One ``rebar inspect --jobs`` over ``count`` copies of the paper slab's captures (hard links
+    in a temporary folder, deleted afterwards, results included). Returns the command's exit
+    status."""
+    import csv
+
+    load_before = " / ".join(f"{x:.2f}" for x in os.getloadavg())
+    with tempfile.TemporaryDirectory(prefix="bench_many_") as tmp:
+        t = time.perf_counter()
+        caps = copies(Path(tmp) / "caps", count)
+        made = time.perf_counter() - t
+        print(f"{count} capture folders linked in {made:.1f} s; running rebar inspect --jobs {jobs} ...", flush=True)
+        out, one = Path(tmp) / "out", []
+        wall, peak, rc, cpu = run_batch(caps, out, "--jobs", str(jobs), memory=one)
+        with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+            statuses = [row["status"] for row in csv.DictReader(f)]
+    rows = [
+        ["captures", count],
+        ["jobs", jobs],
+        ["wall s", f"{wall:.1f}"],
+        ["captures/min", f"{60 * count / wall:.1f}"],
+        ["CPU s per capture (all processes)", f"{cpu / count:.2f}"],
+        ["peak MiB, process tree", f"{peak:.0f}"],
+        ["peak MiB, largest process", f"{one[0]:.0f}"],
+        ["summary.csv rows ok / failed", f"{statuses.count('ok')} / {statuses.count('failed')}"],
+        ["exit status", rc],
+        ["load average before", load_before],
+        [
+            f"target: {count} captures in <= {count * 0.6:.0f} s (1000 in 10 min)",
+            "met" if wall <= 0.6 * count else "not met",
+        ],
+    ]
+    table(
+        f"many: rebar inspect --jobs {jobs} over {count} copies of the paper slab's captures, one run",
+        ["what", "measured"],
+        rows,
+    )
+    return rc
+
+
+# ---------------------------------------------------------------------------------------------
 # accuracy unchanged
 
 
@@ -342,11 +397,12 @@ def check(path: Path) -> int:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--only", choices=("stages", "startup", "batch", "dask"), action="append")
+    ap.add_argument("--only", choices=("stages", "startup", "batch", "dask", "many"), action="append")
     ap.add_argument("--n", type=int, default=24, help="captures in the batch and dask tables (default 24)")
     ap.add_argument("--jobs", type=int, action="append", help="--jobs values of the batch table (default 1 and 2)")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--big", type=int, metavar="N", help="only the batch table, once, over N captures with --jobs 2")
+    ap.add_argument("--count", type=int, default=1000, help="captures of the many table (default 1000)")
+    ap.add_argument("--big", type=int, metavar="N", help="the same as --only many --count N")
     ap.add_argument("--dump", type=Path, metavar="FILE")
     ap.add_argument("--check", type=Path, metavar="FILE")
     a = ap.parse_args(argv)
@@ -357,8 +413,7 @@ def main(argv=None) -> int:
     if a.check:
         return check(a.check)
     if a.big:
-        bench_batch(a.big, [2], 1)
-        return 0
+        return bench_many(a.big)
     only = set(a.only or ("stages", "startup", "batch", "dask"))
     if "stages" in only:
         bench_stages(max(a.repeats, 5))
@@ -368,6 +423,8 @@ def main(argv=None) -> int:
         bench_batch(a.n, a.jobs or [1, 2], a.repeats)
     if "dask" in only:
         bench_dask(a.n, a.repeats)
+    if "many" in only:
+        return bench_many(a.count, (a.jobs or [2])[0])
     return 0
 
 
