@@ -91,7 +91,7 @@ class SegmentationModel:
         # several runs at once (threads=None): a one-thread session and a thread per core, made
         # at the first image with more than one run
         self._parallel = _cores() if threads is None else 1
-        self._pool, self._pool_session, self._pool_lock = None, None, threading.Lock()
+        self._pool, self._pool_session, self._pool_lock, self._pool_pid = None, None, threading.Lock(), None
 
     @classmethod
     def default(cls, *, threads: int | None = None) -> "SegmentationModel":
@@ -233,7 +233,7 @@ class SegmentationModel:
         if len(inputs) == 1 or self._parallel == 1:
             return [self._run(self._session, x) for x in inputs]
         with self._pool_lock:
-            if self._pool is None:
+            if self._pool is None or self._pool_pid != os.getpid():  # (a forked child has no threads)
                 import onnxruntime as ort
                 from concurrent.futures import ThreadPoolExecutor
 
@@ -242,6 +242,7 @@ class SegmentationModel:
                 so.log_severity_level = 3
                 self._pool_session = ort.InferenceSession(str(self.onnx_path), so, providers=["CPUExecutionProvider"])
                 self._pool = ThreadPoolExecutor(self._parallel, thread_name_prefix="rebarlib-model")
+                self._pool_pid = os.getpid()
         return list(self._pool.map(lambda x: self._run(self._pool_session, x), inputs))
 
     def _run(self, session, x):
