@@ -65,6 +65,18 @@ def pixel_accuracy(pred, truth=None) -> float:
 
     ``pred`` is a mask (with ``truth``) or a :func:`confusion_counts` dict (without).
 
+    Parameters
+    ----------
+    pred : (H, W) array_like mask (anything non-zero is rebar), or a dict with int ``TP``,
+        ``FP``, ``FN``, ``TN`` (:func:`confusion_counts`, possibly summed over images)
+    truth : (H, W) array_like true mask of the same shape; None (default) when ``pred`` is
+        a dict of counts
+
+    Returns
+    -------
+    float, the share of pixels classified right (rebar and background); NaN when there are no
+    pixels to count.
+
     Examples
     --------
     >>> pixel_accuracy({"TP": 2, "FP": 1, "FN": 1, "TN": 6})
@@ -77,6 +89,18 @@ def pixel_accuracy(pred, truth=None) -> float:
 def iou(pred, truth=None) -> float:
     """IoU of the rebar class = TP / (TP + FP + FN), in [0, 1]; NaN when both masks are empty.
 
+    Parameters
+    ----------
+    pred : (H, W) array_like mask (anything non-zero is rebar), or a dict with int ``TP``,
+        ``FP``, ``FN``, ``TN`` (:func:`confusion_counts`, possibly summed over images)
+    truth : (H, W) array_like true mask of the same shape; None (default) when ``pred`` is
+        a dict of counts
+
+    Returns
+    -------
+    float, the intersection over the union of the predicted and the true rebar pixels; NaN
+    when neither has any.
+
     Examples
     --------
     >>> iou([[1, 1, 0, 0]], [[1, 0, 1, 0]])
@@ -88,6 +112,18 @@ def iou(pred, truth=None) -> float:
 
 def dice(pred, truth=None) -> float:
     """Dice of the rebar class = 2 TP / (2 TP + FP + FN), in [0, 1]; NaN when both are empty.
+
+    Parameters
+    ----------
+    pred : (H, W) array_like mask (anything non-zero is rebar), or a dict with int ``TP``,
+        ``FP``, ``FN``, ``TN`` (:func:`confusion_counts`, possibly summed over images)
+    truth : (H, W) array_like true mask of the same shape; None (default) when ``pred`` is
+        a dict of counts
+
+    Returns
+    -------
+    float, twice the overlap of the predicted and the true rebar pixels over their total
+    count (the F1 score of the rebar pixels); NaN when neither has any.
 
     Examples
     --------
