@@ -73,6 +73,20 @@ def fit_formwork_plane(points_mm, *, distance_mm: float = 4.0, max_points: int =
 def height_above_plane(depth_mm, intrinsics: Intrinsics, plane) -> np.ndarray:
     """Height of every pixel's point above ``plane`` = (normal, offset_mm), mm; NaN without depth.
 
+    Parameters
+    ----------
+    depth_mm : (H, W) float depth map, mm; 0 (or beyond 10 m, or not finite) = no depth
+    intrinsics : the camera's :class:`~rebarlib.Intrinsics`, of the depth map's size
+    plane : ``(normal (3,), offset_mm)``, the plane ``normal @ x + offset_mm = 0`` in the
+        camera frame, e.g. from :func:`fit_formwork_plane` (normal of unit length, pointing
+        towards the camera)
+
+    Returns
+    -------
+    (H, W) float, ``normal @ x + offset_mm`` of each pixel's back-projected point ``x``: the
+    distance above the plane (mm, negative behind it) for a unit normal; NaN where the pixel
+    has no depth.
+
     Examples
     --------
     >>> K = Intrinsics(100.0, 100.0, 1.0, 1.0, 3, 3)
