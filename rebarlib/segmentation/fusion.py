@@ -57,6 +57,24 @@ def depth_overreach_px(
     sides together): 0.22 with the benchmark's default sensor (0), 0.63 with 3 px of stereo
     fattening (1), 0.43 with three times the flying pixels (0), 0.03 without edge effects (0).
 
+    Parameters
+    ----------
+    color_mask, depth_mask : (H, W) bool rebar masks from colour and from depth (anything
+        non-zero is rebar)
+    color_proba : (H, W) float rebar probability of the colour model, optional; default the
+        colour mask as 1 / 0 (every pixel outside it is background)
+    low_proba : a ring's pixel counts as background only where ``color_proba`` is under this;
+        a pixel 1 px inside the colour mask counts as sure only where it is over ``1 - low_proba``
+    depth_valid : (H, W) bool, where depth exists (e.g. ``capture.depth_mm > 0``); default all
+    max_px : the farthest ring looked at, px: the largest over-reach returned
+    min_pixels : fewest pixels with depth in a side's ring for that side to be read (and
+        1 px inside the colour mask, for that side to be checked there)
+
+    Returns
+    -------
+    int in ``0..max_px``, the over-reach in pixels, for :func:`trim_depth_overreach` (and
+    ``overreach_px`` of :func:`fuse_masks`).
+
     Examples
     --------
     >>> color = np.zeros((60, 60), bool); color[:, 25:35] = True; color[25:35, :] = True
@@ -107,6 +125,17 @@ def trim_depth_overreach(color_mask, depth_mask, overreach_px: int) -> np.ndarra
     colour mask thinner than ``2 * overreach_px + 1`` px (a morphological opening) are left out,
     the fattening along edges the colour places; parts as thick as a bar (one the colour missed)
     stay. ``overreach_px`` 0: the depth mask as it is (a copy).
+
+    Parameters
+    ----------
+    color_mask, depth_mask : (H, W) bool rebar masks from colour and from depth (anything
+        non-zero is rebar)
+    overreach_px : the depth's over-reach, px (:func:`depth_overreach_px`); 0 or less: none
+
+    Returns
+    -------
+    (H, W) bool, a new array: the depth mask inside the colour mask, and its parts outside
+    that an opening with a ``(2 * overreach_px + 1)``-px square keeps.
 
     Examples
     --------
