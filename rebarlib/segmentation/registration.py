@@ -84,6 +84,18 @@ def shift_image(image, du: float, dv: float) -> np.ndarray:
     """``image`` moved ``du`` pixels right and ``dv`` down (bilinear; the border's pixels repeat
     into what comes in from outside): ``out(x) = image(x − (du, dv))``. The input is not changed.
 
+    Parameters
+    ----------
+    image : (H, W) or (H, W, C) array of a type OpenCV warps (uint8, float32, float64, ...;
+        not bool): a probability, a depth map (mm) or an image
+    du, dv : the move right and down, px (fractions allowed; negative: left, up). To bring a
+        depth image onto the colour one, pass minus the ``(du, dv)`` of
+        :func:`estimate_registration`
+
+    Returns
+    -------
+    array of ``image``'s shape and type, a new one.
+
     Examples
     --------
     >>> shift_image(np.arange(5, dtype=np.float32)[None, :], 1.0, 0.0).tolist()
