@@ -363,6 +363,16 @@ def _norm(name: str) -> str:
 def list_presets() -> dict:
     """The shipped presets: ``{name: path}``.
 
+    Parameters
+    ----------
+    None; the presets are the ``*.toml`` files in :data:`PRESETS_DIR`.
+
+    Returns
+    -------
+    dict of ``{name: pathlib.Path}``, in the order of the files' names: each preset's ``name``
+    (its file's stem where it has none) and its file. Any of its spellings selects it in
+    :func:`load_tolerances` (:func:`preset_path`).
+
     Examples
     --------
     >>> sorted(list_presets())
@@ -422,6 +432,26 @@ def load_tolerances(name_or_path=DEFAULT_PRESET) -> Tolerances:
     """Read a tolerance preset by name (``"GB50204-2015"``, ``"ACI117-318"``, ``"EN13670-class1"``,
     ``"custom"``, or an alias listed in the preset file; case and punctuation ignored, see
     :func:`preset_path`) or from a TOML file path.
+
+    Parameters
+    ----------
+    name_or_path : str, pathlib.Path or Tolerances
+        a preset's name or alias, or the path of a ``.toml`` tolerance file (the ``custom``
+        preset is a commented template of one); default :data:`DEFAULT_PRESET`. A
+        :class:`Tolerances` is returned as it is.
+
+    Returns
+    -------
+    Tolerances: the preset's standard and edition, its items (:class:`ItemTolerance`) and its
+    lot rules (:class:`LotRule`), ``source`` the file read. A design's own limits go on top
+    with :meth:`Tolerances.with_overrides`.
+
+    Raises
+    ------
+    RebarInputError
+        an unknown name, a missing or invalid file, or one that lacks an item of the base set
+        (cover, layer_distance, spacing, bar_size, bar_count, top_cover) or names a lot rule
+        it does not define.
 
     Examples
     --------
