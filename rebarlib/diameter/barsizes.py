@@ -493,6 +493,12 @@ def snap_diameter(
     sigma_mm : standard uncertainty of ``width_mm``
     dof : degrees of freedom of ``sigma_mm`` (:data:`WIDTH_SIGMA_DOF`; ``math.inf``: a normal error)
 
+    Returns
+    -------
+    (nominal_mm, confidence): the chosen size's nominal diameter (mm, a float of the system's
+    table) and its posterior probability in 0..1 (rounded to 4 decimals); ``(nan, 0.0)`` for a
+    width that is not finite, not positive or beyond the table.
+
     Examples
     --------
     >>> snap_diameter(13.8)
