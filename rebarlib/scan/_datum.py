@@ -29,6 +29,26 @@ def mesh_up(points, *, up=None, rng=None) -> tuple[np.ndarray, str]:
     ``up`` given: the cloud's thin direction if within 30° of it (the mesh's own tilt), else
     ``up`` itself; the sign is always ``up``'s. Without it the sign is settled later (formwork,
     else the denser lattice): this returns the thin direction with a provisional sign.
+
+    Parameters
+    ----------
+    points : (N, 3) float points of the scan, mm (e.g. :attr:`ScanCloud.points`)
+    up : the mesh's up side as given (:func:`parse_up`: "+z", "-y", ... or a 3-vector), or None
+    rng : seed or Generator of the sampling (the thin direction is read from at most 50,000
+        points; the 2 % farthest from their median are left out)
+
+    Returns
+    -------
+    (normal, how): the (3,) unit normal of the mesh, and a sentence saying how it was found
+    (for the result's notes).
+
+    Examples
+    --------
+    >>> g = np.random.default_rng(0)
+    >>> pts = np.column_stack([g.uniform(-500, 500, (3000, 2)), g.normal(0.0, 5.0, 3000)])
+    >>> n, how = mesh_up(pts, up="-z", rng=0)
+    >>> round(float(n[2]), 3), how
+    (-1.0, "up = -z given; the mesh plane's own tilt from the cloud")
     """
     rng = np.random.default_rng(rng)
     n = _thin_direction(points, rng)
@@ -80,6 +100,33 @@ def find_datum(points, normal, *, rng=None) -> Datum:
 
     The plane's height is the mode of the residuals (not their mean: the lowest bars lie within
     a few noise σ above it) and its noise the half width of that mode on its far side.
+
+    Parameters
+    ----------
+    points : (N, 3) float points of the scan, mm
+    normal : (3,) the mesh's normal (:func:`mesh_up`); either sign, the plane is looked for at
+        both ends
+    rng : seed or Generator of the sampling (at most 100,000 points in the search for the
+        plane, 200,000 for its tilt)
+
+    Returns
+    -------
+    Datum: ``found``; ``plane``, a :class:`rebarlib.geometry.Plane` whose normal points from
+    the plane to the mesh (its ``height`` is the height above the formwork) and whose
+    ``n_inliers`` and ``noise_mm`` are its points' count and σ; ``noise_mm`` the range noise σ
+    (mm); ``share`` the share of the points on it; ``reason`` "". Not found: ``plane`` is
+    ``Plane(normal, 0.0)`` (a placeholder), ``noise_mm`` None, and ``reason`` says why (under
+    15 % of the points on one plane, or the lowest dense layer is bars).
+
+    Examples
+    --------
+    >>> g = np.random.default_rng(0)
+    >>> formwork = np.column_stack([g.uniform(0, 1000, (6000, 2)), g.normal(0.0, 2.0, 6000)])
+    >>> x = g.integers(0, 7, 3000) * 150.0 + 50 + g.normal(0.0, 2.0, 3000)  # bars along y, 40 mm up
+    >>> bars = np.column_stack([x, g.uniform(0, 1000, 3000), 40 + g.normal(0.0, 2.0, 3000)])
+    >>> d = find_datum(np.vstack([formwork, bars]), [0, 0, -1.0], rng=0)
+    >>> d.found, round(float(d.plane.normal[2]), 3), round(d.noise_mm, 1), round(d.share, 2)
+    (True, 1.0, 1.8, 0.64)
     """
     rng = np.random.default_rng(rng)
     n = np.asarray(normal, float)
@@ -162,7 +209,27 @@ def _lined_up(points, n, h, mode, sigma, rng) -> bool:
 def split_lattices(h, *, noise_mm: float, min_gap_mm: float = 10.0) -> float | None:
     """Height between the two lattices: the deepest valley of the height histogram smoothed by the
     noise, between the two highest modes at least ``min_gap_mm`` + 2 noise σ apart; None when the
-    valley is not below half the lower of the two modes (one lattice)."""
+    valley is not below half the lower of the two modes (one lattice).
+
+    Parameters
+    ----------
+    h : (N,) float heights of the points above the mesh's plane (slab frame), mm; the 1 % at
+        either end are left out
+    noise_mm : the height noise σ, mm (the histogram is smoothed by 0.7 of it, at least 2.1 mm)
+    min_gap_mm : the two lattices' modes lie at least this (plus two ``noise_mm``) apart
+
+    Returns
+    -------
+    float, the height of the valley (mm): points above it are the upper lattice's; None with
+    fewer than 50 heights or without such a valley.
+
+    Examples
+    --------
+    >>> g = np.random.default_rng(0)
+    >>> h = np.r_[g.normal(40.0, 5.0, 2000), g.normal(75.0, 5.0, 2000)]
+    >>> round(split_lattices(h, noise_mm=5.0), 1), split_lattices(h[:2000], noise_mm=5.0)
+    (57.4, None)
+    """
     h = np.asarray(h, float)
     if len(h) < 50:
         return None
