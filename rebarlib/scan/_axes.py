@@ -69,7 +69,22 @@ def crossing_lift(q, bars: list, noise: dict) -> float:
     than its own. The band keeps to the bar's height: within a diameter and two height-noise σ
     of its axis (``noise[layer]`` is (plan, height) σ), which holds the crossing bar resting on
     it; with four radii and three *plan* σ it also held the other level's bars well away from
-    the crossings, and at σ 15 mm the sign was right in 1 of 4 synthetic scans."""
+    the crossings, and at σ 15 mm the sign was right in 1 of 4 synthetic scans.
+
+    Parameters
+    ----------
+    q : (N, 3) float slab-frame points (plan x, y and height above the mesh's plane), mm
+    bars : list of :class:`rebarlib.geometry.BarAxis`, the axes found in ``q`` (both lattices;
+        a bar's crossings are those of the other level of its own lattice)
+    noise : ``{layer: (plan σ, height σ)}`` in mm, as measured on the bars; a layer missing is
+        taken as (10, 10)
+
+    Returns
+    -------
+    float, mm: the points' mean height within a radius of the crossings less that more than
+    three radii and two plan σ away from them, averaged over the bars weighted by their band's
+    points; 0.0 where no bar has 20 points in its band with 5 at and 5 away from a crossing.
+    """
     total, weight = 0.0, 0
     plan, h = q[:, :2], q[:, 2]
     for layer in G.LAYERS:
