@@ -182,6 +182,28 @@ def lattice_bars(
     noise_mm : noise of the points across the bars, mm (sets the bands and the smoothing)
     min_length_mm : a bar runs at least this far
     rng : seed or Generator of the sampling in the angular scan
+
+    Returns
+    -------
+    list of (int, bar)
+        ``(g, bar)`` pairs, ``g`` the direction index (0: the sharper direction, found first;
+        1: the other): direction 0's bars in the order of their offsets, then direction 1's;
+        empty where no bar is found. ``bar`` is a record of one bar in the slab frame:
+
+        ==========  ======================================================================
+        field       meaning
+        ==========  ======================================================================
+        direction   (2,) unit plan vector along the bar
+        centre      offset across (along ``normal2d``, the direction turned 90°) at 0 along
+        slope       the offset's drift per mm along: the line is ``centre + slope * along``
+        t0, t1      the bar's extent along its direction, mm
+        mean_h      the median height of its points, mm
+        n           its points
+        resid_sd    robust σ of its points' offsets about the line, mm
+        h_sd        robust σ of its points' heights, mm
+        idx         (n,) indices of its points into ``q``
+        z           its offset peak's excess over the counting noise
+        ==========  ======================================================================
     """
     rng = np.random.default_rng(rng)
     plan, h = q[:, :2], q[:, 2]
