@@ -30,6 +30,26 @@ def diameter_resolvable(noise_mm: float, radius_mm: float, half_gap_mm: float, n
     is well below the radius, and its radius' standard error is about σ·√(8/N) for N points over
     a half circle. The size is read only where σ ≤ radius / 4 and that error is under a quarter
     of the half gap to the nearest other standard size (so the size is told apart at 4 σ).
+
+    Parameters
+    ----------
+    noise_mm : σ of the bar's cross-section points about the circle fitted to them, mm
+    radius_mm : the bar's radius (half its design size's observed width), mm
+    half_gap_mm : half the distance from its design size's observed width to the nearest other
+        size's, mm (the smaller of :func:`rebarlib.diameter.barsizes.size_half_gaps_mm`)
+    n_points : the cross-section points the circle was fitted to
+
+    Returns
+    -------
+    (ok, why): True and "" where the size can be read; False and a sentence naming the
+    criterion that failed (for the bar table's ``diameter_reason``).
+
+    Examples
+    --------
+    >>> diameter_resolvable(1.0, 6.0, 1.0, 400)
+    (True, '')
+    >>> diameter_resolvable(1.0, 6.0, 1.0, 50)[1]
+    '50 points at σ 1.0 mm give its radius to ±0.40 mm, more than a quarter of the half gap to the next size (1.00 mm)'
     """
     if noise_mm > radius_mm / 4:
         return False, (
