@@ -271,18 +271,18 @@ def _bar_offset_mixture(a, h, half: float, sig_f: float, h0: float, sig_a: float
     Every point counts with its probability of being the bar's, and a low point that is the
     bar's is not cut away for lying low: the mean is the mixture's maximum-likelihood one, not a
     mean over the points a height threshold keeps."""
-    x = np.column_stack([a, h])
-    mu = np.array([0.0, float(h0)])
-    cov = np.diag([sig_a**2, sig_f**2 + sig_a**2])
+    # the sums run column by column: a matrix product of a tall thin array goes through BLAS
+    # threads (see _util._dot)
+    ma, mh = 0.0, float(h0)
+    caa, chh, cah = sig_a**2, sig_f**2 + sig_a**2, 0.0
     share = 0.5
     log_f = -0.5 * (h / sig_f) ** 2 - math.log(sig_f * math.sqrt(2 * math.pi) * 2 * half)
     for _ in range(iters):
-        det = float(np.linalg.det(cov))
+        det = caa * chh - cah**2
         if not det > 0:
             return None
-        inv = np.linalg.inv(cov)
-        d = x - mu
-        m = inv[0, 0] * d[:, 0] ** 2 + 2 * inv[0, 1] * d[:, 0] * d[:, 1] + inv[1, 1] * d[:, 1] ** 2
+        da, dh = a - ma, h - mh
+        m = (chh * da**2 - 2 * cah * da * dh + caa * dh**2) / det
         log_b = -0.5 * m - math.log(2 * math.pi * math.sqrt(det))
         # responsibility of the bar, from the log odds (no underflow far from either component)
         z = np.clip(math.log(share) - math.log1p(-share) + log_b - log_f, -50, 50)
@@ -290,17 +290,19 @@ def _bar_offset_mixture(a, h, half: float, sig_f: float, h0: float, sig_a: float
         sw = float(w.sum())
         if sw < 20 or sw > len(w) - 1e-6:
             return None
-        new = (w @ x) / sw
-        d = x - new
-        cov = (d * w[:, None]).T @ d / sw + np.eye(2) * 1e-3
+        na, nh = float((w * a).sum()) / sw, float((w * h).sum()) / sw
+        da, dh = a - na, h - nh
+        caa = float((w * da * da).sum()) / sw + 1e-3
+        chh = float((w * dh * dh).sum()) / sw + 1e-3
+        cah = float((w * da * dh).sum()) / sw
         share = sw / len(w)
-        done = float(np.abs(new - mu).max()) < 0.01
-        mu = new
+        done = max(abs(na - ma), abs(nh - mh)) < 0.01
+        ma, mh = na, nh
         if done:
             break
-    if abs(mu[0]) >= half or mu[1] <= 0:
+    if abs(ma) >= half or mh <= 0:
         return None
-    return float(mu[0])
+    return ma
 
 
 def _noise_across(found: list, r: float) -> float:
