@@ -5,6 +5,7 @@ captures whose camera has systematic errors drawn from its device profile.
     python benchmarks/bench_coverage.py              # 36 captures
     python benchmarks/bench_coverage.py --diameters  # also the bars' widths (slower)
     python benchmarks/bench_coverage.py --seed 7     # other scenes and error draws
+    python benchmarks/bench_coverage.py --derive     # also the fits' random term's two constants
 
 Set-up: the paper's slab (lower Φ14, upper Φ12 @ 200, layer distance 85, cover 15 or 25; 20 in
 the quick run) seen from 400-600 mm (quick: 450, 600) with tilts 0-15°, rendered with three
@@ -23,11 +24,19 @@ RMS, the median stated u, and the share of errors within 1 u and within 2 u (k =
 (issue 59): within 2 u for at least 95 % and at most 99.9 % of the measurements of each
 quantity. A quantity whose truth the capture does not show (no bar of that level measured) is
 left out.
+
+``--derive`` estimates the two constants of the heights' random term (``rebarlib.uncertainty``,
+docs/decisions/022): the bars' scatter about their level's common error as a share of their
+fits' residual RMS (``BAR_FIT_SHARE_OF_RMS``), from every level's bars' errors against their own
+truth; and the part common to a level (``LEVEL_FIT_COMMON_MM``), from the mean heights' errors
+once the drawn systematic errors (times the budget's own sensitivities) and that scatter are
+taken out. Derive them on training seeds (59, 7), never on the held-out one (2026).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import replace
@@ -40,6 +49,20 @@ from bench_geometry import match_bars, paper_design
 from rebarlib._inspect import inspect
 from rebarlib.devices import device_for
 from rebarlib.synth import Deviations, SensorModel, synth_capture
+from rebarlib.uncertainty import BAR_FIT_SHARE_OF_RMS, _level_fits_u
+
+#: per mean height: the bar levels it is read from, and the budget's key
+HEIGHT_LEVELS = {
+    "cover": ("cover", (("lower", "bottom"),)),
+    "layer distance": ("layer_distance", (("lower", "bottom"), ("upper", "bottom"))),
+    "upper top": ("upper_top", (("upper", "top"),)),
+}
+#: the systematic inputs the renders draw, by the budget's term name
+DRAWN = {
+    "depth_scale_error": "depth scale",
+    "bias_mm_per_m2": "depth non-linearity (stereo k z²)",
+    "focal_error": "focal length",
+}
 
 SETS = {  # name: (camera, sensor, device string written with the capture)
     "gemini2": ("gemini2", SensorModel(), "rebarlib synthetic (Gemini-2-like)"),
@@ -114,7 +137,67 @@ def rows_of(res, cap, case, diameters: bool) -> list:
     return out
 
 
-def run(quick: bool, diameters: bool, seed: int = 59) -> pd.DataFrame:
+def bar_errors(res, tb: dict, mapping: dict) -> list:
+    """Each measured bar's fitted height (its underside; for the upper lattice's top level, its
+    top: the axis plus the radius, as the stage reads it) against its true bar's, with its
+    fit's residual RMS."""
+    out = []
+    for r in res.bars.itertuples():
+        t = mapping.get(r.bar_id)
+        if t is None or r.status != "measured" or not np.isfinite(r.underside_mm) or not np.isfinite(r.fit_rms_mm):
+            continue
+        top = (r.layer, r.level) == ("upper", "top")
+        seen = r.underside_mm + 2 * r.radius_mm if top else r.underside_mm
+        true = tb[t]["top_mm"] if top else tb[t]["underside_mm"]
+        out.append({"layer": r.layer, "level": r.level, "error": seen - true, "fit_rms": r.fit_rms_mm})
+    return out
+
+
+def height_residuals(res, errs: dict, errors: dict) -> list:
+    """Per mean height measured: its error less what the drawn systematic errors make of it by
+    the budget's own sensitivities, and the bars' scatter part of the fits' term
+    (``errors``: quantity -> error)."""
+    out = []
+    budget = res.extras.get("uncertainty", {}).get("measurements", {})
+    for q, (key, _) in HEIGHT_LEVELS.items():
+        if q not in errors or key not in budget:
+            continue
+        sens = {t["term"]: t["sensitivity"] for t in budget[key]["terms"]}
+        drawn = sum(errs[k] * sens[name] for k, name in DRAWN.items())
+        u_bars = _level_fits_u(res.bars, key)
+        if u_bars is not None:
+            out.append({"quantity": q, "residual": errors[q] - drawn, "u_bars": u_bars})
+    return out
+
+
+def derive(bars: pd.DataFrame, heights: pd.DataFrame) -> dict:
+    """The two constants of the heights' random term from bar errors (``bars``: capture, layer,
+    level, error, fit_rms) and mean heights' residuals (``heights``: residual, u_bars computed
+    with the current ``BAR_FIT_SHARE_OF_RMS``).
+
+    Share: each level's bars' errors about their mean, d = e - mean(e), have E[d²] = (n-1)/n u²
+    for n bars of equal u = share x fit_rms; pooled over the levels with two bars or more,
+    share² = Σ d² / Σ (n-1)/n fit_rms². Common: what the share's scatter does not explain of the
+    residuals, u_c² = mean(residual² - u_bars²), u_bars rescaled to the new share."""
+    g = bars.groupby(["capture", "layer", "level"])
+    n = g["error"].transform("size")
+    d = bars["error"] - g["error"].transform("mean")
+    keep = n > 1
+    share = math.sqrt(float((d[keep] ** 2).sum()) / float((((n - 1) / n) * bars["fit_rms"] ** 2)[keep].sum()))
+    u_bars = heights["u_bars"] * share / BAR_FIT_SHARE_OF_RMS
+    common2 = float((heights["residual"] ** 2 - u_bars**2).mean())
+    return {
+        "share_of_rms": share,
+        "common_mm": math.sqrt(max(common2, 0.0)),
+        "bars": int(keep.sum()),
+        "levels": int(bars[keep].groupby(["capture", "layer", "level"]).ngroups),
+        "heights": len(heights),
+        "residual_rms_mm": float(np.sqrt((heights["residual"] ** 2).mean())),
+        "residual_mean_mm": float(heights["residual"].mean()),
+    }
+
+
+def run(quick: bool, diameters: bool, seed: int = 59, derive_rows: list | None = None) -> pd.DataFrame:
     rows = []
     for case in cases(quick, seed):
         name, cover, h, tilt, mesh_yaw, cam_yaw, seed, errs = case
@@ -135,6 +218,18 @@ def run(quick: bool, diameters: bool, seed: int = 59) -> pd.DataFrame:
         res = inspect(cap, paper_design(cover), diameters=diameters, rng=seed)
         new = rows_of(res, cap, case, diameters)
         rows.extend(new)
+        if derive_rows is not None:
+            visible = {b["id"] for b in cap.truth["bars"] if b["visible"]}
+            mapping, _, tb = match_bars(res, cap.truth, visible)
+            k = len(derive_rows)
+            derive_rows.append(
+                (
+                    [{"capture": k, **b} for b in bar_errors(res, tb, mapping)],
+                    height_residuals(
+                        res, errs, {r["quantity"]: r["error"] for r in new if r["quantity"] in HEIGHT_LEVELS}
+                    ),
+                )
+            )
         c = [r for r in new if r["quantity"] == "cover"]
         print(
             f"  {name:13s} c{cover} {h} mm tilt {tilt:>2}°  k {errs['bias_mm_per_m2']:+6.2f} mm/m²  s "
@@ -174,11 +269,23 @@ def main() -> None:
     ap.add_argument("--diameters", action="store_true", help="also the bars' widths (runs the diameter stage)")
     ap.add_argument("--seed", type=int, default=59, help="seed of the scenes and error draws (default 59)")
     ap.add_argument("--csv", help="write every measurement's error and u to this CSV")
+    ap.add_argument("--derive", action="store_true", help="also estimate the heights' random term's constants")
     a = ap.parse_args()
-    df = run(a.quick, a.diameters, a.seed)
+    got = [] if a.derive else None
+    df = run(a.quick, a.diameters, a.seed, got)
     if a.csv:
         df.to_csv(a.csv, index=False)
     report(df)
+    if got is not None:
+        bars = pd.DataFrame([b for bb, _ in got for b in bb])
+        heights = pd.DataFrame([h for _, hh in got for h in hh])
+        d = derive(bars, heights)
+        print(
+            f"\nThe heights' random term (seed {a.seed}): share of the fit's RMS {d['share_of_rms']:.3f} "
+            f"({d['bars']} bars in {d['levels']} levels), common to a level {d['common_mm']:.3f} mm "
+            f"({d['heights']} mean heights; residual after the drawn errors: mean {d['residual_mean_mm']:+.3f}, "
+            f"RMS {d['residual_rms_mm']:.3f} mm)"
+        )
 
 
 if __name__ == "__main__":

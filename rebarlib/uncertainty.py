@@ -24,6 +24,7 @@ import numpy as np
 from .diameter.barsizes import ENVELOPE_SIGMA_MM, observed_width_mm, rib_height_mm, snap_diameter
 from ._design import DEFAULT_BAR_SYSTEM
 from ._results import InspectionResult, Measurement
+from ._status import MEASURED
 from .devices import device_for, load_device
 
 __all__ = [
@@ -46,6 +47,25 @@ _SQRT3 = math.sqrt(3.0)
 #: the cover errors seen on captures rendered with ribs in relief (+0.06 to +0.17 mm on Φ12-Φ14,
 #: h = 1.2-1.4 mm), not from a model.
 SHAPE_SHARE_OF_RIB = 0.125
+#: The fits' random term of a mean height (docs/decisions/022): a bar's fitted axis height is off
+#: by more than the fit's formal standard error (its points' errors are not independent, and the
+#: cross-section is not a perfect circle of the assumed radius). Per bar, the standard deviation
+#: of the fitted height about its level's common error, as a share of the fit's residual RMS;
+#: pooled over the bars of the training captures (``benchmarks/bench_coverage.py --derive``, seeds
+#: 59 and 7: 0.148 over 1 192 bars in 285 levels of 72 captures; the held-out seed 2026 not used).
+BAR_FIT_SHARE_OF_RMS = 0.15
+#: The part of the fits' error common to every bar of a level (mm): what is left of a mean
+#: height's error on the training captures once the drawn systematic errors (times the budget's
+#: sensitivities) and the bars' own scatter are taken out (the noise bias left after the
+#: cylinder fit's correction, the plane's fit, the edges). Same training captures: 0.142 mm over
+#: 216 mean heights (cover, layer distance, top of the upper bars).
+LEVEL_FIT_COMMON_MM = 0.14
+#: The bar levels each mean height is read from (its difference, for the layer distance).
+_HEIGHT_LEVELS = {
+    "cover": (("lower", "bottom"),),
+    "layer_distance": (("lower", "bottom"), ("upper", "bottom")),
+    "upper_top": (("upper", "top"),),
+}
 #: Residual colour-depth misregistration (px) after ``inspect`` has estimated it: the estimate's
 #: own error where the shift was undone, else the largest shift it leaves (REGISTRATION_MIN_PX).
 REGISTRATION_RESIDUAL_PX = (0.4, 0.5)
@@ -139,7 +159,15 @@ def _t(name, u, unit, c, kind="systematic") -> Term:
 
 
 def height_terms(
-    h_mm: float, u_random_mm: float, inp: Inputs, *, depth_mm: float, tilt_deg: float, envelope_mm=0.0, rib_mm=0.0
+    h_mm: float,
+    u_random_mm: float,
+    inp: Inputs,
+    *,
+    depth_mm: float,
+    tilt_deg: float,
+    envelope_mm=0.0,
+    rib_mm=0.0,
+    common_mm=0.0,
 ) -> list:
     """Budget of a height above the formwork (or a difference of two) whose seen part, the
     depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
@@ -151,13 +179,16 @@ def height_terms(
     across the line of sight, ``sin² tilt``, changes. ``envelope_mm``: standard uncertainty of
     the rib envelopes the height depends on (the underside = fitted axis minus the assumed
     envelope radius: sensitivity 1 on the envelope's diameter); ``rib_mm``: the rib height of
-    the bars whose assumed shape the height depends on.
+    the bars whose assumed shape the height depends on; ``common_mm``: the part of the fits'
+    error common to the bars of a level (:data:`LEVEL_FIT_COMMON_MM`), where ``u_random_mm`` is
+    the bars' own scatter only (:func:`apply_budget`).
     """
     h = abs(float(h_mm))
     z_m = depth_mm / 1000.0
     s2 = math.sin(math.radians(tilt_deg or 0.0)) ** 2
     return [
         _t("fits (random)", u_random_mm, "mm", 1.0, "random"),
+        *([_t("fits (common to a level)", common_mm, "mm", 1.0, "random")] if common_mm else []),
         _t("depth scale", inp.u_scale, "1", h),
         _t("depth offset", inp.u_offset_mm, "mm", 0.0),
         _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0),
@@ -250,6 +281,38 @@ def _registration_residual(res: InspectionResult, inp: Inputs) -> float:
     return min(math.hypot(*reg["shift_px"]), REGISTRATION_RESIDUAL_PX[1])
 
 
+def _level_fits_u(bars, key: str) -> float | None:
+    """The fits' random term of mean height ``key`` ("cover", "layer_distance", "upper_top"),
+    the mean over a level's measured bars in view (a difference of two for the layer distance):
+    each bar's fitted height scatters by :data:`BAR_FIT_SHARE_OF_RMS` times its fit's residual
+    RMS, so the mean of n bars by the root sum of squares over n. The bars' *true* height
+    differences are not part of it: they are the measurand's, not an error of it. None where
+    ``bars`` does not give every level's measured bars with their fits' residual (the paper
+    method, scanned clouds): the stage's own term is kept there.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> bars = pd.DataFrame({"layer": ["lower"] * 4, "level": ["bottom"] * 4, "status": ["measured"] * 4,
+    ...                      "underside_mm": [20.0, 20.5, 19.6, float("nan")], "fit_rms_mm": [0.8, 0.8, 0.8, 0.8]})
+    >>> round(_level_fits_u(bars, "cover") / BAR_FIT_SHARE_OF_RMS, 4)  # 0.8 / sqrt(3)
+    0.4619
+    >>> _level_fits_u(bars, "upper_top") is None
+    True
+    """
+    need = {"layer", "level", "status", "underside_mm", "fit_rms_mm"}
+    if bars is None or not len(bars) or not need <= set(bars.columns):
+        return None
+    var = 0.0
+    for layer, level in _HEIGHT_LEVELS[key]:
+        g = bars[(bars["layer"] == layer) & (bars["level"] == level) & (bars["status"] == MEASURED)]
+        rms = g["fit_rms_mm"].to_numpy(float)[np.isfinite(g["underside_mm"].to_numpy(float))]
+        if not len(rms) or not np.isfinite(rms).all():
+            return None
+        var += float(np.sum((BAR_FIT_SHARE_OF_RMS * rms) ** 2)) / len(rms) ** 2
+    return math.sqrt(var)
+
+
 def _with_u(m: Measurement, u: float) -> Measurement:
     return replace(m, uncertainty_mm=u) if m.ok else m
 
@@ -316,7 +379,13 @@ def apply_budget(
         m = getattr(res, key)
         if not m.ok:
             continue
-        terms = height_terms(m.value_mm + seen[key], m.uncertainty_mm or 0.0, inp, **geo, **extra)
+        # the measurand is the mean over the bars in view: the fits' errors, not the bars' spread
+        u_fits = _level_fits_u(res.bars, key)
+        if u_fits is None:  # no per-bar fits to read (paper method, scanned clouds): the stage's term
+            u_fits, common = m.uncertainty_mm or 0.0, 0.0
+        else:
+            common = LEVEL_FIT_COMMON_MM
+        terms = height_terms(m.value_mm + seen[key], u_fits, inp, **geo, **extra, common_mm=common)
         out["measurements"][key] = _budget_dict(terms, m.value_mm)
         setattr(res, key, _with_u(m, combine(terms)))
     if res.top_cover.ok and res.upper_top.ok:

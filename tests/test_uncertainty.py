@@ -9,6 +9,7 @@ compared with the coefficient times the error.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -16,6 +17,7 @@ import pytest
 
 from rebarlib import Measurement, RebarInputError, evaluate, load_tolerances
 from rebarlib._results import InspectionResult
+from rebarlib import uncertainty as U
 from rebarlib.devices import device_for, list_devices, load_device
 from rebarlib.uncertainty import (
     COVERAGE_K,
@@ -278,6 +280,98 @@ def test_unknown_device_uses_the_conservative_default_and_says_so(paper_design):
     assert any("matches no device profile" in n for n in unknown.notes)
     assert unknown.extras["uncertainty"]["inputs"]["default_profile"]
     assert unknown.layer_distance.uncertainty_mm > known.layer_distance.uncertainty_mm
+
+
+def _fitted(paper_design, lower, upper, tops, rms=0.8) -> InspectionResult:
+    """A result whose bars table gives each level's measured bars (undersides) with their fits'
+    residual RMS, and the stage's spread-based terms (0.9 mm: what the budget must not use)."""
+    rows = [("lower", "bottom", u) for u in lower] + [("upper", "bottom", u) for u in upper]
+    rows += [("upper", "top", t - 2 * 6.95) for t in tops]
+    n = len(rows)
+    bars = pd.DataFrame(
+        {
+            "bar_id": range(n),
+            "layer": [r[0] for r in rows],
+            "level": [r[1] for r in rows],
+            "start_z_mm": [600.0] * n,
+            "end_z_mm": [600.0] * n,
+            "axis_se_mm": [0.02] * n,
+            "underside_mm": [r[2] for r in rows],
+            "radius_mm": [6.95] * n,
+            "fit_rms_mm": [rms] * n,
+            "status": ["measured"] * n,
+        }
+    )
+    sp = pd.DataFrame(columns=["layer", "level", "bar_a", "bar_b", "spacing_mm", "status"])
+    return InspectionResult(
+        "A",
+        "refined",
+        Measurement(float(np.mean(lower)), 0.9, 500),
+        Measurement(float(np.mean(upper) - np.mean(lower)), 0.9, 900),
+        Measurement(float(np.mean(tops)), 0.9, 400),
+        Measurement.not_measured("no thickness"),
+        bars,
+        sp,
+        camera={"height_mm": 650.0, "tilt_deg": 10.0},
+    )
+
+
+def _random_terms(res, key):
+    terms = {t["term"]: t for t in res.extras["uncertainty"]["measurements"][key]["terms"]}
+    return terms["fits (random)"]["u_input"], terms["fits (common to a level)"]["u_input"]
+
+
+def test_heights_random_term_is_the_fits_error_not_the_bars_spread(paper_design):
+    """The measurand is the mean over the bars in view: their true height differences are no
+    error of it. The random term is the fits' scatter over the square root of the count, plus
+    the part common to a level, whatever the bars' spread."""
+    share, common = U.BAR_FIT_SHARE_OF_RMS, U.LEVEL_FIT_COMMON_MM
+    dev = "rebarlib synthetic (Gemini-2-like)"
+    flat = apply_budget(_fitted(paper_design, [20.0] * 3, [105.0] * 3, [132.0] * 4), paper_design, device=dev)
+    spread = apply_budget(
+        _fitted(paper_design, [19.0, 20.0, 21.0], [103.5, 105.0, 106.5], [131.0, 132.0, 133.0, 132.0]),
+        paper_design,
+        device=dev,
+    )
+    for res in (flat, spread):
+        assert _random_terms(res, "cover") == pytest.approx((share * 0.8 / math.sqrt(3), common), abs=1e-5)
+        # the layer distance: both levels' scatter in quadrature, one common term
+        assert _random_terms(res, "layer_distance") == pytest.approx((share * 0.8 * math.sqrt(2 / 3), common), abs=1e-5)
+        assert _random_terms(res, "upper_top") == pytest.approx((share * 0.8 / 2, common), abs=1e-5)
+    for key in ("cover", "layer_distance", "upper_top"):  # same means, spread or not: same u
+        assert getattr(spread, key).uncertainty_mm == pytest.approx(getattr(flat, key).uncertainty_mm)
+    # four times the fits' residual: four times their scatter, the common part unchanged
+    noisy = apply_budget(_fitted(paper_design, [20.0] * 3, [105.0] * 3, [132.0] * 4, rms=3.2), paper_design, device=dev)
+    assert _random_terms(noisy, "cover") == pytest.approx((share * 3.2 / math.sqrt(3), common), abs=1e-5)
+
+
+def test_heights_keep_the_stages_term_without_the_bars_fits(paper_design):
+    """Where the bars table does not give the fits' residuals (the paper method, scanned
+    clouds) the stage's own random term is kept, and there is no common term."""
+    res = apply_budget(_result(paper_design), paper_design, device="Orbbec Gemini 2")
+    terms = {t["term"]: t for t in res.extras["uncertainty"]["measurements"]["cover"]["terms"]}
+    assert terms["fits (random)"]["u_input"] == pytest.approx(0.05)
+    assert "fits (common to a level)" not in terms
+
+
+def test_derive_recovers_the_random_terms_constants(monkeypatch):
+    """bench_coverage's estimator of the two constants, on errors drawn with known ones: bars
+    scattering by 0.12 x their fit's RMS about a common error of 0.2 mm per level."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_coverage as bc
+
+    rng = np.random.default_rng(5)
+    bars, heights = [], []
+    for c in range(400):
+        n = int(rng.integers(2, 6))
+        rms = rng.uniform(0.4, 1.2, n)
+        e = rng.normal(0.0, 0.2) + rng.normal(0.0, 0.12 * rms)
+        bars += [{"capture": c, "layer": "lower", "level": "bottom", "error": x, "fit_rms": r} for x, r in zip(e, rms)]
+        u_bars = U.BAR_FIT_SHARE_OF_RMS * math.sqrt(float(np.sum(rms**2))) / n
+        heights.append({"quantity": "cover", "residual": float(e.mean()), "u_bars": u_bars})
+    d = bc.derive(pd.DataFrame(bars), pd.DataFrame(heights))
+    assert d["share_of_rms"] == pytest.approx(0.12, rel=0.08)
+    assert d["common_mm"] == pytest.approx(0.2, rel=0.12)
 
 
 # ------------------------------------------------------------------------------------------------
