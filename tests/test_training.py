@@ -101,3 +101,32 @@ def test_a_randomised_scene_is_written_as_the_model_sees_it_and_resumes(dr, tmp_
     stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
     assert not dr.write_sample(3, tmp_path, size=160)
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()} == stamps
+
+
+def test_hard_negatives_mark_no_rebar_and_leave_the_rest_of_the_scene(dr):
+    # they draw from a stream of their own: with them no pixel becomes rebar (a person in front
+    # of the bars only hides some), and some scenes get some (each kind is drawn by chance)
+    changed = 0
+    for i in range(6):
+        rgb, mask = dr.scene(i, size=160)
+        rgb_hard, mask_hard = dr.scene(i, size=160, hard=True)
+        assert not (mask_hard & ~mask).any()
+        changed += not np.array_equal(rgb, rgb_hard)
+    assert changed >= 1
+
+
+def test_scenes_written_during_training_are_loaded_as_they_appear(t, dr, tmp_path):
+    torch = pytest.importorskip("torch")
+    for i in range(3):  # scene 0 validates (a multiple of 20), 1 and 2 train
+        dr.write_sample(i, tmp_path, size=160)
+    grow = t._GrowingDR(tmp_path, 20, 6, torch.device("cpu"))
+    assert grow.n == 2 and len(grow.val[0]) == 1
+    for i in range(3, 6):
+        dr.write_sample(i, tmp_path, size=160)
+    assert grow.grow() == 5
+    imgs, masks = grow.train()
+    assert imgs.shape == (5, 80, 80, 3) and masks.shape == (5, 160, 160)
+    np.testing.assert_array_equal(masks[4].numpy(), cv2.imread(str(tmp_path / "00005.png"), cv2.IMREAD_GRAYSCALE) > 0)
+    for i in range(6, 10):  # up to its capacity; the validation scenes stay those of the start
+        dr.write_sample(i, tmp_path, size=160)
+    assert grow.grow() == 6 and len(grow.val[0]) == 1

@@ -723,9 +723,123 @@ def _camera(img, rng, night):
     return out
 
 
-def scene(index, seed=DR_SEED, size=FULL):
-    """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask)."""
+def _cracks(img, rng, n):
+    """``n`` cracks: dark, jagged, branching lines 1-3 px wide (the dark cracks of real concrete
+    and blinding, which a network of straight strips takes for thin bars)."""
+    size = img.shape[0]
+    m = np.zeros((size, size), np.float32)
+    for _ in range(n):
+        p = rng.uniform(0, size, 2)
+        a = rng.uniform(0, 2 * math.pi)
+        w = int(rng.integers(1, 4))
+        tips = [(p, a, int(rng.integers(10, 60)))]
+        while tips:
+            p, a, steps = tips.pop()
+            pts = [p.copy()]
+            for _ in range(steps):
+                a += rng.normal(0, 0.35)
+                p = p + rng.uniform(3, 9) * np.array([math.cos(a), math.sin(a)])
+                pts.append(p.copy())
+                if rng.random() < 0.04 and len(tips) < 6:  # a branch
+                    tips.append((p.copy(), a + rng.choice([-1, 1]) * rng.uniform(0.4, 1.2), int(rng.integers(5, 25))))
+            cv2.polylines(m, [np.round(pts).astype(np.int32)], False, 1, w, cv2.LINE_AA)
+    depth = rng.uniform(0.35, 0.85)
+    img *= (1 - depth * m)[..., None]
+
+
+def _weeds(img, rng, light):
+    """A patch of weeds and grass: dense thin blades, many dark, some in shadow."""
+    size = img.shape[0]
+    cx, cy = rng.uniform(0, size, 2)
+    r = rng.uniform(0.1, 0.6) * size
+    shade = light["ambient"] + light["diffuse"] * light["lz"]
+    for _ in range(int(rng.integers(100, 1500))):
+        x, y = cx + rng.normal(0, r / 2), cy + rng.normal(0, r / 2)
+        ln, a = rng.uniform(8, 70), rng.normal(-math.pi / 2, 0.9)
+        bend = rng.normal(0, 0.3)
+        pts = [(x, y)]
+        for k in range(4):
+            a += bend
+            x, y = x + ln / 4 * math.cos(a), y + ln / 4 * math.sin(a)
+            pts.append((x, y))
+        col = _colour(
+            rng, rng.choice([(0.15, 0.35, 0.08), (0.45, 0.45, 0.2), (0.3, 0.25, 0.15), (0.05, 0.08, 0.04)]), 0.3
+        )
+        col = col * shade * light["colour"] * rng.uniform(0.3, 1.2)
+        cv2.polylines(
+            img,
+            [np.round(pts).astype(np.int32)],
+            False,
+            tuple(float(v) for v in col),
+            int(rng.integers(1, 4)),
+            cv2.LINE_AA,
+        )
+
+
+def _person(img, cover, rng, light, tile):
+    """A person (behind the bars, or in front: then the mask loses what it covers): hair, a
+    head, clothes of any colour (dark ones often), arms and legs."""
+    size = img.shape[0]
+    layer = np.zeros((size, size), np.float32)
+    hair = np.zeros((size, size), np.float32)
+    x, y, s = rng.uniform(0, size), rng.uniform(-0.2, 0.8) * size, rng.uniform(0.3, 1.5) * size
+    head = (int(x), int(y)), (int(s * 0.06), int(s * 0.08))
+    cv2.ellipse(layer, head[0], head[1], 0, 0, 360, 1, -1, cv2.LINE_AA)
+    cv2.ellipse(hair, (head[0][0], head[0][1] - int(s * 0.02)), (int(s * 0.065), int(s * 0.07)), 0, 180, 360, 1, -1)
+    body = np.zeros((size, size), np.float32)
+    cv2.rectangle(body, (int(x - s * 0.13), int(y + s * 0.1)), (int(x + s * 0.13), int(y + s * 0.45)), 1, -1)
+    for sx in (-1, 1):  # arms and legs
+        cv2.line(
+            body,
+            (int(x + sx * s * 0.12), int(y + s * 0.12)),
+            (int(x + sx * s * rng.uniform(0.15, 0.35)), int(y + s * rng.uniform(0.3, 0.5))),
+            1,
+            max(1, int(s * 0.06)),
+        )
+        cv2.line(
+            body,
+            (int(x + sx * s * 0.07), int(y + s * 0.45)),
+            (int(x + sx * s * rng.uniform(0.05, 0.15)), int(y + s * 0.9)),
+            1,
+            max(1, int(s * 0.08)),
+        )
+    shade = light["ambient"] + light["diffuse"] * light["lz"]
+    clothes = _colour(
+        rng, rng.choice([(0.03, 0.03, 0.04), (0.1, 0.12, 0.2), (0.8, 0.35, 0.05), (0.4, 0.4, 0.4)]), 0.3, 0.3
+    )
+    skin = _colour(rng, rng.choice([(0.6, 0.42, 0.32), (0.35, 0.22, 0.15), (0.75, 0.55, 0.45)]), 0.1, 0.0)
+    hair_col = _colour(rng, rng.choice([(0.02, 0.02, 0.02), (0.15, 0.08, 0.04), (0.5, 0.4, 0.25)]), 0.2, 0.0)
+    streaks = 1 + 0.5 * np.abs(fractal(rng, size, size, rng.uniform(2, 6), 2))
+    t = tile[:size, :size]
+    for m, col, tex in ((body, clothes, 1 + 0.25 * t), (layer, skin, 1 + 0.05 * t), (hair, hair_col, streaks)):
+        a = cv2.GaussianBlur(m, (0, 0), 0.7)[..., None]
+        img[:] = img * (1 - a) + (col * shade * light["colour"] * tex[..., None]) * a
+        if cover is not None:
+            cover[m > 0.5] = 0
+
+
+def _hard_negatives(img, cover, rng, light, tile, over):
+    """What the stage-7 network still marked on real photos, none of it rebar: cracks, weeds
+    and people under the bars (``over`` False), people in front of them (``over`` True)."""
+    if not over:
+        if rng.random() < 0.45:
+            _cracks(img, rng, int(rng.integers(1, 12)))
+        if rng.random() < 0.25:
+            _weeds(img, rng, light)
+        if rng.random() < 0.15:
+            _person(img, None, rng, light, tile)
+    elif rng.random() < 0.08:
+        _person(img, cover, rng, light, tile)
+
+
+def scene(index, seed=DR_SEED, size=FULL, hard=False):
+    """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
+
+    ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
+    their own (``default_rng([seed, index, 1])``), so every other draw of the scene stays as
+    it was without them."""
     rng = np.random.default_rng([int(seed), int(index)])
+    rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
     names = list(LAYOUTS)
     kind = names[int(rng.choice(len(names), p=[LAYOUTS[k][1] for k in names]))]
     bars, behind = LAYOUTS[kind][0](rng, size) if LAYOUTS[kind][0] else ([], "ground")
@@ -744,6 +858,8 @@ def scene(index, seed=DR_SEED, size=FULL):
     img = img * (light["ambient"] + light["diffuse"] * light["lz"])
     img = img * light["colour"]
     add_clutter(img, None, rng, light, tile, int(rng.integers(0, 6)), over=False)
+    if rng_hard is not None:
+        _hard_negatives(img, None, rng_hard, light, tile, over=False)
     if light["mode"] == "sun" and behind == "ground":
         _cast_bar_shadows(img, bars, rng, light)
     cover = np.zeros((size, size), np.float32)
@@ -752,6 +868,8 @@ def scene(index, seed=DR_SEED, size=FULL):
         st = style if rng.random() < 0.85 else bar_style(rng)
         draw_strip(img, cover, p0, p1, w0, w1, st, light, tile, rng)
     add_clutter(img, cover, rng, light, tile, int(rng.integers(0, 5)), over=True)
+    if rng_hard is not None:
+        _hard_negatives(img, cover, rng_hard, light, tile, over=True)
     _apply_light(img, rng, light)
     out = _camera(img, rng, light["mode"] == "night")
     return out, cover > 0.5
@@ -761,14 +879,14 @@ def scene(index, seed=DR_SEED, size=FULL):
 # the data step
 
 
-def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92) -> bool:
+def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
     were already there (nothing written: the data step resumes)."""
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size)
+    rgb, mask = scene(index, seed, size, hard=hard)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -779,6 +897,12 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92) -> bo
     return True
 
 
+def _write_job(job):
+    index, folder, seed, size, hard = job
+    cv2.setNumThreads(1)
+    return write_sample(index, folder, seed, size, hard=hard)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--work", default=".segdata_dr", help="folder; the scenes go to WORK/dr/")
@@ -786,14 +910,26 @@ def main(argv=None):
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--seed", type=int, default=DR_SEED)
     ap.add_argument("--size", type=int, default=FULL)
+    ap.add_argument("--hard", action="store_true", help="also draw the hard negatives (cracks, weeds, people)")
+    ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
-    for i in range(args.first, args.n):
-        made += write_sample(i, folder, args.seed, args.size)
-        if i % 100 == 0:
-            print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
+    jobs = [(i, folder, args.seed, args.size, args.hard) for i in range(args.first, args.n)]
+    if args.jobs > 1:
+        from multiprocessing import Pool
+
+        with Pool(args.jobs) as pool:
+            for k, wrote in enumerate(pool.imap(_write_job, jobs, chunksize=2)):
+                made += wrote
+                if k % 500 == 0:
+                    print(f"{args.first + k}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
+    else:
+        for i, *_ in jobs:
+            made += write_sample(i, folder, args.seed, args.size, hard=args.hard)
+            if i % 100 == 0:
+                print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
     print(f"done: {made} written, {time.time() - t0:.0f} s")
 
 

@@ -181,6 +181,72 @@ def _load_dr(folder: Path, val_every: int):
     return imgs[~val], masks[~val], imgs[val], masks[val]
 
 
+class _GrowingDR:
+    """The training scenes of a domain-randomised folder that a data step is still writing, on
+    the training device: a buffer for ``capacity`` scenes filled as they appear (``grow``
+    reads only the scenes not yet loaded, on a few threads). The validation scenes (index a
+    multiple of ``val_every``) are those there at the start and stay fixed, so the logged
+    validation IoU compares across the run."""
+
+    def __init__(self, folder: Path, val_every: int, capacity: int, dev):
+        import torch
+
+        self.folder, self.val_every, self.dev = folder, val_every, dev
+        self.known: set[str] = set()
+        self.n = 0
+        stems, _ = self._new()
+        val = [s for s in stems if int(s) % val_every == 0]
+        vi, vm = self._read(val)  # every scene has the size of the first (domain_random.py --size)
+        self.imgs = torch.empty((capacity,) + vi.shape[1:], dtype=torch.uint8, device=dev)
+        self.masks = torch.empty((capacity,) + vm.shape[1:], dtype=torch.bool, device=dev)
+        self.val = (torch.from_numpy(vi).to(dev), torch.from_numpy(vm).to(dev))
+        self.known.update(val)
+        self.grow()
+
+    def _new(self):
+        stems = sorted(
+            p.stem
+            for p in self.folder.glob("*.jpg")
+            if not p.stem.endswith(".tmp") and p.stem not in self.known and (self.folder / f"{p.stem}.png").exists()
+        )
+        return stems, [s for s in stems if int(s) % self.val_every]
+
+    def _read(self, stems):
+        from concurrent.futures import ThreadPoolExecutor
+
+        import cv2
+
+        def one(s):
+            return (
+                cv2.imread(str(self.folder / f"{s}.jpg"))[:, :, ::-1],
+                cv2.imread(str(self.folder / f"{s}.png"), cv2.IMREAD_GRAYSCALE) > 0,
+            )
+
+        with ThreadPoolExecutor(4) as ex:
+            pairs = list(ex.map(one, stems))
+        return np.ascontiguousarray(np.stack([a for a, _ in pairs])), np.stack([b for _, b in pairs])
+
+    def grow(self) -> int:
+        """Load the training scenes written since the last call (up to the capacity); their count."""
+        import torch
+
+        _, train = self._new()
+        train = train[: len(self.imgs) - self.n]
+        if not train:
+            return self.n
+        for k in range(0, len(train), 512):
+            part = train[k : k + 512]
+            im, m = self._read(part)
+            self.imgs[self.n : self.n + len(part)] = torch.from_numpy(im).to(self.dev)
+            self.masks[self.n : self.n + len(part)] = torch.from_numpy(m).to(self.dev)
+            self.n += len(part)
+            self.known.update(part)
+        return self.n
+
+    def train(self):
+        return self.imgs[: self.n], self.masks[: self.n]
+
+
 def _load_full(work: Path, part: str) -> dict:
     """{position in the part: full-resolution image (2*IN_H, 2*IN_W, 3) uint8 RGB} for the entries
     whose full-resolution render was kept (see ``_full_renders``)."""
@@ -570,8 +636,17 @@ def cmd_train(args):
     tag = args.tag or args.arch
     imgs, masks = (torch.from_numpy(a).to(dev) for a in _load(work, "train"))
     vimgs, vmasks = (torch.from_numpy(a).to(dev) for a in _load(work, "val"))
-    dr = None
-    if args.dr_work:
+    dr = growing = None
+    if args.dr_work and args.dr_capacity:
+        # scenes that a data step beside the training is writing: loaded as they appear
+        growing = _GrowingDR(Path(args.dr_work) / "dr", args.dr_val, args.dr_capacity, dev)
+        dr = [*growing.train(), *growing.val]
+        print(
+            f"--dr-capacity: {len(dr[0])} train / {len(dr[2])} val domain-randomised scenes at the start, "
+            f"{args.dr_share:.0%} of each batch",
+            flush=True,
+        )
+    elif args.dr_work:
         dr = [torch.from_numpy(a).to(dev) for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)]
         print(
             f"--dr-work: {len(dr[0])} train / {len(dr[2])} val domain-randomised scenes, "
@@ -655,7 +730,11 @@ def cmd_train(args):
                 entry["dr_val_iou"] = evaluate(model, dr[2], dr[3])[0]
                 # every validation keeps a snapshot: the real-photo benchmark picks among them
                 torch.save(model.state_dict(), out_dir / f"{tag}_it{it}.pt")
-                if args.dr_work and args.dr_reload:  # scenes the data step wrote meanwhile
+                if growing is not None:  # scenes the data step wrote meanwhile
+                    growing.grow()
+                    dr[:2] = growing.train()
+                    entry["dr_train"] = len(dr[0])
+                elif args.dr_work and args.dr_reload:
                     dr = [torch.from_numpy(a).to(dev) for a in _load_dr(Path(args.dr_work) / "dr", args.dr_val)]
                     entry["dr_train"] = len(dr[0])
             last_val = time.time()
@@ -670,6 +749,10 @@ def cmd_train(args):
     v_iou, v_dice = evaluate(model, vimgs, vmasks)
     log.append({"it": it, "t_s": round(time.time() - t0), "val_iou": v_iou, "val_dice": v_dice})
     print(f"VAL final it {it} iou {v_iou:.4f} dice {v_dice:.4f}", flush=True)
+    if dr is not None:  # the last state is a snapshot too
+        log[-1]["dr_val_iou"] = evaluate(model, dr[2], dr[3])[0]
+        torch.save(model.state_dict(), out_dir / f"{tag}_it{it}.pt")
+        (out_dir / f"{tag}_last.txt").write_text(f"{tag}_it{it}\n")
     if v_iou > best:
         best = v_iou
         torch.save(model.state_dict(), out_dir / f"{tag}.pt")
@@ -744,10 +827,14 @@ def cmd_export(args):
     model.load_state_dict(torch.load(run_dir / f"{tag}.pt", map_location="cpu"))
     model.eval()
     # pick the probability threshold on the validation split (never on the test split), at
-    # full resolution as SegmentationModel thresholds it
+    # full resolution as SegmentationModel thresholds it (--device cuda: the logits computed
+    # there in float32, TF32 off, then the model exported from the CPU)
+    dev = torch.device(args.device)
+    torch.backends.cudnn.allow_tf32 = False
     vimgs, vmasks = _load(work, "val")
-    vimgs = torch.from_numpy(vimgs)
-    logits = _logits_full(model, vimgs, flips=args.flips).numpy()
+    vimgs = torch.from_numpy(vimgs).to(dev)
+    logits = _logits_full(model.to(dev), vimgs, flips=args.flips).cpu().numpy()
+    model = model.cpu()
     best_t, best_iou = 0.0, -1.0
     for t in np.arange(-2.0, 1.01, 0.25):
         tp, fp, fn = _iou_counts(logits - t, vmasks)
@@ -863,6 +950,13 @@ def main(argv=None):
     a.add_argument(
         "--dr-reload", action="store_true", help="at every validation, load the scenes the data step wrote meanwhile"
     )
+    a.add_argument(
+        "--dr-capacity",
+        type=int,
+        default=0,
+        help="load the scenes of --dr-work as a data step beside the training writes them, up to this many "
+        "(a buffer on the device; the scenes of the start validate)",
+    )
     a.add_argument("--device", default="auto", help="auto (cuda when there is one), cpu or cuda")
     a.add_argument("--out-dir", default=None, help="where the state dict and log go (default: --work)")
     a.add_argument("--tag", default=None, help="name of the outputs (default: the arch)")
@@ -883,6 +977,7 @@ def main(argv=None):
     a.add_argument(
         "--dynamic", action="store_true", help="any input size: the photo scaled by 0.5 and padded, never squashed"
     )
+    a.add_argument("--device", default="cpu", help="where the threshold's validation logits are computed")
     a.add_argument(
         "--max-bar-px",
         type=float,
