@@ -39,7 +39,10 @@ def _smoothed_hist(x, bin_mm: float, sd_mm: float, lo=None, hi=None):
     c, _ = np.histogram(x, edges)
     k = max(sd_mm / bin_mm, 0.5)
     ker = np.exp(-0.5 * (np.arange(-int(4 * k) - 1, int(4 * k) + 2) / k) ** 2)
-    s = np.convolve(c.astype(float), ker / ker.sum(), mode="same")
+    # the full convolution cropped to the histogram's bins (``mode="same"`` returns the longer
+    # of the two, which is the kernel's when the noise is wide against the histogram's span)
+    h = (len(ker) - 1) // 2
+    s = np.convolve(c.astype(float), ker / ker.sum(), mode="full")[h : h + len(c)]
     return 0.5 * (edges[:-1] + edges[1:]), s, c
 
 
