@@ -42,14 +42,16 @@ def capture_digest(folder) -> str:
 def make_manifest(capture_folder, design_path, *, method: str, options: dict | None = None) -> dict:
     """The manifest of one result: inputs (with digests), method, options, version and time.
 
-    ``design_path`` may be None when the design was given as an object, not a file.
+    ``design_path`` may be None when the design was given as an object, not a file;
+    ``capture_folder`` None when the input is not a capture folder (a scanned cloud's file is
+    recorded by :func:`rebarlib.scan.cloud_manifest`), and then no folder is read.
     """
     from . import __version__
 
-    cap = Path(capture_folder).resolve()
+    cap = None if capture_folder is None else Path(capture_folder).resolve()
     return {
-        "capture_folder": str(cap),
-        "capture_digest": capture_digest(cap),
+        "capture_folder": None if cap is None else str(cap),
+        "capture_digest": None if cap is None else capture_digest(cap),
         "design_file": None if design_path is None else str(Path(design_path).resolve()),
         "design_digest": None if design_path is None else file_digest(design_path),
         "method": method,

@@ -125,14 +125,8 @@ def cloud_manifest(cloud_path, design_path, *, method: str = METHOD, options: di
     from .._manifest import file_digest, make_manifest
 
     p = Path(cloud_path).resolve()
-    man = make_manifest(p.parent, design_path, method=method, options=options)
-    man.update(
-        {
-            "capture_folder": None,
-            "capture_digest": None,
-            "cloud_file": str(p),
-            "cloud_digest": file_digest(p),
-            "rebarlib_version": __version__,
-        }
-    )
+    # no capture folder: the cloud's own digest stands for it (the files beside it, other
+    # scans of a batch among them, are not read)
+    man = make_manifest(None, design_path, method=method, options=options)
+    man.update({"cloud_file": str(p), "cloud_digest": file_digest(p), "rebarlib_version": __version__})
     return man
