@@ -98,23 +98,24 @@ _GB_CORE_RATIO = {s: d1 / s for s, d1, h in _GB}
 
 
 def rib_envelope_mm(nominal_mm: float) -> float:
-    """Outer diameter over the ribs of a GB 1499.2 deformed bar, d1 + 2h (e.g. 12 -> 13.9 mm).
+    """Outer diameter over the ribs of a GB 1499.2 deformed bar, d1 + 2h (e.g. 12 -> 13.9 mm):
+    :func:`observed_width_mm` of a deformed bar in GB 1499.2, the one place the envelope is
+    computed. Sizes not in the table scale with the nearest tabulated size's envelope.
 
-    Sizes not in the table scale with the nearest tabulated size's envelope. For the table's
-    sizes this is :func:`observed_width_mm`; off the table the two round differently in the
-    third decimal (``nominal × envelope / size`` here, ``nominal × (envelope / size)`` there),
-    which the simulator's and the judge's results depend on.
+    Parameters
+    ----------
+    nominal_mm : nominal diameter, mm
+
+    Returns
+    -------
+    float, mm
 
     Examples
     --------
-    >>> rib_envelope_mm(12)
-    13.9
+    >>> rib_envelope_mm(12), rib_envelope_mm(13)
+    (13.9, 15.058)
     """
-    key = min(GB_RIBS, key=lambda s: abs(s - nominal_mm))
-    d1, h = GB_RIBS[key]
-    if key == nominal_mm:
-        return round(d1 + 2 * h, 3)
-    return round(nominal_mm * (d1 + 2 * h) / key, 3)
+    return observed_width_mm(nominal_mm, system="GB1499.2")
 
 
 def _gb_like(nominal_mm: float, ratios=_GB_RATIO) -> float:
