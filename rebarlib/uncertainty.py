@@ -2,12 +2,15 @@
 term by term, in the GUM's way (docs/uncertainty.md).
 
 The measurement stages give each value and its *random* standard uncertainty (the spread of
-the fits). :func:`apply_budget` adds the *systematic* terms that no fit can see — the depth
-camera's depth scale, offset and non-linearity, its focal length and principal point, the
-colour-depth registration, the spread of bars' rib envelopes between mills and the assumed bar
-shape — each as a standard uncertainty ``u(x)`` of an input, a sensitivity coefficient ``c``
-and a contribution ``|c| u(x)``; the combined standard uncertainty is the root sum of squares
-(the inputs taken as uncorrelated). The values themselves are not changed.
+the fits); for cover, layer distance and top of the upper bars, the mean over the bars in view,
+the budget takes the random term from the bars' fits instead (docs/decisions/022: the bars' true
+height differences are not an error of that mean). :func:`apply_budget` adds the *systematic*
+terms that no fit can see — the depth camera's depth scale, offset and non-linearity, its
+focal length and principal point, the colour-depth registration, the spread of bars' rib
+envelopes between mills and the assumed bar shape — each as a standard uncertainty ``u(x)`` of
+an input, a sensitivity coefficient ``c`` and a contribution ``|c| u(x)``; the combined
+standard uncertainty is the root sum of squares (the inputs taken as uncorrelated). The values
+themselves are not changed.
 
 The inputs come from a calibration file (``rebar calibrate``) where one is given, else from the
 device profile that ``camera.json``'s ``device`` picks (``rebarlib/devices``); a datasheet limit
@@ -323,7 +326,9 @@ def apply_budget(
     """Put the systematic terms into ``res``'s uncertainties (in place; returns ``res``).
 
     - cover, layer distance, top of the upper bars and top cover: ``uncertainty_mm`` becomes the
-      combined standard uncertainty (the fits' own is kept in the budget as its random term);
+      combined standard uncertainty; its random terms are the bars' fits' scatter over their
+      count and the part common to a level (:func:`_level_fits_u`), or the stage's own term
+      where the bars table gives no fit residuals;
     - spacings: a new ``uncertainty_mm`` column (the two axes' standard errors and the
       systematic terms);
     - bars with a width: ``width_uncertainty_mm`` (combined) and ``budget_confidence``, the
