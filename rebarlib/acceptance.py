@@ -274,8 +274,9 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
     design : Design
     tolerances : Tolerances, preset name or TOML path; default: the preset named by
         ``design.standard``. The design's ``[tolerances]`` overrides are applied on top.
-    missing_captures : capture names, or (name, reason) pairs, of captures of the slab that have
-        no result; they make the slab verdict "incomplete".
+    missing_captures : sequence of str or of str pairs
+        the names of captures of the slab that have no result, or ``(name, reason)`` pairs; they
+        make the slab verdict "incomplete".
 
     Returns
     -------
