@@ -21,6 +21,19 @@ from .partial import _approximate_axes
 __all__ = ["find_bars", "bar_directions", "direction_sharpness"]
 
 
+class _Limits(NamedTuple):
+    """What every candidate bar of one :func:`find_bars` call is checked against (its
+    arguments, made once and handed down)."""
+
+    layer: str
+    min_points: int
+    min_extent: float
+    min_inlier_fraction: float
+    skew_check_deg: float
+    camera: object
+    prm: GeometryParams
+
+
 def find_bars(
     points,
     *,
@@ -103,23 +116,11 @@ def find_bars(
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
         ambiguous = cand[0].member & cand[1].member
+    lim = _Limits(layer, min_points, min_extent, min_inlier_fraction, skew_check_deg, camera, prm)
     bars = []
     for dn in cand:
         for k, c in enumerate(dn.centres):
-            bar = _candidate_bar(
-                dn,
-                k,
-                c,
-                h,
-                ambiguous,
-                layer=layer,
-                min_points=min_points,
-                min_extent=min_extent,
-                min_inlier_fraction=min_inlier_fraction,
-                skew_check_deg=skew_check_deg,
-                camera=camera,
-                prm=prm,
-            )
+            bar = _candidate_bar(dn, k, c, h, ambiguous, lim)
             if bar is not None:
                 bars.append(bar)
     # sparse bars: a stretch whose depth is mostly lost (too few points for the density test
@@ -176,21 +177,7 @@ def _direction_band(g, ang, plan, r, min_extent, pitch_mm, window_mm, prm) -> _D
     return _Direction(g, d, n2, off, along, r, centres, near, member, win)
 
 
-def _candidate_bar(
-    dn: _Direction,
-    k,
-    c,
-    h,
-    ambiguous,
-    *,
-    layer,
-    min_points,
-    min_extent,
-    min_inlier_fraction,
-    skew_check_deg,
-    camera,
-    prm,
-):
+def _candidate_bar(dn: _Direction, k, c, h, ambiguous, lim: _Limits):
     """The bar at candidate ``k`` (offset ``c``) of a direction: its points' stretch, the
     cylinder fitted to them (:func:`_fitted_bar`), or a "not measured" bar with too few points
     for a fit; None where there is no bar."""
@@ -198,7 +185,7 @@ def _candidate_bar(
     band = dn.member & (dn.near == k)
     # a "run" made mostly of points that also belong to crossing bars is the crossing
     # bars themselves, not a bar of this direction
-    if (band & ambiguous).sum() > prm.crossing_share * max(band.sum(), 1):
+    if (band & ambiguous).sum() > lim.prm.crossing_share * max(band.sum(), 1):
         return None
     idx = np.where(band & ~ambiguous)[0]
     if len(idx) == 0:
@@ -206,15 +193,15 @@ def _candidate_bar(
     t = along[idx]
     # the bar's extent: the longest run of occupied 5 mm cells (a peak can also catch a
     # few stray points far away along the line)
-    t0, t1 = _longest_run(t, cell_mm=prm.run_cell_mm, max_gap_mm=max(prm.run_gap_mm, prm.run_gap_radii * r))
+    t0, t1 = _longest_run(t, cell_mm=lim.prm.run_cell_mm, max_gap_mm=max(lim.prm.run_gap_mm, lim.prm.run_gap_radii * r))
     sel = (t >= t0) & (t <= t1)
     idx, t = idx[sel], t[sel]
     length = float(t1 - t0)
-    if length < min_extent:
+    if length < lim.min_extent:
         return None
-    if len(idx) < min_points:
+    if len(idx) < lim.min_points:
         return BarAxis(
-            layer,
+            lim.layer,
             d,
             float(c),
             0.0,
@@ -228,69 +215,36 @@ def _candidate_bar(
             idx,
             g,
             status=NOT_MEASURED,
-            reason=f"{len(idx)} points, at least {min_points} needed for a cross-section fit",
+            reason=f"{len(idx)} points, at least {lim.min_points} needed for a cross-section fit",
         )
-    return _fitted_bar(
-        dn,
-        c,
-        idx,
-        t,
-        t0,
-        t1,
-        h,
-        ambiguous,
-        layer=layer,
-        min_points=min_points,
-        min_extent=min_extent,
-        min_inlier_fraction=min_inlier_fraction,
-        skew_check_deg=skew_check_deg,
-        camera=camera,
-        prm=prm,
-    )
+    return _fitted_bar(dn, c, idx, t, t0, t1, h, ambiguous, lim)
 
 
-def _fitted_bar(
-    dn: _Direction,
-    c,
-    idx,
-    t,
-    t0,
-    t1,
-    h,
-    ambiguous,
-    *,
-    layer,
-    min_points,
-    min_extent,
-    min_inlier_fraction,
-    skew_check_deg,
-    camera,
-    prm,
-):
+def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
     """A candidate's cylinder, refitted on its band re-centred (:func:`_refit_band`), kept
     parallel unless a skew fits clearly better, on the side facing the camera and with the
     depth noise's bias out; None where most of its points are not on the cylinder."""
     g, d, n2, off, r = dn.g, dn.d, dn.n2, dn.off, dn.r
-    fit, idx, t = _refit_band(dn, c, idx, t, t0, t1, h, ambiguous, min_points, prm)
+    fit, idx, t = _refit_band(dn, c, idx, t, t0, t1, h, ambiguous, lim.min_points, lim.prm)
     s_b, h_b = off[idx] - c, h[idx]
-    if abs(fit[0][1]) > math.tan(math.radians(skew_check_deg)):
+    if abs(fit[0][1]) > math.tan(math.radians(lim.skew_check_deg)):
         # more skewed than a mesh's bars are: unless the skew fits the points clearly
         # better, the bar runs parallel to its direction (a short sliver tilts a free fit)
         par = _fit_bar(t, s_b, h_b, r, parallel=True)
-        if _rms_on(par, fit, t, s_b, h_b, r) <= prm.skew_gain * fit[2]:
+        if _rms_on(par, fit, t, s_b, h_b, r) <= lim.prm.skew_gain * fit[2]:
             fit = par
-    if camera is not None:
-        fit, facing = _facing_fit(fit, t, s_b, h_b, r, camera, c, n2)
+    if lim.camera is not None:
+        fit, facing = _facing_fit(fit, t, s_b, h_b, r, lim.camera, c, n2)
         if facing:  # depth noise lies along the lines of sight: take its bias out
-            fit = _refit_along_rays(fit, t, s_b, h_b, r, camera, c, d, n2)
+            fit = _refit_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2)
     (a0, a1, b0, b1), w, rms, se = fit
     keep = w > 0
     # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
     # (a spacer block, a tie, a chair)
-    if keep.mean() < min_inlier_fraction or keep.sum() < min_points:
+    if keep.mean() < lim.min_inlier_fraction or keep.sum() < lim.min_points:
         return None
     tt = t[keep]
-    if tt.max() - tt.min() < min_extent:
+    if tt.max() - tt.min() < lim.min_extent:
         return None
     # how much of the cross-section the points cover: a bar seen only along one edge
     # (the rest hidden by a bar above it) does not fix its axis
@@ -298,7 +252,7 @@ def _fitted_bar(
     phi = (phi + 90.0) % 360.0 - 90.0  # the seen upper half, [0°, 180°], without a wrap
     arc = float(np.percentile(phi, 95) - np.percentile(phi, 5))
     status, reason = MEASURED, ""
-    if camera is not None and not facing:
+    if lim.camera is not None and not facing:
         status, reason = (
             NOT_MEASURED,
             (
@@ -307,7 +261,7 @@ def _fitted_bar(
             ),
         )
     return BarAxis(
-        layer,
+        lim.layer,
         d,
         float(c + a0),
         float(a1),
