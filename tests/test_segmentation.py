@@ -279,7 +279,7 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     # ... from 9 tiles of the 80 x 43 enlargement (4 at the image's own 60 x 32)
     seen = []
     score = model._score
-    model._score = lambda tile, flips=True: seen.append(tile.shape) or score(tile, flips)
+    model._score = lambda tile, flips=True, *rest: seen.append(tile.shape) or score(tile, flips, *rest)
     model.predict_proba(img, tiled=True)
     assert len(seen) == 9 and set(seen) == {(25, 40, 3)}
     seen.clear()

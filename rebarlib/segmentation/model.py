@@ -27,6 +27,14 @@ def _cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _rgb(color) -> np.ndarray:
+    """``color`` as an array, checked to be an (H, W, 3) uint8 image."""
+    img = np.asarray(color)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise RebarInputError(f"color: expected an (H, W, 3) uint8 RGB image, got {img.shape} {img.dtype}")
+    return img
+
+
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_MODEL = "rebar_seg"
 
@@ -187,27 +195,36 @@ class SegmentationModel:
     def _prepare(self, color):
         import cv2
 
-        img = np.asarray(color)
-        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-            raise RebarInputError(f"color: expected an (H, W, 3) uint8 RGB image, got {img.shape} {img.dtype}")
+        img = _rgb(color)
         H, W = img.shape[:2]
-        inp = self._inp
         w, h = self._input_size(W, H)
         interp = cv2.INTER_AREA if w < W else cv2.INTER_LINEAR
         x = img if (w, h) == (W, H) else cv2.resize(img, (w, h), interpolation=interp)
+        return self._laid_out(self._normalised(x))
+
+    def _normalised(self, x):
+        """An (h, w, 3) uint8 RGB image (at the network's scale) in the sidecar's channel order,
+        type and normalisation, still (h, w, 3); each pixel on its own, so that a tile of the
+        result is the result of the tile."""
+        inp = self._inp
         if inp["channel_order"] == "BGR":
             x = x[..., ::-1]
+        if self._np_dtype == np.uint8:
+            return x
+        mean = np.asarray(inp["mean"], np.float32)
+        inv = 1.0 / np.asarray(inp["std"], np.float32)
+        return (x.astype(np.float32) * inp["value_scale"] - mean) * inv
+
+    def _laid_out(self, t):
+        """The network's input from a :meth:`_normalised` (h, w, 3) image: padded and in the
+        sidecar's layout; ``(tensor, (h, w), (padded h, padded w))``."""
+        inp = self._inp
+        h, w = t.shape[:2]
         # padded bottom / right: to the fixed input where the image's aspect ratio differs
         # from it, then to a multiple of pad_to; the padding is cut off the output
         fw, fh = inp["size"] if inp["size"] is not None else (w, h)
         p = inp["pad_to"]
         ph, pw = fh - h + (-fh % p), fw - w + (-fw % p)
-        if self._np_dtype == np.uint8:
-            t = np.ascontiguousarray(x)
-        else:
-            mean = np.asarray(inp["mean"], np.float32)
-            inv = 1.0 / np.asarray(inp["std"], np.float32)
-            t = (x.astype(np.float32) * inp["value_scale"] - mean) * inv
         if ph or pw:
             t = np.pad(t, ((0, ph), (0, pw), (0, 0)))
         t = t.transpose(2, 0, 1)[None] if inp["layout"] == "NCHW" else t[None]
@@ -248,12 +265,13 @@ class SegmentationModel:
     def _run(self, session, x):
         return np.asarray(session.run([self._output_name], {self._input_name: x})[0])
 
-    def _score(self, color, flips: bool = True):
-        """The rebar score map at full resolution and the threshold it is compared with."""
+    def _score(self, color, flips: bool = True, prepared=None):
+        """The rebar score map at full resolution and the threshold it is compared with.
+        ``prepared``: the network's input for ``color``, if made already (:meth:`_prepare`)."""
         import cv2
 
         H, W = np.asarray(color).shape[:2]
-        t, (h, w), (hp, wp) = self._prepare(color)
+        t, (h, w), (hp, wp) = self._prepare(color) if prepared is None else prepared
         is_logit = False
         out = self._out
         if flips and self._inp["flips"]:
@@ -382,9 +400,14 @@ class SegmentationModel:
         acc = np.zeros((H, W), np.float64)
         wsum = np.zeros((H, W), np.float64)
         thr, is_logit = 0.5, False
+        # the tiles are of the input's size (no resize): the image is normalised once, and each
+        # tile's input cut from it (the same numbers as normalising each tile: it is per pixel)
+        norm = self._normalised(_rgb(img))
         for y0 in starts(H, th):
             for x0 in starts(W, tw):
-                tile, thr, is_logit = self._score(np.ascontiguousarray(img[y0 : y0 + th, x0 : x0 + tw]), flips)
+                tile_img = img[y0 : y0 + th, x0 : x0 + tw]
+                prepared = self._laid_out(norm[y0 : y0 + th, x0 : x0 + tw])
+                tile, thr, is_logit = self._score(tile_img, flips, prepared)
                 wgt = np.outer(ramp(th, y0 > 0, y0 + th < H), ramp(tw, x0 > 0, x0 + tw < W))
                 acc[y0 : y0 + th, x0 : x0 + tw] += wgt * tile
                 wsum[y0 : y0 + th, x0 : x0 + tw] += wgt
