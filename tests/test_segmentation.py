@@ -287,6 +287,45 @@ def test_in_test_model_tiles_of_an_image_under_twice_the_input_are_enlarged(tmp_
     assert len(seen) == 4
 
 
+def test_in_test_model_full_resolution_whole_runs_the_network_once_on_the_whole_image(tmp_path):
+    # input.full_resolution "whole": predict_proba(tiled=True) runs a graph that takes any size
+    # once on the image at the tiles' scale (padded to pad_to) instead of on overlapping tiles;
+    # this model reads each pixel alone, so both give the same scores (up to the tiles' blend)
+    side = {"size": [40, 25], "max_bar_px": 10, "pad_to": 8}
+    out = {"kind": "logits", "rebar_classes": [0]}
+    tiles = SegmentationModel(_red_minus_blue_model(tmp_path, {"input": side, "output": out}, name="t"))
+    whole = SegmentationModel(
+        _red_minus_blue_model(tmp_path, {"input": {**side, "full_resolution": "whole"}, "output": out}, name="w")
+    )
+    img, _ = _red_left_blue_right(100, 163)  # 163 x 100: padded to 168 x 104
+    img[:, 123] = (200, 0, 0)
+    want = 1 / (1 + np.exp(-(img[..., 0].astype(float) - img[..., 2]) / 16))
+    seen = []
+    score = whole._score
+    whole._score = lambda image, flips=True, *rest: seen.append(image.shape) or score(image, flips, *rest)
+    got = whole.predict_proba(img, tiled=True, bar_width_px=8)
+    assert seen == [(100, 163, 3)] and got.shape == (100, 163)
+    assert np.allclose(got, want, atol=1e-5)
+    assert np.allclose(got, tiles.predict_proba(img, tiled=True, bar_width_px=8), atol=1e-5)
+    # the tile scale still applies: an image under twice the input is enlarged, one whose bars
+    # are too wide shrunk, both brought back to the image's size
+    seen.clear()
+    assert whole.predict_proba(img[:32, :60], tiled=True).shape == (32, 60) and seen == [(43, 80, 3)]
+    assert whole.predict_proba(img, tiled=True, bar_width_px=20).shape == (100, 163)
+    # the untiled run is unchanged: the image scaled to the fixed input
+    assert np.array_equal(whole.predict_proba(img), tiles.predict_proba(img))
+    # "whole" needs a graph that takes any size, and a size to scale to
+    with pytest.raises(RebarInputError, match="full_resolution"):
+        SegmentationModel(
+            _red_minus_blue_model(
+                tmp_path, {"input": {**side, "full_resolution": "whole"}, "output": out}, name="f", fixed=(25, 40)
+            )
+        )
+    for bad, name in (({"full_resolution": "whole"}, "nosize"), ({**side, "full_resolution": "all"}, "badkey")):
+        with pytest.raises(RebarInputError, match="full_resolution"):
+            SegmentationModel(_red_minus_blue_model(tmp_path, {"input": bad, "output": out}, name=name))
+
+
 def _left_neighbour_model(tmp_path, sidecar, name="leftnb"):
     """logit(x) = R(x - 1) / 16 - 4: a model that is not mirror-symmetric (it looks one pixel to
     the left), so test-time flips change its answer in a way that can be computed by hand."""

@@ -153,6 +153,11 @@ class SegmentationModel:
                 raise RebarInputError(
                     f"{where}: input.size {size} (width, height) does not match the model's input shape {shape}"
                 )
+        if self._inp["full_resolution"] == "whole" and all(isinstance(v, int) for v in fixed):
+            raise RebarInputError(
+                f"{where}: input.full_resolution 'whole' runs the network on the whole image, "
+                f"but the model takes only a fixed {fixed[1]} x {fixed[0]} input"
+            )
         self._input_name = name
         outputs = self._session.get_outputs()
         onames = [o.name for o in outputs]
@@ -366,7 +371,8 @@ class SegmentationModel:
         test-time flips, as a whole image does (``flips``: False runs each tile once). Models
         without a fixed input size, and images that at that scale are no larger than the input
         or smaller than it in one direction, are scored as by :meth:`predict_proba` without
-        tiles.
+        tiles. With the sidecar's ``input.full_resolution`` "whole" (a graph that takes any
+        size), the image at that scale is run once instead, padded to ``input.pad_to``.
         """
         import cv2
 
@@ -382,6 +388,20 @@ class SegmentationModel:
             # area averaging to shrink, bilinear to enlarge
             interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
             img = cv2.resize(img, (W, H), interpolation=interp)
+        if self._inp["full_resolution"] == "whole":
+            # the network once on the whole image at the tiles' scale (padded to pad_to), not on
+            # overlapping tiles: each pixel computed once per run instead of up to four times
+            t = self._normalised(_rgb(img))
+            p = self._inp["pad_to"]
+            ph, pw = -H % p, -W % p
+            if ph or pw:
+                t = np.pad(t, ((0, ph), (0, pw), (0, 0)))
+            t = t.transpose(2, 0, 1)[None] if self._inp["layout"] == "NCHW" else t[None]
+            prepared = np.ascontiguousarray(t, dtype=self._np_dtype), (H, W), (H + ph, W + pw)
+            score, thr, is_logit = self._score(img, flips, prepared)
+            if (W, H) != (W0, H0):
+                score = cv2.resize(score, (W0, H0), interpolation=cv2.INTER_LINEAR)
+            return score, thr, is_logit
         tw, th = self._inp["size"]
 
         def starts(n, t):
@@ -423,12 +443,14 @@ class SegmentationModel:
         input, run the network on input-sized tiles of the image at full resolution instead of
         on the whole image down-scaled to the input (finer edges, 9 tiles for a 1280 × 800 image
         into a 640 × 400 input; an 848 × 480 one is first enlarged 1.51 times, to 9 tiles: see
-        :meth:`_score_tiled`); ``bar_width_px``, the widest bar's width in the image, lowers that
-        resolution where the bars would otherwise be wider than the model knows, and caps the
-        enlargement (:meth:`tile_scale`). ``flips``: the sidecar's test-time flips
-        (``input.flips``), on the whole image or on every tile; False runs the network once per
-        image or tile instead of once per flip and once more (the shipped model: 4 runs; faster,
-        a less exact mask: docs/benchmarks.md, "Full-resolution tiles").
+        :meth:`_score_tiled`), or, with the sidecar's ``input.full_resolution`` "whole" (the
+        shipped model), once on the whole image at that resolution; ``bar_width_px``, the
+        widest bar's width in the image, lowers that resolution where the bars would otherwise
+        be wider than the model knows, and caps the enlargement (:meth:`tile_scale`).
+        ``flips``: the sidecar's test-time flips (``input.flips``), on the whole image or on
+        every tile; False runs the network once per image or tile instead of once per flip and
+        once more (the shipped model: 4 runs; faster, a less exact mask: docs/benchmarks.md,
+        "Full-resolution tiles").
         """
         score, _, is_logit = self._score_tiled(color, bar_width_px, flips) if tiled else self._score(color, flips)
         if is_logit:

@@ -26,6 +26,9 @@ _DTYPES = {
 _KINDS = ("logits", "probability", "labels")
 _RESIZE = ("keep_aspect", "stretch")  # a fixed input.size: fitted and padded, or stretched
 _FLIPS = ("h", "v", "hv")  # test-time flips: horizontal, vertical, both
+# how predict_proba(tiled=True) runs the network at full resolution: on overlapping tiles of
+# the input's size, or once on the whole image (a graph that takes any size)
+_FULL_RESOLUTION = ("tiles", "whole")
 
 
 def _bad(path, problem):
@@ -115,7 +118,8 @@ def _input_section(path: Path, inp: dict) -> dict:
     -------
     dict
         ``inp``, with ``size``, ``resize``, ``scale``, ``pad_to``, ``channel_order``, ``layout``,
-        ``dtype``, ``mean``, ``std``, ``value_scale``, ``flips`` and ``max_bar_px`` set.
+        ``dtype``, ``mean``, ``std``, ``value_scale``, ``flips``, ``full_resolution`` and
+        ``max_bar_px`` set.
     """
     size = inp.get("size")
     if size is not None:
@@ -152,6 +156,11 @@ def _input_section(path: Path, inp: dict) -> dict:
     flips = inp.get("flips", [])
     if not (isinstance(flips, list) and all(f in _FLIPS for f in flips) and len(set(flips)) == len(flips)):
         raise _bad(path, f"input.flips: expected a list of distinct flips from {_FLIPS}, got {flips!r}")
+    full_res = inp.get("full_resolution", "tiles")
+    if full_res not in _FULL_RESOLUTION:
+        raise _bad(path, f"input.full_resolution: expected one of {_FULL_RESOLUTION}, got {full_res!r}")
+    if full_res == "whole" and size is None:
+        raise _bad(path, "input.full_resolution 'whole' needs input.size (the scale the tiles are run at)")
     max_bar_px = inp.get("max_bar_px")
     if max_bar_px is not None and (
         isinstance(max_bar_px, bool) or not isinstance(max_bar_px, (int, float)) or max_bar_px <= 0
@@ -167,6 +176,7 @@ def _input_section(path: Path, inp: dict) -> dict:
         dtype=dtype,
         value_scale=float(value_scale),
         flips=list(flips),
+        full_resolution=full_res,
         max_bar_px=None if max_bar_px is None else float(max_bar_px),
     )
     return inp
