@@ -1,0 +1,177 @@
+"""A bar seen from one side: its axis from its points' cross-section, the sides it was seen from
+estimated with it.
+
+A scanner sees the half of a bar's surface that faces it, and its range noise lies along its
+rays; so the points of a bar seen from one direction form a streak in the bar's cross-section:
+about ±r across the ray (the visible half circle, whatever the noise) and the range noise along
+it, their mean 8r/(3π) ≈ 0.85 r from the axis toward the scanner (returns per unit of surface
+∝ cos² of the incidence: the rays' density on the surface and the share that return; were every
+ray to return, ∝ cos, the mean would be πr/4 ≈ 0.79 r, 0.06 r nearer). A bar
+seen from several stations, or from a moving scanner, is a mixture of such streaks round one
+axis. The mean of the points alone is the axis only where the sides balance; where one station
+sees a bar and another does not (a bar above hides it), it is off by up to 0.85 r.
+
+:func:`seen_sides_centre` fits that mixture: the axis (shared), a weight for each direction on a
+grid over the upper half plane, and the noise along the rays; plus a share of points uniform
+over the band (what else lies in it) and, over a formwork, the formwork's points (heights
+normal about 0 with its measured noise). Each direction's streak is taken as a Gaussian with the
+mean and covariance of the surface seen from there (:func:`visible_arc`: the half circle, less
+what the bars above hide) plus the range noise along the ray; the axis is the weighted
+least-squares centre of the streaks (an EM). Where the noise is well under the radius the points
+lie on the arc and the streaks are not Gaussian; near σ ≈ r/2 a one-sided bar's points form a
+round cloud whose side cannot be told: the caller applies the fit only where the noise along
+the rays is at least the radius.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def visible_arc(phi, radius_mm: float, occluders=(), k: int = 48):
+    """The surface a scanner sees of a bar from each direction ``phi`` (radians from the vertical,
+    in the bar's cross-section): the mean (J, 2) and covariance (J, 2, 2) of the returns' points
+    about the axis, and the share (J,) of the half circle's returns that are not hidden.
+
+    Returns fall on the half circle facing the scanner with density ∝ cos² of the incidence; a ray
+    leaving the surface toward the scanner that passes within an occluder's radius of its centre
+    (``occluders``: (across, height, radius) about this bar's axis, mm: the bars above it running
+    the same way) hides its point (a bar of the lattice above casts a shadow along the whole bar)."""
+    r = float(radius_mm)
+    psi = (np.arange(k) + 0.5) / k * math.pi - math.pi / 2
+    ang = phi[:, None] + psi[None, :]
+    pts = r * np.stack([np.sin(ang), np.cos(ang)], axis=-1)  # (J, K, 2)
+    wgt = np.broadcast_to(np.cos(psi) ** 2, ang.shape).copy()
+    full = float(wgt[0].sum())
+    u = np.stack([np.sin(phi), np.cos(phi)], axis=-1)[:, None, :]  # (J, 1, 2)
+    for oa, oh, ro in occluders:
+        d = pts - np.array([oa, oh])
+        along = (d * u).sum(-1)
+        perp2 = (d * d).sum(-1) - along**2
+        wgt[(along < 0) & (perp2 < ro * ro)] = 0.0
+    share = wgt.sum(axis=1) / full
+    norm = np.maximum(wgt.sum(axis=1), 1e-12)[:, None]
+    mean = (wgt[..., None] * pts).sum(axis=1) / norm
+    dev = pts - mean[:, None, :]
+    cov = np.einsum("jk,jka,jkb->jab", wgt, dev, dev) / norm[..., None]
+    return mean, cov, share
+
+
+def seen_sides_centre(
+    a,
+    h,
+    radius_mm: float,
+    *,
+    centre0,
+    sigma0_mm: float,
+    half_mm: float,
+    formwork_sd_mm: float | None = None,
+    occluders=(),
+    blur_mm: float = 1.0,
+    step_deg: float = 10.0,
+    iters: int = 40,
+):
+    """Axis (across, height) of a bar from its cross-section points, as the centre of a mixture of
+    streaks seen from a grid of directions above it.
+
+    Parameters
+    ----------
+    a, h : (N,) offsets across the bar (from its current line) and heights of its band's points, mm
+    radius_mm : the bar's radius (its set's envelope)
+    centre0 : (across, height) to start from, mm
+    sigma0_mm : the range noise to start from, mm (fitted: the spread along the streaks)
+    half_mm : the band's half width across (the uniform component's extent)
+    formwork_sd_mm : over a formwork, its measured noise: a component of heights N(0, that)
+        uniform across the band; None without
+    occluders : (across, height, radius) of the bars above this one running the same way, about
+        its axis at ``centre0``, mm (:func:`visible_arc`)
+    blur_mm : spread of the surface beyond the circle's (ribs, roundness)
+    step_deg : the grid of view directions, from the vertical, over (-90°, 90°)
+    iters : EM steps at most
+
+    Returns
+    -------
+    (centre, sigma, weights) : the axis (across, height) in mm, the range noise along the rays, the
+    weight of each direction of the grid; None where the fit fails (too few points for the bar,
+    a singular step, or an axis outside the band)
+    """
+    a = np.asarray(a, float)
+    h = np.asarray(h, float)
+    n = len(a)
+    if n < 30:
+        return None
+    r = float(radius_mm)
+    phi = np.radians(np.arange(-90.0 + step_deg / 2, 90.0, step_deg))
+    c0 = np.array(centre0, float)
+    occ = [(oa - 0.0, oh - 0.0, ro) for oa, oh, ro in occluders]
+    m_arc, cov_arc, share = visible_arc(phi, r, occ)
+    keep = share > 0.05  # a direction from which the bar is (almost) hidden sends no returns
+    if not keep.any():
+        return None
+    phi, m_arc, cov_arc = phi[keep], m_arc[keep], cov_arc[keep]
+    su, cu = np.sin(phi), np.cos(phi)
+    var_uu_arc = su * su * cov_arc[:, 0, 0] + 2 * su * cu * cov_arc[:, 0, 1] + cu * cu * cov_arc[:, 1, 1]
+    c = c0.copy()
+    sig = max(float(sigma0_mm), 0.3)
+    weights = np.full(len(phi), 1.0 / len(phi))
+    span_h = float(np.ptp(h)) + 1.0
+    log_uniform = -math.log(2 * half_mm * span_h)
+    share_bg, share_fw = 0.05, (0.3 if formwork_sd_mm else 0.0)
+    if formwork_sd_mm:
+        log_fw = -0.5 * (h / formwork_sd_mm) ** 2 - math.log(formwork_sd_mm * math.sqrt(2 * math.pi) * 2 * half_mm)
+    b2 = blur_mm**2
+    for _ in range(iters):
+        # each direction's streak: covariance of its visible arc + the range noise along u + blur
+        caa = cov_arc[:, 0, 0] + sig * sig * su * su + b2
+        chh = cov_arc[:, 1, 1] + sig * sig * cu * cu + b2
+        cah = cov_arc[:, 0, 1] + sig * sig * su * cu
+        det = caa * chh - cah * cah
+        if not np.all(det > 0):
+            return None
+        paa, phh, pah = chh / det, caa / det, -cah / det
+        da = a[:, None] - c[0] - m_arc[None, :, 0]
+        dh = h[:, None] - c[1] - m_arc[None, :, 1]
+        q = paa * da * da + 2 * pah * da * dh + phh * dh * dh
+        log_b = -0.5 * q - 0.5 * np.log(det) - math.log(2 * math.pi)
+        share_bar = 1.0 - share_bg - share_fw
+        log_b += np.log(np.maximum(weights * share_bar, 1e-300))[None]
+        cols = [log_b, np.full((n, 1), math.log(share_bg) + log_uniform)]
+        if formwork_sd_mm:
+            cols.append((math.log(share_fw) + log_fw)[:, None])
+        allp = np.hstack(cols)
+        top = allp.max(axis=1, keepdims=True)
+        e = np.exp(allp - top)
+        resp = e / e.sum(axis=1, keepdims=True)
+        rb = resp[:, : len(phi)]
+        rj = rb.sum(axis=0)
+        tot = float(rj.sum())
+        if tot < 20:
+            return None
+        weights = rj / tot
+        share_bg = min(max(float(resp[:, len(phi)].sum()) / n, 1e-4), 0.5)
+        if formwork_sd_mm:
+            share_fw = min(max(float(resp[:, len(phi) + 1].sum()) / n, 1e-4), 0.95)
+        # the centre: weighted least squares of p - m_j with each streak's precision P_j
+        H = np.array([[rj @ paa, rj @ pah], [rj @ pah, rj @ phh]])
+        ma = a @ rb - rj * m_arc[:, 0]  # Σ_i R_ij (a_i - m_j,a)
+        mh = h @ rb - rj * m_arc[:, 1]
+        rhs = np.array([paa @ ma + pah @ mh, pah @ ma + phh @ mh])
+        try:
+            c_new = np.linalg.solve(H, rhs)
+        except np.linalg.LinAlgError:
+            return None
+        da = a[:, None] - c_new[0] - m_arc[None, :, 0]
+        dh = h[:, None] - c_new[1] - m_arc[None, :, 1]
+        t = da * su + dh * cu
+        sig = math.sqrt(max(float((rb * t * t).sum() - rj @ var_uu_arc) / tot, 0.09))
+        done = float(np.max(np.abs(c_new - c))) < 0.01
+        c = c_new
+        if done:
+            break
+    if not abs(c[0]) < half_mm:
+        return None
+    full = np.zeros(len(keep))
+    full[keep] = weights
+    return c, sig, full
