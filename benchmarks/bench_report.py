@@ -14,8 +14,6 @@ inspect``), else from the captures' ground truth written in the result.json layo
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import statistics
 import tempfile
@@ -27,6 +25,7 @@ import pypdf
 from rebarlib import load_design
 from rebarlib.acceptance import evaluate
 from rebarlib.report import build_report, find_captures
+from rebarlib.synth import result_from_truth as synth_result_from_truth
 
 ROOT = Path(__file__).resolve().parent.parent
 TARGET_S = 3.0
@@ -34,74 +33,7 @@ TARGET_S = 3.0
 
 def result_from_truth(capture_dir: Path, design) -> dict:
     """A result.json dict with the synthetic capture's ground truth (every 5th bar hidden)."""
-    t = json.loads((capture_dir / "truth.json").read_text(encoding="utf-8"))
-    n = t["formwork_plane"]["normal"]
-    bars = []
-    for i, b in enumerate(x for x in t["bars"] if x["visible"]):
-        hidden = i % 5 == 4
-        rec = {
-            "bar_id": b["id"],
-            "layer": b["layer"],
-            "level": b["level"],
-            "plan_angle_deg": b["plan_angle_deg"],
-            "visible_length_mm": b["visible_length_mm"],
-            "n_points": b["visible_pixels"],
-            "status": "measured",
-            "reason": "",
-            "width_median_mm": None if hidden else b["envelope_mm"],
-            "width_spread_mm": None if hidden else 0.5,
-            "nominal_mm": None if hidden else b["diameter_mm"],
-            "diameter_status": "hidden" if hidden else "measured",
-            "diameter_reason": "",
-            "design_diameter_mm": b["design_diameter_mm"],
-            "hidden": hidden,
-        }
-        for c, s, e in zip("xyz", b["visible_start_mm"], b["visible_end_mm"]):
-            rec[f"start_{c}_mm"], rec[f"end_{c}_mm"] = s, e
-        bars.append(rec)
-    spacings = []
-    for s in t["spacings"]:
-        if s["visible"]:
-            ds = design.lattice(s["layer"]).level(s["level"]).spacing_mm
-            spacings.append(
-                {
-                    "layer": s["layer"],
-                    "level": s["level"],
-                    "bar_a": s["bar_a"],
-                    "bar_b": s["bar_b"],
-                    "spacing_mm": s["spacing_mm"],
-                    "design_spacing_mm": ds,
-                    "deviation_mm": s["spacing_mm"] - ds,
-                    "status": "measured",
-                    "reason": "",
-                }
-            )
-    counts = [
-        {"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0}
-        for la in ("lower", "upper")
-        for lv in ("bottom", "top")
-        for k in [sum(b["layer"] == la and b["level"] == lv for b in bars)]
-    ]
-
-    def m(v):
-        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
-
-    return {
-        "capture": capture_dir.name,
-        "method": "truth",
-        "measurements": {
-            "cover": m(t["cover_mm"]),
-            "layer_distance": m(t["layer_distance_mm"]),
-            "upper_top": m(t["upper_top_mm"]),
-            "top_cover": m(design.thickness_mm - t["upper_top_mm"]),
-        },
-        "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
-        "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
-        "bars": bars,
-        "spacings": spacings,
-        "counts": counts,
-        "notes": [],
-    }
+    return synth_result_from_truth(capture_dir, design, hide_every=5)
 
 
 def load_results(slab: Path, design, source: str) -> list:

@@ -21,6 +21,7 @@ from rebarlib import RebarInputError, design_from_dict, load_design
 from rebarlib.acceptance import design_top_cover_mm, evaluate
 from rebarlib.cli import main
 from rebarlib.report import build_report, render_html, report_context, safe_url_fetcher, templates_dir
+from rebarlib.synth import result_from_truth as synth_result_from_truth
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PAPER = EXAMPLES / "paper_slab"
@@ -37,74 +38,8 @@ def with_manifest(result: dict, capture: str) -> dict:
 
 
 def result_from_truth(capture_dir: Path, design, *, cover_offset_mm=0.0) -> dict:
-    """A result.json dict holding the synthetic capture's ground truth."""
-    t = json.loads((capture_dir / "truth.json").read_text(encoding="utf-8"))
-    n = t["formwork_plane"]["normal"]
-    bars = []
-    for i, b in enumerate(x for x in t["bars"] if x["visible"]):
-        hidden = i % HIDE_EVERY == HIDE_EVERY - 1
-        rec = {
-            "bar_id": b["id"],
-            "layer": b["layer"],
-            "level": b["level"],
-            "plan_angle_deg": b["plan_angle_deg"],
-            "visible_length_mm": b["visible_length_mm"],
-            "n_points": b["visible_pixels"],
-            "status": "measured",
-            "reason": "",
-            "width_median_mm": None if hidden else b["envelope_mm"],
-            "width_spread_mm": None if hidden else 0.5,
-            "nominal_mm": None if hidden else b["diameter_mm"],
-            "confidence": 0.0 if hidden else 0.97,
-            "diameter_status": "hidden" if hidden else "measured",
-            "diameter_reason": "under crossing bars" if hidden else "",
-            "design_diameter_mm": b["design_diameter_mm"],
-            "hidden": hidden,
-        }
-        for c, s, e in zip("xyz", b["visible_start_mm"], b["visible_end_mm"]):
-            rec[f"start_{c}_mm"], rec[f"end_{c}_mm"] = s, e
-        bars.append(rec)
-    spacings = [
-        {
-            "layer": s["layer"],
-            "level": s["level"],
-            "bar_a": s["bar_a"],
-            "bar_b": s["bar_b"],
-            "spacing_mm": s["spacing_mm"],
-            "design_spacing_mm": 200.0,
-            "deviation_mm": s["spacing_mm"] - 200.0,
-            "status": "measured",
-            "reason": "",
-        }
-        for s in t["spacings"]
-        if s["visible"]
-    ]
-    counts = []
-    for la in ("lower", "upper"):
-        for lv in ("bottom", "top"):
-            k = sum(b["layer"] == la and b["level"] == lv for b in bars)
-            counts.append({"layer": la, "level": lv, "found": k, "expected": k, "missing": 0, "extra": 0})
-
-    def m(v):
-        return {"value_mm": v, "uncertainty_mm": 0.7, "n_points": 1000, "status": "measured", "reason": ""}
-
-    top = design.thickness_mm - t["upper_top_mm"]
-    return {
-        "capture": capture_dir.name,
-        "method": "truth",
-        "measurements": {
-            "cover": m(t["cover_mm"] + cover_offset_mm),
-            "layer_distance": m(t["layer_distance_mm"]),
-            "upper_top": m(t["upper_top_mm"]),
-            "top_cover": m(top),
-        },
-        "formwork": {"normal": n, "offset_mm": t["formwork_plane"]["offset_mm"]},
-        "camera": {"height_mm": t["camera"]["height_mm"], "tilt_deg": math.degrees(math.acos(abs(n[2])))},
-        "bars": bars,
-        "spacings": spacings,
-        "counts": counts,
-        "notes": [],
-    }
+    """A result.json dict holding the synthetic capture's ground truth (every 5th bar hidden)."""
+    return synth_result_from_truth(capture_dir, design, hide_every=HIDE_EVERY, cover_offset_mm=cover_offset_mm)
 
 
 def pdf_text(path) -> str:

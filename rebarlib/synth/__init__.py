@@ -39,6 +39,7 @@ from .render import (
     render_capture,
     synth_capture,
 )
+from .from_truth import result_from_truth
 from .scene import Bar, Deviations, SlabScene, make_scene
 from .sensor import SensorModel, dropout_mask
 from .sensor import _sensor_depth as _sensor_depth
@@ -53,6 +54,7 @@ __all__ = [
     "make_scene",
     "render_capture",
     "synth_capture",
+    "result_from_truth",
     "rib_envelope_mm",
     "misregister",
     "dropout_mask",
