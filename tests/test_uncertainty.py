@@ -374,6 +374,35 @@ def test_derive_recovers_the_random_terms_constants(monkeypatch):
     assert d["common_mm"] == pytest.approx(0.2, rel=0.12)
 
 
+def test_coverage_interval_and_verdict(monkeypatch):
+    """bench_coverage's per-set check: the share within 2u with its Clopper-Pearson interval (one
+    value per capture), an effective n below n where several values share a capture, the
+    verdict on the share as the issue states it, and the share a right budget predicts."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_coverage as bc
+    from scipy.stats import binomtest
+
+    p, lo, hi, n_eff = bc.share_interval([True] * 36, range(36))
+    assert (p, hi, n_eff) == (1.0, 1.0, 36.0)
+    assert lo == pytest.approx(0.025 ** (1 / 36))  # 90.3 %: 36 of 36 cannot show <= 99.9 %
+    p, lo, hi, _ = bc.share_interval([True] * 34 + [False] * 2, range(36))
+    ci = binomtest(34, 36).proportion_ci(0.95, method="exact")
+    assert (lo, hi) == (pytest.approx(ci.low), pytest.approx(ci.high))
+    assert bc.verdict(p, lo, hi) == ("MISSED", "overlaps")  # 94.4 %
+    # 10 values a capture, all within or all not together: as informative as the 20 captures
+    # (19: the clusters' variance estimated with k - 1)
+    w = [True] * 180 + [False] * 20
+    _, _, _, n_eff = bc.share_interval(w, np.repeat(np.arange(20), 10))
+    assert n_eff == pytest.approx(19.0)
+    assert bc.verdict(0.97, 0.955, 0.985) == ("met", "inside")
+    assert bc.verdict(1.0, 0.9995, 1.0) == ("too wide", "outside")
+    # a normal error of u: 95.4 % within 2u; a rectangular one of u: all of it
+    cols = {f"c {t}": 0.0 for t in bc.EXERCISED}
+    df = pd.DataFrame([{"u": 1.0, "u_normal": 1.0, **cols}, {"u": 1.0, "u_normal": 0.0, **cols, "c depth scale": 1.0}])
+    e = bc.expected_share(df, draws=20000)
+    assert e[0] == pytest.approx(0.9545, abs=0.005) and e[1] == 1.0
+
+
 # ------------------------------------------------------------------------------------------------
 # Decision rules
 # ------------------------------------------------------------------------------------------------
