@@ -44,6 +44,10 @@ MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 # A design position examined for a bar (the ``positions`` table's ``status``).
 MISSING, PRESENT, PRESENT_NO_DEPTH = "missing", "present", "present (no depth)"
 OUTSIDE, NOT_IN_VIEW = "outside the mesh", "not in view"
+#: a bar-size checkpoint left to another capture of the slab that sized the same bar
+SIZED_ELSEWHERE = "sized in capture"
+#: a spacing checkpoint left to an earlier capture of the slab that measured the same spacing
+SAME_SPACING = "the same spacing as in capture"
 EXTRA, NOT_EXTRA = "extra", "not counted"
 
 # A checkpoint: one measured value against its tolerance (acceptance; NOT_MEASURED as above).

@@ -20,6 +20,8 @@ from ._status import (
     INCOMPLETE,
     NOT_CHECKED,
     NOT_IN_VIEW,
+    SAME_SPACING,
+    SIZED_ELSEWHERE,
     NOT_MEASURED,
     PASS,
     REJECTED,
@@ -198,8 +200,10 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
         else:
             continue
         status = rec.status
-        if status == EXCLUDED and str(rec.reason).startswith(NOT_IN_VIEW):
-            status = NOT_IN_VIEW
+        if status == EXCLUDED and str(rec.reason).startswith(SAME_SPACING):
+            continue  # judged in another capture of the slab, between the same two bars
+        if status == EXCLUDED and str(rec.reason).startswith((NOT_IN_VIEW, SIZED_ELSEWHERE)):
+            status = NOT_IN_VIEW  # its size is checked in another capture
         for b in ids:
             per_bar.setdefault((rec.capture, b), []).append(status)
     for b in bar_rows:

@@ -17,7 +17,19 @@ from ._checks import RebarInputError
 from ._decision import WITHIN_NP, decide, decide_size, risk_summary
 from ._design import Design
 from ._results import table_records
-from ._status import ACCEPTED, BEYOND, BEYOND_MAX, EXCLUDED, HIDDEN, MEASURED, NOT_IN_VIEW, NOT_MEASURED, WITHIN
+from ._status import (
+    ACCEPTED,
+    BEYOND,
+    BEYOND_MAX,
+    EXCLUDED,
+    HIDDEN,
+    MEASURED,
+    NOT_IN_VIEW,
+    NOT_MEASURED,
+    SAME_SPACING,
+    SIZED_ELSEWHERE,
+    WITHIN,
+)
 
 from ._verdicts import _bar_verdicts, _design_value, _item_row, _slab_verdict, _tol_key, design_top_cover_mm
 
@@ -298,6 +310,10 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
     if isinstance(results, (dict,)) or hasattr(results, "capture"):
         results = [results]
     res = [_result_dict(r, i) for i, r in enumerate(results)]
+    # positions one capture could not judge, judged by another capture of the slab that shows them
+    from ._across import resolve_across
+
+    res, across = resolve_across(res)
     tol = load_tolerances(design.standard if tolerances is None else tolerances)
     tol = tol.with_overrides(design.tolerances, source=design.source or "design")
     missing = tuple(
@@ -334,7 +350,7 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
         tolerances=tol,
         results=tuple(res),
         missing_captures=missing,
-        notes=tuple(_notes(cp, design.thickness_mm, in_view_mm)),
+        notes=tuple(_notes(cp, design.thickness_mm, in_view_mm) + across),
     )
 
 
@@ -423,6 +439,21 @@ def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> Non
     for la, lv, item, dv, rec in _group_records(_table(r, "spacings"), "spacing", design):
         v = _num(rec.get("spacing_mm"))
         ok = rec.get("status", MEASURED) == MEASURED and v is not None
+        if ok and isinstance(rec.get("also_in"), str):
+            # the same two bars' spacing, measured in an earlier capture of the slab placed on
+            # this one: a lot counts it once (docs/decisions/028-captures-of-one-slab-together.md)
+            sheet.add(
+                item,
+                cap,
+                la,
+                lv,
+                f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
+                _num(rec.get("design_spacing_mm")) or dv,
+                None,
+                status=EXCLUDED,
+                reason=f"{SAME_SPACING} {rec['also_in']}, counted there",
+            )
+            continue
         sheet.add(
             item,
             cap,
@@ -455,6 +486,12 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
             excluded = (
                 f"{NOT_IN_VIEW}: only {seen_mm:.0f} mm of it in the capture (a bar is checked over at least "
                 f"{in_view_mm:.0f} mm); " + (rec.get("diameter_reason") or "diameter not measured")
+            )
+        elif has_diam and not ok and rec.get("sized_in"):
+            # the same bar, registered in another capture of the slab, was sized there: its size
+            # is checked once, there (docs/decisions/028-captures-of-one-slab-together.md)
+            excluded = f"{SIZED_ELSEWHERE} {rec['sized_in']}; here: " + (
+                rec.get("diameter_reason") or "diameter not measured"
             )
         if excluded is not None:
             sheet.add(item, cap, la, lv, what, ddv, None, status=EXCLUDED, reason=excluded)
@@ -541,7 +578,9 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
         notes.append("The design gives no slab thickness: the top cover is not checked.")
     excluded = cp[cp["status"] == EXCLUDED]
     n_view = int(excluded["reason"].astype(str).str.startswith(NOT_IN_VIEW).sum())
-    n_hidden = len(excluded) - n_view
+    n_else = int(excluded["reason"].astype(str).str.startswith(SIZED_ELSEWHERE).sum())
+    n_same = int(excluded["reason"].astype(str).str.startswith(SAME_SPACING).sum())
+    n_hidden = len(excluded) - n_view - n_else - n_same
     if n_hidden:
         notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
     if n_view:
@@ -549,6 +588,8 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
             f"{n_view} bar(s) with less than {in_view_mm:.0f} mm in view are excluded from the "
             "bar-size check (another capture shows them)."
         )
+    if n_else:
+        notes.append(f"{n_else} bar(s) not sized in one capture are checked where another capture sized them.")
     return notes
 
 

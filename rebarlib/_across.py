@@ -1,0 +1,612 @@
+"""A slab's captures judged together: where two captures of one slab overlap, a bar position
+that one of them could not judge (hidden under a bar of the upper lattice, without depth, only
+partly in view) is judged by the other (docs/decisions/028-captures-of-one-slab-together.md).
+
+The captures are registered **from their bars alone**, so it works on ``result.json`` files
+without the images: each capture's bars, in its own slab frame (the formwork plane's), are
+lines in plan. Between two captures of one slab the plan frames differ by a rotation and a
+translation. The rotation comes from the bars' directions (one per set of bars; all must
+agree), up to a half turn. Each translation component comes from matching the bars' offsets
+across one direction; a mesh is periodic, so a shift by whole spacings fits almost as well as
+the right one — the bars' own irregular placing (hand-tied bars lie millimetres off their
+nominal places, each differently) is what tells them apart. A registration is accepted only
+when one shift fits every overlapping bar to within the measurement's scatter *and* every other
+shift (by whole spacings, or the half turn) fits clearly worse; a mesh too regular to tell is
+left unregistered and its open positions stay "not measured". A wrong registration would turn
+a hidden missing bar into a found one, so the test errs on refusing.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._status import HIDDEN, MEASURED, MISSING, NOT_MEASURED, PRESENT
+from .geometry.plane import Plane, to_slab_frame
+
+#: a registration needs at least this many bars matched across each of the two directions
+MIN_MATCHED = 3
+#: the bars' offsets are taken as measured no better than this (mm) when a rival shift is
+#: tested against their scatter, however tightly the best shift fits
+SIGMA_FLOOR_MM = 0.3
+_DEBUG = False
+#: shifts kept per direction before the joint test of both
+SHORTLIST = 6
+#: two bars are compared where their seen stretches overlap by at least this (mm)
+MIN_COMMON_MM = 50.0
+#: a bar with at least this much (mm) in the other capture's view must be matched there (the
+#: length a bar position's verdict needs in one capture)
+MIN_CONFLICT_MM = 150.0
+#: a registration needs odds of at least e^LOG_ODDS (1000 : 1) over every other shift
+LOG_ODDS = math.log(1000.0)
+#: the matched bars' RMS misfit may not exceed this (mm): a bar measured to a millimetre
+MAX_RMS_MM = 1.5
+#: the bars' directions of the sets must agree to within this (degrees) after the rotation
+MAX_ANGLE_SPREAD_DEG = 2.0
+
+
+@dataclass
+class _Set:
+    key: tuple  # (layer, level)
+    direction: np.ndarray  # plan unit direction (2,), sign fixed
+    mids: np.ndarray  # (N, 2) mid points in plan
+    lo: np.ndarray  # (N,) extent along the direction
+    hi: np.ndarray
+    bar_ids: list
+    segs: np.ndarray  # (N, 2, 2) the bars' ends in plan
+    open_mids: np.ndarray  # (M, 2) mid points of the positions not found (not measured, missing)
+
+
+def _plane(r: dict) -> Plane | None:
+    fw = r.get("formwork") or {}
+    if not fw.get("found", True) or fw.get("normal") is None or fw.get("offset_mm") is None:
+        return None
+    return Plane(np.asarray(fw["normal"], float), float(fw["offset_mm"]))
+
+
+def _ends(rec: dict) -> np.ndarray | None:
+    keys = ("start_x_mm", "start_y_mm", "start_z_mm", "end_x_mm", "end_y_mm", "end_z_mm")
+    vals = [rec.get(k) for k in keys]
+    if any(v is None or (isinstance(v, float) and math.isnan(v)) for v in vals):
+        return None
+    return np.asarray(vals, float).reshape(2, 3)
+
+
+def plan_sets(r: dict) -> dict:
+    """The found bars of a result as plan lines, per ``(layer, level)``: ``{key: _Set}``."""
+    plane = _plane(r)
+    if plane is None:
+        return {}
+    groups: dict = {}
+    for b in r.get("bars") or []:
+        e = _ends(b)
+        if e is None or b.get("layer") is None:
+            continue
+        p = to_slab_frame(e, plane)[:, :2]
+        groups.setdefault((b["layer"], b["level"]), []).append((p, b.get("bar_id")))
+    out = {}
+    for key, items in groups.items():
+        d0 = items[0][0][1] - items[0][0][0]
+        dirs = []
+        for p, _ in items:
+            d = p[1] - p[0]
+            dirs.append(d if d @ d0 >= 0 else -d)
+        d = np.sum([x / max(np.linalg.norm(x), 1e-9) for x in dirs], axis=0)
+        d /= max(np.linalg.norm(d), 1e-9)
+        mids = np.array([p.mean(axis=0) for p, _ in items])
+        t = np.array([[p[0] @ d, p[1] @ d] for p, _ in items])
+        segs = np.array([p for p, _ in items])
+        out[key] = _Set(key, d, mids, t.min(axis=1), t.max(axis=1), [i for _, i in items], segs, np.zeros((0, 2)))
+    for p in r.get("positions") or []:
+        key = (p.get("layer"), p.get("level"))
+        e = _ends(p)
+        if key in out and e is not None and p.get("status") in (NOT_MEASURED, MISSING):
+            mid = to_slab_frame(e, plane)[:, :2].mean(axis=0)
+            out[key].open_mids = np.vstack([out[key].open_mids, mid])
+    return out
+
+
+def _rot(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def _perp(d: np.ndarray) -> np.ndarray:
+    return np.array([-d[1], d[0]])
+
+
+def _fit_shift(pairs: list, gate: float) -> list:
+    """Candidate shifts across one direction. ``pairs`` holds, per set, the first capture's
+    offsets (found bars, open positions; moved by the rotation) and the second's. Returns
+    ``[(rms, n, tau)]``, one per distinct shift that contradicts neither capture, best first.
+
+    A shift contradicts a capture where it puts a found bar of the other inside the span of the
+    capture's own row (its found bars and open positions, widened by the gate) with neither a
+    found bar nor an open position of its own within the gate."""
+    cands = np.unique(np.round(np.concatenate([(o[None, :] - u[:, None]).ravel() for u, _, o, _ in pairs]), 1))
+    seen = []
+    for tau in cands:
+        if any(abs(tau - t2) < gate for _, _, t2 in seen):
+            continue
+        for _ in range(2):  # refine: the mean residual of the matched bars, twice
+            res = []
+            for u, _, o, _ in pairs:
+                for x in u + tau:
+                    j = np.argmin(np.abs(o - x))
+                    if abs(o[j] - x) < gate:
+                        res.append(o[j] - x)
+            if not res:
+                break
+            tau = tau + float(np.mean(res))
+        if not res or any(abs(tau - t2) < gate for _, _, t2 in seen):
+            continue
+        if _conflicts(pairs, tau, gate):
+            continue
+        res = np.asarray(res)
+        seen.append((float(np.sqrt(np.mean(res**2))), len(res), float(tau)))
+    # most matched bars first; among equal counts, the better fit
+    seen.sort(key=lambda x: (-x[1], x[0]))
+    return seen
+
+
+def _conflicts(pairs: list, tau: float, gate: float) -> int:
+    n = 0
+    for u, uo, o, oo in pairs:
+        for mine, mine_open, other in ((o, oo, u + tau), (u + tau, uo + tau, o)):
+            allx = np.concatenate([mine, mine_open])
+            if not len(allx):
+                continue
+            lo, hi = allx.min() - gate, allx.max() + gate
+            for x in other[(other > lo) & (other < hi)]:
+                if not np.any(np.abs(allx - x) < gate):
+                    n += 1
+    return n
+
+
+@dataclass
+class Registration:
+    """How capture ``b``'s plan frame sees capture ``a``'s: ``x_b = R x_a + t``."""
+
+    a: str
+    b: str
+    R: np.ndarray
+    t: np.ndarray
+    n_matched: int
+    rms_mm: float
+    margin: float  # the next-best candidate's RMS over this one's (inf: none overlapped)
+
+    def to_b(self, xy) -> np.ndarray:
+        return np.asarray(xy, float) @ self.R.T + self.t
+
+
+def register(ra: dict, rb: dict, gate_mm: float) -> tuple[Registration | None, str]:
+    """Register two captures' results from their bars; ``(registration, "")`` or ``(None,
+    why not)``. ``gate_mm``: a bar is matched to another within this (a quarter spacing)."""
+    sa, sb = plan_sets(ra), plan_sets(rb)
+    keys = [k for k in sa if k in sb]
+    if len(keys) < 2:
+        return None, "fewer than two sets of bars seen in both"
+    # the rotation: every set's direction turns by the same angle (mod a half turn)
+    ang = np.array(
+        [
+            math.atan2(sb[k].direction[1], sb[k].direction[0]) - math.atan2(sa[k].direction[1], sa[k].direction[0])
+            for k in keys
+        ]
+    )
+    z = np.exp(2j * ang).mean()
+    theta0 = 0.5 * math.atan2(z.imag, z.real)
+    spread = np.degrees(np.abs(np.angle(np.exp(2j * (ang - theta0))) / 2)).max()
+    if spread > MAX_ANGLE_SPREAD_DEG:
+        return None, f"the bars' directions turn by different angles ({spread:.1f}° apart)"
+    groups = _two_directions(sb, keys)
+    if groups is None:
+        return None, "the bars seen in both captures do not run in two directions"
+    # the part of the mesh each capture saw, per lattice (a lower bar shows at another place in
+    # the image than an upper bar right above it)
+    hull_a = {la: _hull({k: v for k, v in sa.items() if k[0] == la}) for la in {k[0] for k in sa}}
+    hull_b = {la: _hull({k: v for k, v in sb.items() if k[0] == la}) for la in {k[0] for k in sb}}
+    sw = [_irregularity([sa[k] for k in ks] + [sb[k] for k in ks]) for _, ks in groups]
+    hyps = []  # (rms per direction, n per direction, theta, R, t)
+    for theta in (theta0, theta0 + math.pi):
+        R = _rot(theta)
+        shortlists, normals = [], []
+        for d, ks in groups:
+            n = _perp(d)
+            pairs = [
+                ((sa[k].mids @ R.T) @ n, (sa[k].open_mids @ R.T) @ n, sb[k].mids @ n, sb[k].open_mids @ n) for k in ks
+            ]
+            cands = _fit_shift(pairs, gate_mm)
+            # the best fits of three or more bars, and the shifts that pair the most bars
+            keep = sorted((c for c in cands if c[1] >= MIN_MATCHED), key=lambda c: c[0])[:SHORTLIST] + cands[:3]
+            shortlists.append(list(dict.fromkeys(tau for _, _, tau in keep)))
+            normals.append(n)
+        N = np.array(normals)
+        if abs(np.linalg.det(N)) < 0.2:
+            return None, "the two directions are too close to parallel"
+        for t1 in shortlists[0]:
+            for t2 in shortlists[1]:
+                t = np.linalg.solve(N, np.array([t1, t2]))
+                fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate_mm)
+                if fit is not None:
+                    hyps.append((*fit, theta, R, t, (t1, t2)))
+    strong = [h for h in hyps if min(h[1]) >= MIN_MATCHED and max(h[0]) <= MAX_RMS_MM]
+    if not strong:
+        return None, f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
+    h1 = min(strong, key=lambda h: (float(np.hypot(*h[0])), -sum(h[1])))
+    lr = math.inf
+    for g in range(2):
+        # every placing that pairs this direction's bars otherwise (another shift, or turned) competes
+        rivals = [
+            h for h in hyps if h is not h1 and h[1][g] >= 2 and (h[2] != h1[2] or abs(h[5][g] - h1[5][g]) > gate_mm)
+        ]
+        lr = min(lr, _evidence_against(h1, rivals, sw, g))
+    if lr < LOG_ODDS:
+        return None, "the mesh is too regular to tell which bars are the same (two placings fit alike)"
+    rms, n, theta, R, t, _ = h1
+    reg = Registration(str(ra.get("capture")), str(rb.get("capture")), R, t, int(sum(n)), float(max(rms)), float(lr))
+    return reg, ""
+
+
+def _two_directions(sb: dict, keys: list) -> list | None:
+    """The sets grouped by direction (in the second capture's frame): ``[(direction, keys)]``,
+    exactly two groups, or None."""
+    groups: list = []
+    for k in keys:
+        d = sb[k].direction
+        for g in groups:
+            if abs(g[0] @ d) > math.cos(math.radians(10)):
+                g[1].append(k)
+                break
+        else:
+            groups.append((d, [k]))
+    return groups if len(groups) == 2 else None
+
+
+def _hull(sets: dict) -> np.ndarray:
+    """The convex hull (counter-clockwise) of every bar end of a capture in plan: the part of the
+    mesh it saw."""
+    import cv2
+
+    pts = np.vstack([s.segs.reshape(-1, 2) for s in sets.values()]).astype(np.float32)
+    if len(pts) < 3:
+        return None
+    h = cv2.convexHull(pts).reshape(-1, 2).astype(float)
+    area = 0.5 * np.sum(h[:, 0] * np.roll(h[:, 1], -1) - np.roll(h[:, 0], -1) * h[:, 1])
+    return h if area > 0 else h[::-1]
+
+
+def _inside(pts: np.ndarray, hull: np.ndarray) -> np.ndarray:
+    """Which points (N, 2) lie inside a counter-clockwise convex polygon."""
+    a, b = hull, np.roll(hull, -1, axis=0)
+    cross = (b[None, :, 0] - a[None, :, 0]) * (pts[:, None, 1] - a[None, :, 1]) - (b[None, :, 1] - a[None, :, 1]) * (
+        pts[:, None, 0] - a[None, :, 0]
+    )
+    return np.all(cross >= 0, axis=1)
+
+
+def _offset_at(seg: np.ndarray, s: float, d: np.ndarray, n: np.ndarray) -> float:
+    """The across offset (along ``n``) of the line through ``seg`` where it is at ``s`` along ``d``."""
+    p0, p1 = seg
+    ds = float((p1 - p0) @ d)
+    if abs(ds) < 1e-6:
+        return float(p0 @ n)
+    return float((p0 + (s - p0 @ d) / ds * (p1 - p0)) @ n)
+
+
+def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
+    """Residuals of one placing of capture a in capture b's frame: per direction, the RMS and the
+    count of bar pairs matched, the bars compared where their seen stretches overlap (a bar is
+    not straight: two captures see different stretches of it). None where the placing puts a
+    bar of either capture in the other's view with no bar (or open position) of its own there."""
+    rms, cnt = [], []
+    for d, ks in groups:
+        n = _perp(d)
+        res = []
+        for k in ks:
+            A = sa[k].segs @ R.T + t
+            B = sb[k].segs
+            open_b = sb[k].open_mids @ n
+            open_a = (sa[k].open_mids @ R.T + t) @ n
+            h_b, h_a = hull_b.get(k[0]), hull_a.get(k[0])
+            h_a = None if h_a is None else h_a @ R.T + t
+            for mine, other, hull, opens in ((A, B, h_b, open_b), (B, A, h_a, open_a)):
+                for seg in mine:
+                    # how much of this bar lies in the other capture's view
+                    samples = seg[0] + np.linspace(0, 1, 41)[:, None] * (seg[1] - seg[0])
+                    seen = 0.0 if hull is None else _inside(samples, hull).mean() * np.linalg.norm(seg[1] - seg[0])
+                    best = None
+                    lo, hi = sorted(seg @ d)
+                    for o in other:
+                        olo, ohi = sorted(o @ d)
+                        a0, a1 = max(lo, olo), min(hi, ohi)
+                        if a1 - a0 < MIN_COMMON_MM:
+                            continue
+                        sm = 0.5 * (a0 + a1)
+                        r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
+                        if best is None or abs(r) < abs(best):
+                            best = r
+                    if best is not None and abs(best) < gate:
+                        if mine is A:
+                            res.append(best)
+                        continue
+                    if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
+                        if _DEBUG:
+                            print(
+                                "    conflict",
+                                k,
+                                "mine is A" if mine is A else "mine is B",
+                                round(seen),
+                                best,
+                                len(res),
+                                seg.round(0).tolist(),
+                            )
+                        return None
+        rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)
+        cnt.append(len(res))
+    return rms, cnt
+
+
+def _irregularity(sets: list) -> float:
+    """How far the bars' spacings deviate from their set's median (mm, an RMS), over the sets
+    given: how far a pairing of each bar with its neighbour misfits. A gap of two spacings (a bar
+    not found) and a spacing off by more than a tenth of the spacing (a misplaced bar, a defect of
+    its own) are left out. 0 where fewer than three spacings are left."""
+    dev = []
+    for st in sets:
+        o = np.sort(st.mids @ _perp(st.direction))
+        d = np.diff(o)
+        if len(d) < 2:
+            continue
+        m = float(np.median(d))
+        d = d[(d > 0.5 * m) & (d < 1.5 * m)]
+        dv = d - np.median(d)
+        dev += list(dv[np.abs(dv) < 0.1 * m])
+    return float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= 3 else 0.0
+
+
+def _evidence_against(h1: tuple, rivals: list, sw: list, g: int) -> float:
+    """The smallest log-odds, from direction ``g``'s bar pairs, of placing ``h1`` over any rival
+    placing and over no overlap at all.
+
+    A placing pairs bars of the two captures. Pairs of the same bar differ by the measurement's
+    scatter ``sm`` (``h1``'s RMS, at least ``SIGMA_FLOOR_MM``); pairs of different bars by the
+    bars' irregular placing ``sw`` (:func:`_irregularity`, measured on the captures' own
+    spacings). Each pair a placing explains as one bar gains it ``log(sw/sm) - r²/2sm² +
+    r²/2sw²`` (r the RMS) over a chance alignment; a mesh placed as regularly as it is measured
+    (``sw ≈ sm``) gives no evidence either way. The captures not overlapping at all (no pair) is a
+    rival too: ``h1``'s own gain must clear the odds, so that a few bars aligned by chance, with
+    the true overlap too small to pair any, do not place the captures."""
+    sm = max(h1[0][g], SIGMA_FLOOR_MM)
+    w = max(sw[g], sm)
+
+    def gain(h) -> float:
+        r, n = h[0][g], h[1][g]
+        return n * (math.log(w / sm) - r**2 / (2 * sm**2) + r**2 / (2 * w**2)) if n else 0.0
+
+    g1 = gain(h1)
+    return min([g1] + [g1 - gain(h) for h in rivals])
+
+
+def _position_line(p: dict, plane: Plane) -> np.ndarray | None:
+    e = _ends(p)
+    if e is None:
+        return None
+    return to_slab_frame(e, plane)[:, :2]
+
+
+def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: float = 150.0) -> tuple[list, list]:
+    """Copies of a slab's result dicts in which every position "not measured" in one capture
+    that a registered other capture shows — a bar found there, or its place evidenced empty — is
+    judged by that capture; and the notes saying what was done. Results are never changed in
+    place; a position is judged only where both captures' views of it overlap along the bar by
+    ``min_overlap_mm`` (the length a position's verdict needs in one capture)."""
+    if len(results) < 2:
+        return list(results), []
+    out = [copy.deepcopy(r) for r in results]
+    notes = []
+    spacing = {}
+    for r in results:
+        for s in r.get("spacings") or []:
+            if s.get("design_spacing_mm"):
+                spacing[(s["layer"], s["level"])] = float(s["design_spacing_mm"])
+    if not spacing:
+        return out, notes
+    gate = gate_fraction * min(spacing.values())
+    regs = {}
+    for i, ra in enumerate(results):
+        for j, rb in enumerate(results):
+            if j <= i:
+                continue
+            reg, why = register(ra, rb, gate)
+            if reg is None:
+                continue
+            regs[(i, j)] = reg
+            notes.append(
+                f"Captures {reg.a} and {reg.b} overlap: placed on each other from their bars ({reg.n_matched} "
+                f"matched, {reg.rms_mm:.1f} mm RMS; odds over any other placing "
+                f"10^{min(reg.margin, 99.0) / math.log(10):.0f} : 1)."
+            )
+    _sizes_across(out, results, regs, gate, notes)
+    _spacings_across(out, results, regs, gate, notes)
+    for i, r in enumerate(out):
+        plane = _plane(r)
+        if plane is None:
+            continue
+        changed = False
+        for p in r.get("positions") or []:
+            if p.get("status") != NOT_MEASURED:
+                continue
+            line = _position_line(p, plane)
+            if line is None:
+                continue
+            for j, rb in enumerate(results):
+                if j == i:
+                    continue
+                reg = regs.get((i, j))
+                if reg is not None:
+                    xy = reg.to_b(line)
+                else:
+                    rev = regs.get((j, i))
+                    if rev is None:
+                        continue
+                    xy = (line - rev.t) @ rev.R  # inverse: x_a = R^T (x_b - t)
+                verdict = _judge_in(p, xy, rb, gate, min_overlap_mm)
+                if verdict is None:
+                    continue
+                status, bar_id, off = verdict
+                here = p.get("reason", "")
+                p["status"] = status
+                p["reason"] = (
+                    f"judged in capture {rb.get('capture')}: bar {bar_id} found there, {off:.1f} mm from this place"
+                    if status == PRESENT
+                    else f"judged in capture {rb.get('capture')}: its place seen empty there"
+                ) + f" (in this capture: {here})"
+                p["judged_in"] = str(rb.get("capture"))
+                changed = True
+                _recount(r, p, status)
+                notes.append(
+                    f"Capture {r.get('capture')}: the {p['layer']} {p['level']} bar position at "
+                    f"{float(p.get('offset_mm') or 0):.0f} mm, not judged there, is {status} in capture "
+                    f"{rb.get('capture')}."
+                )
+                break
+        if changed:
+            r.setdefault("extras", {})["judged_across"] = True
+    return out, notes
+
+
+def _sizes_across(out: list, results: list, regs: dict, gate: float, notes: list) -> None:
+    """Mark every bar a capture could not size (not hidden: that is excluded anyway) that a
+    registered capture shows and sized, with ``sized_in`` = "capture (bar id, size)": the
+    acceptance then checks its size there, once."""
+    for (i, j), reg in regs.items():
+        for ia, ib, inv in ((i, j, False), (j, i, True)):
+            sa, sb = plan_sets(results[ia]), plan_sets(results[ib])
+            bars_a = {b.get("bar_id"): b for b in out[ia].get("bars") or []}
+            bars_b = {b.get("bar_id"): b for b in results[ib].get("bars") or []}
+            for key, st in sa.items():
+                if key not in sb:
+                    continue
+                for k, bid in enumerate(st.bar_ids):
+                    rec = bars_a.get(bid)
+                    if rec is None or rec.get("diameter_status") in (None, MEASURED, HIDDEN) or rec.get("hidden"):
+                        continue
+                    seg = st.segs[k] @ reg.R.T + reg.t if not inv else (st.segs[k] - reg.t) @ reg.R
+                    other = _same_bar(seg, sb[key], gate)
+                    if other is None:
+                        continue
+                    ob = bars_b.get(other)
+                    if ob is None or ob.get("diameter_status") != MEASURED or ob.get("nominal_mm") is None:
+                        continue
+                    if rec.get("sized_in"):
+                        continue
+                    rec["sized_in"] = f"{results[ib].get('capture')} (bar {other}, Φ{float(ob['nominal_mm']):g})"
+                    notes.append(
+                        f"Capture {out[ia].get('capture')}: bar {bid}, not sized there, is sized in capture "
+                        f"{rec['sized_in']}."
+                    )
+
+
+def _spacings_across(out: list, results: list, regs: dict, gate: float, notes: list) -> None:
+    """Mark every spacing a later capture measured between the same two bars as an earlier
+    registered capture did with ``also_in`` = "capture (bars a-b)": a lot rule counts each
+    spacing of the slab once (in the earliest capture that measured it)."""
+    n = 0
+    for (i, j), reg in sorted(regs.items()):
+        sa, sb = plan_sets(results[i]), plan_sets(results[j])
+        measured_a = {
+            (s["layer"], s["level"], frozenset((s.get("bar_a"), s.get("bar_b")))): s
+            for s in results[i].get("spacings") or []
+            if s.get("status") == MEASURED
+        }
+        for key, st in sb.items():
+            if key not in sa:
+                continue
+            # each of b's bars of the set, as the bar of a it is
+            to_a = {}
+            for k, bid in enumerate(st.bar_ids):
+                seg = (st.segs[k] - reg.t) @ reg.R
+                same = _same_bar(seg, sa[key], gate)
+                if same is not None:
+                    to_a[bid] = same
+            for sp in out[j].get("spacings") or []:
+                if (sp.get("layer"), sp.get("level")) != key or sp.get("status") != MEASURED or sp.get("also_in"):
+                    continue
+                pair = (to_a.get(sp.get("bar_a")), to_a.get(sp.get("bar_b")))
+                if None in pair:
+                    continue
+                twin = measured_a.get((*key, frozenset(pair)))
+                if twin is not None:
+                    sp["also_in"] = f"{results[i].get('capture')} (bars {twin.get('bar_a')}-{twin.get('bar_b')})"
+                    n += 1
+    if n:
+        notes.append(f"{n} spacing(s) measured in two captures are counted once, in the first that measured them.")
+
+
+def _same_bar(seg: np.ndarray, sb: _Set, gate: float):
+    """The bar id of ``sb`` that is the bar along ``seg`` (within ``gate`` across where their seen
+    stretches overlap by ``MIN_COMMON_MM``), or None."""
+    d = sb.direction
+    n = _perp(d)
+    lo, hi = sorted(seg @ d)
+    best, best_r = None, gate
+    for k, o in enumerate(sb.segs):
+        olo, ohi = sorted(o @ d)
+        a0, a1 = max(lo, olo), min(hi, ohi)
+        if a1 - a0 < MIN_COMMON_MM:
+            continue
+        sm = 0.5 * (a0 + a1)
+        r = abs(_offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n))
+        if r < best_r:
+            best, best_r = sb.bar_ids[k], r
+    return best
+
+
+def _judge_in(p: dict, xy: np.ndarray, rb: dict, gate: float, min_overlap: float):
+    """``(status, bar id, offset)`` of the line ``xy`` (2, 2; in capture b's plan frame) in
+    capture b: a found bar of the same set within ``gate`` across and overlapping it by
+    ``min_overlap`` along, or an evidenced missing position there; else None."""
+    key = (p.get("layer"), p.get("level"))
+    sb = plan_sets(rb).get(key)
+    d = xy[1] - xy[0]
+    if np.linalg.norm(d) < 1e-6:
+        return None
+    d = d / np.linalg.norm(d)
+    n = _perp(d)
+    off = float(xy.mean(axis=0) @ n)
+    lo, hi = sorted((float(xy[0] @ d), float(xy[1] @ d)))
+    if sb is not None:
+        for k in range(len(sb.mids)):
+            across = float(sb.mids[k] @ n) - off
+            t = np.sort([(sb.mids[k] + s * sb.direction * (sb.hi[k] - sb.lo[k]) / 2) @ d for s in (-1, 1)])
+            overlap = min(hi, t[1]) - max(lo, t[0])
+            if abs(across) < gate and overlap >= min_overlap:
+                return PRESENT, sb.bar_ids[k], abs(across)
+    plane = _plane(rb)
+    for q in rb.get("positions") or []:
+        if q.get("status") != MISSING or (q.get("layer"), q.get("level")) != key:
+            continue
+        ql = _position_line(q, plane)
+        if ql is None:
+            continue
+        across = float(ql.mean(axis=0) @ n) - off
+        t = np.sort(ql @ d)
+        if abs(across) < gate and min(hi, t[1]) - max(lo, t[0]) >= min_overlap:
+            return MISSING, None, abs(across)
+    return None
+
+
+def _recount(r: dict, p: dict, status: str) -> None:
+    for c in r.get("counts") or []:
+        if (c.get("layer"), c.get("level")) != (p.get("layer"), p.get("level")):
+            continue
+        c["not_measured"] = max(0, int(c.get("not_measured") or 0) - 1)
+        c["expected"] = int(c.get("expected") or 0) + 1
+        if status == PRESENT:
+            c["found"] = int(c.get("found") or 0) + 1
+        else:
+            c["missing"] = int(c.get("missing") or 0) + 1
+        c["evidence"] = (str(c.get("evidence") or "") + f"; 1 judged in capture {p.get('judged_in')}").lstrip("; ")

@@ -1,0 +1,263 @@
+"""Judging a slab's captures together: registration from the bars and positions judged across
+captures (rebarlib/_across.py, docs/decisions/028-captures-of-one-slab-together.md)."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from rebarlib._across import register, resolve_across
+
+SPACING = 200.0
+
+
+def _bar(bar_id, layer, level, a, b, plane_h=500.0):
+    """A bar record with camera-frame ends for a camera looking straight down from ``plane_h``
+    (slab frame = camera x, y; height 30 mm)."""
+    z = plane_h - 30.0
+    return {
+        "bar_id": bar_id,
+        "layer": layer,
+        "level": level,
+        "start_x_mm": a[0],
+        "start_y_mm": a[1],
+        "start_z_mm": z,
+        "end_x_mm": b[0],
+        "end_y_mm": b[1],
+        "end_z_mm": z,
+    }
+
+
+def _capture(name, offsets_x, offsets_y, view, *, turn=0.0, shift=(0.0, 0.0), positions=()):
+    """A result dict of a capture seeing the mesh over ``view`` ((x0, x1), (y0, y1) in mesh
+    coordinates), its own frame turned by ``turn`` and shifted by ``shift`` from the mesh's. The
+    'bottom' bars run along x at offsets_y[layer], the 'top' bars along y at offsets_x[layer]."""
+    c, s = math.cos(turn), math.sin(turn)
+    R = np.array([[c, -s], [s, c]])
+
+    def cam(p):
+        q = R @ np.asarray(p, float) + np.asarray(shift)
+        # slab frame (a, b) of a plane with normal -z is (x, -y) in the camera: see plane_frame
+        return (q[0], -q[1])
+
+    (x0, x1), (y0, y1) = view
+    bars = []
+    for layer in ("lower", "upper"):
+        for y in offsets_y[layer]:
+            if y0 <= y <= y1:
+                bars.append(_bar(len(bars), layer, "bottom", cam((x0, y)), cam((x1, y))))
+        for x in offsets_x[layer]:
+            if x0 <= x <= x1:
+                bars.append(_bar(len(bars), layer, "top", cam((x, y0)), cam((x, y1))))
+    pos = []
+    for layer, level, off in positions:
+        if level == "bottom":
+            a, b = cam((x0, off)), cam((x1, off))
+        else:
+            a, b = cam((off, y0)), cam((off, y1))
+        pos.append(
+            {
+                "layer": layer,
+                "level": level,
+                "kind": "gap",
+                "offset_mm": off,
+                "status": "not measured",
+                "reason": "hidden under another bar along 400 mm",
+                "start_x_mm": a[0],
+                "start_y_mm": a[1],
+                "start_z_mm": 470.0,
+                "end_x_mm": b[0],
+                "end_y_mm": b[1],
+                "end_z_mm": 470.0,
+            }
+        )
+    counts = [
+        {"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0, "not_measured": 0}
+        for la in ("lower", "upper")
+        for lv in ("bottom", "top")
+    ]
+    for p in pos:
+        for c_ in counts:
+            if (c_["layer"], c_["level"]) == (p["layer"], p["level"]):
+                c_["not_measured"] += 1
+    spacings = [
+        {"layer": la, "level": lv, "design_spacing_mm": SPACING}
+        for la in ("lower", "upper")
+        for lv in ("bottom", "top")
+    ]
+    return {
+        "capture": name,
+        "measurements": {},
+        "formwork": {"normal": [0.0, 0.0, -1.0], "offset_mm": 500.0, "found": True},
+        "bars": bars,
+        "positions": pos,
+        "counts": counts,
+        "spacings": spacings,
+    }
+
+
+def _irregular(n, rng, jitter):
+    """Offsets of both lattices' bars of one direction: the design spacing, the upper bars 60 mm
+    aside, each bar off its place by a normal draw of ``jitter`` (mm)."""
+    base = np.arange(n) * SPACING - (n - 1) * SPACING / 2
+    return {"lower": base + rng.normal(0, jitter, n), "upper": base + 60.0 + rng.normal(0, jitter, n)}
+
+
+def test_two_overlapping_captures_are_registered_to_their_true_placing():
+    rng = np.random.default_rng(3)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), turn=0.4, shift=(35.0, -12.0))
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert reg is not None, why
+    # a point of the mesh in A's plan frame (the mesh's own here) lands where B sees it
+    c, s = math.cos(0.4), math.sin(0.4)
+    for p in ([0.0, 0.0], [150.0, -80.0]):
+        want = np.array([[c, -s], [s, c]]) @ np.array(p) + np.array([35.0, -12.0])
+        assert np.allclose(reg.to_b(np.array(p)), want, atol=0.5)
+
+
+def test_a_mesh_placed_as_regularly_as_it_is_measured_is_not_registered():
+    rng = np.random.default_rng(4)
+    xs, ys = _irregular(9, rng, 0.05), _irregular(9, rng, 0.05)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(20.0, 0.0))
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert reg is None
+    assert "too regular" in why or "no placing" in why
+
+
+def test_captures_that_do_not_overlap_are_not_registered():
+    rng = np.random.default_rng(5)
+    xs, ys = _irregular(15, rng, 4.0), _irregular(15, rng, 4.0)
+    a = _capture("A", xs, ys, ((-1400, -700), (-300, 250)))
+    b = _capture("B", xs, ys, ((600, 1400), (-250, 300)))
+    reg, _ = register(a, b, 0.25 * SPACING)
+    assert reg is None
+
+
+@pytest.mark.parametrize("present", [True, False])
+def test_a_hidden_position_is_judged_by_the_capture_that_shows_it(present):
+    rng = np.random.default_rng(6)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    hidden = ys["lower"][4]
+    view_a, view_b = ((-500, 300), (-450, 400)), ((-400, 420), (-350, 480))
+    a = _capture("A", xs, ys, view_a, positions=[("lower", "bottom", hidden)])
+    # A found no bar at the hidden place: drop its lower bottom bar there
+    a["bars"] = [
+        b_
+        for b_ in a["bars"]
+        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
+    ]
+    if present:
+        b = _capture("B", xs, ys, view_b, shift=(30.0, 0.0))
+    else:
+        b = _capture("B", xs, ys, view_b, shift=(30.0, 0.0))
+        b["bars"] = [
+            b_
+            for b_ in b["bars"]
+            if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
+        ]
+        miss = copy.deepcopy(_capture("B", xs, ys, view_b, shift=(30.0, 0.0), positions=[("lower", "bottom", hidden)]))
+        p = miss["positions"][0]
+        p["status"], p["reason"] = "missing", "seen empty along 400 mm"
+        b["positions"] = [p]
+    before = copy.deepcopy(a)
+    out, notes = resolve_across([a, b])
+    assert a == before  # the results given are not changed
+    pos = out[0]["positions"][0]
+    assert pos["status"] == ("present" if present else "missing")
+    assert pos["judged_in"] == "B"
+    count = next(c for c in out[0]["counts"] if (c["layer"], c["level"]) == ("lower", "bottom"))
+    assert count["not_measured"] == 0
+    assert count["missing"] == (0 if present else 1)
+    assert any("is present in capture B" in n or "is missing in capture B" in n for n in notes)
+
+
+def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
+    from rebarlib import evaluate
+    from rebarlib.data import paper_design
+
+    design = paper_design()
+    rng = np.random.default_rng(8)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
+    for r in (a, b):
+        for bar in r["bars"]:
+            dd = design.lattice(bar["layer"]).level(bar["level"]).diameter_mm
+            bar.update(
+                design_diameter_mm=dd,
+                nominal_mm=dd,
+                diameter_status="measured",
+                diameter_reason="",
+                visible_length_mm=600.0,
+                hidden=False,
+            )
+    # a lower bottom bar of A near the middle, which B shows too, could not be sized in A
+    k = next(
+        i
+        for i, bar in enumerate(a["bars"])
+        if (bar["layer"], bar["level"]) == ("lower", "bottom") and abs(bar["start_y_mm"]) < 120
+    )
+    a["bars"][k].update(
+        nominal_mm=None, diameter_status="not measured", diameter_reason="ambiguous between Φ12 and Φ14"
+    )
+    acc = evaluate([a, b], design)
+    cp = acc.checkpoints
+    row = cp[(cp["capture"] == "A") & (cp["what"] == f"bar {k}") & cp["item"].str.startswith("bar_size")].iloc[0]
+    assert row["status"] == "excluded"
+    assert row["reason"].startswith("sized in capture B")
+    assert acc.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] == "pass"
+    # alone, capture A leaves that item incomplete
+    alone = evaluate([a], design)
+    assert alone.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] not in ("pass", "fail")
+
+
+def _with_spacings(r):
+    """Add the measured spacings of every set (consecutive bars across) to a result dict."""
+    from rebarlib._across import plan_sets
+
+    r["spacings"] = []
+    for (la, lv), st in plan_sets(r).items():
+        n = np.array([-st.direction[1], st.direction[0]])
+        offs = st.mids @ n
+        order = np.argsort(offs)
+        for i, j in zip(order[:-1], order[1:]):
+            r["spacings"].append(
+                {
+                    "layer": la,
+                    "level": lv,
+                    "bar_a": st.bar_ids[i],
+                    "bar_b": st.bar_ids[j],
+                    "spacing_mm": float(offs[j] - offs[i]),
+                    "design_spacing_mm": SPACING,
+                    "status": "measured",
+                }
+            )
+    return r
+
+
+def test_a_spacing_two_captures_measured_counts_once():
+    from rebarlib import evaluate
+    from rebarlib.data import paper_design
+
+    rng = np.random.default_rng(9)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _with_spacings(_capture("A", xs, ys, ((-500, 300), (-450, 400))))
+    b = _with_spacings(_capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0)))
+    acc = evaluate([a, b], paper_design())
+    cp = acc.checkpoints
+    sp = cp[cp["item"] == "spacing_lower_bottom"]
+    # lower bottom bars: A sees y in (-450, 400), B in (-350, 480): the spacings between bars both
+    # see are B's duplicates
+    both = [y for y in ys["lower"] if -350 <= y <= 400]
+    dup = sp[(sp["capture"] == "B") & (sp["status"] == "excluded")]
+    assert len(dup) == len(both) - 1
+    assert dup["reason"].str.startswith("the same spacing as in capture A").all()
+    assert (sp[sp["capture"] == "A"]["status"] != "excluded").all()
+    alone = evaluate([b], paper_design()).checkpoints
+    assert (alone["status"] != "excluded").all()
