@@ -18,7 +18,20 @@ its true defect, and why the clean slabs left incomplete are (per cause). Render
 (``result_<capture>.json``), so ``--rejudge`` judges them again without inspecting (a change to
 the acceptance alone).
 
+Each slab's own as-built truth is judged too, as a perfect inspection of the same captures would
+be (``rebarlib.synth.result_from_truth``): the bars' placing jitter can put a spacing out of
+tolerance on a slab with no designed defect. Such a slab gets its own row ("clean design, out of
+tolerance as built"), and an item its truth fails is not a false fail.
+
+``--follow-advice`` acts as an inspector who reads the sheet: where a capture says a bar position
+lies hidden under a bar and how far to move the camera to see it, one more capture is taken as
+told (moved across those bars by 1.25 times the distance named, towards the slab's middle;
+height, tilt and heading kept; at most 4 captures a slab) and the slab is judged again. Both
+judgements are printed.
+
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
+    python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
+    python benchmarks/bench_verdicts.py --start 60 --slabs 40 --jobs 2 --cache /tmp/verdicts_held_out
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -60,15 +74,12 @@ def design_toml(k: int, defect: str | None) -> str:
     )
 
 
-def _render_slab(args) -> str:
-    """Render slab ``k`` into ``cache/slab_k`` (design.toml, captures, slab.json); returns the folder."""
-    k, cache = args
+def _slab_plan(k: int, folder: Path):
+    """Slab ``k``'s design, scene, defect and captures (name, pose, sensor, appearance, seed), as
+    the benchmark always draws them (``folder`` receives design.toml)."""
     import rebarlib as R
     from rebarlib import synth as S
 
-    folder = Path(cache) / f"slab_{k:03d}"
-    if (folder / "slab.json").exists():
-        return str(folder)
     rng = np.random.default_rng([2026, k])
     defect = None if k % 2 == 0 else DEFECTS[(k // 2) % len(DEFECTS)]
     folder.mkdir(parents=True, exist_ok=True)
@@ -96,33 +107,58 @@ def _render_slab(args) -> str:
     n_cap = int(rng.integers(2, 5)) if k % 5 == 0 else 2
     edge_view = k % 3 == 0
     targets = _targets(scene, defect, gap, n_cap, edge_view, rng)
-    caps = []
+    specs = []
     for j, target in enumerate(targets):
         h = float(rng.uniform(400, 700))
-        pose = S.CameraPose.looking_down(
-            h, tilt_deg=float(rng.uniform(0, 20)), yaw_deg=float(rng.uniform(0, 360)), target_mm=tuple(target)
-        )
+        tilt, yaw = float(rng.uniform(0, 20)), float(rng.uniform(0, 360))
         shadow = int(rng.random() < 0.25)
-        sensor = S.SensorModel(bars_without_depth=shadow)
-        app = S.Appearance(rust_fraction=float(rng.choice([0.0, 0.0, 0.3, 0.8])))
-        cap = S.render_capture(
-            scene,
-            pose,
-            sensor=sensor,
-            appearance=app,
-            rng=np.random.default_rng([2026, k, 2, j]),
-            name=f"C{j}_{int(h)}",
+        rust = float(rng.choice([0.0, 0.0, 0.3, 0.8]))
+        specs.append(
+            {
+                "name": f"C{j}_{int(h)}",
+                "h": h,
+                "tilt": tilt,
+                "yaw": yaw,
+                "target": tuple(target),
+                "shadow": shadow,
+                "rust": rust,
+                "seed": [2026, k, 2, j],
+            }
         )
-        R.save_capture(cap, folder / f"C{j}_{int(h)}", overwrite=True)
-        caps.append(f"C{j}_{int(h)}")
+    return design, scene, defect, edge_view, specs
+
+
+def _render_one(scene, spec: dict, folder: Path) -> str:
+    import rebarlib as R
+    from rebarlib import synth as S
+
+    pose = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"], target_mm=spec["target"])
+    cap = S.render_capture(
+        scene,
+        pose,
+        sensor=S.SensorModel(bars_without_depth=spec["shadow"]),
+        appearance=S.Appearance(rust_fraction=spec["rust"]),
+        rng=np.random.default_rng(spec["seed"]),
+        name=spec["name"],
+    )
+    R.save_capture(cap, folder / spec["name"], overwrite=True)
+    return spec["name"]
+
+
+def _render_slab(args) -> str:
+    """Render slab ``k`` into ``cache/slab_k`` (design.toml, captures, slab.json); returns the folder."""
+    k, cache = args
+    folder = Path(cache) / f"slab_{k:03d}"
+    if (folder / "slab.json").exists():
+        return str(folder)
+    _, scene, defect, edge_view, specs = _slab_plan(k, folder)
+    caps = [_render_one(scene, spec, folder) for spec in specs]
     meta = {
         "slab": k,
         "defect": defect,
         "captures": caps,
         "edge_view": edge_view,
-        "shadows": sum(
-            1 for c in caps if json.loads((folder / c / "truth.json").read_text())["sensor"].get("bars_without_depth")
-        ),
+        "shadows": sum(spec["shadow"] for spec in specs),
     }
     (folder / "slab.json").write_text(json.dumps(meta), encoding="utf-8")
     return str(folder)
@@ -205,45 +241,108 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     return [tuple(map(float, t)) for t in out[:n]]
 
 
-def _inspect_slab(folder: str, rejudge: bool = False) -> dict:
+def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False) -> dict:
+    """Inspect and judge one slab's captures; with ``follow``, when a capture says where to take
+    another one (a bar position hidden under a bar), take it as told and judge again (the first
+    judgement is kept under ``first_pass``)."""
     import rebarlib as R
 
     folder = Path(folder)
     meta = json.loads((folder / "slab.json").read_text())
-    out_file = folder / "verdict.json"
     design = R.load_design(folder / "design.toml")
     t = time.perf_counter()
-    results = []
-    for c in meta["captures"]:
-        saved = folder / f"result_{c}.json"
-        if rejudge and saved.exists():  # judge again what was inspected before
-            results.append(json.loads(saved.read_text()))
-            continue
-        res = R.inspect(R.load_capture(folder / c), design, rng=0)
-        saved.write_text(res.to_json(), encoding="utf-8")
-        results.append(res.to_dict())
+    results = [_result(folder, c, design, rejudge) for c in meta["captures"]]
+    rec = {**meta, **_judge(results, design)}
+    if follow:
+        added = _follow_advice(folder, meta, results, design, rejudge)
+        if added:
+            rec["first_pass"] = {k: rec[k] for k in ("verdict", "failed", "incomplete", "reasons")}
+            results += [_result(folder, c, design, rejudge) for c in added]
+            rec.update(_judge(results, design))
+            rec["followups"] = added
+    rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
+    rec["seconds"] = round(time.perf_counter() - t, 2)
+    (folder / ("verdict_follow.json" if follow else "verdict.json")).write_text(
+        json.dumps(rec, indent=1), encoding="utf-8"
+    )
+    return rec
+
+
+def _truth_failed(folder: Path, caps: list, design) -> list:
+    """The items the slab's own as-built truth fails, judged as a perfect inspection of the same
+    captures would be (``rebarlib.synth.result_from_truth``): the placing jitter can put a
+    spacing of a slab without a designed defect out of tolerance, and then rejecting it is right.
+    The truth holds no missing bar and no bar size other than the true ones, so only the length
+    items (cover, layer distance, spacing) and a wrong size can fail here."""
+    from rebarlib.synth import result_from_truth
+
+    return _judge([result_from_truth(folder / c, design, uncertainty_mm=0.0) for c in caps], design)["failed"]
+
+
+def _result(folder: Path, c: str, design, rejudge: bool) -> dict:
+    import rebarlib as R
+
+    saved = folder / f"result_{c}.json"
+    if rejudge and saved.exists():  # judge again what was inspected before
+        return json.loads(saved.read_text())
+    res = R.inspect(R.load_capture(folder / c), design, rng=0)
+    saved.write_text(res.to_json(), encoding="utf-8")
+    return res.to_dict()
+
+
+def _judge(results: list, design) -> dict:
+    import rebarlib as R
+
     acc = R.evaluate(results, design)
     items = acc.items
-    failed = sorted(
-        {str(i).split("_lower")[0].split("_upper")[0] for i, v in zip(items["item"], items["verdict"]) if v == "fail"}
-    )
-    incomplete = sorted(
-        {
-            str(i).split("_lower")[0].split("_upper")[0]
-            for i, v in zip(items["item"], items["verdict"])
-            if v not in ("pass", "fail")
-        }
-    )
-    rec = {
-        **meta,
+
+    def short(i):
+        return str(i).split("_lower")[0].split("_upper")[0]
+
+    return {
         "verdict": acc.verdict,
-        "failed": failed,
-        "incomplete": incomplete,
+        "failed": sorted({short(i) for i, v in zip(items["item"], items["verdict"]) if v == "fail"}),
+        "incomplete": sorted({short(i) for i, v in zip(items["item"], items["verdict"]) if v not in ("pass", "fail")}),
         "reasons": list(acc.reasons),
-        "seconds": round(time.perf_counter() - t, 2),
     }
-    out_file.write_text(json.dumps(rec, indent=1), encoding="utf-8")
-    return rec
+
+
+#: what a capture says when a bar position lies hidden under a bar: how far to move the camera
+ADVICE = re.compile(r"camera about (\d+) mm or more to either side across these bars")
+
+
+def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: bool) -> list:
+    """One more capture of the slab, as the first capture that asks for one says (moved across
+    the hidden position's bars by 1.25 times the distance it names, towards the slab's middle;
+    height, tilt and heading kept); at most 4 captures a slab. Returns the new capture's name."""
+    if len(meta["captures"]) >= 4:
+        return []
+    for j, (name, res) in enumerate(zip(meta["captures"], results)):
+        for p in res.get("positions") or []:
+            m = ADVICE.search(str(p.get("reason") or ""))
+            if p.get("status") != "not measured" or not m:
+                continue
+            _, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+            spec = specs[j]
+            cam = json.loads((folder / name / "truth.json").read_text())["camera"]
+            rot, centre = np.array(cam["rotation_world_to_camera"]), np.array(cam["centre_world_mm"])
+            ends = np.array([[p[f"{e}_{a}_mm"] for a in "xyz"] for e in ("start", "end")])
+            world = ends @ rot + centre  # camera to world: R^T c + C
+            d = world[1, :2] - world[0, :2]
+            across = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-9)
+            target = np.array(spec["target"])
+            if np.dot(target, across) > 0:  # towards the slab's middle
+                across = -across
+            new = dict(
+                spec,
+                name=f"F{j}_{int(spec['h'])}",
+                target=tuple(map(float, target + 1.25 * float(m.group(1)) * across)),
+                seed=[2026, meta["slab"], 3, j],
+            )
+            if not (folder / new["name"] / "truth.json").exists():
+                _render_one(scene, new, folder)
+            return [new["name"]]
+    return []
 
 
 def main(argv=None) -> int:
@@ -262,37 +361,64 @@ def main(argv=None) -> int:
         action="store_true",
         help="print the tables from the slabs already judged in --cache (no rendering)",
     )
+    ap.add_argument(
+        "--follow-advice",
+        action="store_true",
+        help="where a slab's captures ask for another capture (a position hidden under a bar), take it as "
+        "told and judge again; prints the first judgement's matrix too",
+    )
     args = ap.parse_args(argv)
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     ks = list(range(args.start, args.start + args.slabs))
     t0 = time.perf_counter()
+    name = "verdict_follow.json" if args.follow_advice else "verdict.json"
     if args.report_only:
-        recs = [json.loads(f.read_text()) for f in sorted(cache.glob("slab_*/verdict.json"))]
+        recs = [json.loads(f.read_text()) for f in sorted(cache.glob(f"slab_*/{name}"))]
     elif args.rejudge:
-        recs = [_inspect_slab(str(f.parent), rejudge=True) for f in sorted(cache.glob("slab_*/slab.json"))]
+        folders = [str(f.parent) for f in sorted(cache.glob("slab_*/slab.json"))]
+        with ProcessPoolExecutor(args.jobs) as ex:
+            recs = list(ex.map(_rejudge, [(f, args.follow_advice) for f in folders]))
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
-            recs = list(ex.map(_render_and_judge, [(k, str(cache)) for k in ks]))
+            recs = list(ex.map(_render_and_judge, [(k, str(cache), args.follow_advice) for k in ks]))
     print(
-        f"{len(recs)} slabs, {sum(len(r['captures']) for r in recs)} captures "
+        f"{len(recs)} slabs, {sum(len(r['captures']) + len(r.get('followups', [])) for r in recs)} captures "
         f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
         f"{sum(r['seconds'] for r in recs):.0f} s of it in all)\n"
     )
+    if args.follow_advice:
+        first = [{**r, **r.get("first_pass", {})} for r in recs]
+        n_follow = sum(1 for r in recs if r.get("followups"))
+        print("## The captures first taken\n")
+        report(first)
+        print(f"\n## After the captures the inspection asked for ({n_follow} slabs, one capture each)\n")
     report(recs)
     return 0
 
 
 def _render_and_judge(args) -> dict:
-    return _inspect_slab(_render_slab(args))
+    k, cache, follow = args
+    return _inspect_slab(_render_slab((k, cache)), follow=follow)
+
+
+def _rejudge(args) -> dict:
+    folder, follow = args
+    return _inspect_slab(folder, rejudge=True, follow=follow)
 
 
 def report(recs: list) -> None:
     verdicts = ("accepted", "incomplete", "rejected")
     print("| truth \\ verdict | " + " | ".join(verdicts) + " |")
     print("|---|" + "---:|" * len(verdicts))
-    for truth in ("clean", "defective"):
-        sel = [r for r in recs if (r["defect"] is None) == (truth == "clean")]
+    rows = (
+        ("clean", [r for r in recs if r["defect"] is None and not r.get("truth_failed")]),
+        ("clean design, out of tolerance as built", [r for r in recs if r["defect"] is None and r.get("truth_failed")]),
+        ("defective", [r for r in recs if r["defect"] is not None]),
+    )
+    for truth, sel in rows:
+        if not sel and truth.startswith("clean design"):
+            continue
         print(
             f"| {truth} ({len(sel)}) | " + " | ".join(str(sum(r["verdict"] == v for r in sel)) for v in verdicts) + " |"
         )
@@ -318,15 +444,26 @@ def report(recs: list) -> None:
     print("| item | false fails | missed | incomplete (clean slabs) |")
     print("|---|---:|---:|---:|")
     for it in items:
-        false = sum(it in r["failed"] and DEFECT_ITEM.get(r["defect"]) != it for r in recs)
+        false = sum(
+            it in r["failed"] and DEFECT_ITEM.get(r["defect"]) != it and it not in r.get("truth_failed", ())
+            for r in recs
+        )
         missed = sum(DEFECT_ITEM.get(r["defect"]) == it and it not in r["failed"] for r in recs)
-        inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None)
+        inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None and not r.get("truth_failed"))
         print(f"| {it} | {false} | {missed} | {inc} |")
     causes(recs)
+    as_built = [r for r in recs if set(r.get("truth_failed", ())) - {DEFECT_ITEM.get(r["defect"])}]
+    if as_built:
+        print("\nSlabs whose own truth fails an item (the placing jitter; judged as a perfect inspection would):")
+        for r in as_built:
+            print(
+                f"- slab {r['slab']:03d} ({r['defect'] or 'clean design'}): truth fails {r['truth_failed']}; "
+                f"verdict {r['verdict']}, failed {r['failed']}"
+            )
     print("\nSlabs not as expected:")
     for r in recs:
-        want = "accepted" if r["defect"] is None else "rejected"
-        extra = [f for f in r["failed"] if f != DEFECT_ITEM.get(r["defect"])]
+        want = "accepted" if r["defect"] is None and not r.get("truth_failed") else "rejected"
+        extra = [f for f in r["failed"] if f != DEFECT_ITEM.get(r["defect"]) and f not in r.get("truth_failed", ())]
         if r["verdict"] != want or extra:
             print(
                 f"- slab {r['slab']:03d} ({r['defect'] or 'clean'}, {len(r['captures'])} captures, edge view "
@@ -351,7 +488,7 @@ CAUSES = (
 def causes(recs: list) -> None:
     """Why the clean slabs left incomplete are: per cause, the slabs whose reasons name it (a slab
     can have several)."""
-    clean = [r for r in recs if r["defect"] is None and r["verdict"] == "incomplete"]
+    clean = [r for r in recs if r["defect"] is None and not r.get("truth_failed") and r["verdict"] == "incomplete"]
     if not clean:
         return
     print(f"\nWhy the {len(clean)} incomplete clean slabs are (a slab may count under several causes)\n")
