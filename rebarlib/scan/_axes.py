@@ -76,6 +76,7 @@ def _refit_seen_sides(q, split: float, bars: list, noise: dict, datum: Datum) ->
     plan, h = q[:, :2], q[:, 2]
     out = []
     fits = {}
+    proj = {}  # (layer, direction index) -> the layer's rows, their offsets sorted and the order
     for b in bars:
         sig_plan = noise[b.layer][0]
         r = b.radius_mm
@@ -87,7 +88,17 @@ def _refit_seen_sides(q, split: float, bars: list, noise: dict, datum: Datum) ->
         lo = -4 * datum.noise_mm if over_fw else b.centre_h_mm - reach
         lo = max(lo, split) if b.layer == "upper" else lo
         hi = min(b.centre_h_mm + reach, split) if b.layer == "lower" else b.centre_h_mm + reach
-        rows = np.flatnonzero((h > lo) & (h < hi))
+        key = (b.layer, b.group)
+        if key not in proj:
+            layer_rows = np.flatnonzero(h >= split) if b.layer == "upper" else np.flatnonzero(h < split)
+            off_all = _dot(plan[layer_rows], b.normal2d)
+            order = np.argsort(off_all, kind="stable")
+            proj[key] = (layer_rows, off_all[order], order)
+        layer_rows, off_sorted, order = proj[key]
+        drift = abs(b.slope) * float(max(abs(b.t0_mm), abs(b.t1_mm))) + 1.0
+        k0, k1 = np.searchsorted(off_sorted, [b.offset_mm - half - drift, b.offset_mm + half + drift])
+        rows = layer_rows[np.sort(order[k0:k1])]
+        rows = rows[(h[rows] > lo) & (h[rows] < hi)]
         t = _dot(plan[rows], b.direction)
         resid = _dot(plan[rows], b.normal2d) - (b.offset_mm + b.slope * t)
         sel = (np.abs(resid) < half) & (t >= b.t0_mm) & (t <= b.t1_mm)

@@ -122,7 +122,8 @@ def seen_sides_centre(
     if formwork_sd_mm:
         log_fw = -0.5 * (h / formwork_sd_mm) ** 2 - math.log(formwork_sd_mm * math.sqrt(2 * math.pi) * 2 * half_mm)
     b2 = blur_mm**2
-    for _ in range(iters):
+    index = np.flatnonzero(keep)
+    for it in range(iters):
         # each direction's streak: covariance of its visible arc + the range noise along u + blur
         caa = cov_arc[:, 0, 0] + sig * sig * su * su + b2
         chh = cov_arc[:, 1, 1] + sig * sig * cu * cu + b2
@@ -150,6 +151,15 @@ def seen_sides_centre(
         if tot < 20:
             return None
         weights = rj / tot
+        if it >= 4 and np.any(weights < 1e-4):
+            # a direction that holds no points after a few steps gains none later: drop it (cost)
+            live = weights >= 1e-4
+            index, phi, m_arc, cov_arc = index[live], phi[live], m_arc[live], cov_arc[live]
+            su, cu, var_uu_arc = su[live], cu[live], var_uu_arc[live]
+            paa, phh, pah = paa[live], phh[live], pah[live]
+            rj, rb, resp = rj[live], rb[:, live], np.hstack([rb[:, live], resp[:, len(live) :]])
+            tot = float(rj.sum())
+            weights = rj / tot
         share_bg = min(max(float(resp[:, len(phi)].sum()) / n, 1e-4), 0.5)
         if formwork_sd_mm:
             share_fw = min(max(float(resp[:, len(phi) + 1].sum()) / n, 1e-4), 0.95)
@@ -173,5 +183,5 @@ def seen_sides_centre(
     if not abs(c[0]) < half_mm:
         return None
     full = np.zeros(len(keep))
-    full[keep] = weights
+    full[index] = weights
     return c, sig, full
