@@ -214,7 +214,7 @@ def inspect(
     mask_source: str | None = None,
     register: bool = True,
     edge_trim_px=None,
-    rng=None,
+    rng=0,
     calibration=None,
 ) -> InspectionResult:
     """Measure cover, layer distance, top of the upper lattice, every bar and every spacing.
@@ -241,7 +241,8 @@ def inspect(
         ``segmentation.depth_overreach_px``), the geometry then fitted again on the trimmed
         depth; else 0. The number used is in ``result.extras["edge_trim_px"]``, with a note.
         The paper's method takes the depth as it comes.
-    rng : seed or Generator for the random parts (RANSAC, sampling)
+    rng : seed or Generator for the random parts (RANSAC, sampling); the default seed 0 (as
+        ``rebar inspect --seed``) gives the same result in every run; None draws a fresh seed
     calibration : a ``rebarlib.calibration.Calibration`` or the path of a calibration file
         (``rebar calibrate``): its intrinsics and depth correction are applied to the capture
         first, and its uncertainties replace the device profile's in the budget. Either way the
