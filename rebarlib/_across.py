@@ -429,7 +429,7 @@ def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: f
                 f"matched, {reg.rms_mm:.1f} mm RMS; odds over any other placing "
                 f"10^{min(reg.margin, 99.0) / math.log(10):.0f} : 1)."
             )
-    _sizes_across(out, results, regs, gate, notes)
+    _sizes_across(out, results, regs, gate)
     _spacings_across(out, results, regs, gate, notes)
     for i, r in enumerate(out):
         plane = _plane(r)
@@ -478,7 +478,34 @@ def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: f
     return out, notes
 
 
-def _sizes_across(out: list, results: list, regs: dict, gate: float, notes: list) -> None:
+def spans_missing(r: dict) -> dict:
+    """The spacings of a result that span a bar position evidenced missing in the same capture:
+    ``{(layer, level, bar_a, bar_b): offset of the missing position (mm)}``. Such a gap is the
+    missing bar's doing, and is judged under the bar count."""
+    plane = _plane(r)
+    if plane is None:
+        return {}
+    sets = plan_sets(r)
+    out = {}
+    for p in r.get("positions") or []:
+        key = (p.get("layer"), p.get("level"))
+        e = _ends(p)
+        if p.get("status") != MISSING or key not in sets or e is None:
+            continue
+        st = sets[key]
+        n = _perp(st.direction)
+        at = float(to_slab_frame(e, plane)[:, :2].mean(axis=0) @ n)
+        offs = dict(zip(st.bar_ids, st.mids @ n))
+        for sp in r.get("spacings") or []:
+            if (sp.get("layer"), sp.get("level")) != key:
+                continue
+            a, b = offs.get(sp.get("bar_a")), offs.get(sp.get("bar_b"))
+            if a is not None and b is not None and min(a, b) < at < max(a, b):
+                out[(*key, sp.get("bar_a"), sp.get("bar_b"))] = float(p.get("offset_mm") or at)
+    return out
+
+
+def _sizes_across(out: list, results: list, regs: dict, gate: float) -> None:
     """Mark every bar a capture could not size (not hidden: that is excluded anyway) that a
     registered capture shows and sized, with ``sized_in`` = "capture (bar id, size)": the
     acceptance then checks its size there, once."""
@@ -503,11 +530,8 @@ def _sizes_across(out: list, results: list, regs: dict, gate: float, notes: list
                         continue
                     if rec.get("sized_in"):
                         continue
+                    # (the checkpoint's reason names it; the sheet's notes count them)
                     rec["sized_in"] = f"{results[ib].get('capture')} (bar {other}, Φ{float(ob['nominal_mm']):g})"
-                    notes.append(
-                        f"Capture {out[ia].get('capture')}: bar {bid}, not sized there, is sized in capture "
-                        f"{rec['sized_in']}."
-                    )
 
 
 def _spacings_across(out: list, results: list, regs: dict, gate: float, notes: list) -> None:

@@ -48,6 +48,8 @@ OUTSIDE, NOT_IN_VIEW = "outside the mesh", "not in view"
 SIZED_ELSEWHERE = "sized in capture"
 #: a spacing checkpoint left to an earlier capture of the slab that measured the same spacing
 SAME_SPACING = "the same spacing as in capture"
+#: a spacing checkpoint whose gap holds a bar position evidenced missing (judged by the count)
+SPANS_MISSING = "the gap of the missing bar"
 EXTRA, NOT_EXTRA = "extra", "not counted"
 
 # A checkpoint: one measured value against its tolerance (acceptance; NOT_MEASURED as above).

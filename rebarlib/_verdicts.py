@@ -22,6 +22,7 @@ from ._status import (
     NOT_IN_VIEW,
     SAME_SPACING,
     SIZED_ELSEWHERE,
+    SPANS_MISSING,
     NOT_MEASURED,
     PASS,
     REJECTED,
@@ -200,8 +201,8 @@ def _bar_verdicts(bar_rows: list, cp: pd.DataFrame) -> pd.DataFrame:
         else:
             continue
         status = rec.status
-        if status == EXCLUDED and str(rec.reason).startswith(SAME_SPACING):
-            continue  # judged in another capture of the slab, between the same two bars
+        if status == EXCLUDED and str(rec.reason).startswith((SAME_SPACING, SPANS_MISSING)):
+            continue  # judged elsewhere: in another capture, or as the missing bar it spans
         if status == EXCLUDED and str(rec.reason).startswith((NOT_IN_VIEW, SIZED_ELSEWHERE)):
             status = NOT_IN_VIEW  # its size is checked in another capture
         for b in ids:

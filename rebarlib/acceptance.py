@@ -28,6 +28,7 @@ from ._status import (
     NOT_MEASURED,
     SAME_SPACING,
     SIZED_ELSEWHERE,
+    SPANS_MISSING,
     WITHIN,
 )
 
@@ -436,9 +437,27 @@ def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> Non
             _num(m.get("uncertainty_mm")),
             reason="" if ok else (m.get("reason") or "not in the result"),
         )
+    from ._across import spans_missing
+
+    gaps = spans_missing(r)
     for la, lv, item, dv, rec in _group_records(_table(r, "spacings"), "spacing", design):
         v = _num(rec.get("spacing_mm"))
         ok = rec.get("status", MEASURED) == MEASURED and v is not None
+        at = gaps.get((la, lv, rec.get("bar_a"), rec.get("bar_b")))
+        if ok and at is not None:
+            # the gap of a bar evidenced missing: that defect is the bar count's, counted there once
+            sheet.add(
+                item,
+                cap,
+                la,
+                lv,
+                f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
+                _num(rec.get("design_spacing_mm")) or dv,
+                None,
+                status=EXCLUDED,
+                reason=f"{SPANS_MISSING} at {at:.0f} mm ({v:.1f} mm): judged under the bar count",
+            )
+            continue
         if ok and isinstance(rec.get("also_in"), str):
             # the same two bars' spacing, measured in an earlier capture of the slab placed on
             # this one: a lot counts it once (docs/decisions/028-captures-of-one-slab-together.md)
@@ -579,7 +598,7 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     excluded = cp[cp["status"] == EXCLUDED]
     n_view = int(excluded["reason"].astype(str).str.startswith(NOT_IN_VIEW).sum())
     n_else = int(excluded["reason"].astype(str).str.startswith(SIZED_ELSEWHERE).sum())
-    n_same = int(excluded["reason"].astype(str).str.startswith(SAME_SPACING).sum())
+    n_same = int(excluded["reason"].astype(str).str.startswith((SAME_SPACING, SPANS_MISSING)).sum())
     n_hidden = len(excluded) - n_view - n_else - n_same
     if n_hidden:
         notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")

@@ -261,3 +261,26 @@ def test_a_spacing_two_captures_measured_counts_once():
     assert (sp[sp["capture"] == "A"]["status"] != "excluded").all()
     alone = evaluate([b], paper_design()).checkpoints
     assert (alone["status"] != "excluded").all()
+
+
+def test_the_gap_of_a_missing_bar_is_judged_under_the_count_not_the_spacing():
+    from rebarlib import evaluate
+    from rebarlib.data import paper_design
+
+    rng = np.random.default_rng(10)
+    xs, ys = _irregular(9, rng, 2.0), _irregular(9, rng, 2.0)
+    gone = ys["lower"][4]
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)), positions=[("lower", "bottom", gone)])
+    a["bars"] = [
+        b_
+        for b_ in a["bars"]
+        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - gone) < 1e-6)
+    ]
+    a["positions"][0].update(status="missing", reason="empty: the support is seen along 700 mm")
+    a = _with_spacings(a)
+    acc = evaluate([a], paper_design())
+    cp = acc.checkpoints
+    sp = cp[cp["item"] == "spacing_lower_bottom"]
+    gap = sp[sp["status"] == "excluded"]
+    assert len(gap) == 1 and gap["reason"].iloc[0].startswith("the gap of the missing bar")
+    assert (sp[sp["status"] != "excluded"]["status"] == "within").all()
