@@ -444,35 +444,16 @@ def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> Non
         v = _num(rec.get("spacing_mm"))
         ok = rec.get("status", MEASURED) == MEASURED and v is not None
         at = gaps.get((la, lv, rec.get("bar_a"), rec.get("bar_b")))
+        excluded = None
         if ok and at is not None:
             # the gap of a bar evidenced missing: that defect is the bar count's, counted there once
-            sheet.add(
-                item,
-                cap,
-                la,
-                lv,
-                f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
-                _num(rec.get("design_spacing_mm")) or dv,
-                None,
-                status=EXCLUDED,
-                reason=f"{SPANS_MISSING} at {at:.0f} mm ({v:.1f} mm): judged under the bar count",
-            )
-            continue
-        if ok and isinstance(rec.get("also_in"), str):
+            excluded = f"{SPANS_MISSING} at {at:.0f} mm ({v:.1f} mm): judged under the bar count"
+        elif ok and isinstance(rec.get("also_in"), str):
             # the same two bars' spacing, measured in an earlier capture of the slab placed on
             # this one: a lot counts it once (docs/decisions/028-captures-of-one-slab-together.md)
-            sheet.add(
-                item,
-                cap,
-                la,
-                lv,
-                f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
-                _num(rec.get("design_spacing_mm")) or dv,
-                None,
-                status=EXCLUDED,
-                reason=f"{SAME_SPACING} {rec['also_in']}, counted there",
-            )
-            continue
+            excluded = f"{SAME_SPACING} {rec['also_in']}, counted there"
+        if excluded is not None:
+            v, ok = None, False
         sheet.add(
             item,
             cap,
@@ -481,8 +462,9 @@ def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> Non
             f"bars {rec.get('bar_a')}-{rec.get('bar_b')}",
             _num(rec.get("design_spacing_mm")) or dv,
             v if ok else None,
-            _num(rec.get("uncertainty_mm")),
-            reason="" if ok else (rec.get("reason") or "spacing not measured"),
+            None if excluded else _num(rec.get("uncertainty_mm")),
+            status=EXCLUDED if excluded else None,
+            reason=excluded or ("" if ok else (rec.get("reason") or "spacing not measured")),
         )
 
 
