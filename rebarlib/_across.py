@@ -10,10 +10,11 @@ agree), up to a half turn. Each translation component comes from matching the ba
 across one direction; a mesh is periodic, so a shift by whole spacings fits almost as well as
 the right one — the bars' own irregular placing (hand-tied bars lie millimetres off their
 nominal places, each differently) is what tells them apart. A registration is accepted only
-when one shift fits every overlapping bar to within the measurement's scatter *and* every other
-shift (by whole spacings, or the half turn) fits clearly worse; a mesh too regular to tell is
-left unregistered and its open positions stay "not measured". A wrong registration would turn
-a hidden missing bar into a found one, so the test errs on refusing.
+when one placing pairs enough bars of both directions within the measurement's scatter,
+contradicts neither capture's view, and is 1000 times more likely than every rival (another
+shift, the half turn, no overlap at all); a mesh too regular to tell is left unregistered and
+its open positions stay "not measured". A wrong registration would turn a hidden missing bar
+into a present one, so the test errs on refusing.
 """
 
 from __future__ import annotations
@@ -29,10 +30,9 @@ from .geometry.plane import Plane, to_slab_frame
 
 #: a registration needs at least this many bars matched across each of the two directions
 MIN_MATCHED = 3
-#: the bars' offsets are taken as measured no better than this (mm) when a rival shift is
-#: tested against their scatter, however tightly the best shift fits
+#: the bars' offsets are taken as measured no better than this (mm) when the odds of a placing
+#: are weighed, however tightly it fits
 SIGMA_FLOOR_MM = 0.3
-_DEBUG = False
 #: shifts kept per direction before the joint test of both
 SHORTLIST = 6
 #: two bars are compared where their seen stretches overlap by at least this (mm)
@@ -333,16 +333,6 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
                             res.append(best)
                         continue
                     if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
-                        if _DEBUG:
-                            print(
-                                "    conflict",
-                                k,
-                                "mine is A" if mine is A else "mine is B",
-                                round(seen),
-                                best,
-                                len(res),
-                                seg.round(0).tolist(),
-                            )
                         return None
         rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)
         cnt.append(len(res))
