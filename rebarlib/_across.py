@@ -352,6 +352,8 @@ def _irregularity(sets: list) -> float:
             continue
         m = float(np.median(d))
         d = d[(d > 0.5 * m) & (d < 1.5 * m)]
+        if not len(d):
+            continue
         dv = d - np.median(d)
         dev += list(dv[np.abs(dv) < 0.1 * m])
     return float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= 3 else 0.0
