@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._counts import CountParams
 from ._status import HIDDEN, MEASURED, MISSING, NOT_MEASURED, PRESENT
 from .geometry.plane import Plane, to_slab_frame
 
@@ -37,9 +38,9 @@ SIGMA_FLOOR_MM = 0.3
 SHORTLIST = 6
 #: two bars are compared where their seen stretches overlap by at least this (mm)
 MIN_COMMON_MM = 50.0
-#: a bar with at least this much (mm) in the other capture's view must be matched there (the
-#: length a bar position's verdict needs in one capture)
-MIN_CONFLICT_MM = 150.0
+#: a bar with at least this much (mm) in the other capture's view must be matched there: the
+#: length a bar position's verdict needs in one capture
+MIN_CONFLICT_MM = CountParams.min_evidence_mm
 #: a registration needs odds of at least e^LOG_ODDS (1000 : 1) over every other shift
 LOG_ODDS = math.log(1000.0)
 #: the matched bars' RMS misfit may not exceed this (mm): a bar measured to a millimetre
@@ -53,8 +54,6 @@ class _Set:
     key: tuple  # (layer, level)
     direction: np.ndarray  # plan unit direction (2,), sign fixed
     mids: np.ndarray  # (N, 2) mid points in plan
-    lo: np.ndarray  # (N,) extent along the direction
-    hi: np.ndarray
     bar_ids: list
     segs: np.ndarray  # (N, 2, 2) the bars' ends in plan
     open_mids: np.ndarray  # (M, 2) mid points of the positions not found (not measured, missing)
@@ -96,10 +95,8 @@ def plan_sets(r: dict) -> dict:
             dirs.append(d if d @ d0 >= 0 else -d)
         d = np.sum([x / max(np.linalg.norm(x), 1e-9) for x in dirs], axis=0)
         d /= max(np.linalg.norm(d), 1e-9)
-        mids = np.array([p.mean(axis=0) for p, _ in items])
-        t = np.array([[p[0] @ d, p[1] @ d] for p, _ in items])
         segs = np.array([p for p, _ in items])
-        out[key] = _Set(key, d, mids, t.min(axis=1), t.max(axis=1), [i for _, i in items], segs, np.zeros((0, 2)))
+        out[key] = _Set(key, d, segs.mean(axis=1), [i for _, i in items], segs, np.zeros((0, 2)))
     for p in r.get("positions") or []:
         key = (p.get("layer"), p.get("level"))
         e = _ends(p)
@@ -176,7 +173,7 @@ class Registration:
     t: np.ndarray
     n_matched: int
     rms_mm: float
-    margin: float  # the next-best candidate's RMS over this one's (inf: none overlapped)
+    log_odds: float  # over the likeliest rival placing (no overlap included)
 
     def to_b(self, xy) -> np.ndarray:
         return np.asarray(xy, float) @ self.R.T + self.t
@@ -185,7 +182,11 @@ class Registration:
 def register(ra: dict, rb: dict, gate_mm: float) -> tuple[Registration | None, str]:
     """Register two captures' results from their bars; ``(registration, "")`` or ``(None,
     why not)``. ``gate_mm``: a bar is matched to another within this (a quarter spacing)."""
-    sa, sb = plan_sets(ra), plan_sets(rb)
+    return _register(plan_sets(ra), plan_sets(rb), gate_mm, str(ra.get("capture")), str(rb.get("capture")))
+
+
+def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> tuple[Registration | None, str]:
+    """:func:`register` on the captures' plan sets (:func:`plan_sets`)."""
     keys = [k for k in sa if k in sb]
     if len(keys) < 2:
         return None, "fewer than two sets of bars seen in both"
@@ -246,7 +247,7 @@ def register(ra: dict, rb: dict, gate_mm: float) -> tuple[Registration | None, s
     if lr < LOG_ODDS:
         return None, "the mesh is too regular to tell which bars are the same (two placings fit alike)"
     rms, n, theta, R, t, _ = h1
-    reg = Registration(str(ra.get("capture")), str(rb.get("capture")), R, t, int(sum(n)), float(max(rms)), float(lr))
+    reg = Registration(name_a, name_b, R, t, int(sum(n)), float(max(rms)), float(lr))
     return reg, ""
 
 
@@ -389,7 +390,9 @@ def _position_line(p: dict, plane: Plane) -> np.ndarray | None:
     return to_slab_frame(e, plane)[:, :2]
 
 
-def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: float = 150.0) -> tuple[list, list]:
+def resolve_across(
+    results: list, gate_fraction: float = 0.25, min_overlap_mm: float = CountParams.min_evidence_mm
+) -> tuple[list, list]:
     """Copies of a slab's result dicts in which every position "not measured" in one capture
     that a registered other capture shows — a bar found there, or its place evidenced empty — is
     judged by that capture; and the notes saying what was done. Results are never changed in
@@ -407,22 +410,23 @@ def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: f
     if not spacing:
         return out, notes
     gate = gate_fraction * min(spacing.values())
+    sets = [plan_sets(r) for r in results]
     regs = {}
     for i, ra in enumerate(results):
         for j, rb in enumerate(results):
             if j <= i:
                 continue
-            reg, why = register(ra, rb, gate)
+            reg, _ = _register(sets[i], sets[j], gate, str(ra.get("capture")), str(rb.get("capture")))
             if reg is None:
                 continue
             regs[(i, j)] = reg
             notes.append(
                 f"Captures {reg.a} and {reg.b} overlap: placed on each other from their bars ({reg.n_matched} "
                 f"matched, {reg.rms_mm:.1f} mm RMS; odds over any other placing "
-                f"10^{min(reg.margin, 99.0) / math.log(10):.0f} : 1)."
+                f"10^{min(reg.log_odds, 99.0) / math.log(10):.0f} : 1)."
             )
-    _sizes_across(out, results, regs, gate)
-    _spacings_across(out, results, regs, gate, notes)
+    _sizes_across(out, results, sets, regs, gate)
+    _spacings_across(out, results, sets, regs, gate, notes)
     for i, r in enumerate(out):
         plane = _plane(r)
         if plane is None:
@@ -445,7 +449,7 @@ def resolve_across(results: list, gate_fraction: float = 0.25, min_overlap_mm: f
                     if rev is None:
                         continue
                     xy = (line - rev.t) @ rev.R  # inverse: x_a = R^T (x_b - t)
-                verdict = _judge_in(p, xy, rb, gate, min_overlap_mm)
+                verdict = _judge_in(p, xy, sets[j].get((p.get("layer"), p.get("level"))), rb, gate, min_overlap_mm)
                 if verdict is None:
                     continue
                 status, bar_id, off = verdict
@@ -497,13 +501,13 @@ def spans_missing(r: dict) -> dict:
     return out
 
 
-def _sizes_across(out: list, results: list, regs: dict, gate: float) -> None:
+def _sizes_across(out: list, results: list, sets: list, regs: dict, gate: float) -> None:
     """Mark every bar a capture could not size (not hidden: that is excluded anyway) that a
     registered capture shows and sized, with ``sized_in`` = "capture (bar id, size)": the
     acceptance then checks its size there, once."""
     for (i, j), reg in regs.items():
         for ia, ib, inv in ((i, j, False), (j, i, True)):
-            sa, sb = plan_sets(results[ia]), plan_sets(results[ib])
+            sa, sb = sets[ia], sets[ib]
             bars_a = {b.get("bar_id"): b for b in out[ia].get("bars") or []}
             bars_b = {b.get("bar_id"): b for b in results[ib].get("bars") or []}
             for key, st in sa.items():
@@ -526,13 +530,13 @@ def _sizes_across(out: list, results: list, regs: dict, gate: float) -> None:
                     rec["sized_in"] = f"{results[ib].get('capture')} (bar {other}, Φ{float(ob['nominal_mm']):g})"
 
 
-def _spacings_across(out: list, results: list, regs: dict, gate: float, notes: list) -> None:
+def _spacings_across(out: list, results: list, sets: list, regs: dict, gate: float, notes: list) -> None:
     """Mark every spacing a later capture measured between the same two bars as an earlier
     registered capture did with ``also_in`` = "capture (bars a-b)": a lot rule counts each
     spacing of the slab once (in the earliest capture that measured it)."""
     n = 0
     for (i, j), reg in sorted(regs.items()):
-        sa, sb = plan_sets(results[i]), plan_sets(results[j])
+        sa, sb = sets[i], sets[j]
         measured_a = {
             (s["layer"], s["level"], frozenset((s.get("bar_a"), s.get("bar_b")))): s
             for s in results[i].get("spacings") or []
@@ -581,12 +585,12 @@ def _same_bar(seg: np.ndarray, sb: _Set, gate: float):
     return best
 
 
-def _judge_in(p: dict, xy: np.ndarray, rb: dict, gate: float, min_overlap: float):
+def _judge_in(p: dict, xy: np.ndarray, sb: _Set | None, rb: dict, gate: float, min_overlap: float):
     """``(status, bar id, offset)`` of the line ``xy`` (2, 2; in capture b's plan frame) in
-    capture b: a found bar of the same set within ``gate`` across and overlapping it by
-    ``min_overlap`` along, or an evidenced missing position there; else None."""
+    capture b (``sb`` its set of the position's layer and level): a found bar within ``gate``
+    across and overlapping it by ``min_overlap`` along, or an evidenced missing position there;
+    else None."""
     key = (p.get("layer"), p.get("level"))
-    sb = plan_sets(rb).get(key)
     d = xy[1] - xy[0]
     if np.linalg.norm(d) < 1e-6:
         return None
@@ -597,7 +601,7 @@ def _judge_in(p: dict, xy: np.ndarray, rb: dict, gate: float, min_overlap: float
     if sb is not None:
         for k in range(len(sb.mids)):
             across = float(sb.mids[k] @ n) - off
-            t = np.sort([(sb.mids[k] + s * sb.direction * (sb.hi[k] - sb.lo[k]) / 2) @ d for s in (-1, 1)])
+            t = np.sort(sb.segs[k] @ d)
             overlap = min(hi, t[1]) - max(lo, t[0])
             if abs(across) < gate and overlap >= min_overlap:
                 return PRESENT, sb.bar_ids[k], abs(across)

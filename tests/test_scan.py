@@ -106,19 +106,25 @@ def test_low_bar_offset_over_the_formwork_without_a_height_cut():
     assert est is not None and abs(est - own) <= 0.6
 
 
-@pytest.mark.slow
-def test_spacing_at_sigma_15_with_dense_sampling(design):
+def _dense_sigma_15(design, seed: int) -> dict:
+    """The scan benchmark's dense case at sigma 15 mm (three stations, 0.06 deg steps, about
+    540 k points), inspected and scored against its truth."""
     from rebarlib.synth_scan import ring_stations
 
-    # the benchmark's dense case (three stations, 0.06 deg steps, 540 k points): the lower
-    # lattice's bottom bars were placed up to 6.5 mm off by a height floor, the spacing 5.8 mm
     pts, truth, _ = synth_scan(
         design,
         stations=ring_stations(3),
         scanner=ScannerModel(range_sigma_mm=15.0, step_az_deg=0.06, step_el_deg=0.06),
-        rng=0,
+        rng=seed,
     )
-    s = score_scan(inspect_cloud(pts, design), truth)
+    return score_scan(inspect_cloud(pts, design), truth)
+
+
+@pytest.mark.slow
+def test_spacing_at_sigma_15_with_dense_sampling(design):
+    # the lower lattice's bottom bars were placed up to 6.5 mm off by a height floor, the
+    # spacing 5.8 mm
+    s = _dense_sigma_15(design, 0)
     assert s["missed"] == 0 and s["phantoms"] == 0, s
     assert s["spacing_max_abs_err_mm"] <= 5.0  # the target at sigma 15 mm (3.1 mm measured)
     assert abs(s["layer_distance_err_mm"]) <= 3.0
@@ -126,18 +132,10 @@ def test_spacing_at_sigma_15_with_dense_sampling(design):
 
 @pytest.mark.slow
 def test_no_bar_from_a_few_stray_points_over_the_formwork(design):
-    from rebarlib.synth_scan import ring_stations
-
     # seed 12 of the dense case: 36 stray points over 1.1 m beside the last bottom bar made a
     # "bar" 16 mm under its level, kept because its height mixture counted 972 points (mostly
     # formwork) against the set's points per mm
-    pts, truth, _ = synth_scan(
-        design,
-        stations=ring_stations(3),
-        scanner=ScannerModel(range_sigma_mm=15.0, step_az_deg=0.06, step_el_deg=0.06),
-        rng=12,
-    )
-    s = score_scan(inspect_cloud(pts, design), truth)
+    s = _dense_sigma_15(design, 12)
     assert s["missed"] == 0 and s["phantoms"] == 0, s
     assert s["spacing_max_abs_err_mm"] <= 5.0 and abs(s["layer_distance_err_mm"]) <= 3.0
 
