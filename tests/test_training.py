@@ -130,3 +130,14 @@ def test_scenes_written_during_training_are_loaded_as_they_appear(t, dr, tmp_pat
     for i in range(6, 10):  # up to its capacity; the validation scenes stay those of the start
         dr.write_sample(i, tmp_path, size=160)
     assert grow.grow() == 6 and len(grow.val[0]) == 1
+
+
+def test_a_room_behind_the_bars_marks_no_rebar_and_changes_no_other_draw(dr):
+    # --indoor draws from its own stream: indoor=0 is the scene as before; a room behind the
+    # bars (indoor=1: in every scene) leaves the mask as it was and changes the picture
+    for i in range(4):
+        rgb, mask = dr.scene(i, size=160, hard=True)
+        np.testing.assert_array_equal(dr.scene(i, size=160, hard=True, indoor=0.0)[0], rgb)
+        rgb_room, mask_room = dr.scene(i, size=160, hard=True, indoor=1.0)
+        np.testing.assert_array_equal(mask_room, mask)
+        assert not np.array_equal(rgb, rgb_room)

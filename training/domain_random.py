@@ -818,6 +818,90 @@ def _person(img, cover, rng, light, tile):
             cover[m > 0.5] = 0
 
 
+def _indoor(img, rng, light, tile):
+    """A room behind the bars (a cage prefabricated in a workshop, a yard's office, a lab): a wall
+    above a floor line, with tables and benches, shelves, boxes and screens, a window or a door,
+    cables on the floor and the tables, sometimes people. Everything is flat-shaded: straight dark
+    edges and strips that are not the shaded cylinder of a bar."""
+    size = img.shape[0]
+    shade = light["ambient"] + light["diffuse"] * light["lz"]
+    lit = light["colour"] * shade
+    t = tile[:size, :size, None]
+    horizon = int(rng.uniform(0.35, 1.0) * size)
+    wall = _colour(rng, rng.choice([(0.75, 0.74, 0.7), (0.55, 0.6, 0.62), (0.7, 0.65, 0.5), (0.3, 0.3, 0.32)]), 0.2)
+    ramp = np.linspace(rng.uniform(0.7, 1.1), rng.uniform(0.7, 1.1), size, dtype=np.float32)[:, None, None]
+    room = np.broadcast_to(wall * ramp, (size, size, 3)).copy()
+    room *= 1 + 0.05 * t
+    if horizon < size:
+        floor = _colour(rng, rng.choice([(0.45, 0.45, 0.45), (0.5, 0.4, 0.3), (0.25, 0.3, 0.3)]), 0.25)
+        room[horizon:] = floor * (1 + 0.15 * t[horizon:])
+        cv2.line(room, (0, horizon), (size, horizon), tuple(float(v) for v in wall * 0.5), int(rng.integers(2, 12)))
+
+    def flat(pts, col, edge=None, width=0):
+        poly = np.round(pts).astype(np.int32)
+        cv2.fillPoly(room, [poly], tuple(float(v) for v in col), cv2.LINE_AA)
+        if edge is not None:
+            cv2.polylines(room, [poly], True, tuple(float(v) for v in edge), width, cv2.LINE_AA)
+
+    for _ in range(int(rng.integers(0, 3))):  # a window (bright, framed) or a door
+        x0, y0 = rng.uniform(-0.1, 0.9) * size, rng.uniform(0, 0.5) * horizon
+        w, h = rng.uniform(0.1, 0.4) * size, rng.uniform(0.2, 0.6) * horizon
+        frame = _colour(rng, rng.choice([(0.9, 0.9, 0.9), (0.1, 0.1, 0.1), (0.4, 0.3, 0.2)]), 0.1)
+        glass = _colour(rng, (0.8, 0.85, 0.95), 0.2) * rng.uniform(1.0, 2.0)
+        box = np.array([[x0, y0], [x0 + w, y0], [x0 + w, y0 + h], [x0, y0 + h]])
+        flat(box, glass if rng.random() < 0.6 else frame * 0.8, frame, int(rng.integers(2, 9)))
+        for k in range(int(rng.integers(0, 3))):  # glazing bars
+            xk = x0 + w * (k + 1) / 3
+            cv2.line(room, (int(xk), int(y0)), (int(xk), int(y0 + h)), tuple(float(v) for v in frame), 3)
+    for _ in range(int(rng.integers(1, 5))):  # tables, benches, shelves, cupboards
+        x0 = rng.uniform(-0.2, 0.9) * size
+        w = rng.uniform(0.15, 0.7) * size
+        y0 = rng.uniform(0.3, 1.0) * horizon
+        top = rng.uniform(0.01, 0.05) * size
+        col = _colour(rng, rng.choice([(0.8, 0.8, 0.78), (0.5, 0.35, 0.2), (0.2, 0.2, 0.22), (0.35, 0.45, 0.6)]), 0.2)
+        edge = col * rng.uniform(0.2, 0.6)
+        dz = rng.uniform(-0.1, 0.1) * size
+        flat(np.array([[x0, y0], [x0 + w, y0 + dz], [x0 + w, y0 + dz + top], [x0, y0 + top]]), col)
+        front = rng.uniform(0.004, 0.02) * size  # the table's front edge: a dark flat band
+        flat(
+            np.array(
+                [[x0, y0 + top], [x0 + w, y0 + dz + top], [x0 + w, y0 + dz + top + front], [x0, y0 + top + front]]
+            ),
+            edge,
+        )
+        if rng.random() < 0.6:  # a cupboard or the dark space under a bench
+            h = rng.uniform(0.1, 0.4) * size
+            flat(
+                np.array([[x0, y0 + top], [x0 + w, y0 + dz + top], [x0 + w, y0 + dz + top + h], [x0, y0 + top + h]]),
+                col * rng.uniform(0.15, 0.9),
+                edge,
+                int(rng.integers(1, 4)),
+            )
+        for _ in range(int(rng.integers(0, 4))):  # boxes and screens on it
+            bw, bh = rng.uniform(0.04, 0.2) * size, rng.uniform(0.03, 0.2) * size
+            bx = x0 + rng.uniform(0, max(1.0, w - bw))
+            c2 = _colour(rng, rng.choice([(0.05, 0.05, 0.06), (0.6, 0.5, 0.35), (0.85, 0.85, 0.85)]), 0.3, 0.2)
+            flat(np.array([[bx, y0 - bh], [bx + bw, y0 - bh], [bx + bw, y0], [bx, y0]]), c2, c2 * 0.4, 2)
+    for _ in range(int(rng.integers(0, 4))):  # cables: thin dark curves
+        p0, p1 = rng.uniform(0, size, 2), rng.uniform(0, size, 2)
+        pts = _curve(rng, p0, p1, rng.uniform(-0.4, 0.4) * size, n=24)
+        col = _colour(rng, rng.choice([(0.03, 0.03, 0.03), (0.5, 0.5, 0.5), (0.7, 0.3, 0.1)]), 0.2, 0.2)
+        cv2.polylines(
+            room,
+            [np.round(pts).astype(np.int32)],
+            False,
+            tuple(float(v) for v in col),
+            int(rng.integers(2, 7)),
+            cv2.LINE_AA,
+        )
+    a = np.ones((size, size), np.float32)
+    if rng.random() < 0.4:  # the room seen through the mesh over part of the photo only
+        a = np.clip(fractal(rng, size, size, rng.uniform(150, 400), 2) * 4 + rng.uniform(-1, 2), 0, 1)
+    img[:] = img * (1 - a[..., None]) + room * lit * a[..., None]
+    for _ in range(int(rng.integers(0, 4)) if rng.random() < 0.6 else 0):
+        _person(img, None, rng, light, tile)
+
+
 def _hard_negatives(img, cover, rng, light, tile, over):
     """What the stage-7 network still marked on real photos, none of it rebar: cracks, weeds
     and people under the bars (``over`` False), people in front of them (``over`` True)."""
@@ -832,12 +916,13 @@ def _hard_negatives(img, cover, rng, light, tile, over):
         _person(img, cover, rng, light, tile)
 
 
-def scene(index, seed=DR_SEED, size=FULL, hard=False):
+def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0):
     """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
 
     ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
     their own (``default_rng([seed, index, 1])``), so every other draw of the scene stays as
-    it was without them."""
+    it was without them. ``indoor``: the probability of a room behind the bars (:func:`_indoor`),
+    drawn from a stream of its own too (``default_rng([seed, index, 2])``)."""
     rng = np.random.default_rng([int(seed), int(index)])
     rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
     names = list(LAYOUTS)
@@ -858,6 +943,9 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False):
     img = img * (light["ambient"] + light["diffuse"] * light["lz"])
     img = img * light["colour"]
     add_clutter(img, None, rng, light, tile, int(rng.integers(0, 6)), over=False)
+    rng_room = np.random.default_rng([int(seed), int(index), 2])
+    if indoor > 0 and rng_room.random() < indoor:
+        _indoor(img, rng_room, light, tile)
     if rng_hard is not None:
         _hard_negatives(img, None, rng_hard, light, tile, over=False)
     if light["mode"] == "sun" and behind == "ground":
@@ -879,14 +967,14 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False):
 # the data step
 
 
-def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False) -> bool:
+def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
     were already there (nothing written: the data step resumes)."""
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size, hard=hard)
+    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -898,9 +986,9 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=
 
 
 def _write_job(job):
-    index, folder, seed, size, hard = job
+    index, folder, seed, size, hard, indoor = job
     cv2.setNumThreads(1)
-    return write_sample(index, folder, seed, size, hard=hard)
+    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor)
 
 
 def main(argv=None):
@@ -911,12 +999,13 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=DR_SEED)
     ap.add_argument("--size", type=int, default=FULL)
     ap.add_argument("--hard", action="store_true", help="also draw the hard negatives (cracks, weeds, people)")
+    ap.add_argument("--indoor", type=float, default=0.0, help="probability of a room behind the bars (0: none)")
     ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
-    jobs = [(i, folder, args.seed, args.size, args.hard) for i in range(args.first, args.n)]
+    jobs = [(i, folder, args.seed, args.size, args.hard, args.indoor) for i in range(args.first, args.n)]
     if args.jobs > 1:
         from multiprocessing import Pool
 
@@ -927,7 +1016,7 @@ def main(argv=None):
                     print(f"{args.first + k}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
     else:
         for i, *_ in jobs:
-            made += write_sample(i, folder, args.seed, args.size, hard=args.hard)
+            made += write_sample(i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor)
             if i % 100 == 0:
                 print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
     print(f"done: {made} written, {time.time() - t0:.0f} s")
