@@ -6,6 +6,9 @@ printed with each table, and CPU seconds beside wall seconds):
 1. ``stages``: ``inspect()`` of one 1280 x 800 example capture with diameters, per stage, with
    the segmentation model on onnxruntime's default threads and on one thread (as in a batch).
    Target: whole capture <= 1.0 s on 2 cores.
+   ``parts``: CPU seconds per capture of each part of ``inspect()`` (the network, the rest of
+   the mask, the geometry, the diameters, ...) on the paper slab's 4 captures, one thread, each
+   part wrapped in a CPU-time counter (no profiler).
 2. ``startup``: ``rebar --help``, and ``rebar report --results`` of the 4-capture paper slab
    (PDF), wall time including the interpreter's start-up. Targets: 0.3 s and 3 s.
 3. ``batch``: ``rebar inspect --jobs J`` over N copies of the paper slab's 4 captures (hard
@@ -102,6 +105,83 @@ def bench_stages(repeats: int) -> None:
     table(
         f"stages: inspect() of examples/paper_slab/B_500 with diameters, median of {repeats} (s)",
         ["stage", "model threads: default", "model threads: 1"],
+        rows,
+    )
+
+
+#: The parts of ``inspect()`` timed by the ``parts`` table: (label, module, attribute), each
+#: wrapped in a CPU-time counter; nested parts are counted in their parent too.
+PARTS = (
+    ("network runs (onnxruntime)", "rebarlib.segmentation.model", "SegmentationModel._run"),
+    ("tiled probability, network included", "rebarlib.segmentation.model", "SegmentationModel.predict_proba"),
+    ("colour-depth registration (ECC)", "rebarlib.segmentation", "estimate_registration"),
+    ("depth mask", "rebarlib.segmentation", "mask_from_depth"),
+    ("depth over-reach", "rebarlib.segmentation", "depth_overreach_px"),
+    ("fused and soft mask", "rebarlib.segmentation", "fuse_masks"),
+    ("fused and soft mask", "rebarlib.segmentation", "soft_mask"),
+    ("geometry (formwork, layers, bars, spacings, positions)", "rebarlib._refined", "inspect_refined"),
+    ("diameters", "rebarlib.diameter", "measure_diameters"),
+    ("uncertainty budget", "rebarlib.uncertainty", "apply_budget"),
+)
+
+
+def _parts_run(repeats: int) -> dict:
+    code = f"""
+import functools, importlib, json, time
+import cv2
+import rebarlib._masks as M
+M.MODEL_THREADS = 1; cv2.setNumThreads(1)
+import rebarlib._inspect as I
+from rebarlib import load_capture, load_design
+acc = {{}}
+def wrap(label, mod, attr):
+    owner = importlib.import_module(mod)
+    *path, name = attr.split(".")
+    for a in path:
+        owner = getattr(owner, a)
+    f = getattr(owner, name)
+    @functools.wraps(f)
+    def g(*a, **k):
+        c = time.process_time()
+        try:
+            return f(*a, **k)
+        finally:
+            acc[label] = acc.get(label, 0.0) + time.process_time() - c
+    setattr(owner, name, g)
+for label, mod, attr in {PARTS!r}:
+    wrap(label, mod, attr)
+d = load_design({str(PAPER / "design.toml")!r})
+names = ("A_400", "B_500", "C_600", "D_500")
+c = time.process_time()
+caps = [load_capture({str(PAPER)!r} + "/" + n) for n in names]
+load = (time.process_time() - c) / len(caps)
+I.inspect(caps[1], d, rng=0)  # warm-up: imports, the model's session
+acc.clear()
+whole = 0.0
+for r in range({repeats}):
+    for cap in caps:
+        c = time.process_time(); I.inspect(cap, d, rng=0); whole += time.process_time() - c
+n = {repeats} * len(caps)
+out = {{k: v / n for k, v in acc.items()}}
+out["loading a capture (load_capture)"] = load
+out["whole inspect()"] = whole / n
+print(json.dumps(out))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def bench_parts(repeats: int) -> None:
+    """CPU seconds per capture of each part of ``inspect()``: the paper slab's 4 captures with
+    diameters, the model and OpenCV on one thread (as in a batch), no profiler (each part
+    wrapped in a ``time.process_time`` counter)."""
+    r = _parts_run(repeats)
+    order = [p[0] for p in PARTS]
+    labels = list(dict.fromkeys(order)) + ["loading a capture (load_capture)", "whole inspect()"]
+    rows = [[k, f"{r[k]:.3f}"] for k in labels if k in r]
+    table(
+        f"parts: CPU s per capture of inspect() on the paper slab's 4 captures, 1 thread, mean of {repeats} rounds",
+        ["part", "CPU s per capture"],
         rows,
     )
 
@@ -397,7 +477,7 @@ def check(path: Path) -> int:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--only", choices=("stages", "startup", "batch", "dask", "many"), action="append")
+    ap.add_argument("--only", choices=("stages", "parts", "startup", "batch", "dask", "many"), action="append")
     ap.add_argument("--n", type=int, default=24, help="captures in the batch and dask tables (default 24)")
     ap.add_argument("--jobs", type=int, action="append", help="--jobs values of the batch table (default 1 and 2)")
     ap.add_argument("--repeats", type=int, default=3)
@@ -414,9 +494,11 @@ def main(argv=None) -> int:
         return check(a.check)
     if a.big:
         return bench_many(a.big)
-    only = set(a.only or ("stages", "startup", "batch", "dask"))
+    only = set(a.only or ("stages", "parts", "startup", "batch", "dask"))
     if "stages" in only:
         bench_stages(max(a.repeats, 5))
+    if "parts" in only:
+        bench_parts(a.repeats)
     if "startup" in only:
         bench_startup(max(a.repeats, 5))
     if "batch" in only:
