@@ -58,24 +58,6 @@ wait $A $B $C
 kill $GEN 2>/dev/null
 wait $GEN 2>/dev/null
 tail -n 2 "$RUNS/scenes.log"
-grep -h "VAL\|parameters\|scenes at\|Error\|error" "$RUNS"/[ABCD].log
+source training/gpu_export.sh
 # each run's last state exported, its threshold chosen on the validation renders with the flips
-# (logits on the GPU)
-for tag in $TAGS; do
-    arch=deeplab_fine
-    [ "${tag:0:4}" = s8_w ] && arch=deeplab_fine_w
-    $PY training/train_segmentation.py export --work "$D" --arch $arch --run-dir "$RUNS" \
-        --tag "$(cat "$RUNS/${tag}_last.txt")" --dynamic --flips h v hv --device "$DEVICE" \
-        --out "$RUNS/onnx" --name $tag > "$RUNS/export_$tag.log" 2>&1 &
-done
-wait
-tail -q -n 1 "$RUNS"/export_*.log
-if [ -n "$OUT" ]; then
-    mkdir -p "$OUT"
-    # one archive a run (each under the 16 MiB a file that comes back from the GPU machine may be)
-    for tag in $TAGS; do
-        (cd "$RUNS" && tar czf "$OUT/$tag.tgz" $tag.json onnx/$tag.onnx onnx/$tag.json $tag*.pt)
-    done
-    (cd "$RUNS" && tar czf "$OUT/logs.tgz" ./*.log scenes/dr/000[0-4]?.jpg scenes/dr/000[0-4]?.png)
-    ls -la "$OUT"
-fi
+export_and_pack s8_w $TAGS

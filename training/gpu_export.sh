@@ -1,0 +1,28 @@
+# Sourced by the gpu_stage*.sh scripts: the end of a GPU training call.
+#   export_and_pack WIDE_PREFIX TAG...   (uses PY, D, RUNS, DEVICE, OUT and the A/B/C/D logs)
+# Prints the runs' validations, exports each run's last state (its threshold chosen on the
+# validation renders with the flips, logits on $DEVICE; a tag starting with WIDE_PREFIX is the
+# wider deeplab_fine_w) and, with OUT set, packs one archive a run (each under the 16 MiB a file
+# that comes back from the GPU machine may be) and one of the logs and the first scenes.
+export_and_pack() {
+    local wide=$1 tag arch
+    shift
+    grep -h "VAL\|parameters\|scenes at\|Error\|error\|Traceback" "$RUNS"/[ABCD].log
+    for tag in "$@"; do
+        arch=deeplab_fine
+        [ "${tag:0:${#wide}}" = "$wide" ] && arch=deeplab_fine_w
+        $PY training/train_segmentation.py export --work "$D" --arch $arch --run-dir "$RUNS" \
+            --tag "$(cat "$RUNS/${tag}_last.txt")" --dynamic --flips h v hv --device "$DEVICE" \
+            --out "$RUNS/onnx" --name "$tag" > "$RUNS/export_$tag.log" 2>&1 &
+    done
+    wait
+    tail -q -n 1 "$RUNS"/export_*.log
+    if [ -n "$OUT" ]; then
+        mkdir -p "$OUT"
+        for tag in "$@"; do
+            (cd "$RUNS" && tar czf "$OUT/$tag.tgz" "$tag.json" "onnx/$tag.onnx" "onnx/$tag.json" "$tag"*.pt)
+        done
+        (cd "$RUNS" && tar czf "$OUT/logs.tgz" ./*.log scenes/dr/000[0-4]?.jpg scenes/dr/000[0-4]?.png)
+        ls -la "$OUT"
+    fi
+}
