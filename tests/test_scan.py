@@ -187,6 +187,29 @@ def test_up_sign_from_the_crossings_at_low_noise(design, flip):
     assert res.layer_distance.ok and abs(res.layer_distance.value_mm - truth.layer_distance_mm) <= 3.0
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("flip", [False, True])
+def test_up_sign_from_the_crossings_with_one_direction_sampled_sparsely(design, flip):
+    # the benchmark's sparse scan without formwork (0.24 deg in azimuth, a station 4 m off):
+    # weighted by points, the densely sampled level outweighed the other, the lift came out
+    # -0.2 and -0.3 mm the two ways up and the sign was wrong: 37 of 40 bars in the wrong set
+    from rebarlib.synth_scan import Station, ring_stations
+
+    pts, truth, _ = synth_scan(
+        design,
+        stations=ring_stations(2) + [Station((4000.0, -1500.0, 1500.0))],
+        scanner=ScannerModel(range_sigma_mm=15.0, step_az_deg=0.24, step_el_deg=0.06),
+        formwork=False,
+        rng=1,
+    )
+    res = inspect_cloud(pts * np.array([1.0, -1.0, -1.0]) if flip else pts, design)
+    assert "GUESSED" in res.notes[0]
+    assert (res.extras["cloud"]["up"][2] < 0) == flip
+    s = score_scan(res, truth) if not flip else None
+    if s is not None:
+        assert s["missed"] == 0 and s["phantoms"] == 0, s
+
+
 def test_diameter_criterion():
     ok, _ = diameter_resolvable(0.5, 7.0, 1.1, 2000)
     assert ok

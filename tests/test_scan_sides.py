@@ -69,3 +69,47 @@ def test_occluded_direction_shifts_the_visible_arc():
     # 4 mm to the side of the vertical: the side of the bar away from it is still seen
     mean2, _, share2 = visible_arc(phi, 7.0, occluders=[(4.0, 80.0, 7.0)])
     assert 0.05 < share2[0] < 0.9 and mean2[0, 0] < -1.0
+
+
+def test_station_mix_changing_along_the_bar():
+    """One station sees one end of a bar, another the other end (a nearer station returns more
+    points): the points' mean drifts across along the bar by about 2 × 0.85 r · sin 50° (10 mm
+    for r = 8), a line through their means takes that slope; the fit through the stretches' own
+    streaks keeps the axis straight and in place (within 1 mm at both ends)."""
+    rng = np.random.default_rng(3)
+    r, n = 8.0, 1500
+    s = np.sort(rng.uniform(-1.0, 1.0, n))
+    from_right = rng.random(n) < (1 + s) / 2  # station at +50° sees the +s end more
+    a, h = np.empty(n), np.empty(n)
+    ar, hr = _streak(rng, n, r, 50.0, 15.0)
+    al, hl = _streak(rng, n, r, -50.0, 15.0)
+    a[from_right], h[from_right] = ar[from_right], hr[from_right]
+    a[~from_right], h[~from_right] = al[~from_right], hl[~from_right]
+    drift = np.polyfit(s, a, 1)[0]
+    assert drift > 3.0  # the mean's slope per unit along
+    c, _, _ = seen_sides_centre(a, h, r, centre0=(0.0, 0.0), sigma0_mm=15.0, half_mm=r + 2.5 * 15 + 2, along=s)
+    assert abs(c[0] - c[2]) < 1.0 and abs(c[0] + c[2]) < 1.0
+
+
+def test_a_block_under_one_stretch_does_not_tilt_the_axis():
+    """Points of something else crowding one place along the bar (a cover block under it) are
+    left out of the band before the fit (``_along_uniform``): with them, the line through the
+    stretches tilts (1.5 mm at the block's end on this draw); without, it stays within 1 mm."""
+    from rebarlib.scan._axes import _along_uniform
+
+    rng = np.random.default_rng(4)
+    r, n = 8.0, 2000
+    t = rng.uniform(0.0, 2000.0, n)
+    a, h = _streak(rng, n, r, 40.0, 15.0)
+    # a 50 mm block at 150 mm along, 25 mm to either side, its faces seen: 300 points, low
+    tb = rng.normal(150.0, 20.0, 300)
+    ab, hb = rng.uniform(-25.0, 25.0, 300), rng.uniform(-27.0, -8.0, 300)
+    tt, aa, hh = np.r_[t, tb], np.r_[a, ab], np.r_[h, hb]
+    keep = _along_uniform(tt, 2 * r)
+    assert (~keep[n:]).mean() > 0.6 and (~keep[:n]).mean() < 0.1
+    assert _along_uniform(t, 2 * r).all()  # nothing crowds a uniform band
+    s = (tt[keep] - 1000.0) / 1000.0
+    c, _, _ = seen_sides_centre(
+        aa[keep], hh[keep], r, centre0=(0.0, 0.0), sigma0_mm=15.0, half_mm=r + 2.5 * 15 + 2, along=s
+    )
+    assert abs(c[0] - c[2]) < 1.0 and abs(c[0] + c[2]) < 1.0

@@ -21,6 +21,11 @@ least-squares centre of the streaks (an EM). Where the noise is well under the r
 lie on the arc and the streaks are not Gaussian; near σ ≈ r/2 a one-sided bar's points form a
 round cloud whose side cannot be told: the caller applies the fit only where the noise along
 the rays is at least the radius.
+
+Given each point's position along the bar, the axis is a line (offset and height each with a
+slope): the centres of stretches of equal counts along the bar, each the weighted least-squares
+centre of its own points' streaks, and a precision- and Tukey-weighted line through them. The
+directions, their weights and the noise stay the bar's.
 """
 
 from __future__ import annotations
@@ -72,6 +77,7 @@ def seen_sides_centre(
     blur_mm: float = 1.0,
     step_deg: float = 10.0,
     iters: int = 40,
+    along=None,
 ):
     """Axis (across, height) of a bar from its cross-section points, as the centre of a mixture of
     streaks seen from a grid of directions above it.
@@ -90,12 +96,18 @@ def seen_sides_centre(
     blur_mm : spread of the surface beyond the circle's (ribs, roundness)
     step_deg : the grid of view directions, from the vertical, over (-90°, 90°)
     iters : EM steps at most
+    along : None, or (N,) each point's position along the bar, scaled to about ±1: the axis is
+        then a line, its across offset and height each ``value + slope * along``. The mixture of
+        stations that see a bar changes along it (a nearer station returns more points), so the
+        mean of its points drifts across along the bar and a straight line through them takes a
+        slope that the streaks do not have
 
     Returns
     -------
-    (centre, sigma, weights) : the axis (across, height) in mm, the range noise along the rays, the
-    weight of each direction of the grid; None where the fit fails (too few points for the bar,
-    a singular step, or an axis outside the band)
+    (centre, sigma, weights) : the axis (across, height) in mm (with ``along``: (across, height,
+    across slope, height slope), the values at ``along`` = 0 and their change per unit of it), the
+    range noise along the rays, the weight of each direction of the grid; None where the fit fails
+    (too few points for the bar, a singular step, or an axis outside the band)
     """
     a = np.asarray(a, float)
     h = np.asarray(h, float)
@@ -113,7 +125,15 @@ def seen_sides_centre(
     phi, m_arc, cov_arc = phi[keep], m_arc[keep], cov_arc[keep]
     su, cu = np.sin(phi), np.cos(phi)
     var_uu_arc = su * su * cov_arc[:, 0, 0] + 2 * su * cu * cov_arc[:, 0, 1] + cu * cu * cov_arc[:, 1, 1]
-    c = c0.copy()
+    c = np.r_[c0, 0.0, 0.0]  # across, height, and their slopes along
+    s = None if along is None else np.asarray(along, float)
+    s0 = np.zeros(n) if s is None else s
+    if s is not None:
+        # stretches of about equal counts along the bar, at least 150 points each, 3 to 12
+        k = int(np.clip(n // 150, 3, 12))
+        order = np.argsort(s, kind="stable")
+        a, h, s, s0 = a[order], h[order], s[order], s0[order]
+        bounds = np.linspace(0, n, k + 1).astype(int)
     sig = max(float(sigma0_mm), 0.3)
     weights = np.full(len(phi), 1.0 / len(phi))
     span_h = float(np.ptp(h)) + 1.0
@@ -132,8 +152,8 @@ def seen_sides_centre(
         if not np.all(det > 0):
             return None
         paa, phh, pah = chh / det, caa / det, -cah / det
-        da = a[:, None] - c[0] - m_arc[None, :, 0]
-        dh = h[:, None] - c[1] - m_arc[None, :, 1]
+        da = (a - c[0] - c[2] * s0)[:, None] - m_arc[None, :, 0]
+        dh = (h - c[1] - c[3] * s0)[:, None] - m_arc[None, :, 1]
         q = paa * da * da + 2 * pah * da * dh + phh * dh * dh
         log_b = -0.5 * q - 0.5 * np.log(det) - math.log(2 * math.pi)
         share_bar = 1.0 - share_bg - share_fw
@@ -164,16 +184,25 @@ def seen_sides_centre(
         if formwork_sd_mm:
             share_fw = min(max(float(resp[:, len(phi) + 1].sum()) / n, 1e-4), 0.95)
         # the centre: weighted least squares of p - m_j with each streak's precision P_j
-        H = np.array([[rj @ paa, rj @ pah], [rj @ pah, rj @ phh]])
         ma = a @ rb - rj * m_arc[:, 0]  # Σ_i R_ij (a_i - m_j,a)
         mh = h @ rb - rj * m_arc[:, 1]
-        rhs = np.array([paa @ ma + pah @ mh, pah @ ma + phh @ mh])
-        try:
-            c_new = np.linalg.solve(H, rhs)
-        except np.linalg.LinAlgError:
-            return None
-        da = a[:, None] - c_new[0] - m_arc[None, :, 0]
-        dh = h[:, None] - c_new[1] - m_arc[None, :, 1]
+        if s is None:
+            H = np.array([[rj @ paa, rj @ pah], [rj @ pah, rj @ phh]])
+            rhs = np.array([paa @ ma + pah @ mh, pah @ ma + phh @ mh])
+        else:
+            # the axis as a line through the centres of stretches along the bar, each the same
+            # weighted least squares on its own points, the line robust to a stretch that holds
+            # something else (a block or a chair under the bar)
+            c_new = _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds)
+            if c_new is None:
+                return None
+        if s is None:
+            try:
+                c_new = np.r_[np.linalg.solve(H, rhs), 0.0, 0.0]
+            except np.linalg.LinAlgError:
+                return None
+        da = (a - c_new[0] - c_new[2] * s0)[:, None] - m_arc[None, :, 0]
+        dh = (h - c_new[1] - c_new[3] * s0)[:, None] - m_arc[None, :, 1]
         t = da * su + dh * cu
         sig = math.sqrt(max(float((rb * t * t).sum() - rj @ var_uu_arc) / tot, 0.09))
         done = float(np.max(np.abs(c_new - c))) < 0.01
@@ -184,4 +213,46 @@ def seen_sides_centre(
         return None
     full = np.zeros(len(keep))
     full[index] = weights
-    return c, sig, full
+    return (c[:2] if s is None else c), sig, full
+
+
+def _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds, iters: int = 4):
+    """(across, height, across slope, height slope) of a bar's axis: each stretch's centre (the
+    streaks' weighted least squares on its points, ``bounds`` the stretches' first indices into
+    the points sorted along), then a line through the centres, each weighted by its precision and
+    Tukey-weighted (4.685 robust σ, at least the centres' own standard error) so that a stretch
+    whose points something else pulls does not tilt it. None where a stretch's step is singular."""
+    starts = bounds[:-1]
+    j = rb.shape[1]
+    sums = np.add.reduceat(np.hstack([rb, a[:, None] * rb, h[:, None] * rb]), starts, axis=0)
+    rk, ra, rh = sums[:, :j], sums[:, j : 2 * j], sums[:, 2 * j :]  # (K, J): Σ_i∈k R_ij (1, a_i, h_i)
+    ma = ra - rk * m_arc[None, :, 0]
+    mh = rh - rk * m_arc[None, :, 1]
+    H = np.empty((len(starts), 2, 2))
+    H[:, 0, 0], H[:, 0, 1], H[:, 1, 1] = rk @ paa, rk @ pah, rk @ phh
+    H[:, 1, 0] = H[:, 0, 1]
+    rhs = np.stack([ma @ paa + mh @ pah, ma @ pah + mh @ phh], axis=-1)
+    det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] ** 2
+    if not np.all(det > 0):
+        return None
+    cen = np.linalg.solve(H, rhs[..., None])[..., 0]  # (K, 2)
+    var = np.stack([H[:, 1, 1] / det, H[:, 0, 0] / det], axis=-1)  # each centre's variance
+    sk = np.add.reduceat(s, starts) / np.diff(bounds)
+    out = []
+    for j in (0, 1):
+        y, w0 = cen[:, j], 1.0 / var[:, j]
+        w = w0.copy()
+        se = float(np.sqrt(np.median(var[:, j])))
+        for _ in range(iters):
+            sw = float(w.sum())
+            mx, my = float(w @ sk) / sw, float(w @ y) / sw
+            sxx = float(w @ (sk - mx) ** 2)
+            b1 = float(w @ ((sk - mx) * (y - my))) / sxx if sxx > 0 else 0.0
+            b0 = my - b1 * mx
+            res = y - (b0 + b1 * sk)
+            scale = max(1.4826 * float(np.median(np.abs(res))), se) * 4.685
+            w = w0 * np.clip(1 - (res / scale) ** 2, 0, None) ** 2
+            if w.sum() <= 0:
+                w = w0
+        out.append((b0, b1))
+    return np.array([out[0][0], out[1][0], out[0][1], out[1][1]])
