@@ -26,8 +26,8 @@ tolerance as built"), and an item its truth fails is not a false fail.
 ``--follow-advice`` acts as an inspector who reads the sheet: where a capture says a bar position
 lies hidden under a bar and how far to move the camera to see it, one more capture is taken as
 told (moved across those bars by 1.25 times the distance named, towards the slab's middle;
-height, tilt and heading kept; at most 4 captures a slab) and the slab is judged again. Both
-judgements are printed.
+height, tilt and heading kept), one for each capture that asks (at most 4 captures a slab), and
+the slab is judged again. Both judgements are printed.
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
@@ -312,12 +312,14 @@ ADVICE = re.compile(r"camera about (\d+) mm or more to either side across these 
 
 
 def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: bool) -> list:
-    """One more capture of the slab, as the first capture that asks for one says (moved across
-    the hidden position's bars by 1.25 times the distance it names, towards the slab's middle;
-    height, tilt and heading kept); at most 4 captures a slab. Returns the new capture's name."""
-    if len(meta["captures"]) >= 4:
-        return []
+    """One more capture for each capture that asks for one, as its first such position says
+    (moved across the hidden position's bars by 1.25 times the distance it names, towards the
+    slab's middle; height, tilt and heading kept), in the captures' order; at most 4 captures a
+    slab. Returns the new captures' names."""
+    out = []
     for j, (name, res) in enumerate(zip(meta["captures"], results)):
+        if len(meta["captures"]) + len(out) >= 4:
+            break
         for p in res.get("positions") or []:
             m = ADVICE.search(str(p.get("reason") or ""))
             if p.get("status") != "not measured" or not m:
@@ -341,8 +343,9 @@ def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: boo
             )
             if not (folder / new["name"] / "truth.json").exists():
                 _render_one(scene, new, folder)
-            return [new["name"]]
-    return []
+            out.append(new["name"])
+            break
+    return out
 
 
 def main(argv=None) -> int:
@@ -364,8 +367,8 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--follow-advice",
         action="store_true",
-        help="where a slab's captures ask for another capture (a position hidden under a bar), take it as "
-        "told and judge again; prints the first judgement's matrix too",
+        help="where a slab's captures ask for another capture (a position hidden under a bar), take one for "
+        "each capture that asks, as told, and judge again; prints the first judgement's matrix too",
     )
     args = ap.parse_args(argv)
     cache = Path(args.cache)
@@ -392,7 +395,8 @@ def main(argv=None) -> int:
         n_follow = sum(1 for r in recs if r.get("followups"))
         print("## The captures first taken\n")
         report(first)
-        print(f"\n## After the captures the inspection asked for ({n_follow} slabs, one capture each)\n")
+        n_caps = sum(len(r.get("followups", [])) for r in recs)
+        print(f"\n## After the captures the inspection asked for ({n_caps} captures on {n_follow} slabs)\n")
     report(recs)
     return 0
 
