@@ -47,6 +47,9 @@ LOG_ODDS = math.log(1000.0)
 MAX_RMS_MM = 1.5
 #: the bars' directions of the sets must agree to within this (degrees) after the rotation
 MAX_ANGLE_SPREAD_DEG = 2.0
+#: a bar sized from one edge over this share of its sections or more has its axis fitted to the
+#: side it shows (the diameter stage's ``hidden_fraction``, decision 024)
+_ONE_SIDED_SHARE = 0.5
 
 
 @dataclass
@@ -57,6 +60,12 @@ class _Set:
     bar_ids: list
     segs: np.ndarray  # (N, 2, 2) the bars' ends in plan
     open_mids: np.ndarray  # (M, 2) mid points of the positions not found (not measured, missing)
+    #: (N,) whether each bar's axis is a fit to both its sides (:func:`_well_placed`); None: all are
+    fitted: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.fitted is None:
+            self.fitted = np.ones(len(self.mids), bool)
 
 
 def _plane(r: dict) -> Plane | None:
@@ -74,6 +83,21 @@ def _ends(rec: dict) -> np.ndarray | None:
     return np.asarray(vals, float).reshape(2, 3)
 
 
+def _well_placed(b: dict) -> bool:
+    """Whether a bar's axis is a cylinder fitted to points on both its sides: a measured bar not
+    seen from one edge over most of its sections (``one_sided_share`` below the diameter stage's
+    ``hidden_fraction``, decision 024). A bar placed from the colour mask (no depth), or whose
+    axis was fitted to the one side it shows beside nearer bars, lies where it is by an error of
+    its own (millimetres, not the tenths of a fitted axis): it may pair with the same bar of
+    another capture, but it says nothing about which placing is the right one."""
+    if b.get("status", MEASURED) != MEASURED:
+        return False
+    one = b.get("one_sided_share")
+    if one is None or (isinstance(one, float) and math.isnan(one)):
+        return True
+    return float(one) < _ONE_SIDED_SHARE
+
+
 def plan_sets(r: dict) -> dict:
     """The found bars of a result as plan lines, per ``(layer, level)``: ``{key: _Set}``."""
     plane = _plane(r)
@@ -85,18 +109,19 @@ def plan_sets(r: dict) -> dict:
         if e is None or b.get("layer") is None:
             continue
         p = to_slab_frame(e, plane)[:, :2]
-        groups.setdefault((b["layer"], b["level"]), []).append((p, b.get("bar_id")))
+        groups.setdefault((b["layer"], b["level"]), []).append((p, b.get("bar_id"), _well_placed(b)))
     out = {}
     for key, items in groups.items():
         d0 = items[0][0][1] - items[0][0][0]
         dirs = []
-        for p, _ in items:
+        for p, _, _ in items:
             d = p[1] - p[0]
             dirs.append(d if d @ d0 >= 0 else -d)
         d = np.sum([x / max(np.linalg.norm(x), 1e-9) for x in dirs], axis=0)
         d /= max(np.linalg.norm(d), 1e-9)
-        segs = np.array([p for p, _ in items])
-        out[key] = _Set(key, d, segs.mean(axis=1), [i for _, i in items], segs, np.zeros((0, 2)))
+        segs = np.array([p for p, _, _ in items])
+        fitted = np.array([f for _, _, f in items], bool)
+        out[key] = _Set(key, d, segs.mean(axis=1), [i for _, i, _ in items], segs, np.zeros((0, 2)), fitted)
     for p in r.get("positions") or []:
         key = (p.get("layer"), p.get("level"))
         e = _ends(p)
@@ -115,35 +140,42 @@ def _perp(d: np.ndarray) -> np.ndarray:
     return np.array([-d[1], d[0]])
 
 
-def _fit_shift(pairs: list, gate: float) -> list:
+def _fit_shift(pairs: list, gate: float, fitted: list | None = None) -> list:
     """Candidate shifts across one direction. ``pairs`` holds, per set, the first capture's
-    offsets (found bars, open positions; moved by the rotation) and the second's. Returns
+    offsets (found bars, open positions; moved by the rotation) and the second's; ``fitted``,
+    per set, which bars of each are fitted axes (:func:`_well_placed`; None: all). Returns
     ``[(rms, n, tau)]``, one per distinct shift that contradicts neither capture, best first.
+    The shift is refined, and its RMS taken, on the pairs of two fitted axes where there are
+    any (a bar placed otherwise would pull it by its own error); ``n`` counts every pair.
 
     A shift contradicts a capture where it puts a found bar of the other inside the span of the
     capture's own row (its found bars and open positions, widened by the gate) with neither a
     found bar nor an open position of its own within the gate."""
+    if fitted is None:
+        fitted = [(np.ones(len(u), bool), np.ones(len(o), bool)) for u, _, o, _ in pairs]
     cands = np.unique(np.round(np.concatenate([(o[None, :] - u[:, None]).ravel() for u, _, o, _ in pairs]), 1))
     seen = []
     for tau in cands:
         if any(abs(tau - t2) < gate for _, _, t2 in seen):
             continue
         for _ in range(2):  # refine: the mean residual of the matched bars, twice
-            res = []
-            for u, _, o, _ in pairs:
-                for x in u + tau:
+            res, res_f = [], []
+            for (u, _, o, _), (fu, fo) in zip(pairs, fitted):
+                for i, x in enumerate(u + tau):
                     j = np.argmin(np.abs(o - x))
                     if abs(o[j] - x) < gate:
                         res.append(o[j] - x)
+                        if fu[i] and fo[j]:
+                            res_f.append(o[j] - x)
             if not res:
                 break
-            tau = tau + float(np.mean(res))
+            tau = tau + float(np.mean(res_f or res))
         if not res or any(abs(tau - t2) < gate for _, _, t2 in seen):
             continue
         if _conflicts(pairs, tau, gate):
             continue
-        res = np.asarray(res)
-        seen.append((float(np.sqrt(np.mean(res**2))), len(res), float(tau)))
+        r = np.asarray(res_f or res)
+        seen.append((float(np.sqrt(np.mean(r**2))), len(res), float(tau)))
     # most matched bars first; among equal counts, the better fit
     seen.sort(key=lambda x: (-x[1], x[0]))
     return seen
@@ -219,7 +251,7 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
             pairs = [
                 ((sa[k].mids @ R.T) @ n, (sa[k].open_mids @ R.T) @ n, sb[k].mids @ n, sb[k].open_mids @ n) for k in ks
             ]
-            cands = _fit_shift(pairs, gate_mm)
+            cands = _fit_shift(pairs, gate_mm, [(sa[k].fitted, sb[k].fitted) for k in ks])
             # the best fits of three or more bars, and the shifts that pair the most bars
             keep = sorted((c for c in cands if c[1] >= MIN_MATCHED), key=lambda c: c[0])[:SHORTLIST] + cands[:3]
             shortlists.append(list(dict.fromkeys(tau for _, _, tau in keep)))
@@ -232,22 +264,28 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
                 t = np.linalg.solve(N, np.array([t1, t2]))
                 fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate_mm)
                 if fit is not None:
-                    hyps.append((*fit, theta, R, t, (t1, t2)))
-    strong = [h for h in hyps if min(h[1]) >= MIN_MATCHED and max(h[0]) <= MAX_RMS_MM]
+                    hyps.append((fit[0], fit[1], theta, R, t, (t1, t2), fit[2]))
+    # enough bars paired in each direction (h[1] pairs of fitted axes, h[6] the others), the pairs
+    # of fitted axes within the RMS
+    strong = [h for h in hyps if min(n + m for n, (_, m) in zip(h[1], h[6])) >= MIN_MATCHED and max(h[0]) <= MAX_RMS_MM]
     if not strong:
         return None, f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
-    h1 = min(strong, key=lambda h: (float(np.hypot(*h[0])), -sum(h[1])))
+    # the placing with the most evidence over a chance alignment in both directions (not the
+    # smallest RMS: one or two pairs of fitted axes fit as tightly as the shift was refined on them)
+    h1 = max(strong, key=lambda h: sum(_evidence_against(h, [], sw, g) for g in range(2)))
     lr = math.inf
     for g in range(2):
         # every placing that pairs this direction's bars otherwise (another shift, or turned) competes
         rivals = [
-            h for h in hyps if h is not h1 and h[1][g] >= 2 and (h[2] != h1[2] or abs(h[5][g] - h1[5][g]) > gate_mm)
+            h
+            for h in hyps
+            if h is not h1 and h[1][g] + h[6][g][1] >= 2 and (h[2] != h1[2] or abs(h[5][g] - h1[5][g]) > gate_mm)
         ]
         lr = min(lr, _evidence_against(h1, rivals, sw, g))
     if lr < LOG_ODDS:
         return None, "the mesh is too regular to tell which bars are the same (two placings fit alike)"
-    rms, n, theta, R, t, _ = h1
-    reg = Registration(name_a, name_b, R, t, int(sum(n)), float(max(rms)), float(lr))
+    rms, n, theta, R, t, _, n_other = h1
+    reg = Registration(name_a, name_b, R, t, int(sum(n) + sum(m for _, m in n_other)), float(max(rms)), float(lr))
     return reg, ""
 
 
@@ -299,13 +337,15 @@ def _offset_at(seg: np.ndarray, s: float, d: np.ndarray, n: np.ndarray) -> float
 
 def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
     """Residuals of one placing of capture a in capture b's frame: per direction, the RMS and the
-    count of bar pairs matched, the bars compared where their seen stretches overlap (a bar is
-    not straight: two captures see different stretches of it). None where the placing puts a
-    bar of either capture in the other's view with no bar (or open position) of its own there."""
-    rms, cnt = [], []
+    count of the pairs of two fitted axes, and ``(RMS, count)`` of the other pairs (a bar placed
+    otherwise than by a fit to both its sides, :func:`_well_placed`), the bars compared where
+    their seen stretches overlap (a bar is not straight: two captures see different stretches of
+    it). None where the placing puts a bar of either capture in the other's view with no bar (or
+    open position) of its own there."""
+    rms, cnt, unfitted = [], [], []
     for d, ks in groups:
         n = _perp(d)
-        res = []
+        res, res_u = [], []
         for k in ks:
             A = sa[k].segs @ R.T + t
             B = sb[k].segs
@@ -313,14 +353,15 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
             open_a = (sa[k].open_mids @ R.T + t) @ n
             h_b, h_a = hull_b.get(k[0]), hull_a.get(k[0])
             h_a = None if h_a is None else h_a @ R.T + t
-            for mine, other, hull, opens in ((A, B, h_b, open_b), (B, A, h_a, open_a)):
-                for seg in mine:
+            fa, fb = sa[k].fitted, sb[k].fitted
+            for mine, other, hull, opens, f_mine, f_other in ((A, B, h_b, open_b, fa, fb), (B, A, h_a, open_a, fb, fa)):
+                for i_seg, seg in enumerate(mine):
                     # how much of this bar lies in the other capture's view
                     samples = seg[0] + np.linspace(0, 1, 41)[:, None] * (seg[1] - seg[0])
                     seen = 0.0 if hull is None else _inside(samples, hull).mean() * np.linalg.norm(seg[1] - seg[0])
-                    best = None
+                    best, j_best = None, -1
                     lo, hi = sorted(seg @ d)
-                    for o in other:
+                    for j_o, o in enumerate(other):
                         olo, ohi = sorted(o @ d)
                         a0, a1 = max(lo, olo), min(hi, ohi)
                         if a1 - a0 < MIN_COMMON_MM:
@@ -328,16 +369,18 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
                         sm = 0.5 * (a0 + a1)
                         r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
                         if best is None or abs(r) < abs(best):
-                            best = r
+                            best, j_best = r, j_o
                     if best is not None and abs(best) < gate:
                         if mine is A:
-                            res.append(best)
+                            # a pair of two fitted axes (_well_placed), or one with a bar placed otherwise
+                            (res if f_mine[i_seg] and f_other[j_best] else res_u).append(best)
                         continue
                     if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
                         return None
         rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)
         cnt.append(len(res))
-    return rms, cnt
+        unfitted.append((float(np.sqrt(np.mean(np.square(res_u)))) if res_u else math.inf, len(res_u)))
+    return rms, cnt, unfitted
 
 
 def _irregularity(sets: list) -> float:
@@ -371,13 +414,26 @@ def _evidence_against(h1: tuple, rivals: list, sw: list, g: int) -> float:
     r²/2sw²`` (r the RMS) over a chance alignment; a mesh placed as regularly as it is measured
     (``sw ≈ sm``) gives no evidence either way. The captures not overlapping at all (no pair) is a
     rival too: ``h1``'s own gain must clear the odds, so that a few bars aligned by chance, with
-    the true overlap too small to pair any, do not place the captures."""
+    the true overlap too small to pair any, do not place the captures.
+
+    Pairs of two fitted axes (``h[0]``, ``h[1]``) and pairs with a bar placed otherwise (``h[6]``:
+    from the colour mask, or fitted to the one side it shows, :func:`_well_placed`) scatter
+    differently: each kind gains with its own ``sm`` (``h1``'s RMS of that kind), so that one bar
+    off by its own millimetres neither widens the scatter the fitted pairs are judged by nor adds
+    evidence it does not carry."""
+
+    def kind_gain(r, n, sm) -> float:
+        w = max(sw[g], sm)
+        return n * (math.log(w / sm) - r**2 / (2 * sm**2) + r**2 / (2 * w**2)) if n else 0.0
+
     sm = max(h1[0][g], SIGMA_FLOOR_MM)
-    w = max(sw[g], sm)
+    sm_u = max(h1[6][g][0], SIGMA_FLOOR_MM) if h1[6][g][1] else math.inf
 
     def gain(h) -> float:
-        r, n = h[0][g], h[1][g]
-        return n * (math.log(w / sm) - r**2 / (2 * sm**2) + r**2 / (2 * w**2)) if n else 0.0
+        out = kind_gain(h[0][g], h[1][g], sm)
+        if h[6][g][1] and math.isfinite(sm_u):
+            out += kind_gain(h[6][g][0], h[6][g][1], sm_u)
+        return out
 
     g1 = gain(h1)
     return min([g1] + [g1 - gain(h) for h in rivals])

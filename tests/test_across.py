@@ -139,6 +139,51 @@ def test_captures_that_do_not_overlap_are_not_registered():
     assert reg is None
 
 
+@pytest.mark.parametrize("placed", ["colour mask", "one side", "fitted"])
+def test_a_bar_placed_otherwise_than_by_a_fit_to_both_sides_does_not_blur_the_placing(placed):
+    """Decision 029: a bar placed from the colour mask, or fitted to the one side it shows, lies
+    millimetres off its place by an error of its own; the pairs it makes are weighed with their
+    own scatter, not the fitted bars'. A fitted bar 3 mm off is a real misfit and still refuses."""
+    rng = np.random.default_rng(0)
+    xs, ys = _irregular(9, rng, 2.0), _irregular(9, rng, 2.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(100.0, 0.0))
+    for lv, keys in (("bottom", ("start_y_mm", "end_y_mm")), ("top", ("start_x_mm", "end_x_mm"))):
+        bar = next(x for x in b["bars"] if x["layer"] == "lower" and x["level"] == lv)
+        for k in keys:
+            bar[k] += 3.0
+        if placed == "colour mask":
+            bar["status"] = "not measured"
+        elif placed == "one side":
+            bar["one_sided_share"] = 1.0
+    reg, why = register(a, b, 0.25 * SPACING)
+    if placed == "fitted":
+        assert reg is None and "too regular" in why
+        return
+    assert reg is not None, why
+    for p in ([0.0, 0.0], [150.0, -80.0]):
+        assert np.allclose(reg.to_b(np.array(p)), np.array(p) + np.array([100.0, 0.0]), atol=0.5)
+
+
+def test_bars_fitted_to_one_side_do_not_pull_the_shift_of_the_placing():
+    """Decision 029: the shift across each direction is refined on the pairs of fitted axes. Two
+    lower bars of each direction fitted to the one side they show, 6 mm off their places, no
+    longer pull the shift (and with it every fitted pair) off the true placing."""
+    rng = np.random.default_rng(0)
+    xs, ys = _irregular(9, rng, 2.0), _irregular(9, rng, 2.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(100.0, 0.0))
+    for lv, keys in (("bottom", ("start_y_mm", "end_y_mm")), ("top", ("start_x_mm", "end_x_mm"))):
+        for bar in [x for x in b["bars"] if x["layer"] == "lower" and x["level"] == lv][:2]:
+            for k in keys:
+                bar[k] += 6.0
+            bar["one_sided_share"] = 1.0
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert reg is not None, why
+    for p in ([0.0, 0.0], [150.0, -80.0]):
+        assert np.allclose(reg.to_b(np.array(p)), np.array(p) + np.array([100.0, 0.0]), atol=0.5)
+
+
 @pytest.mark.parametrize("present", [True, False])
 def test_a_hidden_position_is_judged_by_the_capture_that_shows_it(present):
     rng = np.random.default_rng(6)
