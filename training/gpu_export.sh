@@ -1,4 +1,20 @@
-# Sourced by the gpu_stage*.sh scripts: the end of a GPU training call.
+# Sourced by the gpu_stage*.sh scripts (set D, RUNS, MIN, OUT and WAIT first): the settings every
+# GPU training call shares, from the environment, and the end of the call.
+#   DEVICE (cuda), JOBS (scene processes, 13), CAP (scenes per run's buffer, 16000), BATCH (64),
+#   CROP (256), VAL (seconds between validations and snapshots, 50), PY (python3)
+DEVICE=${DEVICE:-cuda}
+JOBS=${JOBS:-13}
+CAP=${CAP:-16000}
+BATCH=${BATCH:-64}
+CROP=${CROP:-256}
+VAL=${VAL:-50}
+PY=${PY:-python3}
+export PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1
+DR=$RUNS/scenes
+mkdir -p "$RUNS" "$DR"
+[ "$DEVICE" = cuda ] && nvidia-smi -L
+$PY -c "import torch, onnx, cv2; print('torch', torch.__version__, 'onnx', onnx.__version__, 'cv2', cv2.__version__)"
+
 #   export_and_pack WIDE_PREFIX TAG...   (uses PY, D, RUNS, DEVICE, OUT and the A/B/C/D logs)
 # Prints the runs' validations, exports each run's last state (its threshold chosen on the
 # validation renders with the flips, logits on $DEVICE; a tag starting with WIDE_PREFIX is the

@@ -17,19 +17,8 @@ D=${1:-.segdata8}
 RUNS=${2:-/tmp/stage9_runs}
 MIN=${3:-7}
 OUT=${4:-}
-DEVICE=${DEVICE:-cuda}
-JOBS=${JOBS:-13}
-CAP=${CAP:-16000}
 WAIT=${WAIT:-40}
-BATCH=${BATCH:-64}
-CROP=${CROP:-256}
-VAL=${VAL:-50}
-PY=${PY:-python3}
-export PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1
-DR=$RUNS/scenes
-mkdir -p "$RUNS" "$DR"
-[ "$DEVICE" = cuda ] && nvidia-smi -L
-$PY -c "import torch, onnx, cv2; print('torch', torch.__version__, 'onnx', onnx.__version__, 'cv2', cv2.__version__)"
+source training/gpu_export.sh
 # the scenes: seed 20261128 (stage 8's was 20261127), hard negatives, rooms in 30 %
 $PY training/domain_random.py --work "$DR" --n "$CAP" --seed 20261128 --hard --indoor 0.3 --jobs "$JOBS" \
     > "$RUNS/scenes.log" 2>&1 &
@@ -52,6 +41,5 @@ wait $A $B $C
 kill $GEN 2>/dev/null
 wait $GEN 2>/dev/null
 tail -n 2 "$RUNS/scenes.log"
-source training/gpu_export.sh
 # each run's last state exported, its threshold chosen on the validation renders with the flips
 export_and_pack s9_w $TAGS
