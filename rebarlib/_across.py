@@ -22,6 +22,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -66,6 +67,20 @@ class _Set:
     def __post_init__(self):
         if self.fitted is None:
             self.fitted = np.ones(len(self.mids), bool)
+
+
+class _Placing(NamedTuple):
+    """One placing of capture a in capture b's frame, per bar direction (two): the pairs of two
+    fitted axes (their RMS and count), the rotation and shift, and the other pairs
+    (``(RMS, count)``: a bar placed otherwise than by a fit to both its sides, :func:`_well_placed`)."""
+
+    rms: list  # per direction, mm, of the pairs of fitted axes
+    n: list  # per direction, the pairs of fitted axes
+    theta: float
+    R: np.ndarray
+    t: np.ndarray
+    shifts: tuple  # the shift across each direction it was built from, mm
+    other: list  # per direction, (RMS mm, count) of the other pairs
 
 
 def _plane(r: dict) -> Plane | None:
@@ -242,7 +257,7 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
     hull_a = {la: _hull({k: v for k, v in sa.items() if k[0] == la}) for la in {k[0] for k in sa}}
     hull_b = {la: _hull({k: v for k, v in sb.items() if k[0] == la}) for la in {k[0] for k in sb}}
     sw = [_irregularity([sa[k] for k in ks] + [sb[k] for k in ks]) for _, ks in groups]
-    hyps = []  # (rms per direction, n per direction, theta, R, t)
+    hyps = []  # _Placing
     for theta in (theta0, theta0 + math.pi):
         R = _rot(theta)
         shortlists, normals = [], []
@@ -264,10 +279,11 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
                 t = np.linalg.solve(N, np.array([t1, t2]))
                 fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate_mm)
                 if fit is not None:
-                    hyps.append((fit[0], fit[1], theta, R, t, (t1, t2), fit[2]))
-    # enough bars paired in each direction (h[1] pairs of fitted axes, h[6] the others), the pairs
-    # of fitted axes within the RMS
-    strong = [h for h in hyps if min(n + m for n, (_, m) in zip(h[1], h[6])) >= MIN_MATCHED and max(h[0]) <= MAX_RMS_MM]
+                    hyps.append(_Placing(fit[0], fit[1], theta, R, t, (t1, t2), fit[2]))
+    # enough bars paired in each direction (of fitted axes or not), the pairs of fitted axes within the RMS
+    strong = [
+        h for h in hyps if min(n + m for n, (_, m) in zip(h.n, h.other)) >= MIN_MATCHED and max(h.rms) <= MAX_RMS_MM
+    ]
     if not strong:
         return None, f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
     # the placing with the most evidence over a chance alignment in both directions (not the
@@ -279,13 +295,15 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
         rivals = [
             h
             for h in hyps
-            if h is not h1 and h[1][g] + h[6][g][1] >= 2 and (h[2] != h1[2] or abs(h[5][g] - h1[5][g]) > gate_mm)
+            if h is not h1
+            and h.n[g] + h.other[g][1] >= 2
+            and (h.theta != h1.theta or abs(h.shifts[g] - h1.shifts[g]) > gate_mm)
         ]
         lr = min(lr, _evidence_against(h1, rivals, sw, g))
     if lr < LOG_ODDS:
         return None, "the mesh is too regular to tell which bars are the same (two placings fit alike)"
-    rms, n, theta, R, t, _, n_other = h1
-    reg = Registration(name_a, name_b, R, t, int(sum(n) + sum(m for _, m in n_other)), float(max(rms)), float(lr))
+    n_pairs = int(sum(h1.n) + sum(m for _, m in h1.other))
+    reg = Registration(name_a, name_b, h1.R, h1.t, n_pairs, float(max(h1.rms)), float(lr))
     return reg, ""
 
 
@@ -403,7 +421,7 @@ def _irregularity(sets: list) -> float:
     return float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= 3 else 0.0
 
 
-def _evidence_against(h1: tuple, rivals: list, sw: list, g: int) -> float:
+def _evidence_against(h1: _Placing, rivals: list, sw: list, g: int) -> float:
     """The smallest log-odds, from direction ``g``'s bar pairs, of placing ``h1`` over any rival
     placing and over no overlap at all.
 
@@ -416,7 +434,7 @@ def _evidence_against(h1: tuple, rivals: list, sw: list, g: int) -> float:
     rival too: ``h1``'s own gain must clear the odds, so that a few bars aligned by chance, with
     the true overlap too small to pair any, do not place the captures.
 
-    Pairs of two fitted axes (``h[0]``, ``h[1]``) and pairs with a bar placed otherwise (``h[6]``:
+    Pairs of two fitted axes (``rms``, ``n``) and pairs with a bar placed otherwise (``other``:
     from the colour mask, or fitted to the one side it shows, :func:`_well_placed`) scatter
     differently: each kind gains with its own ``sm`` (``h1``'s RMS of that kind), so that one bar
     off by its own millimetres neither widens the scatter the fitted pairs are judged by nor adds
@@ -426,13 +444,13 @@ def _evidence_against(h1: tuple, rivals: list, sw: list, g: int) -> float:
         w = max(sw[g], sm)
         return n * (math.log(w / sm) - r**2 / (2 * sm**2) + r**2 / (2 * w**2)) if n else 0.0
 
-    sm = max(h1[0][g], SIGMA_FLOOR_MM)
-    sm_u = max(h1[6][g][0], SIGMA_FLOOR_MM) if h1[6][g][1] else math.inf
+    sm = max(h1.rms[g], SIGMA_FLOOR_MM)
+    sm_u = max(h1.other[g][0], SIGMA_FLOOR_MM) if h1.other[g][1] else math.inf
 
-    def gain(h) -> float:
-        out = kind_gain(h[0][g], h[1][g], sm)
-        if h[6][g][1] and math.isfinite(sm_u):
-            out += kind_gain(h[6][g][0], h[6][g][1], sm_u)
+    def gain(h: _Placing) -> float:
+        out = kind_gain(h.rms[g], h.n[g], sm)
+        if h.other[g][1] and math.isfinite(sm_u):
+            out += kind_gain(*h.other[g], sm_u)
         return out
 
     g1 = gain(h1)
