@@ -141,3 +141,16 @@ def test_a_room_behind_the_bars_marks_no_rebar_and_changes_no_other_draw(dr):
         rgb_room, mask_room = dr.scene(i, size=160, hard=True, indoor=1.0)
         np.testing.assert_array_equal(mask_room, mask)
         assert not np.array_equal(rgb, rgb_room)
+
+
+def test_thick_cables_and_hair_mark_no_rebar_and_change_no_other_draw(dr):
+    # --curves draws from its own stream: curves=0 is the scene as before; with thick cables and
+    # long hair in every scene the mask only loses pixels (a cable over a bar) and never gains one
+    changed = 0
+    for i in range(4):
+        rgb, mask = dr.scene(i, size=160, hard=True, indoor=0.3)
+        np.testing.assert_array_equal(dr.scene(i, size=160, hard=True, indoor=0.3, curves=0.0)[0], rgb)
+        rgb_c, mask_c = dr.scene(i, size=160, hard=True, indoor=0.3, curves=1.0)
+        assert not np.any(mask_c & ~mask)
+        changed += not np.array_equal(rgb, rgb_c)
+    assert changed == 4

@@ -916,15 +916,76 @@ def _hard_negatives(img, cover, rng, light, tile, over):
         _person(img, cover, rng, light, tile)
 
 
-def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0):
+def _thick_cable(img, cover, rng, light, tile):
+    """A thick, smooth, dark cable or hose as wide as a bar (8-45 px), lying in loose curves:
+    a shaded cylinder like a plain bar, but it bends. Over the bars it cuts their mask."""
+    size = img.shape[0]
+    pts = [rng.uniform(-0.1, 1.1, 2) * size]
+    for _ in range(int(rng.integers(1, 4))):  # one to three bends of a cable lying loose
+        pts.append(pts[-1] + rng.normal(0, 0.45, 2) * size)
+    path = np.concatenate(
+        [_curve(rng, a, b, rng.choice([-1, 1]) * rng.uniform(0.12, 0.5) * size, n=20) for a, b in zip(pts, pts[1:])]
+    )
+    col = _colour(
+        rng, rng.choice([(0.02, 0.02, 0.025), (0.06, 0.06, 0.08), (0.25, 0.25, 0.27), (0.05, 0.1, 0.2)]), 0.2, 0.1
+    )
+    before = img.copy() if cover is not None else None
+    draw_tube(img, rng, light, tile, path, rng.uniform(8, 45), col, corrugated=rng.random() < 0.15)
+    if cover is not None:
+        cover[np.any(np.abs(img - before) > 1e-6, axis=2)] = 0
+
+
+def _long_hair(img, rng, light):
+    """Long dark hair out of focus (a person close behind the bars): a bundle of many fine
+    strands that follow one wavy flow, 20-160 px across, blurred. Dark, long and narrow like a
+    bar, but made of strands and never straight."""
+    size = img.shape[0]
+    m = np.zeros((size, size), np.float32)
+    x0, y0 = rng.uniform(0, size, 2)
+    a0 = rng.uniform(0, 2 * math.pi)
+    spread = rng.uniform(20, 160)
+    length = rng.uniform(0.3, 1.2) * size
+    wave, phase = rng.uniform(0.002, 0.02), rng.uniform(0, 2 * math.pi)
+    steps = 40
+    for _ in range(int(rng.integers(60, 300))):
+        off = rng.normal(0, spread / 3)
+        x, y, a = x0 - off * math.sin(a0), y0 + off * math.cos(a0), a0 + rng.normal(0, 0.05)
+        pts = [(x, y)]
+        for k in range(steps):
+            a += 0.25 * math.sin(wave * k * length / steps * 6 + phase) * 0.2 + rng.normal(0, 0.02)
+            x, y = x + length / steps * math.cos(a), y + length / steps * math.sin(a)
+            pts.append((x, y))
+        cv2.polylines(m, [np.round(pts).astype(np.int32)], False, rng.uniform(0.4, 1.0), 1, cv2.LINE_AA)
+    m = np.clip(cv2.GaussianBlur(m, (0, 0), rng.uniform(0.5, 5)) * rng.uniform(1.5, 3), 0, 1)
+    shade = light["ambient"] + light["diffuse"] * light["lz"]
+    col = _colour(rng, rng.choice([(0.02, 0.015, 0.01), (0.08, 0.05, 0.03), (0.3, 0.2, 0.12)]), 0.2, 0.0)
+    img[:] = img * (1 - m[..., None]) + (col * shade * light["colour"]) * m[..., None]
+
+
+def _curves(img, cover, rng, light, tile, over):
+    """What the stage-9 networks still marked on real photos: thick smooth cables and hoses and
+    long dark hair (``over`` False: behind or under the bars; True: a cable over them)."""
+    if not over:
+        for _ in range(int(rng.integers(1, 4))):
+            _thick_cable(img, None, rng, light, tile)
+        if rng.random() < 0.5:
+            _long_hair(img, rng, light)
+    elif rng.random() < 0.2:
+        _thick_cable(img, cover, rng, light, tile)
+
+
+def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0):
     """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
 
     ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
     their own (``default_rng([seed, index, 1])``), so every other draw of the scene stays as
     it was without them. ``indoor``: the probability of a room behind the bars (:func:`_indoor`),
-    drawn from a stream of its own too (``default_rng([seed, index, 2])``)."""
+    drawn from a stream of its own too (``default_rng([seed, index, 2])``). ``curves``: the
+    probability of thick cables and long hair (:func:`_curves`), stream ``[seed, index, 3]``."""
     rng = np.random.default_rng([int(seed), int(index)])
     rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
+    rng_curves = np.random.default_rng([int(seed), int(index), 3])
+    curvy = curves > 0 and rng_curves.random() < curves
     names = list(LAYOUTS)
     kind = names[int(rng.choice(len(names), p=[LAYOUTS[k][1] for k in names]))]
     bars, behind = LAYOUTS[kind][0](rng, size) if LAYOUTS[kind][0] else ([], "ground")
@@ -948,6 +1009,8 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0):
         _indoor(img, rng_room, light, tile)
     if rng_hard is not None:
         _hard_negatives(img, None, rng_hard, light, tile, over=False)
+    if curvy:
+        _curves(img, None, rng_curves, light, tile, over=False)
     if light["mode"] == "sun" and behind == "ground":
         _cast_bar_shadows(img, bars, rng, light)
     cover = np.zeros((size, size), np.float32)
@@ -958,6 +1021,8 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0):
     add_clutter(img, cover, rng, light, tile, int(rng.integers(0, 5)), over=True)
     if rng_hard is not None:
         _hard_negatives(img, cover, rng_hard, light, tile, over=True)
+    if curvy:
+        _curves(img, cover, rng_curves, light, tile, over=True)
     _apply_light(img, rng, light)
     out = _camera(img, rng, light["mode"] == "night")
     return out, cover > 0.5
@@ -967,14 +1032,14 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0):
 # the data step
 
 
-def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0) -> bool:
+def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
     were already there (nothing written: the data step resumes)."""
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor)
+    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -986,9 +1051,9 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=
 
 
 def _write_job(job):
-    index, folder, seed, size, hard, indoor = job
+    index, folder, seed, size, hard, indoor, curves = job
     cv2.setNumThreads(1)
-    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor)
+    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor, curves=curves)
 
 
 def main(argv=None):
@@ -1000,12 +1065,15 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=FULL)
     ap.add_argument("--hard", action="store_true", help="also draw the hard negatives (cracks, weeds, people)")
     ap.add_argument("--indoor", type=float, default=0.0, help="probability of a room behind the bars (0: none)")
+    ap.add_argument(
+        "--curves", type=float, default=0.0, help="probability of thick cables and long dark hair (0: none)"
+    )
     ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
-    jobs = [(i, folder, args.seed, args.size, args.hard, args.indoor) for i in range(args.first, args.n)]
+    jobs = [(i, folder, args.seed, args.size, args.hard, args.indoor, args.curves) for i in range(args.first, args.n)]
     if args.jobs > 1:
         from multiprocessing import Pool
 
@@ -1016,7 +1084,9 @@ def main(argv=None):
                     print(f"{args.first + k}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
     else:
         for i, *_ in jobs:
-            made += write_sample(i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor)
+            made += write_sample(
+                i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor, curves=args.curves
+            )
             if i % 100 == 0:
                 print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
     print(f"done: {made} written, {time.time() - t0:.0f} s")
