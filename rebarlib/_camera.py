@@ -126,6 +126,11 @@ def ray_directions(intrinsics: Intrinsics, pixels=None) -> np.ndarray:
     return backproject(pixels, np.ones(len(pixels)), intrinsics)
 
 
+def _valid_depth(d, max_depth_mm: float = 10_000.0) -> np.ndarray:
+    """The pixels of a float depth image that :func:`depth_to_points` makes points of."""
+    return (d > 0) & (d <= max_depth_mm) & np.isfinite(d)
+
+
 def depth_to_points(depth_mm, intrinsics: Intrinsics, *, max_depth_mm: float = 10_000.0) -> Cloud:
     """Every pixel with valid depth (0 < z <= max_depth_mm) as a camera-frame point with its pixel.
 
@@ -149,7 +154,7 @@ def depth_to_points(depth_mm, intrinsics: Intrinsics, *, max_depth_mm: float = 1
         raise RebarInputError(
             f"depth: expected shape ({intrinsics.height}, {intrinsics.width}) from the intrinsics, got {d.shape}"
         )
-    valid = (d > 0) & (d <= max_depth_mm) & np.isfinite(d)
+    valid = _valid_depth(d, max_depth_mm)
     v, u = np.nonzero(valid)
     pixels = np.column_stack((u, v)).astype(np.int32)
     return Cloud(backproject(pixels, d[v, u], intrinsics), pixels)

@@ -9,6 +9,25 @@ import math
 import numpy as np
 
 
+#: added to the Gauss-Newton normal matrix of :func:`_fit_bar` (made once, not per iteration)
+_RIDGE = 1e-9 * np.eye(4)
+
+
+def _median(x) -> float:
+    """``np.median`` of a 1-D float array, without its generic machinery (the same number: the
+    middle value, or the mean of the two middle values; NaN if any value is NaN). The fits
+    below take a median of a few hundred values at each of their iterations, where
+    ``np.median``'s own overhead was most of the cost."""
+    n = len(x)
+    if n == 0:
+        return float(np.median(x))  # NaN, with numpy's warning
+    k = n // 2
+    p = np.partition(x, [k - 1, k, n - 1] if n % 2 == 0 else [k, n - 1])
+    if np.isnan(p[-1]):
+        return float("nan")
+    return float((p[k - 1] + p[k]) / 2) if n % 2 == 0 else float(p[k])
+
+
 def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, start=None, parallel=False, ray=None):
     """Robust fit of a cylinder of known radius to one bar's points (slab frame).
 
@@ -48,13 +67,14 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
         rho = np.hypot(ds, dh) + 1e-9
         r = rho - radius
         if it > 0:
-            sigma = max(1.4826 * float(np.median(np.abs(r[w > 0]))) if np.any(w > 0) else 1.0, 0.2)
+            pos = w > 0
+            sigma = max(1.4826 * _median(np.abs(r[pos])) if pos.any() else 1.0, 0.2)
         u = r / (4.685 * sigma)
         w = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         if w.sum() < 6:
             break
         cs, ch = ds / rho, dh / rho
-        J = np.stack([-cs, -ts * cs, -ch, -ts * ch])
+        J = np.array([-cs, -ts * cs, -ch, -ts * ch])
         if parallel:  # no drift across: its column is left out (its step is 0)
             J[1] = 0.0
         JW = J * w
@@ -62,7 +82,7 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
         if ray is not None:
             rhs = rhs - _noise_bias(cs, ch, rho, r, w, us, uh, ts, parallel)
         try:
-            step = np.linalg.solve(JW @ J.T + 1e-9 * np.eye(4), rhs)
+            step = np.linalg.solve(JW @ J.T + _RIDGE, rhs)
         except np.linalg.LinAlgError:
             break
         a = a + step
@@ -76,8 +96,10 @@ def _fit_bar(t, s, h, radius, *, iters: int = 12, max_fit_points: int = 1500, st
     keep = w > 0
     rms = float(np.sqrt(np.mean(r[keep] ** 2))) if keep.any() else float("nan")
     # standard errors of the centred parameters (offset and height at the points' mean t)
+    # (the kept points' rows only: the same numbers as all rows' then the kept ones)
+    ds, dh, tk = ds[keep], dh[keep], tc[keep]
     rho = np.hypot(ds, dh) + 1e-9
-    J = np.column_stack([-ds / rho, -tc * ds / rho, -dh / rho, -tc * dh / rho])[keep]
+    J = np.column_stack([-ds / rho, -tk * ds / rho, -dh / rho, -tk * dh / rho])
     try:
         cov = np.linalg.inv(J.T @ J) * (rms**2 if np.isfinite(rms) else 1.0)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))

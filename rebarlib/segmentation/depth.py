@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._camera import Intrinsics, depth_to_points
+from .._camera import Intrinsics, _valid_depth, depth_to_points
 from .._checks import RebarInputError
 
 __all__ = ["fit_formwork_plane", "height_above_plane", "mask_from_depth"]
@@ -98,7 +98,8 @@ def height_above_plane(depth_mm, intrinsics: Intrinsics, plane) -> np.ndarray:
     cloud = depth_to_points(d, intrinsics)
     n, off = plane
     h = np.full(d.shape, np.nan)
-    h[cloud.pixels[:, 1], cloud.pixels[:, 0]] = cloud.points @ np.asarray(n, float) + float(off)
+    # the cloud's points are its valid pixels in row-major order: a boolean mask places them
+    h[_valid_depth(d)] = cloud.points @ np.asarray(n, float) + float(off)
     return h
 
 
