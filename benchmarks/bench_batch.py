@@ -4,7 +4,8 @@ Tables printed (medians of repeated runs; the machine may be shared, so the load
 printed with each table, and CPU seconds beside wall seconds):
 
 1. ``stages``: ``inspect()`` of one 1280 x 800 example capture with diameters, per stage, with
-   the segmentation model on onnxruntime's default threads and on one thread (as in a batch).
+   the segmentation model, OpenCV and BLAS on their default threads and on one thread each (as
+   in a batch).
    Target: whole capture <= 1.0 s on 2 cores.
    ``parts``: CPU seconds per capture of each part of ``inspect()`` (the network, the rest of
    the mask, the geometry, the diameters, ...) on the paper slab's 4 captures, one thread, each
@@ -74,11 +75,10 @@ def _stage_run(threads: str, repeats: int) -> dict:
     code = f"""
 import json, statistics, time, sys
 import rebarlib._inspect as I
-import rebarlib._masks as M
 threads = {threads!r}
-if threads != "default":
-    import cv2
-    M.MODEL_THREADS = int(threads); cv2.setNumThreads(int(threads))
+if threads != "default":  # as a batch's worker: the model, OpenCV and BLAS on these threads
+    from rebarlib.batch import _configure_threads
+    _configure_threads(int(threads))
 from rebarlib import load_capture, load_design
 d = load_design({str(PAPER / "design.toml")!r})
 cap = load_capture({str(PAPER / "B_500")!r})
@@ -104,7 +104,7 @@ def bench_stages(repeats: int) -> None:
     rows.append(["whole capture, CPU"] + [f"{runs[t]['cpu']:.3f}" for t in runs])
     table(
         f"stages: inspect() of examples/paper_slab/B_500 with diameters, median of {repeats} (s)",
-        ["stage", "model threads: default", "model threads: 1"],
+        ["stage", "threads: default", "threads: 1 (model, OpenCV, BLAS)"],
         rows,
     )
 
@@ -128,9 +128,8 @@ PARTS = (
 def _parts_run(repeats: int) -> dict:
     code = f"""
 import functools, importlib, json, time
-import cv2
-import rebarlib._masks as M
-M.MODEL_THREADS = 1; cv2.setNumThreads(1)
+from rebarlib.batch import _configure_threads
+_configure_threads(1)  # as a batch's worker: the model, OpenCV and BLAS on one thread
 import rebarlib._inspect as I
 from rebarlib import load_capture, load_design
 acc = {{}}
@@ -173,7 +172,7 @@ print(json.dumps(out))
 
 def bench_parts(repeats: int) -> None:
     """CPU seconds per capture of each part of ``inspect()``: the paper slab's 4 captures with
-    diameters, the model and OpenCV on one thread (as in a batch), no profiler (each part
+    diameters, the model, OpenCV and BLAS on one thread (as in a batch), no profiler (each part
     wrapped in a ``time.process_time`` counter)."""
     r = _parts_run(repeats)
     order = [p[0] for p in PARTS]
