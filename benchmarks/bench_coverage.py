@@ -8,6 +8,8 @@ captures whose camera has systematic errors drawn from its device profile.
     python benchmarks/bench_coverage.py --derive     # also the fits' random term's two constants
     python benchmarks/bench_coverage.py --rounds 13 --jobs 2 --store s59.pkl   # 156 captures per set
     python benchmarks/bench_coverage.py --rebudget s59.pkl s7.pkl  # the stored inspections, budget as now
+    python benchmarks/bench_coverage.py --rebudget s59.pkl --regress  # heights' errors on the drawn errors
+    python benchmarks/bench_coverage.py --stereo-derivative 30 --limit 36  # d(height)/dk against the budget's
 
 Set-up: the paper's slab (lower Φ14, upper Φ12 @ 200, layer distance 85, cover 15 or 25; 20 in
 the quick run) seen from 400-600 mm (quick: 450, 600) with tilts 0-15°, rendered with three
@@ -40,6 +42,13 @@ fits' residual RMS (``BAR_FIT_SHARE_OF_RMS``), from every level's bars' errors a
 truth; and the part common to a level (``LEVEL_FIT_COMMON_MM``), from the mean heights' errors
 once the drawn systematic errors (times the budget's own sensitivities) and that scatter are
 taken out. Derive them on training seeds (59, 7), never on the held-out one (2026).
+
+``--regress`` regresses each mean height's error on the drawn errors times the budget's own
+sensitivities (depth scale, stereo k, focal length, and a constant): a slope of 1 where a
+sensitivity is right. ``--stereo-derivative K`` checks the stereo term's sensitivity capture by
+capture instead: each case rendered twice with the same scene, noise and other drawn errors, at
+a stereo error of -K and +K mm/m², and inspected; (height(+K) - height(-K)) / 2K, the
+pipeline's own derivative, against the budget's sensitivity (docs/decisions/033).
 """
 
 from __future__ import annotations
@@ -148,7 +157,9 @@ def rows_of(res, tr: dict, case, diameters: bool) -> list:
         m = getattr(res, attr)
         if m.ok and tr.get(key) is not None and m.uncertainty_mm:
             model = _model(budget.get("measurements", {}).get(attr))
-            out.append({**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm, **model})
+            sens = {t["term"]: t["sensitivity"] for t in budget.get("measurements", {}).get(attr, {}).get("terms", [])}
+            drawn = {f"x {name}": errs[k] * sens.get(name, math.nan) for k, name in DRAWN.items()}
+            out.append({**base, "quantity": q, "error": m.value_mm - tr[key], "u": m.uncertainty_mm, **model, **drawn})
     visible = {b["id"] for b in tr["bars"] if b["visible"]}
     mapping, _, tb = match_bars(res, tr, visible)
     tsp = {(s["bar_a"], s["bar_b"]): s["spacing_mm"] for s in tr["spacings"]}
@@ -251,6 +262,86 @@ def derive(bars: pd.DataFrame, heights: pd.DataFrame) -> dict:
         "residual_rms_mm": float(np.sqrt((heights["residual"] ** 2).mean())),
         "residual_mean_mm": float(heights["residual"].mean()),
     }
+
+
+def regress(df: pd.DataFrame) -> pd.DataFrame:
+    """Per mean height (and per set): least squares of its error on the drawn errors times the
+    budget's sensitivities (depth scale, stereo k, focal length) and a constant. A slope of 1
+    says the sensitivity is right on these renders; its standard error is from the residuals."""
+    cols = [f"x {name}" for name in DRAWN.values()]
+    out = []
+    for q in HEIGHT_LEVELS:
+        sub = df[df["quantity"] == q]
+        for name, g in [("all sets", sub), *sub.groupby("set")]:
+            if len(g) < 8 or not all(c in g for c in cols):
+                continue
+            X = np.column_stack([g[cols].to_numpy(float), np.ones(len(g))])
+            y = g["error"].to_numpy(float)
+            b, *_ = np.linalg.lstsq(X, y, rcond=None)
+            e = y - X @ b
+            se = np.sqrt(np.diag(np.linalg.pinv(X.T @ X)) * float(e @ e) / (len(g) - X.shape[1]))
+            row = {"quantity": q, "set": name, "n": len(g), "residual_mm": float(np.sqrt(np.mean(e**2)))}
+            for c, bb, ss in zip([*DRAWN.values(), "constant"], b, se):
+                row[c], row[c + " se"] = float(bb), float(ss)
+            out.append(row)
+    t = pd.DataFrame(out)
+    print("\nThe heights' errors regressed on the drawn errors times the budget's sensitivities (1: right):")
+    for r in t.to_dict(orient="records"):
+        print(
+            f"  {r['quantity']:15s} {r['set']:13s} n {r['n']:4d}  "
+            + "  ".join(f"{c} {r[c]:.3f} ± {r[c + ' se']:.3f}" for c in DRAWN.values())
+            + f"  constant {r['constant']:+.3f} mm  residual RMS {r['residual_mm']:.3f} mm"
+        )
+    return t
+
+
+def stereo_derivative(quick: bool, seed: int, rounds: int, k: float, limit: int | None = None) -> pd.DataFrame:
+    """Per case (the first ``limit``): the capture rendered at a stereo error of -k and +k mm/m²
+    (the same scene, noise and other drawn errors) and inspected; per mean height, the pipeline's
+    derivative (height(+k) - height(-k)) / 2k against the budget's stereo sensitivity (the mean
+    of the two inspections')."""
+    rows = []
+    for i, case in enumerate(cases(quick, seed, rounds)[:limit]):
+        got = [
+            inspect_case((*case[:-1], {**case[-1], "bias_mm_per_m2": sgn * k}), False, False, True)["kept"]["res"]
+            for sgn in (-1.0, 1.0)
+        ]
+        for key in ("cover", "layer_distance", "upper_top"):
+            lo, hi = (getattr(r, key) for r in got)
+            if not (lo.ok and hi.ok):
+                continue
+            sens = [
+                next(
+                    t
+                    for t in r.extras["uncertainty"]["measurements"][key]["terms"]
+                    if t["term"] == DRAWN["bias_mm_per_m2"]
+                )
+                for r in got
+            ]
+            rows.append(
+                {
+                    "set": case[0],
+                    "tilt": case[3],
+                    "quantity": key,
+                    "derivative": (hi.value_mm - lo.value_mm) / (2 * k),
+                    "sensitivity": float(np.mean([t["sensitivity"] for t in sens])),
+                }
+            )
+        print(f"  case {i}: {case[0]} cover {case[1]} at {case[2]} mm, tilt {case[3]}°", flush=True)
+    t = pd.DataFrame(rows)
+    print(f"\nd(height)/dk by rendering at k = -{k:g} and +{k:g} mm/m², against the budget's stereo sensitivity:")
+    for (q, name), g in [
+        *(((q, "all sets"), g) for q, g in t.groupby("quantity", sort=False)),
+        *t.groupby(["quantity", "set"]),
+    ]:
+        ratio = g["derivative"] / g["sensitivity"]
+        d, c = g["derivative"].to_numpy(float), g["sensitivity"].to_numpy(float)
+        print(
+            f"  {q:15s} {name:13s} n {len(g):3d}  mean derivative {1e3 * d.mean():6.2f} µm per mm/m²  "
+            f"derivative / sensitivity: mean {ratio.mean():.3f}, SD {ratio.std():.3f}, median |-1| "
+            f"{np.median(np.abs(ratio - 1)):.3f}; slope {float(d @ c) / float(c @ c):.3f}"
+        )
+    return t
 
 
 def inspect_case(case, diameters: bool, derive: bool, keep: bool) -> dict:
@@ -525,9 +616,25 @@ def main() -> None:
         help="inspect nothing: apply the budget as the code has it now to the inspections stored by --store "
         "(one or more runs, complete or not) and report",
     )
+    ap.add_argument("--regress", action="store_true", help="also regress the heights' errors on the drawn errors")
+    ap.add_argument(
+        "--stereo-derivative",
+        type=float,
+        metavar="K",
+        help="inspect nothing else: render each case at a stereo error of -K and +K mm/m² and compare the heights' "
+        "change with the budget's stereo sensitivity",
+    )
+    ap.add_argument("--limit", type=int, help="with --stereo-derivative: only the first LIMIT cases")
     a = ap.parse_args()
     if a.rounds < 1 or a.jobs < 1:
         ap.error("--rounds and --jobs must be at least 1")
+    if a.stereo_derivative is not None:
+        if not a.stereo_derivative > 0 or (a.limit is not None and a.limit < 1):
+            ap.error("--stereo-derivative must be > 0 and --limit at least 1")
+        t = stereo_derivative(a.quick, a.seed, a.rounds, a.stereo_derivative, a.limit)
+        if a.csv:
+            t.to_csv(a.csv, index=False)
+        return
     got = [] if a.derive else None
     if a.rebudget:
         df = rebudget(load_kept(a.rebudget), a.diameters, got)
@@ -549,6 +656,8 @@ def main() -> None:
     if a.csv:
         df.to_csv(a.csv, index=False)
     report(df)
+    if a.regress:
+        regress(df)
     if got is not None:
         bars = pd.DataFrame([b for bb, _ in got for b in bb])
         heights = pd.DataFrame([h for _, hh in got for h in hh])

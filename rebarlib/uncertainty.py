@@ -38,6 +38,7 @@ __all__ = [
     "height_terms",
     "length_terms",
     "width_terms",
+    "stereo_sensitivity",
     "combine",
     "apply_budget",
 ]
@@ -171,15 +172,18 @@ def height_terms(
     envelope_mm=0.0,
     rib_mm=0.0,
     common_mm=0.0,
+    stereo_mm=None,
 ) -> list:
     """Budget of a height above the formwork (or a difference of two) whose seen part, the
     depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
     value plus the assumed envelope, which :func:`apply_budget` passes).
 
-    A height is a depth difference: a depth scale error s changes it by ``s h``, the stereo
-    error ``k z²`` by ``2 k z h`` (its slope at the working depth ``depth_mm``), an offset not
-    at all. A focal-length error stretches the image's directions, so only the part of ``h``
-    across the line of sight, ``sin² tilt``, changes. ``envelope_mm``: standard uncertainty of
+    A height is a depth difference: a depth scale error s changes it by ``s h``, an offset not
+    at all. The stereo error ``k z²`` changes it by ``stereo_mm`` per mm/m² of k where given
+    (:func:`stereo_sensitivity`: derived from the capture's formwork plane and its bars'
+    depths), else by ``2 k z h``, its slope at the working depth ``depth_mm``. A focal-length
+    error stretches the image's directions, so only the part of ``h`` across the line of
+    sight, ``sin² tilt``, changes. ``envelope_mm``: standard uncertainty of
     the rib envelopes the height depends on (the underside = fitted axis minus the assumed
     envelope radius: sensitivity 1 on the envelope's diameter); ``rib_mm``: the rib height of
     the bars whose assumed shape the height depends on; ``common_mm``: the part of the fits'
@@ -194,7 +198,12 @@ def height_terms(
         *([_t("fits (common to a level)", common_mm, "mm", 1.0, "random")] if common_mm else []),
         _t("depth scale", inp.u_scale, "1", h),
         _t("depth offset", inp.u_offset_mm, "mm", 0.0),
-        _t("depth non-linearity (stereo k z²)", inp.u_quad_mm_per_m2, "mm/m²", 2 * z_m * h / 1000.0),
+        _t(
+            "depth non-linearity (stereo k z²)",
+            inp.u_quad_mm_per_m2,
+            "mm/m²",
+            2 * z_m * h / 1000.0 if stereo_mm is None else stereo_mm,
+        ),
         _t("focal length", inp.u_focal, "1", h * s2),
         _t("principal point", inp.u_pp_px, "px", 0.0),
         _t("rib envelope (spread between mills)", envelope_mm, "mm", 1.0 if envelope_mm else 0.0),
@@ -316,6 +325,66 @@ def _level_fits_u(bars, key: str) -> float | None:
     return math.sqrt(var)
 
 
+def _level_stereo(bars, layer: str, level: str, normal, z0: float) -> float | None:
+    """Mean over a level's measured bars of d(axis height)/dk (mm per mm/m²), the first-order
+    change of a bar's top, ``h (z + z0) / 10⁶``, at its top's height h above the formwork and
+    depth z (:func:`stereo_sensitivity`); None where no bar of the level gives it."""
+    g = bars[(bars["layer"] == layer) & (bars["level"] == level) & (bars["status"] == MEASURED)]
+    g = g[np.isfinite(g["underside_mm"].to_numpy(float))]
+    if not len(g):
+        return None
+    mid = (g[["start_z_mm"]].to_numpy(float)[:, 0] + g[["end_z_mm"]].to_numpy(float)[:, 0]) / 2
+    r = g["radius_mm"].to_numpy(float)
+    h = g["axis_height_mm"].to_numpy(float) + r  # the bar's top above the formwork
+    z = mid + r * float(normal[2])  # its depth (the normal points at the camera)
+    s = h * (z + z0) / 1e6
+    return float(np.mean(s)) if np.isfinite(s).all() else None
+
+
+def stereo_sensitivity(res: InspectionResult, key: str) -> float | None:
+    """The change of mean height ``key`` ("cover", "layer_distance", "upper_top") per mm/m² of
+    a stereo camera's depth error ``k z²``, derived from the capture's own geometry: its
+    formwork plane and its bars' depths (docs/uncertainty.md, docs/decisions/033).
+
+    The error ``k z²`` moves a point along its ray by the factor ``1 + k z / 10⁶`` (z in mm), so
+    a point h above the plane (normal n towards the camera, the camera D above it) rises by
+    ``k z (h - D) / 10⁶``. On the formwork (h = 0) that is ``-k D z / 10⁶``, and a depth z is
+    linear over a plane: the formwork stays a plane, and the plane refitted to it (whatever its
+    inliers) lies lower by ``k D z_f / 10⁶`` under each point, z_f the depth of the point's foot
+    on the plane, ``z + h cos(tilt)``. A height above the refitted plane therefore changes by
+    ``k h (z + D cos(tilt)) / 10⁶``: ``D cos(tilt)`` is the depth of the camera's foot on the
+    plane. A bar's axis, fitted with a fixed radius, moves as the top it is fitted to; the mean
+    height is the mean over its level's bars (the layer distance: the difference of two).
+
+    None where the result does not give it (no formwork plane found, the paper method, no
+    bars' axes and heights): :func:`apply_budget` then takes the slope ``2 z h`` at the working
+    depth.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> bars = pd.DataFrame({"layer": ["lower"], "level": ["bottom"], "status": ["measured"],
+    ...                      "start_z_mm": [584.0], "end_z_mm": [584.0], "axis_height_mm": [24.0],
+    ...                      "radius_mm": [8.0], "underside_mm": [16.0]})
+    >>> res = InspectionResult("A", "refined", *[Measurement.not_measured("-")] * 4, bars, None,
+    ...                        formwork={"normal": [0.0, 0.0, -1.0], "offset_mm": 600.0, "found": True})
+    >>> round(stereo_sensitivity(res, "cover") * 1e6)  # h = 32 mm, z = 576 mm: 32 (576 + 600)
+    37632
+    """
+    fw, bars = res.formwork or {}, res.bars
+    need = {"layer", "level", "status", "underside_mm", "start_z_mm", "end_z_mm", "axis_height_mm", "radius_mm"}
+    if res.method != "refined" or not fw.get("found") or "normal" not in fw or bars is None:
+        return None
+    if not len(bars) or not need <= set(bars.columns):
+        return None
+    n = np.asarray(fw["normal"], float)
+    z0 = float(fw["offset_mm"]) * abs(float(n[2]))
+    each = [_level_stereo(bars, layer, level, n, z0) for layer, level in _HEIGHT_LEVELS[key]]
+    if any(s is None for s in each):
+        return None
+    return each[1] - each[0] if key == "layer_distance" else each[0]  # layer distance: upper - lower
+
+
 def _with_u(m: Measurement, u: float) -> Measurement:
     return replace(m, uncertainty_mm=u) if m.ok else m
 
@@ -390,8 +459,13 @@ def apply_budget(
             u_fits, common = m.uncertainty_mm or 0.0, 0.0
         else:
             common = LEVEL_FIT_COMMON_MM
-        terms = height_terms(m.value_mm + seen[key], u_fits, inp, **geo, **extra, common_mm=common)
-        out["measurements"][key] = _budget_dict(terms, m.value_mm)
+        # the stereo term's sensitivity from this capture's plane and bars' depths, where it has them
+        stereo = stereo_sensitivity(res, key)
+        terms = height_terms(m.value_mm + seen[key], u_fits, inp, **geo, **extra, common_mm=common, stereo_mm=stereo)
+        out["measurements"][key] = {
+            **_budget_dict(terms, m.value_mm),
+            "stereo_sensitivity": "2 z h at the working depth" if stereo is None else "formwork plane and bar depths",
+        }
         setattr(res, key, _with_u(m, combine(terms)))
     if res.top_cover.ok and res.upper_top.ok:
         # top cover = design thickness - top of the upper bars: the same budget

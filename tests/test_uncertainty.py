@@ -159,6 +159,103 @@ def test_height_sensitivities_match_the_depth_error_model(field, err, first_orde
     assert combine(terms) == pytest.approx(abs(moved - h), rel=1e-6, abs=1e-9)
 
 
+def _tilted_plane(tilt_deg: float, D: float):
+    """A formwork plane seen from a camera D above it, tilted by ``tilt_deg`` about the x axis:
+    its unit normal (towards the camera) and a function giving plane points at (x, y) offsets
+    from the camera's foot."""
+    t = math.radians(tilt_deg)
+    n = np.array([0.0, math.sin(t), -math.cos(t)])
+    e1, e2 = np.array([1.0, 0.0, 0.0]), np.cross(n, [1.0, 0.0, 0.0])
+    return n, lambda x, y: -D * n + np.multiply.outer(x, e1) + np.multiply.outer(y, e2)
+
+
+def _read_with_stereo_error(p, k):
+    """Points read through a stereo error k (mm/m²): each depth z becomes z + k (z / 1 m)²,
+    the point sliding along its ray."""
+    z = p[..., 2:3]
+    return p * (z + k * (z / 1000.0) ** 2) / z
+
+
+@pytest.mark.parametrize("tilt", [0.0, 15.0])
+@pytest.mark.parametrize("half", ["whole", "left", "far"])
+def test_stereo_sensitivity_follows_the_refitted_formwork_plane(tilt, half):
+    """A stereo error k z² read on the capture's own geometry: the formwork's points are read
+    through it and the plane fitted again (over the whole view, or only part of it: a depth
+    is linear over a plane, so the refitted plane does not depend on where its inliers lie);
+    each bar's top is read through it too, and its height above the new plane changes by k
+    times ``stereo_sensitivity``. The old slope ``2 z h`` at the bars' depth is off by up to
+    10 %."""
+    from rebarlib.geometry import fit_formwork
+
+    D, k = 550.0, 2.0
+    n, at = _tilted_plane(tilt, D)
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-250, 250, 4000), rng.uniform(-180, 180, 4000)
+    if half == "left":
+        x = -np.abs(x)
+    elif half == "far":
+        y = np.abs(y) + 60
+    formwork = at(x, y)
+    # one bar per level (its axis at mid-extent, envelope radius r): lower bottom, upper bottom, upper top
+    levels = [("lower", "bottom", 23.1, 8.1, (30.0, -40.0)), ("upper", "bottom", 106.95, 6.95, (-60.0, 20.0))]
+    levels.append(("upper", "top", 120.85, 6.95, (10.0, 90.0)))
+    axes = np.array([at(*xy) + h * n for *_, h, _, xy in levels])
+    r = np.array([lv[3] for lv in levels])
+    bars = pd.DataFrame(
+        {
+            "layer": [lv[0] for lv in levels],
+            "level": [lv[1] for lv in levels],
+            "status": ["measured"] * 3,
+            "start_z_mm": axes[:, 2],
+            "end_z_mm": axes[:, 2],
+            "axis_height_mm": [lv[2] for lv in levels],
+            "radius_mm": r,
+            "underside_mm": [lv[2] - lv[3] for lv in levels],
+        }
+    )
+    res = InspectionResult(
+        "A",
+        "refined",
+        *[Measurement.not_measured("-")] * 4,
+        bars,
+        None,
+        formwork={"normal": n.tolist(), "offset_mm": D, "found": True},
+    )
+    before, _ = fit_formwork(formwork, threshold_mm=5.0, rng=0)
+    after, _ = fit_formwork(_read_with_stereo_error(formwork, k), threshold_mm=5.0, rng=0)
+    tops = axes + r[:, None] * n
+    moved = after.height(_read_with_stereo_error(tops, k)) - before.height(tops)
+    got = {key: U.stereo_sensitivity(res, key) for key in ("cover", "layer_distance", "upper_top")}
+    assert k * got["cover"] == pytest.approx(moved[0], rel=5e-3)
+    assert k * got["layer_distance"] == pytest.approx(moved[1] - moved[0], rel=5e-3)
+    assert k * got["upper_top"] == pytest.approx(moved[2], rel=5e-3)
+    if tilt:  # the old slope at the bars' median depth: 2 z h, h the top's height
+        old = 2 * np.median(tops[:, 2]) * (levels[0][2] + r[0]) / 1e6
+        assert abs(old / got["cover"] - 1) > 0.04
+
+
+def test_stereo_sensitivity_needs_the_formwork_and_the_bars(paper_design):
+    """Without a formwork plane found, or without the bars' axes (the paper method, an older
+    result), the budget takes the slope 2 z h at the working depth, and says which it used."""
+    dev = "rebarlib synthetic (Gemini-2-like)"
+    res = _fitted(paper_design, [20.0] * 3, [105.0] * 3, [132.0] * 4)
+    res.bars["axis_height_mm"] = res.bars["underside_mm"] + res.bars["radius_mm"]
+    assert U.stereo_sensitivity(res, "cover") is None  # no formwork in the result
+    res.formwork = {"normal": [0.0, 0.0, -1.0], "offset_mm": 650.0, "found": True}
+    derived = {key: U.stereo_sensitivity(res, key) for key in ("cover", "layer_distance", "upper_top")}
+    assert all(v is not None and v > 0 for v in derived.values())
+    apply_budget(res, paper_design, device=dev)
+    for key, v in derived.items():
+        m = res.extras["uncertainty"]["measurements"][key]
+        assert m["stereo_sensitivity"] == "formwork plane and bar depths"
+        stereo = next(t for t in m["terms"] if t["term"].startswith("depth non-linearity"))
+        assert stereo["sensitivity"] == pytest.approx(v, rel=1e-5)
+    old = apply_budget(_fitted(paper_design, [20.0] * 3, [105.0] * 3, [132.0] * 4), paper_design, device=dev)
+    assert old.extras["uncertainty"]["measurements"]["cover"]["stereo_sensitivity"] == "2 z h at the working depth"
+    res.method = "paper"
+    assert U.stereo_sensitivity(res, "cover") is None
+
+
 def test_focal_length_stretches_lengths_not_heights_seen_square_on():
     u_f = 0.004
     L = 200.0
