@@ -157,6 +157,9 @@ def _height_measures(bars: list, datum: Datum) -> tuple:
         The cover and the upper top need the datum; the layer distance (between the two
         lattices' bottom bars) does not.
     """
+    # a bar whose position is not measured (its section cut by the scan's edge) has its height
+    # from the part left too: not counted
+    bars = [b for b in bars if b.status == MEASURED]
     und = {
         (la, lv): [b.underside_mm for b in bars if b.layer == la and b.level == lv]
         for la in G.LAYERS

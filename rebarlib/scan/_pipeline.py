@@ -14,6 +14,7 @@ from .._results import InspectionResult
 from ..cloud_io import ScanCloud
 from ._axes import _all_axes, _frame, crossing_lift
 from ._datum import Datum, find_datum, mesh_up
+from ._edges import mark_cut_sections
 from ._input import as_scan_cloud
 from ._measure import _assemble
 
@@ -93,6 +94,7 @@ def inspect_cloud(
                 pts, normal, datum, design, (plane, q, split, result_bars, noise), min_length_mm, rng
             )
     notes.append(f"up: {up_how}")
+    result_bars = mark_cut_sections(q, result_bars, noise)
     sig = float(np.median([v[0] for v in noise.values()]))
     notes.append(
         f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
