@@ -23,11 +23,14 @@ be (``rebarlib.synth.result_from_truth``): the bars' placing jitter can put a sp
 tolerance on a slab with no designed defect. Such a slab gets its own row ("clean design, out of
 tolerance as built"), and an item its truth fails is not a false fail.
 
-``--follow-advice`` acts as an inspector who reads the sheet: where a capture says a bar position
-lies hidden under a bar and how far to move the camera to see it, one more capture is taken as
-told (moved across those bars by 1.25 times the distance named, towards the slab's middle;
-height, tilt and heading kept), one for each capture that asks (at most 4 captures a slab), and
-the slab is judged again. Both judgements are printed.
+``--follow-advice`` acts as an inspector who reads the slab's sheet: where a capture says a bar
+position lies hidden under a bar and how far to move the camera to see it, and no other capture of
+the slab judged that position (the captures judged together), one more capture is taken as
+told (moved across those bars by 1.25 times the distance named, towards the side the sheet names
+— towards the position — or, on a sheet that names none, towards the slab's middle; height, tilt
+and heading kept), one for each capture that asks (at most 4 captures a slab), and the slab is
+judged again. Both judgements are printed. A cached follow-up capture whose camera stood
+elsewhere is rendered again.
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
@@ -309,15 +312,22 @@ def _judge(results: list, design) -> dict:
 
 #: what a capture says when a bar position lies hidden under a bar: how far to move the camera
 ADVICE = re.compile(r"camera about (\d+) mm or more to either side across these bars")
+#: ... and which way keeps the position in view
+TOWARDS = re.compile(r"moved towards it \(towards the image's (\w+) edge\)")
 
 
 def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: bool) -> list:
-    """One more capture for each capture that asks for one, as its first such position says
+    """One more capture for each capture that asks for one on the slab's sheet (a position still
+    not judged once the captures are judged together), as its first such position says
     (moved across the hidden position's bars by 1.25 times the distance it names, towards the
-    slab's middle; height, tilt and heading kept), in the captures' order; at most 4 captures a
-    slab. Returns the new captures' names."""
+    position where the sheet says so, else towards the slab's middle; height, tilt and heading
+    kept), in the captures' order; at most 4 captures a slab. Returns the new captures' names."""
+    import rebarlib as R
+
+    # the slab's sheet: a position another capture of the slab already judged needs no capture
+    judged = R.evaluate(results, design).results
     out = []
-    for j, (name, res) in enumerate(zip(meta["captures"], results)):
+    for j, (name, res) in enumerate(zip(meta["captures"], judged)):
         if len(meta["captures"]) + len(out) >= 4:
             break
         for p in res.get("positions") or []:
@@ -333,7 +343,10 @@ def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: boo
             d = world[1, :2] - world[0, :2]
             across = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-9)
             target = np.array(spec["target"])
-            if np.dot(target, across) > 0:  # towards the slab's middle
+            if TOWARDS.search(str(p.get("reason") or "")):  # the sheet names the side: towards the position
+                if np.dot(world[:, :2].mean(axis=0) - np.array(cam["centre_world_mm"][:2]), across) < 0:
+                    across = -across
+            elif np.dot(target, across) > 0:  # towards the slab's middle
                 across = -across
             new = dict(
                 spec,
@@ -341,11 +354,25 @@ def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: boo
                 target=tuple(map(float, target + 1.25 * float(m.group(1)) * across)),
                 seed=[2026, meta["slab"], 3, j],
             )
-            if not (folder / new["name"] / "truth.json").exists():
+            if not _rendered_as(folder / new["name"], new):
                 _render_one(scene, new, folder)
+                (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
             out.append(new["name"])
             break
     return out
+
+
+def _rendered_as(folder: Path, spec: dict) -> bool:
+    """Whether ``folder`` holds the capture ``spec`` describes (a cached follow-up capture is
+    rendered again where the advice now moves the camera elsewhere)."""
+    from rebarlib import synth as S
+
+    truth = folder / "truth.json"
+    if not truth.exists():
+        return False
+    pose = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"], target_mm=spec["target"])
+    seen = np.array(json.loads(truth.read_text())["camera"]["centre_world_mm"])
+    return bool(np.linalg.norm(seen - np.asarray(pose.centre, float)) < 1.0)
 
 
 def main(argv=None) -> int:
