@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ._camera import Intrinsics
+from ._camera import Intrinsics, project
 from ._count_tables import count_table, settle_spacings
 from ._evidence import (  # noqa: F401 (names tests and callers reach through this module)
     _footprints,
@@ -327,7 +327,7 @@ def _examine_row(row: _Row, bars: list, new_bars: list, boundary: dict, *, plane
             prm=prm,
         )
         if rec["status"] == NOT_MEASURED and rec["reason"].startswith("hidden under"):
-            rec["reason"] += _where_it_shows(row, p, over, plane)
+            rec["reason"] += _where_it_shows(row, p, over, plane, intr)
         if rec.pop("_bar", None) is not None:
             new_bars.append(rec.pop("_new"))
             rec["bar_id"] = len(bars) + len(new_bars) - 1
@@ -337,15 +337,20 @@ def _examine_row(row: _Row, bars: list, new_bars: list, boundary: dict, *, plane
     return out
 
 
-def _where_it_shows(row: _Row, p: float, over: list, plane: Plane) -> str:
+def _where_it_shows(row: _Row, p: float, over: list, plane: Plane, intr: Intrinsics | None = None) -> str:
     """Advice for a position hidden under a higher bar of its direction: how far to move the
-    camera across the row for the bar to show beside that bar ("" where no such bar covers it).
+    camera across the row for the bar to show beside that bar, and which way keeps it in view
+    ("" where no such bar covers it).
 
     Seen from the camera's centre, a bar at height ``h`` and offset ``p`` across lies at
     ``c + (p - c) k`` on the higher bar's level (``c`` the camera's offset across, ``k = (zc -
     hu) / (zc - h)``); it clears the higher bar (offset ``q``, radius ``ru``) when that point is
     ``ru + r k`` or more from ``q``. Moving the camera by ``dc`` moves it by ``(1 - k) dc``; tilting
-    the camera moves nothing (only its centre matters)."""
+    the camera moves nothing (only its centre matters). The move advised clears it either way;
+    moved towards the position (the side of the camera it lies on), the position also comes
+    nearer the middle of the image, while moved away it goes towards the image's border and can
+    leave the view (a position at a row's end near the border). The side is named by the image
+    edge the camera moves towards (where ``intr`` is given)."""
     cam = to_slab_frame(np.zeros((1, 3)), plane)[0]
     c, zc = float(cam[:2] @ row.normal), float(cam[2])
     best = None
@@ -367,8 +372,25 @@ def _where_it_shows(row: _Row, p: float, over: list, plane: Plane) -> str:
     move = 10.0 * math.ceil((need + abs(d)) / max(1.0 - k, 1e-6) / 10.0)
     return (
         f"; a capture taken with the camera about {move:.0f} mm or more to either side across these bars "
-        "(moved, not tilted) would show it beside that bar"
+        "(moved, not tilted) would show it beside that bar" + _towards(row, p, c, plane, intr)
     )
+
+
+def _towards(row: _Row, p: float, c: float, plane: Plane, intr: Intrinsics | None) -> str:
+    """The side to move the camera to for a hidden position to stay in view: towards it, named
+    by the image edge that way (the image direction of a step across the row from the position
+    towards its side of the camera's centre); "" without a camera."""
+    if intr is None:
+        return ""
+    sign = 1.0 if p >= c else -1.0
+    t = float(np.mean([b.t_mid for b in row.bars]))
+    plan = np.array([t * row.direction + p * row.normal, t * row.direction + (p + sign * 50.0) * row.normal])
+    cam = from_slab_frame(np.column_stack((plan, np.full(2, row.height))), plane)
+    if np.any(cam[:, 2] <= 1.0):
+        return ""
+    du, dv = np.diff(project(cam, intr), axis=0)[0]
+    edge = ("right" if du > 0 else "left") if abs(du) >= abs(dv) else ("bottom" if dv > 0 else "top")
+    return f"; moved towards it (towards the image's {edge} edge) it also stays in view"
 
 
 def _reach(boundary: dict, layer: str, level: str, n2) -> dict | None:

@@ -233,8 +233,47 @@ def test_a_bar_hidden_under_the_bar_above_is_not_measured_and_the_advised_move_s
     assert why.startswith("hidden under another bar")
     move = float(re.search(r"camera about (\d+) mm or more to either side", why).group(1))
     assert 30 <= move <= 200  # the lower bar moves against the upper by ~90/560 of the camera's move
+    assert re.search(
+        r"moved towards it \(towards the image.s (left|right|top|bottom) edge\) it also stays in view", why
+    )
     for side in (1, -1):  # moved as advised, either way: the bar shows and is found
         cap, res = look(side * move)
         assert next(t for t in cap.truth["bars"] if t["id"] == bar.id)["visible_pixels"] > 1000
         c = _counts(res)
         assert (c[["missing", "not_measured"]].fillna(0) == 0).all().all()
+
+
+@pytest.mark.parametrize("normal", [(1.0, 0.0), (0.0, 1.0), (-0.6, 0.8)])
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_the_advice_for_a_hidden_position_names_the_image_edge_on_its_side(normal, side):
+    """Moved away from a hidden position, the camera can lose it at the image's border (a
+    position at a row's end); the advice names the way towards it by the image edge that lies
+    on its side of the image's middle (camera looking straight down, 600 mm up)."""
+    from types import SimpleNamespace
+
+    from rebarlib._camera import Intrinsics, project
+    from rebarlib.geometry import Plane, from_slab_frame
+
+    plane = Plane(np.array([0.0, 0.0, -1.0]), 600.0)
+    intr = Intrinsics(fx=900.0, fy=900.0, cx=640.0, cy=400.0, width=1280, height=800)
+    n = np.array(normal) / np.linalg.norm(normal)
+    row = C._Row(
+        "lower",
+        "bottom",
+        [SimpleNamespace(t_mid=0.0)],
+        [0],
+        np.zeros(1),
+        200.0,
+        30.0,
+        1.0,
+        7.0,
+        np.array([-n[1], n[0]]),
+        n,
+    )
+    p = side * 250.0  # the camera stands over plan offset 0 across the row
+    why = C._towards(row, p, 0.0, plane, intr)
+    edge = re.search(r"moved towards it \(towards the image's (\w+) edge\)", why).group(1)
+    u, v = project(from_slab_frame(np.array([[*(p * n), 30.0]]), plane), intr)[0]
+    du, dv = u - intr.cx, v - intr.cy
+    want = ("right" if du > 0 else "left") if abs(du) >= abs(dv) else ("bottom" if dv > 0 else "top")
+    assert edge == want
