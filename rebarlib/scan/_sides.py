@@ -26,6 +26,12 @@ Given each point's position along the bar, the axis is a line (offset and height
 slope): the centres of stretches of equal counts along the bar, each the weighted least-squares
 centre of its own points' streaks, and a precision- and Tukey-weighted line through them. The
 directions, their weights and the noise stay the bar's.
+
+A bar above running the same way cuts the section seen from a band of directions about 13° wide
+(one 85 mm above and 103 mm aside), and what is seen moves from one side of the ray to the other
+within it: a station between two steps of the grid sees a strip that neither step's streak holds.
+After a fit on the grid, the grid is refined about the directions that hold points and the fit is
+run again from its axis, the occluders placed about that axis (decision 034).
 """
 
 from __future__ import annotations
@@ -78,6 +84,8 @@ def seen_sides_centre(
     step_deg: float = 10.0,
     iters: int = 40,
     along=None,
+    passes: int = 3,
+    around=None,
 ):
     """Axis (across, height) of a bar from its cross-section points, as the centre of a mixture of
     streaks seen from a grid of directions above it.
@@ -101,6 +109,13 @@ def seen_sides_centre(
         stations that see a bar changes along it (a nearer station returns more points), so the
         mean of its points drifts across along the bar and a straight line through them takes a
         slope that the streaks do not have
+    passes : fits at most. A bar above cuts the section seen from some directions, and what is
+        seen then changes fast with the direction (:func:`_view_directions`): after the fit on the
+        grid, the grid is refined about the directions that hold points and the fit is run again
+        from its axis, the occluders placed about that axis (what a bar above hides depends on
+        where this bar is); again where the axis moved by more than a tenth of the radius
+    around : (directions in radians, their weights) of a fit before: the grid is refined about
+        them and the fit starts from their weights (set by the passes)
 
     Returns
     -------
@@ -115,10 +130,10 @@ def seen_sides_centre(
     if n < 30:
         return None
     r = float(radius_mm)
-    phi = np.radians(np.arange(-90.0 + step_deg / 2, 90.0, step_deg))
+    base = np.radians(np.arange(-90.0 + step_deg / 2, 90.0, step_deg))
     c0 = np.array(centre0, float)
     occ = [(oa - 0.0, oh - 0.0, ro) for oa, oh, ro in occluders]
-    m_arc, cov_arc, share = visible_arc(phi, r, occ)
+    phi, (m_arc, cov_arc, share) = _view_directions(base, r, occ, None if around is None else around[0])
     keep = share > 0.05  # a direction from which the bar is (almost) hidden sends no returns
     if not keep.any():
         return None
@@ -135,7 +150,17 @@ def seen_sides_centre(
         a, h, s, s0 = a[order], h[order], s[order], s0[order]
         bounds = np.linspace(0, n, k + 1).astype(int)
     sig = max(float(sigma0_mm), 0.3)
-    weights = np.full(len(phi), 1.0 / len(phi))
+    # each direction starts with the share of the half plane nearest to it: a grid refined about
+    # an occluder's shadow does not start with more weight there
+    edges = np.r_[-math.pi / 2, 0.5 * (phi[1:] + phi[:-1]), math.pi / 2]
+    weights = np.diff(edges) / float(np.sum(np.diff(edges)))
+    if around is not None:
+        # after a fit: each live direction's weight shared among the directions nearest to it,
+        # by their widths (the fit starts where the last one ended, fewer steps)
+        near = np.argmin(np.abs(phi[:, None] - around[0][None, :]), axis=1)
+        per = np.bincount(near, weights=weights, minlength=len(around[0]))
+        weights = np.maximum(around[1][near] * weights / per[near], 1e-3 * weights)
+        weights /= float(weights.sum())
     span_h = float(np.ptp(h)) + 1.0
     log_uniform = -math.log(2 * half_mm * span_h)
     share_bg, share_fw = 0.05, (0.3 if formwork_sd_mm else 0.0)
@@ -211,9 +236,69 @@ def seen_sides_centre(
             break
     if not abs(c[0]) < half_mm:
         return None
-    full = np.zeros(len(keep))
-    full[index] = weights
+    # each direction's weight summed into the base grid's step that holds it
+    full = np.zeros(len(base))
+    step = math.radians(step_deg)
+    np.add.at(full, np.clip(np.floor((phi + math.pi / 2) / step).astype(int), 0, len(base) - 1), weights)
+    moved = c[:2] - c0
+    if occluders and passes > 1 and (around is None or float(np.hypot(*moved)) > 0.1 * r):
+        again = seen_sides_centre(
+            a,
+            h,
+            r,
+            centre0=c[:2],
+            sigma0_mm=sig,
+            half_mm=half_mm,
+            formwork_sd_mm=formwork_sd_mm,
+            occluders=[(oa - moved[0], oh - moved[1], ro) for oa, oh, ro in occluders],
+            blur_mm=blur_mm,
+            step_deg=step_deg,
+            iters=iters,
+            along=s,  # the points sorted along above, with ``a`` and ``h``
+            passes=passes - 1,
+            around=(phi, weights),  # the directions left holding points, and their weights
+        )
+        if again is not None:
+            return again
     return (c[:2] if s is None else c), sig, full
+
+
+def _view_directions(base, radius_mm: float, occluders, around=None, levels: int = 4):
+    """The view directions of the streak fit, and :func:`visible_arc` of each: the grid ``base``
+    (radians from the vertical), refined where a bar above hides part of the surface, within a
+    step of the grid of the directions ``around`` (None: not refined); with ``around``, only the
+    directions within a step of it.
+
+    Without occluders the mean of the surface seen moves by about 0.85 r per radian of view
+    direction, so by 0.85 r x step between two steps of the grid: what the fit's choice of
+    direction can put it off by. Where a bar above cuts the section, what is seen changes much
+    faster: the edge of its shadow sweeps across the section by the occluder's distance per
+    radian (a bar 85 mm above and 103 mm aside: 2.3 mm per degree, the section cut over 13°),
+    and a station between two steps of the grid sees a strip that neither step's streak holds
+    (decision 034). A step whose two ends' means differ by more than an unhidden bar's do over
+    the grid's step is halved, ``levels`` times at most (10° to 0.625°)."""
+    phi = np.asarray(base, float)
+    arc = visible_arc(phi, radius_mm, occluders)
+    if not occluders or around is None or len(around) == 0 or len(phi) < 2:
+        return phi, arc
+    step = float(phi[1] - phi[0])
+    tol = 1.05 * 0.85 * radius_mm * step  # an unhidden bar's change over one step, and a margin
+    near = np.asarray(around, float)
+    for _ in range(levels):
+        m, _, share = arc
+        jump = np.hypot(*(m[1:] - m[:-1]).T)
+        seen = (share[1:] > 0.05) | (share[:-1] > 0.05)
+        mid = 0.5 * (phi[1:] + phi[:-1])
+        close = np.min(np.abs(mid[:, None] - near[None, :]), axis=1) <= step
+        split = np.flatnonzero((jump > tol) & seen & close)
+        if len(split) == 0:
+            break
+        phi = np.sort(np.r_[phi, mid[split]])
+        arc = visible_arc(phi, radius_mm, occluders)
+    # the directions more than a step from those that held points are left out: the fit before
+    # found none there
+    keep = np.min(np.abs(phi[:, None] - near[None, :]), axis=1) <= step + 1e-9
+    return phi[keep], tuple(x[keep] for x in arc)
 
 
 def _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds, iters: int = 4):
