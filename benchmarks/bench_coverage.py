@@ -45,7 +45,9 @@ taken out. Derive them on training seeds (59, 7), never on the held-out one (202
 
 ``--regress`` regresses each mean height's error on the drawn errors times the budget's own
 sensitivities (depth scale, stereo k, focal length, and a constant): a slope of 1 where a
-sensitivity is right. ``--stereo-derivative K`` checks the stereo term's sensitivity capture by
+sensitivity is right; it then sets the captures seen face-on (tilt 0) beside the tilted ones,
+with the fitted formwork plane's own error where the plane's depth is known (face-on: the
+camera's height, through the drawn errors). ``--stereo-derivative K`` checks the stereo term's sensitivity capture by
 capture instead: each case rendered twice with the same scene, noise and other drawn errors, at
 a stereo error of -K and +K mm/m², and inspected; (height(+K) - height(-K)) / 2K, the
 pipeline's own derivative, against the budget's sensitivity (docs/decisions/033).
@@ -147,9 +149,22 @@ def _model(budget: dict | None) -> dict:
     return {"u_normal": u_n, **{f"c {t}": c.get(t, 0.0) for t in EXERCISED}}
 
 
+def formwork_error(res, case) -> float:
+    """Of a capture seen face-on (tilt 0), the fitted formwork plane's depth on the optical axis
+    less where the drawn errors alone put it, ``(1 + s) (h + k h² / 10⁶) + offset`` (the plane
+    lies at depth h, the camera's height): what the plane's fit and the depth's steps add. NaN
+    for a tilted capture (the stereo error bends its plane's depth) or a plane not found."""
+    h, tilt, errs = case[2], case[3], case[-1]
+    f = res.formwork or {}
+    if tilt != 0 or not f.get("found"):
+        return math.nan
+    ideal = (1 + errs["depth_scale_error"]) * (h + errs["bias_mm_per_m2"] * (h / 1000) ** 2) + errs["depth_offset_mm"]
+    return float(f["offset_mm"]) / abs(float(f["normal"][2])) - ideal
+
+
 def rows_of(res, tr: dict, case, diameters: bool) -> list:
     name, cover, h, tilt, *_, errs = case
-    base = {"set": name, "height": h, "tilt": tilt, **errs}
+    base = {"set": name, "height": h, "tilt": tilt, **errs, "formwork_error": formwork_error(res, case)}
     budget = res.extras.get("uncertainty", {})
     out = []
     for q, key in (("cover", "cover_mm"), ("layer distance", "layer_distance_mm"), ("upper top", "upper_top_mm")):
@@ -291,6 +306,58 @@ def regress(df: pd.DataFrame) -> pd.DataFrame:
             f"  {r['quantity']:15s} {r['set']:13s} n {r['n']:4d}  "
             + "  ".join(f"{c} {r[c]:.3f} ± {r[c + ' se']:.3f}" for c in DRAWN.values())
             + f"  constant {r['constant']:+.3f} mm  residual RMS {r['residual_mm']:.3f} mm"
+        )
+    return t
+
+
+def face_on(df: pd.DataFrame) -> pd.DataFrame:
+    """Per mean height and set: the captures seen face-on (tilt 0) against the tilted ones --
+    how many, how many beyond 2u, and the SD of the error less the drawn errors times the
+    budget's sensitivities (the residual), with the depth scale's and the stereo term's
+    regression slopes (:func:`regress`) on each part alone -- and, face-on, the fitted formwork plane's own
+    error (:func:`formwork_error`): its mean and SD, its correlation with the residual, and the
+    residual's SD once it is taken out (a height read against the plane moves with it one for
+    one; not the layer distance, a difference of two levels). A diagnostic: nothing here enters u."""
+    cols = [f"x {name}" for name in DRAWN.values()]
+    out = []
+    for q in HEIGHT_LEVELS:
+        sub = df[df["quantity"] == q]
+        if not len(sub) or not all(c in sub for c in cols):
+            continue
+        sub = sub.assign(residual=sub["error"] - sub[cols].sum(axis=1), beyond=(sub["error"] / sub["u"]).abs() > 2)
+        for name, g in [("all sets", sub), *sub.groupby("set")]:
+            row = {"quantity": q, "set": name}
+            for lab, part in (("face-on", g[g["tilt"] == 0]), ("tilted", g[g["tilt"] != 0])):
+                row[f"n {lab}"], row[f"beyond {lab}"] = len(part), int(part["beyond"].sum())
+                row[f"residual SD {lab}"] = float(part["residual"].std())
+                # the depth scale's and the stereo term's slopes on these captures alone (as regress)
+                X = np.column_stack([part[cols].to_numpy(float), np.ones(len(part))])
+                y = part["error"].to_numpy(float)
+                b = np.linalg.lstsq(X, y, rcond=None)[0] if len(part) >= 8 else [math.nan] * 2
+                row[f"scale {lab}"], row[f"stereo {lab}"] = float(b[0]), float(b[1])
+            f = g[(g["tilt"] == 0) & np.isfinite(g["formwork_error"])] if "formwork_error" in g else g.iloc[:0]
+            ok = len(f) > 2
+            row["plane mean"] = float(f["formwork_error"].mean()) if ok else math.nan
+            row["plane SD"] = float(f["formwork_error"].std()) if ok else math.nan
+            row["corr"] = float(np.corrcoef(f["formwork_error"], f["residual"])[0, 1]) if ok else math.nan
+            # the layer distance, a difference of two levels' heights, does not move with the plane
+            against = ok and q != "layer distance"
+            row["residual SD less plane"] = float((f["residual"] - f["formwork_error"]).std()) if against else math.nan
+            out.append(row)
+    t = pd.DataFrame(out)
+    print(
+        "\nFace-on (tilt 0) and tilted captures: beyond 2u, and the SD of the error less the drawn errors times the "
+        "budget's sensitivities;\nface-on, the fitted formwork plane's own error (its depth less where the drawn "
+        "errors put it), its correlation with that residual, and the residual's SD without it:"
+    )
+    for r in t.to_dict(orient="records"):
+        print(
+            f"  {r['quantity']:15s} {r['set']:13s} face-on {r['beyond face-on']:3d} of {r['n face-on']:4d} beyond 2u, "
+            f"residual SD {r['residual SD face-on']:.3f} mm, slopes scale {r['scale face-on']:.2f} stereo "
+            f"{r['stereo face-on']:.2f}; tilted {r['beyond tilted']:3d} of {r['n tilted']:4d}, "
+            f"{r['residual SD tilted']:.3f} mm, {r['scale tilted']:.2f}, {r['stereo tilted']:.2f}; plane error "
+            f"{r['plane mean']:+.3f} (SD {r['plane SD']:.3f}) mm, corr {r['corr']:+.2f}, residual SD without it "
+            + (f"{r['residual SD less plane']:.3f} mm" if np.isfinite(r["residual SD less plane"]) else "-")
         )
     return t
 
@@ -616,7 +683,12 @@ def main() -> None:
         help="inspect nothing: apply the budget as the code has it now to the inspections stored by --store "
         "(one or more runs, complete or not) and report",
     )
-    ap.add_argument("--regress", action="store_true", help="also regress the heights' errors on the drawn errors")
+    ap.add_argument(
+        "--regress",
+        action="store_true",
+        help="also regress the heights' errors on the drawn errors, and compare the captures seen face-on with the "
+        "tilted ones",
+    )
     ap.add_argument(
         "--stereo-derivative",
         type=float,
@@ -658,6 +730,7 @@ def main() -> None:
     report(df)
     if a.regress:
         regress(df)
+        face_on(df)
     if got is not None:
         bars = pd.DataFrame([b for bb, _ in got for b in bb])
         heights = pd.DataFrame([h for _, hh in got for h in hh])

@@ -500,6 +500,41 @@ def test_coverage_interval_and_verdict(monkeypatch):
     assert e[0] == pytest.approx(0.9545, abs=0.005) and e[1] == 1.0
 
 
+def test_face_on_formwork_error(monkeypatch, capsys):
+    """bench_coverage's face-on diagnostic: the plane's error is its depth on the optical axis
+    less (1 + s)(h + k h²) + offset, only at tilt 0; a height read against the plane whose error
+    is that plane error is explained by it, the layer distance is not read against it."""
+    from types import SimpleNamespace
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_coverage as bc
+
+    errs = {"bias_mm_per_m2": 10.0, "depth_scale_error": 0.002, "depth_offset_mm": 0.0, "focal_error": 0.0}
+    ideal = 1.002 * (600 + 10.0 * 0.36)
+    res = SimpleNamespace(formwork={"found": True, "normal": [0.0, 0.0, -1.0], "offset_mm": ideal + 0.3})
+    assert bc.formwork_error(res, ("d435-848", 15, 600, 0, 0.0, 0.0, 1, errs)) == pytest.approx(0.3)
+    assert math.isnan(bc.formwork_error(res, ("d435-848", 15, 600, 5, 0.0, 0.0, 1, errs)))
+    res.formwork["found"] = False
+    assert math.isnan(bc.formwork_error(res, ("d435-848", 15, 600, 0, 0.0, 0.0, 1, errs)))
+
+    rng = np.random.default_rng(3)
+    rows = []
+    for i in range(80):
+        tilt = 0 if i % 2 else 10
+        plane = rng.normal(0.0, 0.3) if tilt == 0 else math.nan
+        x = {f"x {n}": rng.normal(0.0, 0.2) for n in bc.DRAWN.values()}
+        e = sum(x.values()) + (plane if tilt == 0 else 0.0) + rng.normal(0.0, 0.05)
+        rows.append({"quantity": "cover", "set": "s", "tilt": tilt, "error": e, "u": 0.4, "formwork_error": plane, **x})
+        rows.append({**rows[-1], "quantity": "layer distance", "error": sum(x.values()) + rng.normal(0.0, 0.05)})
+    t = bc.face_on(pd.DataFrame(rows)).set_index(["quantity", "set"])
+    cover = t.loc[("cover", "all sets")]
+    assert (cover["n face-on"], cover["n tilted"]) == (40, 40)
+    assert cover["corr"] > 0.95 and cover["residual SD less plane"] < 0.08 < cover["residual SD face-on"]
+    assert cover["stereo tilted"] == pytest.approx(1.0, abs=0.15)
+    assert math.isnan(t.loc[("layer distance", "all sets")]["residual SD less plane"])
+    assert "Face-on (tilt 0)" in capsys.readouterr().out
+
+
 # ------------------------------------------------------------------------------------------------
 # Decision rules
 # ------------------------------------------------------------------------------------------------
