@@ -333,7 +333,7 @@ def _level_stereo(bars, layer: str, level: str, normal, z0: float) -> float | No
     g = g[np.isfinite(g["underside_mm"].to_numpy(float))]
     if not len(g):
         return None
-    mid = (g[["start_z_mm"]].to_numpy(float)[:, 0] + g[["end_z_mm"]].to_numpy(float)[:, 0]) / 2
+    mid = (g["start_z_mm"].to_numpy(float) + g["end_z_mm"].to_numpy(float)) / 2
     r = g["radius_mm"].to_numpy(float)
     h = g["axis_height_mm"].to_numpy(float) + r  # the bar's top above the formwork
     z = mid + r * float(normal[2])  # its depth (the normal points at the camera)

@@ -34,6 +34,12 @@ def _step_tail(x: float) -> float:
     return x * 0.5 * (1.0 + math.erf(x / math.sqrt(2.0))) + math.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi)
 
 
+def _band_side(radius_mm: float, sigma_mm: float) -> float:
+    """Offset from a bar's axis (mm) past which its own points, smeared by the noise across
+    ``sigma_mm``, no longer reach: where :func:`edge_beyond`'s windows start."""
+    return radius_mm + 2.5 * sigma_mm + 2.0
+
+
 def edge_beyond(u, radius_mm: float, sigma_mm: float, room_mm: float) -> tuple[float, int, int] | None:
     """Where the cloud ends beyond a bar, from the points on both sides of it.
 
@@ -70,7 +76,7 @@ def edge_beyond(u, radius_mm: float, sigma_mm: float, room_mm: float) -> tuple[f
     """
     u = np.asarray(u, float)
     sig = max(float(sigma_mm), 0.5)
-    u0 = radius_mm + 2.5 * sig + 2.0
+    u0 = _band_side(radius_mm, sig)
     w = max(float(room_mm), 2.0 * sig)
     n_out = int(np.count_nonzero((u >= u0) & (u < u0 + w)))
     n_in = int(np.count_nonzero((u <= -u0) & (u > -u0 - w)))
@@ -135,8 +141,7 @@ def mark_cut_sections(q, bars: list, noise: dict) -> list:
             for i, nb, sign in ((order[0], order[1], -1.0), (order[-1], order[-2], 1.0)):
                 b = out[i]
                 gap = abs(across[i] - across[nb])
-                u0 = b.radius_mm + 2.5 * sig + 2.0
-                room = gap - 2.0 * u0
+                room = gap - 2.0 * _band_side(b.radius_mm, sig)
                 t = _dot(plan, b.direction)
                 m = (t >= b.t0_mm) & (t <= b.t1_mm)
                 u = _dot(plan[m], b.normal2d) - (b.offset_mm + b.slope * t[m])

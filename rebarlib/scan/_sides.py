@@ -40,6 +40,8 @@ import math
 
 import numpy as np
 
+from ..geometry.fit import _median
+
 
 def visible_arc(phi, radius_mm: float, occluders=(), k: int = 48):
     """The surface a scanner sees of a bar from each direction ``phi`` (radians from the vertical,
@@ -341,15 +343,3 @@ def _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds, iters: in
                 w = w0
         out.append((b0, b1))
     return np.array([out[0][0], out[1][0], out[0][1], out[1][1]])
-
-
-def _median(x) -> float:
-    """``float(np.median(x))`` of a short 1-D array, the same value (the middle element, or the
-    mean of the two middle ones), without ``np.median``'s overhead, which is most of the cost of a
-    fit called a thousand times on a dozen values."""
-    v = np.sort(x)
-    n = len(v)
-    if n == 0 or np.isnan(v[-1]):
-        return float("nan")
-    half = n // 2
-    return float(v[half]) if n % 2 else float((v[half - 1] + v[half]) / 2)
