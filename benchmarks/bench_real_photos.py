@@ -93,6 +93,32 @@ def ransac_reference(raw, shift=(0, 0), *, thick_px: int = 9, line_px: int = 41)
     return bars, left_out
 
 
+def _multi_scale(model, rgb, scales, **kw):
+    """The mean of the model's probability maps of ``rgb`` resized by each of ``scales`` (area
+    averaging to shrink, bilinear to enlarge), each brought back to the photo's size."""
+    H, W = rgb.shape[:2]
+    maps = []
+    for f in scales:
+        if f == 1:
+            maps.append(model.predict_proba(rgb, **kw))
+            continue
+        size = (max(1, round(W * f)), max(1, round(H * f)))
+        small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA if f < 1 else cv2.INTER_LINEAR)
+        maps.append(cv2.resize(model.predict_proba(small, **kw), (W, H), interpolation=cv2.INTER_LINEAR))
+    return maps[0] if len(maps) == 1 else np.mean(maps, axis=0)
+
+
+def _straight_parts(mask, length_px):
+    """The parts of ``mask`` that survive an opening by a straight line of ``length_px`` pixels in
+    one of 12 directions (long, straight structures)."""
+    u8 = mask.astype(np.uint8)
+    out = np.zeros_like(mask)
+    n = max(3, int(round(length_px)) | 1)
+    for a in np.arange(12) * np.pi / 12:
+        out |= cv2.morphologyEx(u8, cv2.MORPH_OPEN, _line_kernel(n, a)) > 0
+    return out
+
+
 def _labelme_mask(path: Path, shape):
     spec = json.loads(path.read_text(encoding="utf-8"))
     mask = np.zeros(shape, np.uint8)
@@ -192,7 +218,23 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--per-image", action="store_true")
     ap.add_argument("--save", default=None, help="folder for the predicted masks (PNG)")
+    ap.add_argument(
+        "--scales",
+        default="1",
+        help="comma-separated factors the photo is resized by before the network; their probability maps "
+        "(brought back to the photo's size) are averaged (training/README.md, 'At inference')",
+    )
+    ap.add_argument(
+        "--straight-px",
+        type=int,
+        default=0,
+        help="keep only the mask's parts that survive an opening by a line this long (px at 640 px of "
+        "width) in one of 12 directions (0: off)",
+    )
     args = ap.parse_args(argv)
+    scales = [float(v) for v in args.scales.split(",")]
+    if not scales or min(scales) <= 0:
+        sys.exit(f"--scales {args.scales}: expected positive factors, e.g. 1,0.75")
     shifts = {k: tuple(float(v) for v in s.split(",")) for k, s in (a.split("=", 1) for a in args.ref_shift)}
     sets = {}
     for a in args.set:
@@ -213,9 +255,11 @@ def main(argv=None):
             tot, ms = {}, []
             for stem, rgb, ref, left_out in items:
                 t0 = time.perf_counter()
-                proba = model.predict_proba(rgb, tiled=args.tiled, flips=not args.no_flips)
+                proba = _multi_scale(model, rgb, scales, tiled=args.tiled, flips=not args.no_flips)
                 ms.append(1000 * (time.perf_counter() - t0))
                 pred = proba > model.threshold
+                if args.straight_px > 0:
+                    pred = _straight_parts(pred, args.straight_px * rgb.shape[1] / 640)
                 c = score(pred, ref, left_out, args.tol_px * rgb.shape[1] / 640)
                 tot = {k: tot.get(k, 0) + v for k, v in c.items()}
                 if args.per_image:
