@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from .._camera import backproject, project
+from ..geometry.fit import _median  # np.median's number without its overhead (30 iterations a fit)
 from .plane import BarPlane
 
 
@@ -91,8 +92,8 @@ def _circle_fit(a, b, r0, *, iters: int = 30):
         res = b - (p[1] - q)
         w = (np.abs(da) < 0.98 * p[2]).astype(float)
         if k:  # the first step from the starting guess is unweighted
-            mid = float(np.median(res[w > 0])) if w.any() else 0.0
-            s = max(1.4826 * float(np.median(np.abs(res - mid))), 0.05)
+            mid = _median(res[w > 0]) if w.any() else 0.0
+            s = max(1.4826 * _median(np.abs(res - mid)), 0.05)
             u = (res - mid) / (4.685 * s)
             w *= np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         J = np.column_stack((-da / q, np.ones_like(q), -p[2] / q))  # d(b0 − q)/d(a0, b0, r)
