@@ -488,9 +488,10 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
                 f"{NOT_IN_VIEW}: only {seen_mm:.0f} mm of it in the capture (a bar is checked over at least "
                 f"{in_view_mm:.0f} mm); " + (rec.get("diameter_reason") or "diameter not measured")
             )
-        elif has_diam and not ok and rec.get("sized_in"):
+        elif has_diam and not ok and isinstance(rec.get("sized_in"), str) and rec["sized_in"]:
             # the same bar, registered in another capture of the slab, was sized there: its size
-            # is checked once, there (docs/decisions/028-captures-of-one-slab-together.md)
+            # is checked once, there (docs/decisions/028-captures-of-one-slab-together.md). (A bar
+            # of a table where another bar has ``sized_in`` reads NaN there: not sized elsewhere.)
             excluded = f"{SIZED_ELSEWHERE} {rec['sized_in']}; here: " + (
                 rec.get("diameter_reason") or "diameter not measured"
             )

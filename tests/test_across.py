@@ -262,6 +262,47 @@ def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
     assert alone.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] not in ("pass", "fail")
 
 
+def test_a_bar_sized_nowhere_stays_not_measured_beside_one_sized_elsewhere():
+    """One bar of capture A sized in B gives A's bars table a ``sized_in`` column; another bar of
+    A that no capture sized reads NaN there and must stay not measured (a NaN is truthy: it once
+    excluded the bar, and the benchmark's wrong-size bar of slab 041 with it, as if sized elsewhere)."""
+    from rebarlib import evaluate
+    from rebarlib.data import paper_design
+
+    design = paper_design()
+    rng = np.random.default_rng(8)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
+    for r in (a, b):
+        for bar in r["bars"]:
+            dd = design.lattice(bar["layer"]).level(bar["level"]).diameter_mm
+            bar.update(
+                design_diameter_mm=dd,
+                nominal_mm=dd,
+                diameter_status="measured",
+                diameter_reason="",
+                visible_length_mm=600.0,
+                hidden=False,
+            )
+    lower_bottom = [i for i, bar in enumerate(a["bars"]) if (bar["layer"], bar["level"]) == ("lower", "bottom")]
+    k = min(lower_bottom, key=lambda i: abs(a["bars"][i]["start_y_mm"]))  # B sizes it
+    k2 = max(lower_bottom, key=lambda i: abs(a["bars"][i]["start_y_mm"] - a["bars"][k]["start_y_mm"]))
+    for i in (k, k2):
+        a["bars"][i].update(nominal_mm=None, diameter_status="not measured", diameter_reason="possible wrong size")
+    # B did not size the bar k2 is either (or does not show it)
+    at = a["bars"][k2]["start_y_mm"]
+    for bar in b["bars"]:
+        if (bar["layer"], bar["level"]) == ("lower", "bottom") and abs(bar["start_y_mm"] - at) < 60:
+            bar.update(nominal_mm=None, diameter_status="not measured", diameter_reason="possible wrong size")
+    acc = evaluate([a, b], design)
+    cp = acc.checkpoints.set_index(["capture", "what"])
+    assert cp.loc[("A", f"bar {k}")]["status"] == "excluded"
+    assert cp.loc[("A", f"bar {k2}")]["status"] == "not measured"
+    assert acc.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] not in ("pass", "fail")
+    assert acc.verdict != "accepted"
+
+
 def _with_spacings(r):
     """Add the measured spacings of every set (consecutive bars across) to a result dict."""
     from rebarlib._across import plan_sets
