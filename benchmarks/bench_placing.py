@@ -13,7 +13,16 @@ Two checks of ``rebarlib._across.register`` against the truth:
 A placing is wrong when it puts a point of the mesh more than 5 mm from where the other capture
 sees it. Prints the pairs, those placed, those wrong and the largest error of the right ones.
 
+``--gain`` (with ``--cache``) says what any placing could gain on the captures the verdict
+benchmark takes (not its follow-ups): per pair, the true overlap of the two views (the share of
+each capture's formwork that the other's image shows, from the renders' poses) and whether it was
+placed; per clean slab the benchmark leaves incomplete, each position and bar size left unjudged,
+the other captures that truly show it over the length a verdict needs and whether they were
+placed; and the slab's verdict were every pair placed by its true pose (an oracle placing, the
+bound of what placing can gain).
+
     python benchmarks/bench_placing.py --cache /tmp/verdicts
+    python benchmarks/bench_placing.py --cache /tmp/verdicts --gain
     python benchmarks/bench_placing.py --windows 100 --seed 3
     python benchmarks/bench_placing.py --windows 60 --seed 4 --noise 1.0
 """
@@ -140,6 +149,177 @@ def _window_pairs(n: int, seed: int, noise: float):
                 yield f"scene {kk}", ra, rb, err, _gate(design)
 
 
+def _true_reg(ra, rb, ca, cb, name_a, name_b):
+    """The true placing of capture a's plan frame in capture b's (``rebarlib._across.Registration``),
+    fitted (Kabsch, 2-D) to a grid of plan points of a carried through the renders' camera poses."""
+    from rebarlib._across import Registration
+
+    def plane(r):
+        return Plane(np.array(r["formwork"]["normal"]), r["formwork"]["offset_mm"])
+
+    pa, pb = plane(ra), plane(rb)
+    Ra = plane_frame(pa)
+    q = np.array([[x, y, 0.0] for x in (-400, 0, 400) for y in (-400, 0, 400)])
+    cam = (q - np.array([0, 0, pa.offset_mm])) @ Ra  # Ra^T (q - offset)
+    w = cam @ np.array(ca["rotation_world_to_camera"]) + np.array(ca["centre_world_mm"])
+    c = (w - np.array(cb["centre_world_mm"])) @ np.array(cb["rotation_world_to_camera"]).T
+    x, y = q[:, :2], to_slab_frame(c, pb)[:, :2]
+    mx, my = x.mean(0), y.mean(0)
+    u, _, vt = np.linalg.svd((x - mx).T @ (y - my))
+    R = (u @ vt).T
+    if np.linalg.det(R) < 0:
+        vt[-1] *= -1
+        R = (u @ vt).T
+    return Registration(name_a, name_b, R, my - mx @ R.T, 0, 0.0, math.inf)
+
+
+def _world_to_image(w, cam, K, size):
+    """Pixel coordinates (N, 2) of world points and whether each lies in the image (in front)."""
+    c = (w - np.array(cam["centre_world_mm"])) @ np.array(cam["rotation_world_to_camera"]).T
+    z = np.maximum(c[:, 2], 1e-6)
+    u = K[0, 0] * c[:, 0] / z + K[0, 2]
+    v = K[1, 1] * c[:, 1] / z + K[1, 2]
+    ok = (c[:, 2] > 0) & (u >= 0) & (u < size[0]) & (v >= 0) & (v < size[1])
+    return np.column_stack((u, v)), ok
+
+
+def _intrinsics(folder: Path):
+    cj = json.loads((folder / "camera.json").read_text())
+    K = np.array(cj["intrinsic_matrix"], float).reshape(3, 3).T
+    return K, (int(cj["width"]), int(cj["height"]))
+
+
+def _formwork_share(fa: Path, fb: Path, ca, cb) -> float:
+    """The share of capture a's view of the formwork (world z = 0, a 20 px grid) that capture b's
+    image shows too."""
+    Ka, sa = _intrinsics(fa)
+    Kb, sb = _intrinsics(fb)
+    u, v = np.meshgrid(np.arange(10, sa[0], 20), np.arange(10, sa[1], 20))
+    rays = np.column_stack((u.ravel(), v.ravel(), np.ones(u.size))) @ np.linalg.inv(Ka).T
+    d = rays @ np.array(ca["rotation_world_to_camera"])  # camera to world: R^T r
+    C = np.array(ca["centre_world_mm"])
+    down = d[:, 2] < -1e-6
+    w = C + (-C[2] / d[down, 2])[:, None] * d[down]
+    _, ok = _world_to_image(w, cb, Kb, sb)
+    return float(ok.mean()) if len(ok) else 0.0
+
+
+def _seen_length(ends_cam, ca, fb: Path, cb) -> float:
+    """How much (mm) of the line between two camera-a points capture b's image shows."""
+    Kb, sb = _intrinsics(fb)
+    w = ends_cam @ np.array(ca["rotation_world_to_camera"]) + np.array(ca["centre_world_mm"])
+    pts = w[0] + np.linspace(0, 1, 61)[:, None] * (w[1] - w[0])
+    _, ok = _world_to_image(pts, cb, Kb, sb)
+    return float(ok.mean() * np.linalg.norm(w[1] - w[0]))
+
+
+def gain(cache: Path) -> None:
+    """What any placing could gain on the captures the verdict benchmark takes (``--gain``)."""
+    import rebarlib._across as A
+    from rebarlib import evaluate
+    from rebarlib._across import _ends, _judge_in, _same_bar, plan_sets
+    from rebarlib._status import MEASURED, NOT_MEASURED
+
+    print("\n## Pairs of the captures taken: true overlap and placing\n")
+    print("| slab | truth | verdict | a / b | formwork of a in b | of b in a | placed (why not) |")
+    print("|---|---|---|---|---:|---:|---|")
+    rows = []
+    for sd in sorted(cache.glob("slab_*")):
+        meta = json.loads((sd / "slab.json").read_text())
+        vfile = sd / "verdict.json"
+        verdict = json.loads(vfile.read_text())["verdict"] if vfile.exists() else "?"
+        design = load_design(sd / "design.toml")
+        names = [n for n in meta["captures"] if (sd / f"result_{n}.json").exists()]
+        res = [json.loads((sd / f"result_{n}.json").read_text()) for n in names]
+        cams = [json.loads((sd / n / "truth.json").read_text())["camera"] for n in names]
+        gate = _gate(design)
+        truth = {}
+        placed = {}
+        for i in range(len(names)):
+            for j in range(len(names)):
+                if i != j:
+                    truth[(names[i], names[j])] = _true_reg(res[i], res[j], cams[i], cams[j], names[i], names[j])
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                reg, why = register(res[i], res[j], gate)
+                placed[(i, j)] = placed[(j, i)] = reg is not None
+                share_ab = _formwork_share(sd / names[i], sd / names[j], cams[i], cams[j])
+                share_ba = _formwork_share(sd / names[j], sd / names[i], cams[j], cams[i])
+                print(
+                    f"| {meta['slab']:03d} | {meta['defect'] or 'clean'} | {verdict} | {names[i]} / {names[j]} | "
+                    f"{share_ab:.2f} | {share_ba:.2f} | {'yes' if reg is not None else 'no (' + why + ')'} |"
+                )
+        # the slab judged with every pair placed by its true pose
+        real = A._register
+        A._register = lambda sa, sb, g, na, nb, truth=truth: (truth[(na, nb)], "")
+        try:
+            oracle = evaluate(res, design)
+        finally:
+            A._register = real
+        acc = evaluate(res, design)
+        rows.append((meta, verdict, acc, oracle, res, names, cams, truth, placed, gate, sd))
+    print("\n## Clean slabs left incomplete: what another capture of the slab shows\n")
+    gained = 0
+    for meta, verdict, acc, oracle, res, names, cams, truth, placed, gate, sd in rows:
+        if meta["defect"] is not None or acc.verdict != "incomplete":
+            continue
+        print(f"- slab {meta['slab']:03d}: {acc.verdict}; all pairs placed by their true pose: {oracle.verdict}")
+        gained += oracle.verdict == "accepted"
+        sets = [plan_sets(r) for r in res]
+        for i, r in enumerate(acc.results):
+            for p in r.get("positions") or []:
+                if p.get("status") != NOT_MEASURED or _ends(p) is None:
+                    continue
+                shows = []
+                for j in range(len(names)):
+                    if j == i:
+                        continue
+                    seen = _seen_length(_ends(p), cams[i], sd / names[j], cams[j])
+                    plane = A._plane(r)
+                    line = truth[(names[i], names[j])].to_b(A._position_line(p, plane))
+                    key = (p.get("layer"), p.get("level"))
+                    v = _judge_in(p, line, sets[j].get(key), res[j], gate, A.CountParams.min_evidence_mm)
+                    shows.append(
+                        f"{names[j]} shows {seen:.0f} mm, would judge it "
+                        f"{v[0] if v else 'not'}, placed {'yes' if placed[(i, j)] else 'no'}"
+                    )
+                print(
+                    f"  - {names[i]} position {p['layer']} {p['level']} at {float(p.get('offset_mm') or 0):.0f} mm "
+                    f"({str(p.get('reason'))[:40]}…): " + ("; ".join(shows) or "no other capture")
+                )
+        cp = acc.checkpoints
+        for _, row in cp[(cp["item"].str.startswith("bar_size")) & (cp["status"] == NOT_MEASURED)].iterrows():
+            i = names.index(row["capture"])
+            bars = {b["bar_id"]: b for b in res[i]["bars"]}
+            b = bars.get(int(str(row["what"]).split()[-1]))
+            key = (row["layer"], row["level"])
+            st = sets[i].get(key)
+            if b is None or st is None or b["bar_id"] not in st.bar_ids:
+                continue
+            seg = st.segs[st.bar_ids.index(b["bar_id"])]
+            shows = []
+            for j in range(len(names)):
+                if j == i:
+                    continue
+                seen = _seen_length(_ends(b), cams[i], sd / names[j], cams[j])
+                seg_b = truth[(names[i], names[j])].to_b(seg)
+                other = None if key not in sets[j] else _same_bar(seg_b, sets[j][key], gate)
+                ob = {x["bar_id"]: x for x in res[j]["bars"]}.get(other)
+                sized = ob is not None and ob.get("diameter_status") == MEASURED
+                shows.append(
+                    f"{names[j]} shows {seen:.0f} mm, "
+                    + (f"sized it Φ{ob['nominal_mm']:g}" if sized else "did not size it")
+                    + f", placed {'yes' if placed[(i, j)] else 'no'}"
+                )
+            print(
+                f"  - {names[i]} bar {b['bar_id']} ({key[0]} {key[1]}) size not measured "
+                f"({str(row['reason'])[:40]}…): " + ("; ".join(shows) or "no other capture")
+            )
+    print(f"\nClean slabs incomplete that every pair placed by its true pose would accept: {gained}")
+    moved = [(m["slab"], a.verdict, o.verdict) for m, _, a, o, *_ in rows if m["defect"] and a.verdict != o.verdict]
+    print(f"Defective slabs whose verdict the true placing changes: {moved or 'none'}")
+
+
 def run(pairs) -> dict:
     out = {"pairs": 0, "placed": 0, "wrong": 0, "worst_right_mm": 0.0}
     for name, ra, rb, err, gate in pairs:
@@ -163,9 +343,17 @@ def main(argv=None) -> int:
     ap.add_argument("--windows", type=int, default=0, help="scenes to cut window pairs from")
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--noise", type=float, default=0.3, help="noise across the windows' bars (mm)")
+    ap.add_argument(
+        "--gain", action="store_true", help="with --cache: what any placing could gain (true overlaps, per slab)"
+    )
     args = ap.parse_args(argv)
     if not args.cache and not args.windows:
         ap.error("give --cache DIR and/or --windows N")
+    if args.gain:
+        if not args.cache:
+            ap.error("--gain needs --cache DIR")
+        gain(Path(args.cache))
+        return 0
     print("| source | pairs | placed | wrong | worst error of the right ones (mm) |\n|---|---:|---:|---:|---:|")
     rows = []
     if args.cache:
