@@ -69,7 +69,7 @@ from bench_geometry import match_bars, paper_design
 from rebarlib._inspect import inspect
 from rebarlib.devices import device_for
 from rebarlib.synth import Deviations, SensorModel, synth_capture
-from rebarlib.uncertainty import BAR_FIT_SHARE_OF_RMS, _level_fits_u
+from rebarlib.uncertainty import BAR_FIT_SHARE_OF_RMS, RESOLUTION_TERM, _level_fits_u
 
 #: per mean height: the bar levels it is read from, and the budget's key
 HEIGHT_LEVELS = {
@@ -135,7 +135,9 @@ def cases(quick: bool, seed: int = 59, rounds: int = 1):
 #: The budget's terms that these renders draw (uniformly within the profile's limits, as the
 #: budget assumes): the rest of the systematic terms (principal point, registration, rib
 #: envelope, bar shape) widen u here without any error behind them
-EXERCISED = ("depth scale", "depth offset", "depth non-linearity (stereo k z²)", "focal length")
+#: The formwork plane's depth resolution is exercised too: the renders store depth on a 1 mm grid
+#: (``SensorModel.quantize``, ``depth_scale_mm``), whose rounding the plane keeps seen face-on.
+EXERCISED = ("depth scale", "depth offset", "depth non-linearity (stereo k z²)", "focal length", RESOLUTION_TERM)
 
 
 def _model(budget: dict | None) -> dict:
@@ -506,14 +508,16 @@ def rebudget(kept: list, diameters: bool, derive_rows: list | None = None) -> pd
     for item in kept:
         case, res = item["case"], copy.deepcopy(item["res"])
         name, cover, errs = case[0], case[1], case[-1]
-        camera, _, device = SETS[name]
+        camera, sensor, device = SETS[name]
         budget = res.extras.get("uncertainty", {}).get("measurements", {})
         for key, _ in HEIGHT_LEVELS.values():
             terms = budget.get(key, {}).get("terms", [])
             m = getattr(res, key)
             if terms and m.ok and not any(t["term"] == "fits (common to a level)" for t in terms):
                 setattr(res, key, replace(m, uncertainty_mm=terms[0]["u_input"]))
-        res = apply_budget(res, paper_design(cover), device=device, intrinsics=CAMERAS[camera])
+        res = apply_budget(
+            res, paper_design(cover), device=device, intrinsics=CAMERAS[camera], depth_unit_mm=sensor.depth_scale_mm
+        )
         new = rows_of(res, item["truth"], case, diameters)
         rows.extend({**r, "seed": item["seed"], "capture": item["capture"]} for r in new)
         if derive_rows is not None:

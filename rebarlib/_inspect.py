@@ -330,7 +330,12 @@ def _budget(res: InspectionResult, capture: Capture, design: Design, cal) -> Ins
     if cal is not None:
         res.extras["calibration"] = {**cal.to_dict(), "file": cal.source, "summary": cal.summary()}
     return apply_budget(
-        res, design, device=capture.metadata.get("device"), calibration=cal, intrinsics=capture.intrinsics
+        res,
+        design,
+        device=capture.metadata.get("device"),
+        calibration=cal,
+        intrinsics=capture.intrinsics,
+        depth_unit_mm=capture.depth_scale_mm,
     )
 
 

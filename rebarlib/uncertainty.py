@@ -39,6 +39,7 @@ __all__ = [
     "length_terms",
     "width_terms",
     "stereo_sensitivity",
+    "plane_resolution",
     "combine",
     "apply_budget",
 ]
@@ -70,6 +71,14 @@ _HEIGHT_LEVELS = {
     "layer_distance": (("lower", "bottom"), ("upper", "bottom")),
     "upper_top": (("upper", "top"),),
 }
+#: Harmonics of the stored depth grid's rounding summed in :func:`plane_resolution` (the k-th
+#: adds 1/k² of the face-on variance; those beyond are taken at the last one's size).
+RESOLUTION_HARMONICS = 50
+#: The name of the plane's depth-resolution term in a budget.
+RESOLUTION_TERM = "depth resolution (formwork plane)"
+#: Phase bins (per depth unit) of the plane's depths in :func:`plane_resolution`: a bin's width
+#: lowers the 50th harmonic by 0.4 %.
+_PHASE_BINS = 1024
 #: Residual colour-depth misregistration (px) after ``inspect`` has estimated it: the estimate's
 #: own error where the shift was undone, else the largest shift it leaves (REGISTRATION_MIN_PX).
 REGISTRATION_RESIDUAL_PX = (0.4, 0.5)
@@ -173,6 +182,7 @@ def height_terms(
     rib_mm=0.0,
     common_mm=0.0,
     stereo_mm=None,
+    resolution=None,
 ) -> list:
     """Budget of a height above the formwork (or a difference of two) whose seen part, the
     depth difference the camera measures, is ``h_mm`` (for an underside, the bar's top: the
@@ -188,7 +198,10 @@ def height_terms(
     envelope radius: sensitivity 1 on the envelope's diameter); ``rib_mm``: the rib height of
     the bars whose assumed shape the height depends on; ``common_mm``: the part of the fits'
     error common to the bars of a level (:data:`LEVEL_FIT_COMMON_MM`), where ``u_random_mm`` is
-    the bars' own scatter only (:func:`apply_budget`).
+    the bars' own scatter only (:func:`apply_budget`); ``resolution``: ``(depth unit / sqrt(12),
+    share)`` of a height read against the fitted formwork plane, the stored depth grid's rounding
+    left in the plane's position (:func:`plane_resolution`; sensitivity 1 on the plane, the share
+    on the grid's rounding of one depth).
     """
     h = abs(float(h_mm))
     z_m = depth_mm / 1000.0
@@ -208,6 +221,7 @@ def height_terms(
         _t("principal point", inp.u_pp_px, "px", 0.0),
         _t("rib envelope (spread between mills)", envelope_mm, "mm", 1.0 if envelope_mm else 0.0),
         _t("assumed bar shape", SHAPE_SHARE_OF_RIB * rib_mm / _SQRT3, "mm", 1.0 if rib_mm else 0.0),
+        *([_t(RESOLUTION_TERM, resolution[0], "mm", resolution[1])] if resolution else []),
     ]
 
 
@@ -385,12 +399,78 @@ def stereo_sensitivity(res: InspectionResult, key: str) -> float | None:
     return each[1] - each[0] if key == "layer_distance" else each[0]  # layer distance: upper - lower
 
 
+def plane_resolution(normal, offset_mm: float, intrinsics, depth_unit_mm: float) -> float:
+    """The share of the stored depth grid's rounding left in a formwork plane fitted to a
+    capture's depths: the plane's standard uncertainty from the depth's resolution is this share
+    times ``depth_unit_mm / sqrt(12)`` (docs/uncertainty.md, docs/decisions/037).
+
+    A depth image stores each depth on a grid of ``depth_unit_mm`` (``camera.json``'s
+    ``depth_scale_mm``): a depth z is read as z + e(z), e the rounding, a sawtooth of period Δ =
+    ``depth_unit_mm``, e(z) = sum over k >= 1 of (Δ / π k) (-1)^k sin(2π k z / Δ). The plane
+    fitted to many depths moves by their mean rounding, which for depths whose phase on the grid
+    is unknown (the grid's place against the true depths: a depth scale or offset error of a
+    fraction of a unit moves it) has the variance
+
+        u² = sum over k of (Δ / π k)² |φ(2π k / Δ)|² / 2
+
+    with φ the characteristic function of the depths the plane's points are stored from (the
+    quantisation theorem's mean, Widrow): |φ| = 1 for a plane seen face-on, whose depths are all
+    one and the same, and u is the rounding's own Δ / sqrt(12); a tilted plane spans many units
+    over the image and its rounding averages out (|φ| small). The share returned is u over
+    Δ / sqrt(12), ``sqrt(6 / π² sum |φ_k|² / k²)`` over :data:`RESOLUTION_HARMONICS` harmonics
+    (the rest at the last one's |φ|).
+
+    The depths taken are the plane's own over every pixel of the image (``intrinsics``) that
+    sees it, with no noise: a stereo camera stores disparity steps, and noise that dithers the
+    disparity before its step does not dither the depth grid after it, so the depths before
+    the grid can be as few as the levels a plane seen face-on falls on. The disparity step is not
+    in the device profiles; without it this is the bound, 1 face-on (fewer levels than one cannot
+    be). Returns 1 where ``intrinsics`` is None (the view unknown: the bound).
+
+    Examples
+    --------
+    >>> from rebarlib import GEMINI2
+    >>> plane_resolution([0.0, 0.0, -1.0], 600.0, GEMINI2, 1.0)  # face-on: all depths one
+    1.0
+    >>> t = np.radians(10.0)  # tilted by 10°: about 200 mm of depths over the image
+    >>> plane_resolution([0.0, np.sin(t), -np.cos(t)], 600.0, GEMINI2, 1.0) < 0.02
+    True
+    """
+    unit = float(depth_unit_mm)
+    if not unit > 0:
+        return 0.0
+    if intrinsics is None:
+        return 1.0
+    n = np.asarray(normal, float)
+    K = intrinsics
+    x = (np.arange(K.width) - K.cx) / K.fx
+    y = (np.arange(K.height) - K.cy) / K.fy
+    dot = n[0] * x[None, :] + n[1] * y[:, None] + n[2]  # normal · ray (z = 1)
+    seen = dot < 0
+    if not seen.any():
+        return 1.0
+    z = -float(offset_mm) / dot[seen]  # the plane's depth along each pixel's ray
+    phase = np.floor(np.mod(z / unit, 1.0) * _PHASE_BINS).astype(np.int64)
+    hist = np.bincount(np.clip(phase, 0, _PHASE_BINS - 1), minlength=_PHASE_BINS) / len(z)
+    phi = np.abs(np.fft.fft(hist)[1 : RESOLUTION_HARMONICS + 1])
+    k = np.arange(1, RESOLUTION_HARMONICS + 1)
+    # the harmonics beyond the last taken at its |φ| (all of them 1 face-on)
+    tail = math.pi**2 / 6 - float(np.sum(1.0 / k**2))
+    return float(min(1.0, math.sqrt(6.0 / math.pi**2 * (float(np.sum(phi**2 / k**2)) + phi[-1] ** 2 * tail))))
+
+
 def _with_u(m: Measurement, u: float) -> Measurement:
     return replace(m, uncertainty_mm=u) if m.ok else m
 
 
 def apply_budget(
-    res: InspectionResult, design, *, device: str | None = None, calibration=None, intrinsics=None
+    res: InspectionResult,
+    design,
+    *,
+    device: str | None = None,
+    calibration=None,
+    intrinsics=None,
+    depth_unit_mm: float | None = None,
 ) -> InspectionResult:
     """Put the systematic terms into ``res``'s uncertainties (in place; returns ``res``).
 
@@ -404,6 +484,11 @@ def apply_budget(
       size's posterior with that uncertainty and the envelope table's spread
       (``snap_diameter``); the diameter stage's own ``confidence`` still decides whether a size
       is given;
+    - cover and top of the upper bars (and top cover), read against the fitted formwork plane:
+      the plane's depth resolution, the stored depth grid's rounding left in its position
+      (:func:`plane_resolution`; ``depth_unit_mm``: ``camera.json``'s ``depth_scale_mm``, 1 mm
+      where not given, as a capture read without it assumes); not the layer distance, a
+      difference of two levels of bars;
     - ``res.extras["uncertainty"]``: the inputs, every measurement's terms, k;
     - a note where the device is unknown and the conservative profile was used.
     """
@@ -430,6 +515,7 @@ def apply_budget(
         return rib_height_mm(observed_width_mm(d, system=system), system=system)
 
     geo = {"depth_mm": z, "tilt_deg": tilt}
+    resolution = _plane_resolution(res, intrinsics, depth_unit_mm)
     out = {
         "k": COVERAGE_K,
         "inputs": inp.to_dict(),
@@ -446,6 +532,9 @@ def apply_budget(
         ),
         "upper_top": {},
     }
+    if resolution is not None:  # the heights read against the plane; the layer distance is not
+        for key in ("cover", "upper_top"):
+            specs[key]["resolution"] = (resolution["u_unit_mm"], resolution["share"])
     # what the camera sees of an underside is the bar's top: the depth errors act on the height
     # of that top, the assumed envelope is subtracted after (upper top: seen as it is)
     seen = {"cover": envelope("lower"), "layer_distance": envelope("upper") - envelope("lower"), "upper_top": 0.0}
@@ -474,6 +563,8 @@ def apply_budget(
             **out["measurements"]["upper_top"],
             "value_mm": _r(res.top_cover.value_mm, 3),
         }
+    if resolution is not None:
+        out["plane_resolution"] = {k: _r(v) if isinstance(v, float) else v for k, v in resolution.items()}
     res.spacings = _spacing_budget(res, inp, z, tilt, f, out)
     res.bars = _width_budget(res, inp, z, tilt, f, system, out)
     res.extras["uncertainty"] = out
@@ -484,6 +575,25 @@ def apply_budget(
             "camera (rebar calibrate) for smaller uncertainties"
         )
     return res
+
+
+def _plane_resolution(res: InspectionResult, intrinsics, depth_unit_mm) -> dict | None:
+    """The formwork plane's depth-resolution term (:func:`plane_resolution`) as the budget records
+    it, or None where the result has no fitted formwork plane."""
+    fw = res.formwork or {}
+    if not fw.get("found") or "normal" not in fw or "offset_mm" not in fw:
+        return None
+    unit = 1.0 if depth_unit_mm is None else float(depth_unit_mm)
+    share = plane_resolution(fw["normal"], float(fw["offset_mm"]), intrinsics, unit)
+    return {
+        "depth_unit_mm": unit,
+        "depth_unit_given": depth_unit_mm is not None,
+        "u_unit_mm": unit / math.sqrt(12.0),
+        "share": share,
+        "u_mm": share * unit / math.sqrt(12.0),
+        "disparity_step": "not in the device profile: the depths before the grid taken without noise (the bound)",
+        "view": "the plane over the image" if intrinsics is not None else "unknown (no intrinsics): the bound",
+    }
 
 
 def _bar_depth(bars, i) -> float:
