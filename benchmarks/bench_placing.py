@@ -21,8 +21,16 @@ the other captures that truly show it over the length a verdict needs and whethe
 placed; and the slab's verdict were every pair placed by its true pose (an oracle placing, the
 bound of what placing can gain).
 
+``--features`` (with ``--cache``) measures whether image features could place two captures
+(docs/decisions/035): per pair of the captures taken whose views overlap (a share of 0.3 or more
+of each one's formwork in the other's image), SIFT keypoints of each colour image with valid
+depth (a 3 x 3 window within 3 mm) lifted to 3-D, matched both ways under Lowe's ratio test
+(0.8); how many of the matches are true (their points within 10 mm of each other under the true
+pose), and the largest set a 3-D RANSAC (Kabsch on three matches, 10 mm) finds with its error.
+
     python benchmarks/bench_placing.py --cache /tmp/verdicts
     python benchmarks/bench_placing.py --cache /tmp/verdicts --gain
+    python benchmarks/bench_placing.py --cache /tmp/verdicts --features
     python benchmarks/bench_placing.py --windows 100 --seed 3
     python benchmarks/bench_placing.py --windows 60 --seed 4 --noise 1.0
 """
@@ -320,6 +328,118 @@ def gain(cache: Path) -> None:
     print(f"Defective slabs whose verdict the true placing changes: {moved or 'none'}")
 
 
+def _keypoints(folder: Path):
+    """SIFT keypoints of a capture's colour image with valid depth: their camera-frame points (mm)
+    and descriptors."""
+    import cv2
+
+    K, _ = _intrinsics(folder)
+    scale = float(json.loads((folder / "camera.json").read_text()).get("depth_scale_mm", 1.0))
+    grey = cv2.cvtColor(cv2.imread(str(folder / "color.png"), cv2.IMREAD_COLOR), cv2.COLOR_BGR2GRAY)
+    depth = cv2.imread(str(folder / "depth.png"), cv2.IMREAD_UNCHANGED).astype(float) * scale
+    kp, des = cv2.SIFT_create(nfeatures=8000, contrastThreshold=0.01).detectAndCompute(grey, None)
+    H, W = depth.shape
+    pts, keep = [], []
+    for i, k in enumerate(kp):
+        x, y = int(round(k.pt[0])), int(round(k.pt[1]))
+        if not (1 <= x < W - 1 and 1 <= y < H - 1):
+            continue
+        w = depth[y - 1 : y + 2, x - 1 : x + 2]
+        w = w[w > 0]
+        if len(w) < 7 or w.max() - w.min() > 3.0:  # no depth, or a depth edge
+            continue
+        z = float(np.median(w))
+        pts.append([(k.pt[0] - K[0, 2]) * z / K[0, 0], (k.pt[1] - K[1, 2]) * z / K[1, 1], z])
+        keep.append(i)
+    return np.array(pts).reshape(-1, 3), (des[keep] if des is not None else np.zeros((0, 128), np.float32))
+
+
+def _mutual_matches(da, db, ratio: float = 0.8) -> np.ndarray:
+    import cv2
+
+    if len(da) < 2 or len(db) < 2:
+        return np.zeros((0, 2), int)
+    bf = cv2.BFMatcher(cv2.NORM_L2)
+    back = {m[0].queryIdx: m[0].trainIdx for m in bf.knnMatch(db, da, k=2) if m[0].distance < ratio * m[1].distance}
+    out = [
+        (m[0].queryIdx, m[0].trainIdx)
+        for m in bf.knnMatch(da, db, k=2)
+        if m[0].distance < ratio * m[1].distance and back.get(m[0].trainIdx) == m[0].queryIdx
+    ]
+    return np.array(out, int).reshape(-1, 2)
+
+
+def _kabsch3(P, Q):
+    mp, mq = P.mean(0), Q.mean(0)
+    u, _, vt = np.linalg.svd((P - mp).T @ (Q - mq))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))])
+    R = vt.T @ D @ u.T
+    return R, mq - R @ mp
+
+
+def _ransac3(P, Q, thr: float, rng, iters: int = 3000):
+    """The largest set of matches one rigid motion carries within ``thr`` mm: (R, t, inliers) or None."""
+    best = None
+    if len(P) < 3:
+        return None
+    for _ in range(iters):
+        idx = rng.choice(len(P), 3, replace=False)
+        R, t = _kabsch3(P[idx], Q[idx])
+        inl = np.linalg.norm(P @ R.T + t - Q, axis=1) < thr
+        if best is None or inl.sum() > best.sum():
+            best = inl
+    R, t = _kabsch3(P[best], Q[best])
+    return R, t, best
+
+
+def features(cache: Path) -> None:
+    """Can image features place two captures of a slab (``--features``)?"""
+    rng = np.random.default_rng(0)
+    print("| slab | formwork | a / b | rust a / b | overlap | matches | true | RANSAC set | its error (mm) |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|")
+    tot = {"pairs": 0, "matches": 0, "true": 0, "placed_right": 0}
+    for sd in sorted(cache.glob("slab_*")):
+        names = json.loads((sd / "slab.json").read_text())["captures"]
+        truth = {n: json.loads((sd / n / "truth.json").read_text()) for n in names}
+        kps = {}
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                a, b = names[i], names[j]
+                ca, cb = truth[a]["camera"], truth[b]["camera"]
+                share = min(_formwork_share(sd / a, sd / b, ca, cb), _formwork_share(sd / b, sd / a, cb, ca))
+                if share < 0.3:
+                    continue
+                for n in (a, b):
+                    if n not in kps:
+                        kps[n] = _keypoints(sd / n)
+                (Pa, Da), (Pb, Db) = kps[a], kps[b]
+                m = _mutual_matches(Da, Db)
+                Ra, Rb = np.array(ca["rotation_world_to_camera"]), np.array(cb["rotation_world_to_camera"])
+                Rt, tt = Rb @ Ra.T, Rb @ (np.array(ca["centre_world_mm"]) - np.array(cb["centre_world_mm"]))
+                A, B = Pa[m[:, 0]], Pb[m[:, 1]]
+                true = int(np.sum(np.linalg.norm(A @ Rt.T + tt - B, axis=1) < 10.0))
+                fit = _ransac3(A, B, 10.0, rng)
+                n_set, err = 0, float("nan")
+                if fit is not None:
+                    R, t, inl = fit
+                    n_set = int(inl.sum())
+                    err = float(np.max(np.linalg.norm(A[inl] @ R.T + t - (A[inl] @ Rt.T + tt), axis=1)))
+                app = truth[a]["appearance"], truth[b]["appearance"]
+                print(
+                    f"| {sd.name[-3:]} | {app[0]['formwork']} | {a} / {b} | {app[0]['rust_fraction']:g} / "
+                    f"{app[1]['rust_fraction']:g} | {share:.2f} | {len(m)} | {true} | {n_set} | {err:.0f} |",
+                    flush=True,
+                )
+                tot["pairs"] += 1
+                tot["matches"] += len(m)
+                tot["true"] += true
+                tot["placed_right"] += n_set >= 3 and err <= WRONG_MM
+    print(
+        f"\n{tot['pairs']} pairs, {tot['matches']} matches, {tot['true']} of them true; "
+        f"RANSAC sets within {WRONG_MM:g} mm of the true pose: {tot['placed_right']}"
+    )
+
+
 def run(pairs) -> dict:
     out = {"pairs": 0, "placed": 0, "wrong": 0, "worst_right_mm": 0.0}
     for name, ra, rb, err, gate in pairs:
@@ -346,13 +466,19 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--gain", action="store_true", help="with --cache: what any placing could gain (true overlaps, per slab)"
     )
+    ap.add_argument(
+        "--features", action="store_true", help="with --cache: can SIFT features place two captures (true matches)"
+    )
     args = ap.parse_args(argv)
     if not args.cache and not args.windows:
         ap.error("give --cache DIR and/or --windows N")
-    if args.gain:
+    if args.gain or args.features:
         if not args.cache:
-            ap.error("--gain needs --cache DIR")
-        gain(Path(args.cache))
+            ap.error("--gain and --features need --cache DIR")
+        if args.gain:
+            gain(Path(args.cache))
+        if args.features:
+            features(Path(args.cache))
         return 0
     print("| source | pairs | placed | wrong | worst error of the right ones (mm) |\n|---|---:|---:|---:|---:|")
     rows = []
