@@ -40,8 +40,6 @@ import math
 
 import numpy as np
 
-from ..geometry.fit import _median
-
 
 def visible_arc(phi, radius_mm: float, occluders=(), k: int = 48):
     """The surface a scanner sees of a bar from each direction ``phi`` (radians from the vertical,
@@ -170,6 +168,15 @@ def seen_sides_centre(
         log_fw = -0.5 * (h / formwork_sd_mm) ** 2 - math.log(formwork_sd_mm * math.sqrt(2 * math.pi) * 2 * half_mm)
     b2 = blur_mm**2
     index = np.flatnonzero(keep)
+    # Every per-point, per-direction sum of the EM is a product of the points' moments about the
+    # current axis, ``feats`` = (x², x·y, y², x, y, 1) with x, y the offset and height from it, and
+    # a (J, 6) matrix of each direction's coefficients: one matrix product a step instead of a
+    # dozen passes over (J, N) arrays (the same sums, in another order). Responsibilities are
+    # (J, N): the sums over the directions run along the slow axis, vectorised over the points.
+    if s is not None:
+        starts = bounds[:-1]
+        sk = (np.add.reduceat(s, starts) / np.diff(bounds)).tolist()  # the stretches' mean positions
+    feats = _moments(a, h, c, s0)
     for it in range(iters):
         # each direction's streak: covariance of its visible arc + the range noise along u + blur
         caa = cov_arc[:, 0, 0] + sig * sig * su * su + b2
@@ -179,21 +186,27 @@ def seen_sides_centre(
         if not np.all(det > 0):
             return None
         paa, phh, pah = chh / det, caa / det, -cah / det
-        da = (a - c[0] - c[2] * s0)[:, None] - m_arc[None, :, 0]
-        dh = (h - c[1] - c[3] * s0)[:, None] - m_arc[None, :, 1]
-        q = paa * da * da + 2 * pah * da * dh + phh * dh * dh
-        log_b = -0.5 * q - 0.5 * np.log(det) - math.log(2 * math.pi)
+        # log density of each point in each direction's streak: -q/2 with q the Mahalanobis
+        # distance of (x - m_a, y - m_h), expanded in the moments
+        ma_, mh_ = m_arc[:, 0], m_arc[:, 1]
+        ga, gh = paa * ma_ + pah * mh_, pah * ma_ + phh * mh_
+        const = -0.5 * (ma_ * ga + mh_ * gh) - 0.5 * np.log(det) - math.log(2 * math.pi)
         share_bar = 1.0 - share_bg - share_fw
-        log_b += np.log(np.maximum(weights * share_bar, 1e-300))[None]
-        cols = [log_b, np.full((n, 1), math.log(share_bg) + log_uniform)]
+        const += np.log(np.maximum(weights * share_bar, 1e-300))
+        coef = np.stack([-0.5 * paa, -pah, -0.5 * phh, ga, gh, const], axis=1)
+        rb = coef @ feats  # (J, N) log of each direction's share of each point
+        top = np.maximum(rb.max(axis=0), math.log(share_bg) + log_uniform)
         if formwork_sd_mm:
-            cols.append((math.log(share_fw) + log_fw)[:, None])
-        allp = np.hstack(cols)
-        top = allp.max(axis=1, keepdims=True)
-        e = np.exp(allp - top)
-        resp = e / e.sum(axis=1, keepdims=True)
-        rb = resp[:, : len(phi)]
-        rj = rb.sum(axis=0)
+            top = np.maximum(top, math.log(share_fw) + log_fw)
+        rb -= top
+        np.exp(rb, out=rb)
+        e_bg = np.exp(math.log(share_bg) + log_uniform - top)
+        z = rb.sum(axis=0) + e_bg
+        if formwork_sd_mm:
+            e_fw = np.exp(math.log(share_fw) + log_fw - top)
+            z += e_fw
+        rb /= z
+        rj = rb.sum(axis=1)
         tot = float(rj.sum())
         if tot < 20:
             return None
@@ -204,34 +217,47 @@ def seen_sides_centre(
             index, phi, m_arc, cov_arc = index[live], phi[live], m_arc[live], cov_arc[live]
             su, cu, var_uu_arc = su[live], cu[live], var_uu_arc[live]
             paa, phh, pah = paa[live], phh[live], pah[live]
-            rj, rb, resp = rj[live], rb[:, live], np.hstack([rb[:, live], resp[:, len(live) :]])
+            rj, rb = rj[live], rb[live]
             tot = float(rj.sum())
             weights = rj / tot
-        share_bg = min(max(float(resp[:, len(phi)].sum()) / n, 1e-4), 0.5)
+        share_bg = min(max(float((e_bg / z).sum()) / n, 1e-4), 0.5)
         if formwork_sd_mm:
-            share_fw = min(max(float(resp[:, len(phi) + 1].sum()) / n, 1e-4), 0.95)
+            share_fw = min(max(float((e_fw / z).sum()) / n, 1e-4), 0.95)
         # the centre: weighted least squares of p - m_j with each streak's precision P_j
-        ma = a @ rb - rj * m_arc[:, 0]  # Σ_i R_ij (a_i - m_j,a)
-        mh = h @ rb - rj * m_arc[:, 1]
         if s is None:
+            ma = rb @ a - rj * m_arc[:, 0]  # Σ_i R_ij (a_i - m_j,a)
+            mh = rb @ h - rj * m_arc[:, 1]
             H = np.array([[rj @ paa, rj @ pah], [rj @ pah, rj @ phh]])
             rhs = np.array([paa @ ma + pah @ mh, pah @ ma + phh @ mh])
-        else:
-            # the axis as a line through the centres of stretches along the bar, each the same
-            # weighted least squares on its own points, the line robust to a stretch that holds
-            # something else (a block or a chair under the bar)
-            c_new = _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds)
-            if c_new is None:
-                return None
-        if s is None:
             try:
                 c_new = np.r_[np.linalg.solve(H, rhs), 0.0, 0.0]
             except np.linalg.LinAlgError:
                 return None
-        da = (a - c_new[0] - c_new[2] * s0)[:, None] - m_arc[None, :, 0]
-        dh = (h - c_new[1] - c_new[3] * s0)[:, None] - m_arc[None, :, 1]
-        t = da * su + dh * cu
-        sig = math.sqrt(max(float((rb * t * t).sum() - rj @ var_uu_arc) / tot, 0.09))
+        else:
+            # the axis as a line through the centres of stretches along the bar, each the same
+            # weighted least squares on its own points, the line robust to a stretch that holds
+            # something else (a block or a chair under the bar)
+            # per point, Σ_j R_ij (P_j, P_j m_j): the directions contracted first, then the
+            # stretches' sums
+            v = np.stack([paa, pah, phh, paa * m_arc[:, 0] + pah * m_arc[:, 1], pah * m_arc[:, 0] + phh * m_arc[:, 1]])
+            v = v @ rb  # (5, N)
+            per = np.stack([v[0], v[1], v[2], a * v[0] + h * v[1] - v[3], a * v[1] + h * v[2] - v[4]])
+            c_new = _line_through_stretches(*np.add.reduceat(per, starts, axis=1), sk)
+            if c_new is None:
+                return None
+        # the noise along the rays: Σ R_ij t_ij² with t_ij = x_i su_j + y_i cu_j - (m_j · u_j),
+        # from the moments about the new axis (which the next step starts from)
+        feats = _moments(a, h, c_new, s0)
+        mom = feats @ rb.T  # (6, J): Σ_i R_ij (x², xy, y², x, y, 1)
+        k_u = m_arc[:, 0] * su + m_arc[:, 1] * cu
+        tt = (
+            su * su * mom[0]
+            + 2 * su * cu * mom[1]
+            + cu * cu * mom[2]
+            - 2 * k_u * (su * mom[3] + cu * mom[4])
+            + k_u * k_u * rj
+        )
+        sig = math.sqrt(max(float(tt.sum() - rj @ var_uu_arc) / tot, 0.09))
         done = float(np.max(np.abs(c_new - c))) < 0.01
         c = c_new
         if done:
@@ -303,43 +329,60 @@ def _view_directions(base, radius_mm: float, occluders, around=None, levels: int
     return phi[keep], tuple(x[keep] for x in arc)
 
 
-def _line_through_stretches(a, h, rb, m_arc, paa, pah, phh, s, bounds, iters: int = 4):
+def _moments(a, h, c, s0):
+    """(6, N) moments (x², x·y, y², x, y, 1) of the points about the axis ``c`` (across, height
+    and their slopes along ``s0``): x, y each point's offset and height from it."""
+    x = a - c[0] - c[2] * s0
+    y = h - c[1] - c[3] * s0
+    return np.stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
+
+
+def _small_median(x) -> float:
+    """The median of a short list of floats (the mean of the two middle values of an even one)."""
+    p = sorted(x)
+    k = len(p) // 2
+    return (p[k - 1] + p[k]) / 2 if len(p) % 2 == 0 else p[k]
+
+
+def _line_through_stretches(h00, h01, h11, r0, r1, sk, iters: int = 4):
     """(across, height, across slope, height slope) of a bar's axis: each stretch's centre (the
-    streaks' weighted least squares on its points, ``bounds`` the stretches' first indices into
-    the points sorted along), then a line through the centres, each weighted by its precision and
-    Tukey-weighted (4.685 robust σ, at least the centres' own standard error) so that a stretch
-    whose points something else pulls does not tilt it. None where a stretch's step is singular."""
-    starts = bounds[:-1]
-    j = rb.shape[1]
-    sums = np.add.reduceat(np.hstack([rb, a[:, None] * rb, h[:, None] * rb]), starts, axis=0)
-    rk, ra, rh = sums[:, :j], sums[:, j : 2 * j], sums[:, 2 * j :]  # (K, J): Σ_i∈k R_ij (1, a_i, h_i)
-    ma = ra - rk * m_arc[None, :, 0]
-    mh = rh - rk * m_arc[None, :, 1]
-    H = np.empty((len(starts), 2, 2))
-    H[:, 0, 0], H[:, 0, 1], H[:, 1, 1] = rk @ paa, rk @ pah, rk @ phh
-    H[:, 1, 0] = H[:, 0, 1]
-    rhs = np.stack([ma @ paa + mh @ pah, ma @ pah + mh @ phh], axis=-1)
-    det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] ** 2
+    streaks' weighted least squares on its points: ``h00``, ``h01``, ``h11`` (K,) each stretch's
+    precision matrix Σ_i Σ_j R_ij P_j and ``r0``, ``r1`` its right-hand side
+    Σ_i Σ_j R_ij P_j (p_i - m_j); ``sk`` the K stretches' mean positions along, a list), then a line
+    through the centres, each weighted by its precision and Tukey-weighted (4.685 robust σ, at
+    least the centres' own standard error) so that a stretch whose points something else pulls
+    does not tilt it. None where a stretch's step is singular. The line's few values are plain
+    floats: numpy's overhead on a dozen of them was most of the fit's cost."""
+    det = h00 * h11 - h01 * h01
     if not np.all(det > 0):
         return None
-    cen = np.linalg.solve(H, rhs[..., None])[..., 0]  # (K, 2)
-    var = np.stack([H[:, 1, 1] / det, H[:, 0, 0] / det], axis=-1)  # each centre's variance
-    sk = np.add.reduceat(s, starts) / np.diff(bounds)
     out = []
-    for j in (0, 1):
-        y, w0 = cen[:, j], 1.0 / var[:, j]
-        w = w0.copy()
-        se = math.sqrt(_median(var[:, j]))
-        for _ in range(iters):
-            sw = float(w.sum())
-            mx, my = float(w @ sk) / sw, float(w @ y) / sw
-            sxx = float(w @ (sk - mx) ** 2)
-            b1 = float(w @ ((sk - mx) * (y - my))) / sxx if sxx > 0 else 0.0
-            b0 = my - b1 * mx
-            res = y - (b0 + b1 * sk)
-            scale = max(1.4826 * _median(np.abs(res)), se) * 4.685
-            w = w0 * np.clip(1 - (res / scale) ** 2, 0, None) ** 2
-            if w.sum() <= 0:
-                w = w0
-        out.append((b0, b1))
+    for y, var in (
+        ((h11 * r0 - h01 * r1) / det, h11 / det),  # the centres' offsets and their variances
+        ((h00 * r1 - h01 * r0) / det, h00 / det),  # their heights
+    ):
+        out.append(_tukey_line(sk, y.tolist(), var.tolist(), iters))
     return np.array([out[0][0], out[1][0], out[0][1], out[1][1]])
+
+
+def _tukey_line(x: list, y: list, var: list, iters: int):
+    """(intercept, slope) of a line through points (x, y) of variances ``var``: weighted least
+    squares, Tukey-weighted (4.685 robust σ of the residuals, at least the points' median
+    standard error), ``iters`` times."""
+    w0 = [1.0 / v for v in var]
+    w = list(w0)
+    se = math.sqrt(_small_median(var))
+    b0 = b1 = 0.0
+    for _ in range(iters):
+        sw = sum(w)
+        mx = sum(wi * xi for wi, xi in zip(w, x)) / sw
+        my = sum(wi * yi for wi, yi in zip(w, y)) / sw
+        sxx = sum(wi * (xi - mx) ** 2 for wi, xi in zip(w, x))
+        b1 = sum(wi * (xi - mx) * (yi - my) for wi, xi, yi in zip(w, x, y)) / sxx if sxx > 0 else 0.0
+        b0 = my - b1 * mx
+        res = [yi - (b0 + b1 * xi) for xi, yi in zip(x, y)]
+        scale = max(1.4826 * _small_median([abs(r) for r in res]), se) * 4.685
+        w = [w0i * max(1.0 - (r / scale) ** 2, 0.0) ** 2 for w0i, r in zip(w0, res)]
+        if not sum(w) > 0:
+            w = list(w0)
+    return b0, b1
