@@ -45,7 +45,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_verdicts import _slab_plan
+try:
+    from bench_verdicts import _slab_plan
+except ModuleNotFoundError:  # imported as the package ``benchmarks`` (the tests)
+    from benchmarks.bench_verdicts import _slab_plan
 from rebarlib import load_design
 from rebarlib._across import register
 from rebarlib.geometry.plane import Plane, plane_frame, to_slab_frame
