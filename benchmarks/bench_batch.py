@@ -10,6 +10,9 @@ printed with each table, and CPU seconds beside wall seconds):
    ``parts``: CPU seconds per capture of each part of ``inspect()`` (the network, the rest of
    the mask, the geometry, the diameters, ...) on the paper slab's 4 captures, one thread, each
    part wrapped in a CPU-time counter (no profiler).
+   ``network`` (only when asked for): the network's 36 runs of one capture, the model file's
+   graph against the graph padded to whole channel blocks (docs/decisions/027), rounds
+   interleaved in one process, and whether their outputs are the same to the bit.
 2. ``startup``: ``rebar --help``, and ``rebar report --results`` of the 4-capture paper slab
    (PDF), wall time including the interpreter's start-up. Targets: 0.3 s and 3 s.
 3. ``batch``: ``rebar inspect --jobs J`` over N copies of the paper slab's 4 captures (hard
@@ -181,6 +184,53 @@ def bench_parts(repeats: int) -> None:
     table(
         f"parts: CPU s per capture of inspect() on the paper slab's 4 captures, 1 thread, mean of {repeats} rounds",
         ["part", "CPU s per capture"],
+        rows,
+    )
+
+
+def bench_network(repeats: int) -> None:
+    """CPU seconds of the network's 36 runs of one capture (B_500's 9 tiles, each with its three
+    test-time flips), one thread, the model file's graph and the graph padded to whole channel
+    blocks (``SegmentationModel.pad_layout``), in the same process, rounds interleaved; and
+    whether their outputs are the same to the bit."""
+    import numpy as np
+
+    from rebarlib import load_capture
+    from rebarlib.segmentation import SegmentationModel
+
+    models = {}
+    for padded in (False, True):
+        SegmentationModel.pad_layout = padded
+        models[padded] = SegmentationModel.default(threads=1)
+    SegmentationModel.pad_layout = True
+    m = models[False]
+    img = np.asarray(load_capture(PAPER / "B_500").color)
+    norm = m._normalised(img)
+    (tw, th), (H, W) = m._inp["size"], img.shape[:2]
+    inputs = []
+    for y0 in sorted({*range(0, H - th + 1, th // 2), H - th}):
+        for x0 in sorted({*range(0, W - tw + 1, tw // 2), W - tw}):
+            t = m._laid_out(norm[y0 : y0 + th, x0 : x0 + tw])[0]
+            inputs += [t] + [np.ascontiguousarray(np.flip(t, ax)) for ax in ((3,), (2,), (2, 3))]
+    outs = {k: [mod._run(mod._session, x) for x in inputs] for k, mod in models.items()}
+    same = all(a.tobytes() == b.tobytes() for a, b in zip(outs[False], outs[True]))
+    cpu = {False: [], True: []}
+    for r in range(repeats):
+        for k in (False, True) if r % 2 == 0 else (True, False):
+            mod = models[k]
+            c = time.process_time()
+            for x in inputs:
+                mod._run(mod._session, x)
+            cpu[k].append(time.process_time() - c)
+    rows = [
+        [name, f"{statistics.median(cpu[k]):.3f}", f"{min(cpu[k]):.3f}-{max(cpu[k]):.3f}"]
+        for name, k in (("the model file's graph", False), ("padded to whole channel blocks", True))
+    ]
+    rows[1][0] += "" if models[True].layout_padded else " (not used on this CPU: the same graph)"
+    table(
+        f"network: {len(inputs)} runs of B_500's tiles and flips, 1 thread, CPU s, median of {repeats} "
+        f"interleaved rounds; outputs the same to the bit: {same}",
+        ["graph", "CPU s per capture's runs", "range"],
         rows,
     )
 
@@ -476,7 +526,9 @@ def check(path: Path) -> int:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--only", choices=("stages", "parts", "startup", "batch", "dask", "many"), action="append")
+    ap.add_argument(
+        "--only", choices=("stages", "parts", "network", "startup", "batch", "dask", "many"), action="append"
+    )
     ap.add_argument("--n", type=int, default=24, help="captures in the batch and dask tables (default 24)")
     ap.add_argument("--jobs", type=int, action="append", help="--jobs values of the batch table (default 1 and 2)")
     ap.add_argument("--repeats", type=int, default=3)
@@ -498,6 +550,8 @@ def main(argv=None) -> int:
         bench_stages(max(a.repeats, 5))
     if "parts" in only:
         bench_parts(a.repeats)
+    if "network" in only:
+        bench_network(max(a.repeats, 5))
     if "startup" in only:
         bench_startup(max(a.repeats, 5))
     if "batch" in only:
