@@ -270,3 +270,19 @@ def test_ribs_in_relief_leave_smooth_renders_alone_and_narrow_the_silhouette(pap
     # the bars' image area shrinks by about the share of the silhouette between ribs, which is
     # below the envelope: between the core's (d1 / (d1 + 2h), 0.83 for Φ12) and 1
     assert 0.83 * a_s < a_r < 0.99 * a_s
+
+
+@pytest.mark.parametrize("formwork", ["plywood", "film", "plastic"])
+def test_every_capture_of_a_slab_shows_the_same_board_whatever_rusts(paper_design, formwork):
+    """The formwork's texture belongs to the slab: a capture with rusty bars shows the same board
+    as one without (once, the rust was drawn first and moved the board's noise fields)."""
+    shots = []
+    for rust in (0.0, 0.5):
+        app = Appearance(rust_fraction=rust, formwork=formwork)
+        cap = synth_capture(
+            paper_design, seed=3, scene_seed=11, appearance=app, intrinsics=GEMINI2.scaled(0.25), tilt_deg=5
+        )
+        shots.append(cap)
+    board = (shots[0].labels == 0) & (shots[1].labels == 0)
+    assert board.mean() > 0.3
+    assert np.array_equal(shots[0].color[board], shots[1].color[board])

@@ -153,25 +153,41 @@ def _sample(field_img, x, y, extent, cell):
     return out.ravel()[:n]
 
 
-def _formwork_albedo(kind, p, rng, extent):
-    """Colour (linear, 0..1) of the formwork at world points ``p``: plywood with grain and sheet
-    seams, dusty black film-faced board, or coloured plastic panels; textures drawn from ``rng``."""
-    x, y = p[:, 0], p[:, 1]
-    n1 = _sample(_value_noise(rng, (512, 512)), x, y, extent, 2 * extent / 512)
-    n2 = _sample(_value_noise(rng, (1024, 1024), 2), x, y, extent, 2 * extent / 1024)
+def _formwork_texture(kind, rng):
+    """What the formwork's colour is drawn with (its noise fields and the kind's parameters),
+    drawn from ``rng``: the slab's own stream, before anything a capture may vary (which bars
+    rust), so that every capture of one slab shows the same board."""
+    tex = {"kind": kind, "n1": _value_noise(rng, (512, 512)), "n2": _value_noise(rng, (1024, 1024), 2)}
     if kind == "plywood":
-        base = np.array([0.78, 0.60, 0.40]) * rng.uniform(0.85, 1.1)
-        grain = 0.5 + 0.5 * np.sin(2 * np.pi * (x + 60 * n1) / rng.uniform(6, 12))
+        tex["base"] = np.array([0.78, 0.60, 0.40]) * rng.uniform(0.85, 1.1)
+        tex["grain_mm"] = rng.uniform(6, 12)
+    elif kind == "film":
+        tex["base"] = np.array([0.20, 0.14, 0.11]) * rng.uniform(0.8, 1.2)
+    else:  # plastic
+        tex["base"] = [np.array([0.25, 0.45, 0.75]), np.array([0.55, 0.57, 0.58]), np.array([0.3, 0.6, 0.35])][
+            rng.integers(3)
+        ]
+    return tex
+
+
+def _formwork_albedo(tex, p, extent):
+    """Colour (linear, 0..1) of the formwork at world points ``p``: plywood with grain and sheet
+    seams, dusty black film-faced board, or coloured plastic panels (``tex``:
+    :func:`_formwork_texture`)."""
+    x, y = p[:, 0], p[:, 1]
+    n1 = _sample(tex["n1"], x, y, extent, 2 * extent / 512)
+    n2 = _sample(tex["n2"], x, y, extent, 2 * extent / 1024)
+    kind, base = tex["kind"], tex["base"]
+    if kind == "plywood":
+        grain = 0.5 + 0.5 * np.sin(2 * np.pi * (x + 60 * n1) / tex["grain_mm"])
         shade = 0.82 + 0.12 * grain + 0.18 * (n2 - 0.5)
         seams = (np.abs(((y + extent) % 1220) - 610) > 608) | (np.abs(((x + extent) % 2440) - 1220) > 1218)
         shade = np.where(seams, 0.45, shade)
     elif kind == "film":
-        base = np.array([0.20, 0.14, 0.11]) * rng.uniform(0.8, 1.2)
         shade = 0.85 + 0.3 * (n1 - 0.5) + 0.15 * (n2 - 0.5)
         dust = n2 > 0.72
         shade = np.where(dust, shade * 1.8, shade)
     else:  # plastic
-        base = [np.array([0.25, 0.45, 0.75]), np.array([0.55, 0.57, 0.58]), np.array([0.3, 0.6, 0.35])][rng.integers(3)]
         shade = 0.92 + 0.1 * (n2 - 0.5)
         seams = (np.abs(((y + extent) % 500) - 250) > 247) | (np.abs(((x + extent) % 500) - 250) > 247)
         shade = np.where(seams, 0.6, shade)
@@ -287,6 +303,8 @@ def _colour(
     elev = math.radians(app.sun_elevation_deg if app.sun_elevation_deg is not None else rng.uniform(35, 75))
     azim = math.radians(app.sun_azimuth_deg if app.sun_azimuth_deg is not None else rng.uniform(0, 360))
     light = np.array([math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)])
+    # the board's texture before the rust: a capture's rust fraction must not change the board
+    texture = _formwork_texture(formwork, slab_rng)
     rust_of_bar = np.zeros(len(scene.bars) + 1)
     n_rusty = int(round(app.rust_fraction * len(scene.bars)))
     if n_rusty:
@@ -294,7 +312,7 @@ def _colour(
     n_s = int(app.pixel_samples)
     if n_s > 1:  # the colour pass casts n_s² rays spread over each pixel (see Appearance)
         hits = _cast(geo, caster, lens, pose, _subpixels(lens.height, lens.width, n_s))
-    albedo = _albedo(scene, formwork, hits, rust_of_bar, slab_rng)
+    albedo = _albedo(scene, texture, hits, rust_of_bar, slab_rng)
     rgb = _shade(app, caster, hits, albedo, light, rust_of_bar, formwork)
     img = _to_image(rgb, n_s, lens.height, lens.width, app, rng)
     return img, formwork, light, rust_of_bar
@@ -310,13 +328,14 @@ def _subpixels(H: int, W: int, n_s: int) -> np.ndarray:
     return px.reshape(-1, 2)
 
 
-def _albedo(scene: SlabScene, formwork: str, hits: _Hits, rust_of_bar, slab_rng) -> np.ndarray:
-    """(N, 3) surface colour (linear, 0..1) of each ray's hit; black on a miss."""
+def _albedo(scene: SlabScene, texture: dict, hits: _Hits, rust_of_bar, slab_rng) -> np.ndarray:
+    """(N, 3) surface colour (linear, 0..1) of each ray's hit (``texture``: the formwork's,
+    :func:`_formwork_texture`); black on a miss."""
     kind, p = hits.kind, hits.p
     albedo = np.zeros((len(hits.t), 3))
     extent = scene.deviations.slab_size_mm * 2
     fw = kind == K_FORMWORK
-    albedo[fw] = _formwork_albedo(formwork, p[fw], slab_rng, extent)
+    albedo[fw] = _formwork_albedo(texture, p[fw], extent)
     bars_px = kind == K_BAR
     albedo[bars_px] = _bar_albedo(scene, hits.bar_of[bars_px], p[bars_px], rust_of_bar, slab_rng)
     albedo[kind == K_SPACER] = [0.62, 0.61, 0.58]
