@@ -314,12 +314,13 @@ def regress(df: pd.DataFrame) -> pd.DataFrame:
 
 def face_on(df: pd.DataFrame) -> pd.DataFrame:
     """Per mean height and set: the captures seen face-on (tilt 0) against the tilted ones --
-    how many, how many beyond 2u, and the SD of the error less the drawn errors times the
-    budget's sensitivities (the residual), with the depth scale's and the stereo term's
-    regression slopes (:func:`regress`) on each part alone -- and, face-on, the fitted formwork plane's own
-    error (:func:`formwork_error`): its mean and SD, its correlation with the residual, and the
-    residual's SD once it is taken out (a height read against the plane moves with it one for
-    one; not the layer distance, a difference of two levels). A diagnostic: nothing here enters u."""
+    how many, how many beyond 2u, the RMS of error / u, the median u, and the SD of the error
+    less the drawn errors times the budget's sensitivities (the residual), with the depth scale's
+    and the stereo term's regression slopes (:func:`regress`) on each part alone -- and, face-on,
+    the fitted formwork plane's own error (:func:`formwork_error`): its mean and SD, its
+    correlation with the residual, and the residual's SD once it is taken out (a height read
+    against the plane moves with it one for one; not the layer distance, a difference of two
+    levels). A diagnostic: nothing here enters u."""
     cols = [f"x {name}" for name in DRAWN.values()]
     out = []
     for q in HEIGHT_LEVELS:
@@ -331,6 +332,8 @@ def face_on(df: pd.DataFrame) -> pd.DataFrame:
             row = {"quantity": q, "set": name}
             for lab, part in (("face-on", g[g["tilt"] == 0]), ("tilted", g[g["tilt"] != 0])):
                 row[f"n {lab}"], row[f"beyond {lab}"] = len(part), int(part["beyond"].sum())
+                row[f"rms e/u {lab}"] = float(np.sqrt(np.mean((part["error"] / part["u"]) ** 2)))
+                row[f"median u {lab}"] = float(part["u"].median())
                 row[f"residual SD {lab}"] = float(part["residual"].std())
                 # the depth scale's and the stereo term's slopes on these captures alone (as regress)
                 X = np.column_stack([part[cols].to_numpy(float), np.ones(len(part))])
@@ -355,8 +358,10 @@ def face_on(df: pd.DataFrame) -> pd.DataFrame:
     for r in t.to_dict(orient="records"):
         print(
             f"  {r['quantity']:15s} {r['set']:13s} face-on {r['beyond face-on']:3d} of {r['n face-on']:4d} beyond 2u, "
+            f"RMS e/u {r['rms e/u face-on']:.2f}, median u {r['median u face-on']:.3f} mm, "
             f"residual SD {r['residual SD face-on']:.3f} mm, slopes scale {r['scale face-on']:.2f} stereo "
             f"{r['stereo face-on']:.2f}; tilted {r['beyond tilted']:3d} of {r['n tilted']:4d}, "
+            f"{r['rms e/u tilted']:.2f}, {r['median u tilted']:.3f} mm, "
             f"{r['residual SD tilted']:.3f} mm, {r['scale tilted']:.2f}, {r['stereo tilted']:.2f}; plane error "
             f"{r['plane mean']:+.3f} (SD {r['plane SD']:.3f}) mm, corr {r['corr']:+.2f}, residual SD without it "
             + (f"{r['residual SD less plane']:.3f} mm" if np.isfinite(r["residual SD less plane"]) else "-")

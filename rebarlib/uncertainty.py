@@ -409,16 +409,16 @@ def plane_resolution(normal, offset_mm: float, intrinsics, depth_unit_mm: float)
     ``depth_unit_mm``, e(z) = sum over k >= 1 of (Δ / π k) (-1)^k sin(2π k z / Δ). The plane
     fitted to many depths moves by their mean rounding, which for depths whose phase on the grid
     is unknown (the grid's place against the true depths: a depth scale or offset error of a
-    fraction of a unit moves it) has the variance
+    fraction of a unit moves it) has the variance ::
 
         u² = sum over k of (Δ / π k)² |φ(2π k / Δ)|² / 2
 
     with φ the characteristic function of the depths the plane's points are stored from (the
-    quantisation theorem's mean, Widrow): |φ| = 1 for a plane seen face-on, whose depths are all
+    quantisation theorem's mean, Widrow): ``|φ| = 1`` for a plane seen face-on, whose depths are all
     one and the same, and u is the rounding's own Δ / sqrt(12); a tilted plane spans many units
-    over the image and its rounding averages out (|φ| small). The share returned is u over
+    over the image and its rounding averages out (``|φ|`` small). The share returned is u over
     Δ / sqrt(12), ``sqrt(6 / π² sum |φ_k|² / k²)`` over :data:`RESOLUTION_HARMONICS` harmonics
-    (the rest at the last one's |φ|).
+    (the rest at the last one's ``|φ|``).
 
     The depths taken are the plane's own over every pixel of the image (``intrinsics``) that
     sees it, with no noise: a stereo camera stores disparity steps, and noise that dithers the
