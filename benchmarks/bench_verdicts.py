@@ -29,7 +29,11 @@ the slab judged that position (the captures judged together), one more capture i
 told (moved across those bars by 1.25 times the distance named, towards the side the sheet names
 — towards the position — or, on a sheet that names none, towards the slab's middle; height, tilt
 and heading kept), one for each capture that asks (at most 4 captures a slab), and the slab is
-judged again. Both judgements are printed. A cached follow-up capture whose camera stood
+judged again. Then, for each bar no capture of the slab sized whose reason advises a capture
+from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told: the camera
+the advised distance from the bar's seen middle along its optical axis, tilt and heading kept
+(still at most 4 captures a slab); what each says of its bar is printed. Both judgements are
+printed. A cached follow-up capture whose camera stood
 elsewhere is rendered again.
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
@@ -263,12 +267,40 @@ def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False) -> d
             results += [_result(folder, c, design, rejudge) for c in added]
             rec.update(_judge(results, design))
             rec["followups"] = added
+            rec["closer"] = [_closer_outcome(folder, c) for c in added if c.startswith("Z")]
     rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
     rec["seconds"] = round(time.perf_counter() - t, 2)
     (folder / ("verdict_follow.json" if follow else "verdict.json")).write_text(
         json.dumps(rec, indent=1), encoding="utf-8"
     )
     return rec
+
+
+def _closer_outcome(folder: Path, name: str) -> dict:
+    """What a capture taken from closer for a bar (``Z<capture>_<bar id>``) says of that bar: the
+    rendered bar it is (its bar ids), its true size, and the size found for it there (None: not
+    found or not sized)."""
+    try:
+        from study_ambiguous_closer import _truth_id
+    except ModuleNotFoundError:
+        from benchmarks.study_ambiguous_closer import _truth_id
+
+    j, bid = (int(x) for x in name[1:].split("_"))
+    meta = json.loads((folder / "slab.json").read_text())
+    cap = meta["captures"][j]
+    bar = next(b for b in json.loads((folder / f"result_{cap}.json").read_text())["bars"] if b["bar_id"] == bid)
+    tid = _truth_id(folder / cap, bar)
+    truth = next((b for b in json.loads((folder / cap / "truth.json").read_text())["bars"] if b["id"] == tid), None)
+    seen = json.loads((folder / f"result_{name}.json").read_text())["bars"]
+    got = [b for b in seen if _truth_id(folder / name, b) == tid]
+    sized = [b for b in got if b.get("diameter_status") == "measured"]
+    return {
+        "capture": name,
+        "true_mm": truth["diameter_mm"] if truth else None,
+        "found": bool(got),
+        "sized_mm": float(sized[0]["nominal_mm"]) if sized else None,
+        "reason": "" if sized or not got else str(got[0].get("diameter_reason"))[:80],
+    }
 
 
 def _truth_failed(folder: Path, caps: list, design) -> list:
@@ -359,7 +391,77 @@ def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: boo
                 (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
             out.append(new["name"])
             break
+    for name, bid, dist in _bars_to_size(folder, meta, results, design):
+        if len(meta["captures"]) + len(out) >= 4:
+            break
+        out.append(_capture_closer(folder, meta, name, bid, dist))
     return out
+
+
+#: what a bar's reason says when a capture from closer, aimed at it, would size it: the distance
+CLOSER = re.compile(r"a capture with the camera about (\d+) mm or less from the bar|from about (\d+) mm or less \(this")
+
+
+def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
+    """(capture, bar id, advised distance) of each bar the slab's sheet leaves unsized (its
+    captures judged together: a bar another capture sized is not asked for) whose reason advises a
+    capture from closer (:func:`rebarlib.diameter.closer.closer_advice`, computed on the saved
+    bar's row where the result was saved before the advice existed: the advice is a function of
+    that row, the capture's intrinsics and the design alone)."""
+    import rebarlib as R
+    from rebarlib.diameter.closer import closer_advice
+
+    acc = R.evaluate(results, design)
+    cp = acc.checkpoints
+    rows = cp[cp["item"].str.startswith("bar_size") & (cp["status"] == "not measured")]
+    out = []
+    for _, row in rows.iterrows():
+        name, bid = str(row["capture"]), int(str(row["what"]).split()[-1])
+        if name not in meta["captures"]:
+            continue
+        bar = next(b for b in results[meta["captures"].index(name)]["bars"] if int(b["bar_id"]) == bid)
+        reason = str(bar.get("diameter_reason") or "")
+        if not CLOSER.search(reason):
+            intr = R.load_capture(folder / name).intrinsics
+            ends = [[float(bar[f"{e}_{a}_mm"]) for a in "xyz"] for e in ("start", "end")]
+            reason += closer_advice(
+                bar, *ends, intr, min_confidence=0.8, system=design.bar_system, deformed=True, design=design
+            )
+        m = CLOSER.search(reason)
+        if m:
+            out.append((name, bid, float(m.group(1) or m.group(2))))
+    return out
+
+
+def _capture_closer(folder: Path, meta: dict, name: str, bid: int, dist: float) -> str:
+    """Take the capture a bar's advice asks for: the camera ``dist`` mm from the bar's seen middle
+    along its optical axis (that middle on the axis), the capture's tilt and heading kept; returns
+    its name."""
+    from rebarlib import synth as S
+
+    bar = next(b for b in json.loads((folder / f"result_{name}.json").read_text())["bars"] if int(b["bar_id"]) == bid)
+    _, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+    j = meta["captures"].index(name)
+    spec = specs[j]
+    cam = json.loads((folder / name / "truth.json").read_text())["camera"]
+    rot, centre = np.array(cam["rotation_world_to_camera"]), np.array(cam["centre_world_mm"])
+    ends = np.array([[bar[f"{e}_{a}_mm"] for a in "xyz"] for e in ("start", "end")])
+    mid = (ends @ rot + centre).mean(axis=0)  # camera to world
+    axis = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"]).rotation.T[:, 2]
+    # the optical axis through the bar's middle, meeting the formwork at the target; the camera
+    # dist from the bar along it
+    target = mid[:2] - (mid[2] / axis[2]) * axis[:2]
+    new = dict(
+        spec,
+        name=f"Z{j}_{bid}",
+        h=float(mid[2] - dist * axis[2]),
+        target=tuple(map(float, target)),
+        seed=[2026, meta["slab"], 4, j, bid],
+    )
+    if not _rendered_as(folder / new["name"], new):
+        _render_one(scene, new, folder)
+        (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
+    return new["name"]
 
 
 def _rendered_as(folder: Path, spec: dict) -> bool:
@@ -394,8 +496,9 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--follow-advice",
         action="store_true",
-        help="where a slab's captures ask for another capture (a position hidden under a bar), take one for "
-        "each capture that asks, as told, and judge again; prints the first judgement's matrix too",
+        help="where a slab's captures ask for another capture (a position hidden under a bar, a bar a capture "
+        "from closer would size), take one for each capture or bar that asks, as told, and judge again; prints "
+        "the first judgement's matrix too",
     )
     args = ap.parse_args(argv)
     cache = Path(args.cache)
@@ -418,7 +521,7 @@ def main(argv=None) -> int:
         f"{sum(r['seconds'] for r in recs):.0f} s of it in all)\n"
     )
     if args.follow_advice:
-        first = [{**r, **r.get("first_pass", {})} for r in recs]
+        first = [{**r, **r.get("first_pass", {}), "closer": []} for r in recs]
         n_follow = sum(1 for r in recs if r.get("followups"))
         print("## The captures first taken\n")
         report(first)
@@ -483,6 +586,19 @@ def report(recs: list) -> None:
         inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None and not r.get("truth_failed"))
         print(f"| {it} | {false} | {missed} | {inc} |")
     causes(recs)
+    closer = [(r["slab"], c) for r in recs for c in r.get("closer", [])]
+    if closer:
+        right = sum(c["sized_mm"] is not None and c["sized_mm"] == c["true_mm"] for _, c in closer)
+        wrong = sum(c["sized_mm"] is not None and c["sized_mm"] != c["true_mm"] for _, c in closer)
+        lost = sum(not c["found"] for _, c in closer)
+        print(
+            f"\nBars asked for from closer ({len(closer)}): sized right {right}, sized wrong {wrong}, "
+            f"not found {lost}, not sized {len(closer) - right - wrong - lost}\n"
+        )
+        for k, c in closer:
+            got = c["reason"] if c["found"] else "not found"
+            got = f"Φ{c['sized_mm']:g}" if c["sized_mm"] is not None else got
+            print(f"- slab {k:03d} {c['capture']} (Φ{c['true_mm']:g}): {got}")
     as_built = [r for r in recs if set(r.get("truth_failed", ())) - {DEFECT_ITEM.get(r["defect"])}]
     if as_built:
         print("\nSlabs whose own truth fails an item (the placing jitter; judged as a perfect inspection would):")

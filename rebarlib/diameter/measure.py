@@ -21,6 +21,7 @@ from .._design import DEFAULT_BAR_SYSTEM
 from .bars import _check_inputs, _footprints, _prepare
 from .barsizes import bar_system, observed_width_mm, rib_height_mm, snap_diameter
 from .calibration import _colour_calibration, _mask_between_spread, _width_calibration
+from .closer import closer_advice
 from .decision import _check_core, _matches_design, _off_centre, _refined_decision
 from .paper import _attribute_pixels, _paper_bar, _paper_vote
 from .params import DIAMETER_COLUMNS, HIDDEN, MEASURED, NOT_MEASURED, DiameterParams
@@ -215,6 +216,19 @@ def measure_diameters(
         )
     if method == "refined" and deformed:
         _pitch_veto(rows, results, prm, system=system)
+    if method == "refined":  # what a capture from closer would settle (advice only: no size changes)
+        for bar, row in zip(prepared, rows):
+            if row["diameter_status"] == NOT_MEASURED:
+                row["diameter_reason"] += closer_advice(
+                    row,
+                    bar.p0,
+                    bar.p1,
+                    intr,
+                    min_confidence=prm.min_confidence,
+                    system=system,
+                    deformed=deformed,
+                    design=design,
+                )
     df = pd.DataFrame(rows, columns=list(DIAMETER_COLUMNS))
     df["matches_design"] = df["matches_design"].astype(object)
     return df
