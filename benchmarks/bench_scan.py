@@ -18,6 +18,7 @@ Usage: ``python benchmarks/bench_scan.py [--seeds 2] [--first-seed 0] [--sigmas 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -69,6 +70,7 @@ def speed(design, n_target: int = 1_000_000) -> dict:
     scanner = ScannerModel(range_sigma_mm=10.0, step_az_deg=0.042, step_el_deg=0.042)
     pts, truth, _ = synth_scan(design, scanner=scanner, rng=7)
     times, cpu = [], []
+    load = os.getloadavg()[0]  # the machine's queue sets the wall time: printed with it
     for _ in range(3):
         t, c = time.perf_counter(), time.process_time()
         res = inspect_cloud(pts, design)
@@ -81,6 +83,7 @@ def speed(design, n_target: int = 1_000_000) -> dict:
         "median_cpu_s": float(np.median(cpu)),
         "missed": s["missed"],
         "phantoms": s["phantoms"],
+        "load": (load, os.getloadavg()[0]),
     }
 
 
@@ -175,7 +178,8 @@ def main(argv=None) -> int:
         sp = speed(design)
         print(
             f"\nspeed: {sp['points']:,} points, inspect_cloud median of 3: {sp['median_time_s']:.2f} s wall, "
-            f"{sp['median_cpu_s']:.2f} s CPU (missed {sp['missed']}, phantoms {sp['phantoms']})"
+            f"{sp['median_cpu_s']:.2f} s CPU (missed {sp['missed']}, phantoms {sp['phantoms']}; "
+            f"load average {sp['load'][0]:.1f} before, {sp['load'][1]:.1f} after)"
         )
     return 0
 
