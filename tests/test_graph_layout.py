@@ -1,43 +1,32 @@
-"""The segmentation graph padded to whole channel blocks computes the shipped graph's numbers, to the bit."""
+"""The shipped model's blocked variant (its graph padded to whole channel blocks, written by
+training/pad_graph.py) computes the shipped graph's numbers, to the bit, and is what the model runs
+on a CPU with 16-channel blocks (decision 027)."""
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rebarlib.segmentation import SegmentationModel
-from rebarlib.segmentation._graph import _parse, _serialize, pad_concat_channels
 from rebarlib.segmentation.model import MODELS_DIR, _channel_block
 
 ONNX = MODELS_DIR / "rebar_seg.onnx"
+BLOCKED = MODELS_DIR / "rebar_seg.blocked16.onnx"
 
 
-def _session(graph):
+def _session(path):
     import onnxruntime as ort
 
     so = ort.SessionOptions()
     so.intra_op_num_threads = 1
     so.log_severity_level = 3
-    return ort.InferenceSession(graph, so, providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
 
 
-def test_codec_round_trip():
-    raw = ONNX.read_bytes()
-    assert _serialize(_parse(raw)) == raw
-
-
-def test_padded_graph_pattern():
-    raw = ONNX.read_bytes()
-    padded = pad_concat_channels(raw, 16)
-    assert padded is not None and padded != raw
-    # 48 + 8 = 56 channels is a whole number of 8-channel blocks already: nothing to do
-    assert pad_concat_channels(raw, 8) is None
-    # the padded graph is itself left alone: its concatenation is whole
-    assert pad_concat_channels(padded, 16) is None
-
-
-@pytest.mark.parametrize("hw", [(400, 640), (96, 160)])
-def test_padded_graph_same_numbers(hw):
-    raw = ONNX.read_bytes()
-    a, b = _session(str(ONNX)), _session(pad_concat_channels(raw, 16))
+@pytest.mark.parametrize("hw", [(400, 640), (96, 160), (800, 1280)])
+def test_blocked_variant_same_numbers(hw):
+    a, b = _session(ONNX), _session(BLOCKED)
     x = np.random.default_rng(hw[0]).standard_normal((1, 3) + hw).astype(np.float32)
     ya, yb = a.run(None, {"image": x})[0], b.run(None, {"image": x})[0]
     assert ya.shape == yb.shape == (1, 1) + hw
@@ -54,3 +43,24 @@ def test_model_uses_it_where_it_applies(monkeypatch):
     pa = model.predict_proba(img, tiled=True)
     pb = plain.predict_proba(img, tiled=True)
     assert pa.tobytes() == pb.tobytes()
+
+
+def test_pad_graph_rewrites_the_shipped_model_as_shipped(tmp_path):
+    """training/pad_graph.py makes the shipped variant from the shipped model (the onnx package
+    is a training and development dependency, not a runtime one)."""
+    pytest.importorskip("onnx")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "training"))
+    try:
+        import pad_graph
+    finally:
+        sys.path.pop(0)
+    import onnx
+
+    out = tmp_path / "m.blocked16.onnx"
+    assert pad_graph.main([str(ONNX), "--block", "16", "--out", str(out)]) == 0
+    a, b = _session(BLOCKED), _session(out)
+    x = np.random.default_rng(1).standard_normal((1, 3, 96, 160)).astype(np.float32)
+    assert a.run(None, {"image": x})[0].tobytes() == b.run(None, {"image": x})[0].tobytes()
+    # 48 + 8 = 56 channels fill 8-channel blocks already, and the padded graph is whole: nothing to do
+    assert pad_graph.pad_concat_channels(onnx.load(str(ONNX)), 8) is None
+    assert pad_graph.pad_concat_channels(onnx.load(str(out)), 16) is None

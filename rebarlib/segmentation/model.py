@@ -107,14 +107,14 @@ class SegmentationModel:
         # core while the rest of inspect() runs and, with other processes on the machine (a
         # batch's workers), take it from them; the numbers computed are the same either way
         so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-        self._graph = str(self.onnx_path)  # what the sessions load: the file, or the padded graph's bytes
+        self._graph = str(self.onnx_path)  # what the sessions load: the file, or its blocked variant
         try:
             self._session = ort.InferenceSession(self._graph, so, providers=["CPUExecutionProvider"])
         except Exception as e:  # onnxruntime raises its own exception types for unreadable models
             raise _bad(self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})") from None
         self._check_io()
-        #: whether the sessions run the graph with its concatenations padded to whole channel
-        #: blocks (:mod:`._graph`): the same numbers, checked on a probe input, in less time
+        #: whether the sessions run the model's blocked variant (its concatenations padded to whole
+        #: channel blocks, :meth:`_pad_layout`): the same numbers, checked on a probe input, in less time
         self.layout_padded = False
         if self.pad_layout:
             self._pad_layout(so)
@@ -128,27 +128,21 @@ class SegmentationModel:
     pad_layout = True
 
     def _pad_layout(self, so):
-        """Run the sessions on the graph padded by :func:`._graph.pad_concat_channels`, where it
-        matches, where the CPU has onnxruntime's blocked layout (AVX-512: 16 channels, AVX2: 8)
-        and where the padded graph gives the original's numbers to the bit on a probe input;
-        otherwise keep the file's graph. About 15 % less CPU time per run of the shipped model
-        on an AVX-512 CPU (docs/batch.md, "A fourth pass")."""
+        """Run the sessions on the model's blocked variant where there is one for this CPU's
+        channel block (``<stem>.blocked16.onnx`` beside the model file, written by
+        ``training/pad_graph.py``: the graph with its channel concatenations padded to whole blocks
+        of onnxruntime's blocked layout, AVX-512: 16) and where it gives the file's numbers to the
+        bit on a probe input; otherwise keep the file's graph. About 15 % less CPU time per run of
+        the shipped model on an AVX-512 CPU (docs/batch.md, "A fourth pass")."""
         import onnxruntime as ort
 
-        from ._graph import pad_concat_channels
-
         block = _channel_block()
-        if block is None:
+        variant = self.onnx_path.with_name(f"{self.onnx_path.stem}.blocked{block}.onnx")
+        if block is None or not variant.is_file():
             return
         try:
-            padded = pad_concat_channels(self.onnx_path.read_bytes(), block)
-        except (ValueError, IndexError, KeyError):  # not the protobuf this reader expects: leave it
-            return
-        if padded is None:
-            return
-        try:
-            session = ort.InferenceSession(padded, so, providers=["CPUExecutionProvider"])
-        except Exception:  # the runtime refuses the rewritten graph: keep the file's
+            session = ort.InferenceSession(str(variant), so, providers=["CPUExecutionProvider"])
+        except Exception:  # the runtime refuses the variant: keep the file's graph
             return
         probe = self._probe_input()
         try:
@@ -157,7 +151,7 @@ class SegmentationModel:
         except Exception:  # a graph that does not take the probe: keep the file's
             return
         if ref.shape == got.shape and ref.dtype == got.dtype and ref.tobytes() == got.tobytes():
-            self._graph, self._session, self.layout_padded = padded, session, True
+            self._graph, self._session, self.layout_padded = str(variant), session, True
 
     def _probe_input(self):
         """A fixed pseudo-random input of the network's size (for a model without one, about
