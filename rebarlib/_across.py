@@ -482,7 +482,7 @@ def resolve_across(
             if s.get("design_spacing_mm"):
                 spacing[(s["layer"], s["level"])] = float(s["design_spacing_mm"])
     if not spacing:
-        return out, notes
+        return out, notes  # no spacing measured: nothing a lot could count twice
     gate = gate_fraction * min(spacing.values())
     sets = [plan_sets(r) for r in results]
     regs = {}
@@ -501,6 +501,14 @@ def resolve_across(
             )
     _sizes_across(out, results, sets, regs, gate)
     _spacings_across(out, results, sets, regs, gate, notes)
+    # the captures not placed on each other: whether they show the same bars is unknown, and a
+    # lot rule over their spacings must not depend on it (docs/decisions/039-a-lot-over-captures-not-placed.md)
+    for i, r in enumerate(out):
+        apart = [
+            str(rb.get("capture")) for j, rb in enumerate(results) if j != i and (min(i, j), max(i, j)) not in regs
+        ]
+        if apart:
+            r.setdefault("extras", {})["not_placed_on"] = apart
     for i, r in enumerate(out):
         plane = _plane(r)
         if plane is None:
@@ -546,6 +554,17 @@ def resolve_across(
         if changed:
             r.setdefault("extras", {})["judged_across"] = True
     return out, notes
+
+
+def unplaced_pairs(results: list) -> set:
+    """The pairs of captures (``frozenset`` of two names) of a slab's judged results
+    (:func:`resolve_across`'s) that were not placed on each other: whether they show the same
+    bars is not known."""
+    out = set()
+    for r in results:
+        for other in (r.get("extras") or {}).get("not_placed_on") or []:
+            out.add(frozenset((str(r.get("capture")), str(other))))
+    return out
 
 
 def spans_missing(r: dict) -> dict:

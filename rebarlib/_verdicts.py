@@ -5,6 +5,9 @@ and each bar's for the plan view; with the design values the items are judged ag
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -89,7 +92,161 @@ def _design_value(item: str, design: Design):
     return bs.spacing_mm if kind == "spacing" else bs.diameter_mm if kind == "bar_size" else None
 
 
-def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, labels: dict) -> dict:
+#: two readings of one spacing may be the same spacing when they differ by no more than this
+#: many combined standard uncertainties (the acceptance's coverage factor, rebarlib.acceptance)
+TWIN_K = 2.0
+
+
+def _may_be_same(a: dict, b: dict) -> bool:
+    """Whether two measured checkpoints of one item could be one quantity seen twice: their values
+    within ``TWIN_K`` combined standard uncertainties (a reading without an uncertainty cannot be
+    told from any other)."""
+    ua, ub = a.get("uncertainty"), b.get("uncertainty")
+    if ua is None or ub is None or not (np.isfinite(ua) and np.isfinite(ub)):
+        return True
+    return abs(float(a["measured_value"]) - float(b["measured_value"])) <= TWIN_K * float(np.hypot(ua, ub)) + _EPS
+
+
+def _max_matching(left: list, right: list, ok) -> list:
+    """A maximum one-to-one pairing of ``left`` with ``right`` items where ``ok(l, r)``
+    (augmenting paths); ``[(i_left, j_right)]``."""
+    match_r: dict = {}
+
+    def augment(i, seen):
+        for j in range(len(right)):
+            if j in seen or not ok(left[i], right[j]):
+                continue
+            seen.add(j)
+            if j not in match_r or augment(match_r[j], seen):
+                match_r[j] = i
+                return True
+        return False
+
+    for i in range(len(left)):
+        augment(i, set())
+    return sorted((i, j) for j, i in match_r.items())
+
+
+#: the most combinations of alignments weighed for one run of spacings; beyond it the bound of
+#: a one-to-one matching without the row's order is used (a wider range of readings)
+_MAX_COMBOS = 4096
+
+
+def _runs(rows: list) -> list:
+    """The runs of one capture's checkpoints of one item, in the result's order: consecutive
+    counted (measured, not excluded) spacings that share a bar (``bars a-b`` then ``bars b-c``).
+    Within a run the bars are neighbours in the row; a spacing not measured or excluded ends it
+    (it may span one bar not found or more)."""
+    runs, cur, prev = [], [], None
+    for r in rows:
+        ab = str(r["what"])[5:].split("-", 1) if str(r["what"]).startswith("bars ") else [None, None]
+        counted = r["status"] in (WITHIN, BEYOND, BEYOND_MAX) and r.get("measured_value") is not None
+        if counted and cur and ab[0] == prev:
+            cur.append(r)
+        else:
+            if cur:
+                runs.append(cur)
+            cur = [r] if counted else []
+        prev = ab[-1]
+    if cur:
+        runs.append(cur)
+    return runs
+
+
+def _alignments(J: list, prev: list) -> list:
+    """Every way run ``J`` of a later capture may show the same bars as run ``prev`` of an earlier one:
+    the two runs side by side, in the same or the reverse order, overlapping by at least one
+    spacing, every overlapping pair of readings possibly the same spacing (:func:`_may_be_same`).
+    Where two runs show the same bar pair, they show their neighbours too as far as both runs go,
+    so each alignment pairs the whole overlap. Returns ``[[(k in J, record of prev)], ...]``."""
+    L, M, out = len(J), len(prev), []
+    for rev in (False, True):
+        for o in range(-(L - 1), M) if not rev else range(0, L + M - 1):
+            pairs = [(k, (o - k) if rev else (k + o)) for k in range(L)]
+            pairs = [(k, m) for k, m in pairs if 0 <= m < M]
+            if pairs and all(_may_be_same(J[k], prev[m]) for k, m in pairs):
+                out.append([(k, prev[m]) for k, m in pairs])
+    return out
+
+
+def _lot_readings(cp: pd.DataFrame, unplaced: set, order: list, r_min: float) -> tuple:
+    """The two extreme readings of an item's lot where captures were not placed on each other
+    (docs/decisions/039-a-lot-over-captures-not-placed.md): ``(low, high, pairs)``, each reading
+    ``(within, counted)``, ``pairs`` the capture pairs that make them differ from the count as
+    taken.
+
+    Whether two captures not placed on each other show the same bars is not known (their results
+    share no frame, so their views could overlap). A run of a later capture's spacings
+    (:func:`_runs`) may repeat a run of an earlier one where :func:`_alignments` allows; each run
+    of the later capture takes any one alignment (or none) with each run of each earlier
+    capture not placed on it. A spacing seen twice counts once, out of tolerance if either
+    reading is (a spacing out as any capture saw it stays out). Dropping a repeat changes
+    ``within - r_min * counted`` by ``r_min - 1`` where one of its readings is within and by
+    ``r_min`` where both are beyond; ``low`` is the reading that lowers the share most, ``high``
+    the one that raises it most, over every combination (or a looser bound past ``_MAX_COMBOS``)."""
+    passed = int((cp["status"] == WITHIN).sum())
+    counted = int(cp["status"].isin([WITHIN, BEYOND, BEYOND_MAX]).sum())
+    if not unplaced or not counted:
+        return (passed, counted), (passed, counted), []
+    rows = cp.to_dict(orient="records")
+    rank = {c: k for k, c in enumerate(order)}
+    runs = {c: _runs([r for r in rows if r["capture"] == c]) for c in order}
+    lo, hi, pairs = [0, 0], [0, 0], set()  # (within lost, counted lost)
+    for cap in order:
+        earlier = [
+            (c, run) for c in order if rank[c] < rank[cap] and frozenset((cap, c)) in unplaced for run in runs[c]
+        ]
+        if not earlier:
+            continue
+        for J in runs[cap]:
+            options = [[None] + _alignments(J, run) for _, run in earlier]
+            n_combos = math.prod(len(o) for o in options)
+            best = worst = (0.0, 0, 0, ())  # (score, within lost, counted lost, captures)
+            if n_combos > _MAX_COMBOS:
+                # the matching bound: every reading of J that may repeat something, dropped alike
+                twins = [any(_may_be_same(x, y) for _, run in earlier for y in run) for x in J]
+                n_w = sum(t and x["status"] == WITHIN for t, x in zip(twins, J))
+                n_b = sum(t and x["status"] != WITHIN for t, x in zip(twins, J))
+                caps = tuple(sorted({c for c, _ in earlier}))
+                best, worst = ((1 - r_min) * n_w, n_w, n_w, caps), (-r_min * n_b, 0, n_b, caps)
+            else:
+                for combo in itertools.product(*options):
+                    twin: dict = {}
+                    caps = set()
+                    for (c, _), al in zip(earlier, combo):
+                        for k, rec in al or ():
+                            twin.setdefault(k, rec)
+                            caps.add(c)
+                    a = sum(J[k]["status"] == WITHIN or rec["status"] == WITHIN for k, rec in twin.items())
+                    m = len(twin)
+                    score = a - r_min * m
+                    if score > best[0] + _EPS:
+                        best = (score, a, m, tuple(caps))
+                    if score < worst[0] - _EPS:
+                        worst = (score, a, m, tuple(caps))
+            for acc, (_, a, m, caps) in ((lo, best), (hi, worst)):
+                acc[0], acc[1] = acc[0] + a, acc[1] + m
+                pairs |= {(c, cap) for c in caps}
+    return (
+        (passed - lo[0], counted - lo[1]),
+        (passed - hi[0], counted - hi[1]),
+        sorted(pairs, key=lambda p: (rank.get(p[0], 0), rank.get(p[1], 0))),
+    )
+
+
+def _item_row(
+    key: str,
+    cp: pd.DataFrame,
+    design: Design,
+    tol: Tolerances,
+    labels: dict,
+    unplaced: set = frozenset(),
+    order: list = (),
+) -> dict:
+    """One item's row: its checkpoints counted against its lot rule. ``unplaced``: the pairs of
+    captures not placed on each other (``rebarlib._across.unplaced_pairs``), ``order`` the
+    captures' order: a share rule is then judged under the two extreme readings of whether they
+    show the same spacings (:func:`_lot_readings`)."""
     t = tol.item(_tol_key(key))
     rule = tol.rule(t.lot_rule)
     dv = _design_value(key, design)
@@ -110,12 +267,40 @@ def _item_row(key: str, cp: pd.DataFrame, design: Design, tol: Tolerances, label
         verdict = NOT_MEASURED
         reason = "; ".join(reasons) or "no checkpoints in the results"
     else:
-        ok_ratio = passed >= rule.min_pass_ratio * n_meas - _EPS
+        r_min = rule.min_pass_ratio
+        ok_ratio = passed >= r_min * n_meas - _EPS
         ok_max = rule.max_factor is None or n_beyond_max == 0
         verdict = PASS if ok_ratio and ok_max else FAIL
         why = []
-        if not ok_ratio:
-            why.append(f"{passed}/{n_meas} within tolerance, below {rule.min_pass_ratio:.0%}")
+        # the share of a lot whose captures were not all placed on each other: judged under both
+        # extreme readings of which of their spacings are the same (decision 039)
+        spacing = key.startswith("spacing")
+        low, high, pairs = (
+            _lot_readings(counted, unplaced, list(order), r_min) if spacing else ((passed, n_meas),) * 2 + ([],)
+        )
+        low_ok = low[0] >= r_min * low[1] - _EPS
+        high_ok = high[0] >= r_min * high[1] - _EPS
+        # the share as counted lies between the two readings; they differ from it only where a
+        # repeat could be dropped that changes the share
+        differs = low[0] * n_meas != passed * low[1] or high[0] * n_meas != passed * high[1]
+        names = "; ".join(f"{a} and {b}" for a, b in pairs)
+        if differs and low_ok != high_ok and ok_max:
+            verdict = INCOMPLETE
+            why.append(
+                f"{passed}/{n_meas} within tolerance as counted, but captures not placed on each other ({names}) "
+                f"may show the same spacings: {low[0]}/{low[1]} to {high[0]}/{high[1]} depending on which they "
+                f"share, below {r_min:.0%} under one reading and not under the other; a capture placed on both "
+                "settles it"
+            )
+        elif not ok_ratio:
+            why.append(f"{passed}/{n_meas} within tolerance, below {r_min:.0%}")
+            if differs:
+                why.append(f"below it however many spacings of captures not placed on each other ({names}) repeat")
+        elif differs:
+            why.append(
+                f"{passed}/{n_meas} within tolerance ({low[0]}/{low[1]} to {high[0]}/{high[1]} however many spacings "
+                f"of captures not placed on each other ({names}) repeat: at least {r_min:.0%} either way)"
+            )
         if not ok_max:
             why.append(f"{n_beyond_max} checkpoint(s) beyond {rule.max_factor:g}× the tolerance")
         if n_nm:

@@ -337,8 +337,13 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
             for rec in (bars.to_dict(orient="records") if len(bars) else [])
         ]
     cp = pd.DataFrame(sheet.rows, columns=CHECKPOINT_COLUMNS)
+    # captures not placed on each other may show the same spacings: a share rule is judged under
+    # both extreme readings (docs/decisions/039-a-lot-over-captures-not-placed.md)
+    from ._across import unplaced_pairs
+
+    apart, order = unplaced_pairs(res), [str(r["capture"]) for r in res]
     items = pd.DataFrame(
-        [_item_row(k, cp[cp["item"] == k], design, tol, sheet.labels) for k in _item_order(design)],
+        [_item_row(k, cp[cp["item"] == k], design, tol, sheet.labels, apart, order) for k in _item_order(design)],
         columns=ITEM_COLUMNS,
     )
     verdict, reasons = _slab_verdict(items, missing, n_results=len(res))
