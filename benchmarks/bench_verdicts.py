@@ -311,7 +311,11 @@ def _truth_failed(folder: Path, caps: list, design) -> list:
     items (cover, layer distance, spacing) and a wrong size can fail here."""
     from rebarlib.synth import result_from_truth
 
-    return _judge([result_from_truth(folder / c, design, uncertainty_mm=0.0) for c in caps], design)["failed"]
+    results = [result_from_truth(folder / c, design, uncertainty_mm=0.0) for c in caps]
+    for r in results:  # the truth's spacings are exact: two captures' readings of one pair are equal
+        for s in r.get("spacings") or []:
+            s.setdefault("uncertainty_mm", 0.0)
+    return _judge(results, design)["failed"]
 
 
 def _result(folder: Path, c: str, design, rejudge: bool) -> dict:
