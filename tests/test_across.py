@@ -222,8 +222,9 @@ def test_a_hidden_position_is_judged_by_the_capture_that_shows_it(present):
     assert any("is present in capture B" in n or "is missing in capture B" in n for n in notes)
 
 
-def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
-    from rebarlib import evaluate
+def _two_sized_captures():
+    """The paper design and two overlapping captures A and B of one irregular mesh, every bar
+    sized at its design size."""
     from rebarlib.data import paper_design
 
     design = paper_design()
@@ -242,6 +243,13 @@ def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
                 visible_length_mm=600.0,
                 hidden=False,
             )
+    return design, a, b
+
+
+def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
+    from rebarlib import evaluate
+
+    design, a, b = _two_sized_captures()
     # a lower bottom bar of A near the middle, which B shows too, could not be sized in A
     k = next(
         i
@@ -267,24 +275,8 @@ def test_a_bar_sized_nowhere_stays_not_measured_beside_one_sized_elsewhere():
     A that no capture sized reads NaN there and must stay not measured (a NaN is truthy: it once
     excluded the bar, and the benchmark's wrong-size bar of slab 041 with it, as if sized elsewhere)."""
     from rebarlib import evaluate
-    from rebarlib.data import paper_design
 
-    design = paper_design()
-    rng = np.random.default_rng(8)
-    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
-    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
-    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
-    for r in (a, b):
-        for bar in r["bars"]:
-            dd = design.lattice(bar["layer"]).level(bar["level"]).diameter_mm
-            bar.update(
-                design_diameter_mm=dd,
-                nominal_mm=dd,
-                diameter_status="measured",
-                diameter_reason="",
-                visible_length_mm=600.0,
-                hidden=False,
-            )
+    design, a, b = _two_sized_captures()
     lower_bottom = [i for i, bar in enumerate(a["bars"]) if (bar["layer"], bar["level"]) == ("lower", "bottom")]
     k = min(lower_bottom, key=lambda i: abs(a["bars"][i]["start_y_mm"]))  # B sizes it
     k2 = max(lower_bottom, key=lambda i: abs(a["bars"][i]["start_y_mm"] - a["bars"][k]["start_y_mm"]))

@@ -94,29 +94,16 @@ def test_no_promise_nearer_than_the_caps():
         def level(self, level):
             return type("S", (), {"spacing_mm": 200.0})()
 
-    text = closer_advice(
-        _row(AMBIGUOUS),
-        (-20, 0, 323),
-        (20, 0, 323),
-        GEMINI2,
-        min_confidence=0.8,
-        system=SYSTEM,
-        deformed=True,
-        design=Design(),
-    )
+    def advise(**kw):  # the ambiguous bar seen 323 mm away, across the image's middle
+        return closer_advice(
+            _row(AMBIGUOUS), (-20, 0, 323), (20, 0, 323), GEMINI2, min_confidence=0.8, system=SYSTEM, deformed=True, **kw
+        )
+
+    text = advise(design=Design())
     assert text.startswith("; no capture from closer is advised: it would need the camera within about 200 mm")
     assert "nearer than 308 mm" in text
     # and the camera's near range alone
-    near = closer_advice(
-        _row(AMBIGUOUS),
-        (-20, 0, 323),
-        (20, 0, 323),
-        GEMINI2,
-        min_confidence=0.8,
-        system=SYSTEM,
-        deformed=True,
-        prm=CloserParams(near_mm=250.0),
-    )
+    near = advise(prm=CloserParams(near_mm=250.0))
     assert "nearer than 250 mm" in near
 
 
