@@ -96,7 +96,14 @@ def test_no_promise_nearer_than_the_caps():
 
     def advise(**kw):  # the ambiguous bar seen 323 mm away, across the image's middle
         return closer_advice(
-            _row(AMBIGUOUS), (-20, 0, 323), (20, 0, 323), GEMINI2, min_confidence=0.8, system=SYSTEM, deformed=True, **kw
+            _row(AMBIGUOUS),
+            (-20, 0, 323),
+            (20, 0, 323),
+            GEMINI2,
+            min_confidence=0.8,
+            system=SYSTEM,
+            deformed=True,
+            **kw,
         )
 
     text = advise(design=Design())
