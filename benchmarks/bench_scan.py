@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rebarlib import load_design
+from rebarlib import RebarInputError, load_design
 from rebarlib.scan import inspect_cloud
 from rebarlib.synth_scan import ScannerModel, Station, ring_stations, score_scan, synth_scan
 
@@ -39,11 +39,18 @@ def _stations(kind: str):
 
 
 def run_case(design, sigma, kind, seed, formwork=True) -> dict:
+    """One scan inspected and scored. A case whose inspection raises
+    :class:`~rebarlib.RebarInputError` (a cloud it cannot read as a two-lattice mesh) is a row with
+    ``failed`` set to the reason and every scanned bar counted as missed: one such case does not
+    abort the run, and the summary counts it."""
     step_az = 0.06 if kind == "dense" else 0.24
     scanner = ScannerModel(range_sigma_mm=sigma, step_az_deg=step_az, step_el_deg=0.06)
     pts, truth, _ = synth_scan(design, stations=_stations(kind), scanner=scanner, formwork=formwork, rng=seed)
     t = time.perf_counter()
-    res = inspect_cloud(pts, design)
+    try:
+        res = inspect_cloud(pts, design)
+    except RebarInputError as e:
+        return _failed_row(sigma, kind, formwork, seed, len(pts), truth, str(e), time.perf_counter() - t)
     dt = time.perf_counter() - t
     s = score_scan(res, truth)
     return {
@@ -51,6 +58,7 @@ def run_case(design, sigma, kind, seed, formwork=True) -> dict:
         "sampling": kind,
         "formwork": formwork,
         "seed": seed,
+        "failed": "",
         "points": len(pts),
         "scanned": s["scanned"],
         "found": s["found"],
@@ -64,6 +72,34 @@ def run_case(design, sigma, kind, seed, formwork=True) -> dict:
         "cover_err_mm": s["cover_err_mm"],
         "time_s": dt,
     }
+
+
+def _failed_row(sigma, kind, formwork, seed, n_points, truth, reason, dt) -> dict:
+    """The row of a case whose inspection raised: nothing found, every scanned bar missed (as
+    :func:`score_scan` counts them: at least 100 mm covered by returns)."""
+    scanned = sum(truth.scanned_mm.get(b.id, 0.0) >= 100.0 for b in truth.scene.bars)
+    return {
+        "sigma_mm": sigma,
+        "sampling": kind,
+        "formwork": formwork,
+        "seed": seed,
+        "failed": f"failed: {reason}",
+        "points": n_points,
+        "scanned": scanned,
+        "found": 0,
+        "missed": scanned,
+        "phantoms": 0,
+        "spacing_max_abs_err_mm": np.nan,
+        "spacings_not_measured": 0,
+        "layer_distance_err_mm": np.nan,
+        "cover_err_mm": np.nan,
+        "time_s": dt,
+    }
+
+
+def _nanmax_abs(x) -> float:
+    x = np.abs(np.asarray(x, float))
+    return float(np.nanmax(x)) if np.isfinite(x).any() else np.nan
 
 
 def speed(design, n_target: int = 1_000_000) -> dict:
@@ -159,17 +195,23 @@ def main(argv=None) -> int:
         for seed in seeds
     ]
     df = pd.DataFrame(rows)
-    print(df.round(2).to_string(index=False))
+    print(df.drop(columns="failed").round(2).to_string(index=False))
+    for r in df[df["failed"] != ""].itertuples():
+        print(f"sigma {r.sigma_mm:g} {r.sampling} seed {r.seed}: {r.failed}")
     agg = df.groupby(["sigma_mm", "sampling"]).agg(
+        failed=("failed", lambda x: int((x != "").sum())),
         missed=("missed", "sum"),
         phantoms=("phantoms", "sum"),
         spacing_max=("spacing_max_abs_err_mm", "max"),
         not_measured=("spacings_not_measured", "sum"),
-        ld_max=("layer_distance_err_mm", lambda x: float(np.max(np.abs(x)))),
-        cover_max=("cover_err_mm", lambda x: float(np.max(np.abs(x))) if x.notna().any() else np.nan),
+        ld_max=("layer_distance_err_mm", _nanmax_abs),
+        cover_max=("cover_err_mm", _nanmax_abs),
         time_s=("time_s", "median"),
     )
-    print("\nworst per case (max |err| in mm; sums of missed/phantom bars and of spacings not measured):")
+    print(
+        "\nworst per case (max |err| in mm; sums of failed cases, of missed/phantom bars (a failed case's "
+        "scanned bars all missed) and of spacings not measured):"
+    )
     print(agg.round(2).to_string())
     if args.diameters:
         print("\nbar sizes on fine scans (design: lower 14, upper 12 mm):")
