@@ -107,26 +107,6 @@ def _may_be_same(a: dict, b: dict) -> bool:
     return abs(float(a["measured_value"]) - float(b["measured_value"])) <= TWIN_K * float(np.hypot(ua, ub)) + _EPS
 
 
-def _max_matching(left: list, right: list, ok) -> list:
-    """A maximum one-to-one pairing of ``left`` with ``right`` items where ``ok(l, r)``
-    (augmenting paths); ``[(i_left, j_right)]``."""
-    match_r: dict = {}
-
-    def augment(i, seen):
-        for j in range(len(right)):
-            if j in seen or not ok(left[i], right[j]):
-                continue
-            seen.add(j)
-            if j not in match_r or augment(match_r[j], seen):
-                match_r[j] = i
-                return True
-        return False
-
-    for i in range(len(left)):
-        augment(i, set())
-    return sorted((i, j) for j, i in match_r.items())
-
-
 #: the most combinations of alignments weighed for one run of spacings; beyond it the bound of
 #: a one-to-one matching without the row's order is used (a wider range of readings)
 _MAX_COMBOS = 4096

@@ -11,7 +11,6 @@ from __future__ import annotations
 import pytest
 
 from rebarlib import evaluate
-from rebarlib._verdicts import _max_matching
 from rebarlib.data import paper_design
 
 LEVEL = ("lower", "bottom")
@@ -118,15 +117,6 @@ def test_a_rule_over_every_spacing_is_unaffected(second):
     within = [205.0, 195.0, 219.5 if second == [220.5] else 224.8]
     acc = evaluate([_result("A", within), _result("B", second)], paper_design(), "EN13670-class1")
     assert _item(acc)["verdict"] == "fail"
-
-
-def test_matching_is_one_to_one():
-    # two readings of C2 near the single reading of C0: at most one of them can be its repeat
-    pairs = _max_matching([1.0, 1.1, 5.0], [1.05, 9.0], lambda a, b: abs(a - b) < 0.5)
-    assert len(pairs) == 1
-    # an augmenting path: the first left item gives way so that both are paired
-    pairs = _max_matching([1.0, 2.0], [1.0, 2.0], lambda a, b: abs(a - b) < 1.5 and not (a == 2.0 and b == 2.0))
-    assert pairs == [(0, 1), (1, 0)]
 
 
 def test_a_run_seen_whole_in_both_captures_passes_as_it_is():

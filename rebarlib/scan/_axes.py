@@ -14,7 +14,7 @@ from .._checks import RebarInputError
 from .._design import Design
 from ._bars import _Bar, _crossing_along, _crossing_free, _robust_line, lattice_bars
 from ._datum import Datum, split_lattices
-from ._util import _dot, _slab_frame
+from ._util import _band_side, _dot, _slab_frame
 
 
 _SURFACE_MEAN = 2.0 / math.pi  # mean height of points spread evenly over a bar's upper half, x radius
@@ -98,7 +98,7 @@ def _refit_seen_sides(q, split: float, bars: list, noise: dict, datum: Datum) ->
         r = b.radius_mm
         same = [x for x in bars if x.layer == b.layer]
         r_max = max(x.radius_mm for x in same)
-        half = r_max + 2.5 * sig_plan + 2.0
+        half = _band_side(r_max, sig_plan)
         over_fw = datum.found and b.layer == "lower"
         reach = 3 * r + 4 * sig_plan
         lo = -4 * datum.noise_mm if over_fw else b.centre_h_mm - reach
@@ -362,7 +362,7 @@ def _refit_off_crossings(qs, found: list, r: float, sig_plan: float) -> list:
     """Each bar's offset again from its band's points away from the bars crossing it (its drift
     kept): there the band holds only this bar and what lies beside it."""
     plan = qs[:, :2]
-    half = r + 2.5 * sig_plan + 2.0
+    half = _band_side(r, sig_plan)
     for g, b in found:
         cross = [c for c in (_crossing_along(b, x) for gg, x in found if gg != g) if np.isfinite(c)]
         if not cross:
@@ -388,7 +388,7 @@ def _refit_over_formwork(q, split: float, found: list, r: float, sig_plan: float
     2.5 mm of its axis). Without the floor the band holds the formwork beside the bar, which the
     mixture models instead of cutting it away."""
     plan, h = q[:, :2], q[:, 2]
-    half = r + 2.5 * sig_plan + 2.0
+    half = _band_side(r, sig_plan)
     rows = np.flatnonzero((h > -4 * sig_f) & (h < split))
     plan_r, h_r = plan[rows], h[rows]
     proj = {}  # direction index -> positions along and offsets across it of the rows

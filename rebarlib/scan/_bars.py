@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import geometry as G
-from ._util import _dot, _mad, _sample, _smoothed_hist
+from ._util import _band_side, _dot, _mad, _sample, _smoothed_hist
 
 
 @dataclass(frozen=True)
@@ -262,7 +262,7 @@ def _crossing_stats(plan, found: list, radius_mm: dict, noise_mm: float) -> list
         if not other:
             stats.append(None)
             continue
-        half = radius_mm.get(other[0][0], max(radius_mm.values())) + 2.5 * noise_mm + 2.0
+        half = _band_side(radius_mm.get(other[0][0], max(radius_mm.values())), noise_mm)
         cross = np.array([c for c in (_crossing_along(b, x) for _, x in other) if np.isfinite(c)])
         t = _dot(plan[b.idx], b.direction)
         free = _crossing_free(t, cross, half)
@@ -313,7 +313,7 @@ def _bars_along(plan, h, ang, keep, *, radius_mm, spacing_mm, noise_mm, min_leng
     n2 = np.array([-d[1], d[0]])
     off, along = _dot(plan, n2), _dot(plan, d)
     spread = math.sqrt(noise_mm**2 + radius_mm**2 / 2)
-    half = radius_mm + 2.5 * noise_mm + 2.0
+    half = _band_side(radius_mm, noise_mm)
     peaks = _offset_peaks(
         off[keep],
         kernel_mm=spread,

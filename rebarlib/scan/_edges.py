@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import geometry as G
 from .._status import MEASURED, NOT_MEASURED
-from ._util import _dot
+from ._util import _band_side, _dot
 
 #: how far beyond the section's outer side, in the cloud's noise across, the edge must be shown to
 #: lie: the edge is estimated from points smeared by that noise (decision 032: edges 5-19 mm from
@@ -32,12 +32,6 @@ def _step_tail(x: float) -> float:
     """∫_{-∞}^{x} Φ(s) ds = x Φ(x) + φ(x): the points of a unit-density step smeared by a unit
     Gaussian lying beyond a position ``x`` σ short of the step's edge (per σ)."""
     return x * 0.5 * (1.0 + math.erf(x / math.sqrt(2.0))) + math.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi)
-
-
-def _band_side(radius_mm: float, sigma_mm: float) -> float:
-    """Offset from a bar's axis (mm) past which its own points, smeared by the noise across
-    ``sigma_mm``, no longer reach: where :func:`edge_beyond`'s windows start."""
-    return radius_mm + 2.5 * sigma_mm + 2.0
 
 
 def edge_beyond(u, radius_mm: float, sigma_mm: float, room_mm: float) -> tuple[float, int, int] | None:

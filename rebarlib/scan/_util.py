@@ -49,3 +49,11 @@ def _smoothed_hist(x, bin_mm: float, sd_mm: float, lo=None, hi=None):
 def _mad(x) -> float:
     """Robust standard deviation (1.4826 × the median absolute value) of residuals ``x``."""
     return 1.4826 * float(np.median(np.abs(x)))
+
+
+def _band_side(radius_mm: float, sigma_mm: float) -> float:
+    """Offset from a bar's axis (mm) past which its own points, smeared by the noise across
+    ``sigma_mm``, no longer reach: the half width of the band that gathers a bar's points (where
+    :func:`._edges.edge_beyond`'s windows start, and the crossing bars' bands of
+    :func:`._bars._drop_phantoms`)."""
+    return radius_mm + 2.5 * sigma_mm + 2.0

@@ -113,9 +113,6 @@ class SegmentationModel:
         except Exception as e:  # onnxruntime raises its own exception types for unreadable models
             raise _bad(self.onnx_path, f"not a valid ONNX model ({type(e).__name__}: {str(e)[:200]})") from None
         self._check_io()
-        #: whether the sessions run the model's blocked variant (its concatenations padded to whole
-        #: channel blocks, :meth:`_pad_layout`): the same numbers, checked on a probe input, in less time
-        self.layout_padded = False
         if self.pad_layout:
             self._pad_layout(so)
         # several runs at once (threads=None): a one-thread session and a thread per core, made
@@ -137,8 +134,10 @@ class SegmentationModel:
         import onnxruntime as ort
 
         block = _channel_block()
+        if block is None:
+            return
         variant = self.onnx_path.with_name(f"{self.onnx_path.stem}.blocked{block}.onnx")
-        if block is None or not variant.is_file():
+        if not variant.is_file():
             return
         try:
             session = ort.InferenceSession(str(variant), so, providers=["CPUExecutionProvider"])
@@ -151,7 +150,13 @@ class SegmentationModel:
         except Exception:  # a graph that does not take the probe: keep the file's
             return
         if ref.shape == got.shape and ref.dtype == got.dtype and ref.tobytes() == got.tobytes():
-            self._graph, self._session, self.layout_padded = str(variant), session, True
+            self._graph, self._session = str(variant), session
+
+    @property
+    def layout_padded(self) -> bool:
+        """Whether the sessions run the model's blocked variant (its concatenations padded to
+        whole channel blocks, :meth:`_pad_layout`): the same numbers, in less time."""
+        return self._graph != str(self.onnx_path)
 
     def _probe_input(self):
         """A fixed pseudo-random input of the network's size (for a model without one, about
