@@ -50,6 +50,8 @@ try:
 except ModuleNotFoundError:  # imported as the package ``benchmarks`` (the tests)
     from benchmarks.bench_verdicts import _slab_plan
 from rebarlib import load_design
+from rebarlib._camera import backproject, project
+from rebarlib._capture import read_intrinsics
 from rebarlib._across import register
 from rebarlib.geometry.plane import Plane, plane_frame, to_slab_frame
 
@@ -184,43 +186,39 @@ def _true_reg(ra, rb, ca, cb, name_a, name_b):
     return Registration(name_a, name_b, R, my - mx @ R.T, 0, 0.0, math.inf)
 
 
-def _world_to_image(w, cam, K, size):
-    """Pixel coordinates (N, 2) of world points and whether each lies in the image (in front)."""
+def _world_to_image(w, cam, K):
+    """Pixel coordinates (N, 2) of world points and whether each lies in the image (in front);
+    ``K`` the capture's :class:`~rebarlib.Intrinsics`."""
     c = (w - np.array(cam["centre_world_mm"])) @ np.array(cam["rotation_world_to_camera"]).T
-    z = np.maximum(c[:, 2], 1e-6)
-    u = K[0, 0] * c[:, 0] / z + K[0, 2]
-    v = K[1, 1] * c[:, 1] / z + K[1, 2]
-    ok = (c[:, 2] > 0) & (u >= 0) & (u < size[0]) & (v >= 0) & (v < size[1])
-    return np.column_stack((u, v)), ok
+    uv = project(np.column_stack((c[:, :2], np.maximum(c[:, 2], 1e-6))), K)
+    ok = (c[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < K.width) & (uv[:, 1] >= 0) & (uv[:, 1] < K.height)
+    return uv, ok
 
 
 def _intrinsics(folder: Path):
-    cj = json.loads((folder / "camera.json").read_text())
-    K = np.array(cj["intrinsic_matrix"], float).reshape(3, 3).T
-    return K, (int(cj["width"]), int(cj["height"]))
+    return read_intrinsics(folder / "camera.json")[0]
 
 
 def _formwork_share(fa: Path, fb: Path, ca, cb) -> float:
     """The share of capture a's view of the formwork (world z = 0, a 20 px grid) that capture b's
     image shows too."""
-    Ka, sa = _intrinsics(fa)
-    Kb, sb = _intrinsics(fb)
-    u, v = np.meshgrid(np.arange(10, sa[0], 20), np.arange(10, sa[1], 20))
-    rays = np.column_stack((u.ravel(), v.ravel(), np.ones(u.size))) @ np.linalg.inv(Ka).T
+    Ka, Kb = _intrinsics(fa), _intrinsics(fb)
+    u, v = np.meshgrid(np.arange(10, Ka.width, 20), np.arange(10, Ka.height, 20))
+    rays = backproject(np.column_stack((u.ravel(), v.ravel())), np.ones(u.size), Ka)
     d = rays @ np.array(ca["rotation_world_to_camera"])  # camera to world: R^T r
     C = np.array(ca["centre_world_mm"])
     down = d[:, 2] < -1e-6
     w = C + (-C[2] / d[down, 2])[:, None] * d[down]
-    _, ok = _world_to_image(w, cb, Kb, sb)
+    _, ok = _world_to_image(w, cb, Kb)
     return float(ok.mean()) if len(ok) else 0.0
 
 
 def _seen_length(ends_cam, ca, fb: Path, cb) -> float:
     """How much (mm) of the line between two camera-a points capture b's image shows."""
-    Kb, sb = _intrinsics(fb)
+    Kb = _intrinsics(fb)
     w = ends_cam @ np.array(ca["rotation_world_to_camera"]) + np.array(ca["centre_world_mm"])
     pts = w[0] + np.linspace(0, 1, 61)[:, None] * (w[1] - w[0])
-    _, ok = _world_to_image(pts, cb, Kb, sb)
+    _, ok = _world_to_image(pts, cb, Kb)
     return float(ok.mean() * np.linalg.norm(w[1] - w[0]))
 
 
@@ -336,7 +334,7 @@ def _keypoints(folder: Path):
     and descriptors."""
     import cv2
 
-    K, _ = _intrinsics(folder)
+    K = _intrinsics(folder)
     scale = float(json.loads((folder / "camera.json").read_text()).get("depth_scale_mm", 1.0))
     grey = cv2.cvtColor(cv2.imread(str(folder / "color.png"), cv2.IMREAD_COLOR), cv2.COLOR_BGR2GRAY)
     depth = cv2.imread(str(folder / "depth.png"), cv2.IMREAD_UNCHANGED).astype(float) * scale
@@ -352,7 +350,7 @@ def _keypoints(folder: Path):
         if len(w) < 7 or w.max() - w.min() > 3.0:  # no depth, or a depth edge
             continue
         z = float(np.median(w))
-        pts.append([(k.pt[0] - K[0, 2]) * z / K[0, 0], (k.pt[1] - K[1, 2]) * z / K[1, 1], z])
+        pts.append(backproject([k.pt], [z], K)[0])
         keep.append(i)
     return np.array(pts).reshape(-1, 3), (des[keep] if des is not None else np.zeros((0, 128), np.float32))
 
