@@ -33,12 +33,16 @@ judged again. Then, for each bar no capture of the slab sized whose reason advis
 from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told: the camera
 the advised distance from the bar's seen middle along its optical axis, tilt and heading kept
 (still at most 4 captures a slab); what each says of its bar is printed. Both judgements are
-printed. A cached follow-up capture whose camera stood
+printed. ``--second-round`` then acts as an inspector who reads the sheet again: what the
+captures first taken still ask for, judged with the captures of the first round (a capture
+already taken is not taken again), is taken too, up to 6 captures a slab, and the slab judged a
+third time; all three judgements are printed (docs/decisions/041). A cached follow-up capture whose camera stood
 elsewhere is rendered again.
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
     python benchmarks/bench_verdicts.py --start 60 --slabs 40 --jobs 2 --cache /tmp/verdicts_held_out
+    python benchmarks/bench_verdicts.py --slabs 60 --cache /tmp/verdicts --rejudge --follow-advice --second-round
 """
 
 from __future__ import annotations
@@ -248,10 +252,17 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
     return [tuple(map(float, t)) for t in out[:n]]
 
 
-def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False) -> dict:
+#: captures a slab at most, in the first round of captures asked for and in a second one
+MAX_CAPTURES = (4, 6)
+
+
+def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False, rounds: int = 1) -> dict:
     """Inspect and judge one slab's captures; with ``follow``, when a capture says where to take
-    another one (a bar position hidden under a bar), take it as told and judge again (the first
-    judgement is kept under ``first_pass``)."""
+    another one (a bar position hidden under a bar, a bar a capture from closer would size), take
+    it as told and judge again (the first judgement is kept under ``first_pass``). With ``rounds``
+    2, what the captures first taken still ask for once those captures are judged with them is
+    taken too, up to ``MAX_CAPTURES[1]`` a slab (the judgement after the first round is kept under
+    ``round_1``)."""
     import rebarlib as R
 
     folder = Path(folder)
@@ -260,20 +271,27 @@ def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False) -> d
     t = time.perf_counter()
     results = [_result(folder, c, design, rejudge) for c in meta["captures"]]
     rec = {**meta, **_judge(results, design)}
-    if follow:
-        added = _follow_advice(folder, meta, results, design, rejudge)
+    keys = ("verdict", "failed", "incomplete", "reasons")
+    rec["first_pass"] = {k: rec[k] for k in keys}
+    taken: list = []
+    for rnd in range(rounds if follow else 0):
+        added = _follow_advice(folder, meta, results, design, rejudge, taken=taken, max_captures=MAX_CAPTURES[rnd])
+        if rnd == 1:
+            rec["round_1"] = {**{k: rec[k] for k in keys}, "followups": list(taken)}
         if added:
-            rec["first_pass"] = {k: rec[k] for k in ("verdict", "failed", "incomplete", "reasons")}
             results += [_result(folder, c, design, rejudge) for c in added]
             rec.update(_judge(results, design))
-            rec["followups"] = added
-            rec["closer"] = [_closer_outcome(folder, c) for c in added if c.startswith("Z")]
+            taken += added
+            rec["followups"] = list(taken)
+            rec["closer"] = [_closer_outcome(folder, c) for c in taken if c.startswith("Z")]
     rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
     rec["seconds"] = round(time.perf_counter() - t, 2)
-    (folder / ("verdict_follow.json" if follow else "verdict.json")).write_text(
-        json.dumps(rec, indent=1), encoding="utf-8"
-    )
+    (folder / _verdict_file(follow, rounds)).write_text(json.dumps(rec, indent=1), encoding="utf-8")
     return rec
+
+
+def _verdict_file(follow: bool, rounds: int) -> str:
+    return ("verdict_follow2.json" if rounds > 1 else "verdict_follow.json") if follow else "verdict.json"
 
 
 def _closer_outcome(folder: Path, name: str) -> dict:
@@ -352,19 +370,24 @@ ADVICE = re.compile(r"camera about (\d+) mm or more to either side across these 
 TOWARDS = re.compile(r"moved towards it \(towards the image's (\w+) edge\)")
 
 
-def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: bool) -> list:
-    """One more capture for each capture that asks for one on the slab's sheet (a position still
-    not judged once the captures are judged together), as its first such position says
-    (moved across the hidden position's bars by 1.25 times the distance it names, towards the
-    position where the sheet says so, else towards the slab's middle; height, tilt and heading
-    kept), in the captures' order; at most 4 captures a slab. Returns the new captures' names."""
+def _follow_advice(
+    folder: Path, meta: dict, results: list, design, rejudge: bool, *, taken=(), max_captures: int = 4
+) -> list:
+    """One more capture for each capture first taken that asks for one on the slab's sheet (a
+    position still not judged once the captures, ``results``, are judged together), as its first
+    such position says (moved across the hidden position's bars by 1.25 times the distance it
+    names, towards the position where the sheet says so, else towards the slab's middle; height,
+    tilt and heading kept), in the captures' order; then one for each bar asked for from closer
+    (:func:`_bars_to_size`). A capture already ``taken`` is not taken again; at most
+    ``max_captures`` a slab. Returns the new captures' names."""
     import rebarlib as R
 
     # the slab's sheet: a position another capture of the slab already judged needs no capture
     judged = R.evaluate(results, design).results
     out = []
+    n_have = len(meta["captures"]) + len(taken)
     for j, (name, res) in enumerate(zip(meta["captures"], judged)):
-        if len(meta["captures"]) + len(out) >= 4:
+        if n_have + len(out) >= max_captures:
             break
         for p in res.get("positions") or []:
             m = ADVICE.search(str(p.get("reason") or ""))
@@ -390,14 +413,18 @@ def _follow_advice(folder: Path, meta: dict, results: list, design, rejudge: boo
                 target=tuple(map(float, target + 1.25 * float(m.group(1)) * across)),
                 seed=[2026, meta["slab"], 3, j],
             )
+            if new["name"] in taken:  # (the same advice as before: that capture was taken)
+                break
             if not _rendered_as(folder / new["name"], new):
                 _render_one(scene, new, folder)
                 (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
             out.append(new["name"])
             break
     for name, bid, dist in _bars_to_size(folder, meta, results, design):
-        if len(meta["captures"]) + len(out) >= 4:
+        if n_have + len(out) >= max_captures:
             break
+        if f"Z{meta['captures'].index(name)}_{bid}" in taken:
+            continue
         out.append(_capture_closer(folder, meta, name, bid, dist))
     return out
 
@@ -504,21 +531,29 @@ def main(argv=None) -> int:
         "from closer would size), take one for each capture or bar that asks, as told, and judge again; prints "
         "the first judgement's matrix too",
     )
+    ap.add_argument(
+        "--second-round",
+        action="store_true",
+        help=f"with --follow-advice: then take what the captures first taken still ask for, once judged with the "
+        f"captures of the first round (up to {MAX_CAPTURES[1]} captures a slab, not {MAX_CAPTURES[0]}), and judge "
+        "again; prints all three matrices",
+    )
     args = ap.parse_args(argv)
+    rounds = 2 if args.second_round else 1
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     ks = list(range(args.start, args.start + args.slabs))
     t0 = time.perf_counter()
-    name = "verdict_follow.json" if args.follow_advice else "verdict.json"
+    name = _verdict_file(args.follow_advice, rounds)
     if args.report_only:
         recs = [json.loads(f.read_text()) for f in sorted(cache.glob(f"slab_*/{name}"))]
     elif args.rejudge:
         folders = [str(f.parent) for f in sorted(cache.glob("slab_*/slab.json"))]
         with ProcessPoolExecutor(args.jobs) as ex:
-            recs = list(ex.map(_rejudge, [(f, args.follow_advice) for f in folders]))
+            recs = list(ex.map(_rejudge, [(f, args.follow_advice, rounds) for f in folders]))
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
-            recs = list(ex.map(_render_and_judge, [(k, str(cache), args.follow_advice) for k in ks]))
+            recs = list(ex.map(_render_and_judge, [(k, str(cache), args.follow_advice, rounds) for k in ks]))
     print(
         f"{len(recs)} slabs, {sum(len(r['captures']) + len(r.get('followups', [])) for r in recs)} captures "
         f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
@@ -529,20 +564,36 @@ def main(argv=None) -> int:
         n_follow = sum(1 for r in recs if r.get("followups"))
         print("## The captures first taken\n")
         report(first)
+        if rounds > 1:
+            one = [{**r, **r.get("round_1", {})} for r in recs]
+            one = [
+                {**r, "closer": [c for c in r.get("closer", []) if c["capture"] in (r.get("followups") or [])]}
+                for r in one
+            ]
+            n1 = sum(len(r.get("followups") or []) for r in one)
+            s1 = sum(1 for r in one if r.get("followups"))
+            print(f"\n## After the captures the inspection asked for ({n1} captures on {s1} slabs)\n")
+            report(one)
         n_caps = sum(len(r.get("followups", [])) for r in recs)
-        print(f"\n## After the captures the inspection asked for ({n_caps} captures on {n_follow} slabs)\n")
+        if rounds > 1:
+            print(
+                f"\n## After a second round: what the captures first taken still ask for, up to {MAX_CAPTURES[1]} "
+                f"captures a slab ({n_caps} captures asked for on {n_follow} slabs in all)\n"
+            )
+        else:
+            print(f"\n## After the captures the inspection asked for ({n_caps} captures on {n_follow} slabs)\n")
     report(recs)
     return 0
 
 
 def _render_and_judge(args) -> dict:
-    k, cache, follow = args
-    return _inspect_slab(_render_slab((k, cache)), follow=follow)
+    k, cache, follow, rounds = args
+    return _inspect_slab(_render_slab((k, cache)), follow=follow, rounds=rounds)
 
 
 def _rejudge(args) -> dict:
-    folder, follow = args
-    return _inspect_slab(folder, rejudge=True, follow=follow)
+    folder, follow, rounds = args
+    return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds)
 
 
 def report(recs: list) -> None:

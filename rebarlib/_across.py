@@ -37,8 +37,14 @@ MIN_MATCHED = 3
 SIGMA_FLOOR_MM = 0.3
 #: shifts kept per direction before the joint test of both
 SHORTLIST = 6
-#: two bars are compared where their seen stretches overlap by at least this (mm)
-MIN_COMMON_MM = 50.0
+#: two bars are compared where their seen stretches overlap, or lie apart along the bar by at most
+#: this (mm), at the middle of what they share or of the gap between them. Two captures of a bar
+#: often see different stretches of it (a capture taken from closer, aimed at it, shows its middle;
+#: the first showed one end); the same line of a lattice is one bar across a gap shorter than the
+#: shortest lap (EN 1992-1-1 8.7.3: l0 >= max(0.3 a6 lb,rqd, 15 phi, 200 mm); GB 50010: 300 mm): a
+#: second bar joined to it by a lap would lie beside it over at least that length, in view in one
+#: of the stretches (docs/decisions/041)
+MAX_GAP_MM = 200.0
 #: a bar with at least this much (mm) in the other capture's view must be matched there: the
 #: length a bar position's verdict needs in one capture
 MIN_CONFLICT_MM = CountParams.min_evidence_mm
@@ -356,10 +362,11 @@ def _offset_at(seg: np.ndarray, s: float, d: np.ndarray, n: np.ndarray) -> float
 def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
     """Residuals of one placing of capture a in capture b's frame: per direction, the RMS and the
     count of the pairs of two fitted axes, and ``(RMS, count)`` of the other pairs (a bar placed
-    otherwise than by a fit to both its sides, :func:`_well_placed`), the bars compared where
-    their seen stretches overlap (a bar is not straight: two captures see different stretches of
-    it). None where the placing puts a bar of either capture in the other's view with no bar (or
-    open position) of its own there."""
+    otherwise than by a fit to both its sides, :func:`_well_placed`), the bars compared at the
+    middle of what their seen stretches share, or of the gap between them where it is at most
+    ``MAX_GAP_MM`` (a bar is not straight: two captures see different stretches of it, and a line
+    is extrapolated no farther than half that gap). None where the placing puts a bar of either
+    capture in the other's view with no bar (or open position) of its own there."""
     rms, cnt, unfitted = [], [], []
     for d, ks in groups:
         n = _perp(d)
@@ -382,7 +389,7 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
                     for j_o, o in enumerate(other):
                         olo, ohi = sorted(o @ d)
                         a0, a1 = max(lo, olo), min(hi, ohi)
-                        if a1 - a0 < MIN_COMMON_MM:
+                        if a1 - a0 < -MAX_GAP_MM:
                             continue
                         sm = 0.5 * (a0 + a1)
                         r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
@@ -660,8 +667,9 @@ def _spacings_across(out: list, results: list, sets: list, regs: dict, gate: flo
 
 
 def _same_bar(seg: np.ndarray, sb: _Set, gate: float):
-    """The bar id of ``sb`` that is the bar along ``seg`` (within ``gate`` across where their seen
-    stretches overlap by ``MIN_COMMON_MM``), or None."""
+    """The bar id of ``sb`` that is the bar along ``seg`` (within ``gate`` across, compared where
+    their seen stretches overlap or in the middle of a gap of at most ``MAX_GAP_MM`` between
+    them), or None."""
     d = sb.direction
     n = _perp(d)
     lo, hi = sorted(seg @ d)
@@ -669,7 +677,7 @@ def _same_bar(seg: np.ndarray, sb: _Set, gate: float):
     for k, o in enumerate(sb.segs):
         olo, ohi = sorted(o @ d)
         a0, a1 = max(lo, olo), min(hi, ohi)
-        if a1 - a0 < MIN_COMMON_MM:
+        if a1 - a0 < -MAX_GAP_MM:
             continue
         sm = 0.5 * (a0 + a1)
         r = abs(_offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n))

@@ -270,6 +270,44 @@ def test_a_bar_not_sized_in_one_capture_is_checked_where_another_sized_it():
     assert alone.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] not in ("pass", "fail")
 
 
+@pytest.mark.parametrize("gap", [100.0, 350.0])
+def test_a_bar_seen_over_another_stretch_in_a_placed_capture_is_the_same_bar(gap):
+    """Two placed captures that see different stretches of one bar (a capture taken from closer,
+    aimed at the bar, shows its middle; the first one end): across a gap shorter than the
+    shortest lap (200 mm, decision 041) it is the same bar, so the size read in one checks it
+    in the other; across a longer gap another bar, lapped to it there, could be the one seen, and
+    nothing is passed."""
+    from rebarlib import evaluate
+
+    design, a, b = _two_sized_captures()
+    k = next(
+        i
+        for i, bar in enumerate(a["bars"])
+        if (bar["layer"], bar["level"]) == ("lower", "bottom") and abs(bar["start_y_mm"]) < 120
+    )
+    y = a["bars"][k]["start_y_mm"]
+    a["bars"][k].update(
+        start_x_mm=-500.0,
+        end_x_mm=-350.0,
+        nominal_mm=None,
+        diameter_status="not measured",
+        diameter_reason="ambiguous between Φ12 and Φ14",
+    )
+    twin = next(
+        bar
+        for bar in b["bars"]
+        if (bar["layer"], bar["level"]) == ("lower", "bottom") and abs(bar["start_y_mm"] - y) < 1e-6
+    )
+    twin["start_x_mm"] = -350.0 + gap + 30.0  # (B's frame is shifted by 30 mm)
+    acc = evaluate([a, b], design)
+    cp = acc.checkpoints
+    row = cp[(cp["capture"] == "A") & (cp["what"] == f"bar {k}") & cp["item"].str.startswith("bar_size")].iloc[0]
+    if gap < 200.0:
+        assert row["status"] == "excluded" and row["reason"].startswith("sized in capture B")
+    else:
+        assert row["status"] == "not measured"
+
+
 def test_a_bar_sized_nowhere_stays_not_measured_beside_one_sized_elsewhere():
     """One bar of capture A sized in B gives A's bars table a ``sized_in`` column; another bar of
     A that no capture sized reads NaN there and must stay not measured (a NaN is truthy: it once

@@ -138,6 +138,25 @@ def test_a_bar_cut_by_the_border_is_told_to_be_aimed_at():
         system=SYSTEM,
     )
     assert text == (
-        "; a capture aimed at its middle (towards the image's bottom edge), from about 800 mm or less "
+        "; a capture aimed at its middle (towards the image's bottom edge), from about 650 mm or less "
         "(this one: 801 mm), would show it away from the border"
     )
+
+
+def test_no_capture_is_advised_from_farther_than_the_capture_guide():
+    """A bar 1.2 m away (at the far border of a tilted view) is not told to be captured from about
+    740 mm (r 0.619 of its distance) nor from its own distance, but from the guide's greatest
+    height, 650 mm (docs/capturing.md; decision 041): from 800-1000 mm most bars are ambiguous."""
+    amb = closer_advice(
+        _row(AMBIGUOUS), (-300, -20, 1200), (-200, 20, 1200), GEMINI2, min_confidence=0.8, system=SYSTEM
+    )
+    assert "camera about 650 mm or less from the bar (this one: 1200 mm)" in amb
+    border = _row("too few clean cross-sections (4 of 46; most lost at the image border)", math.nan, math.nan)
+    text = closer_advice(border, (300, 300, 1029), (440, 320, 1029), GEMINI2, min_confidence=0.8, system=SYSTEM)
+    assert "from about 650 mm or less (this one: 1029 mm)" in text
+    # where the guide allows more, the bar's own distance stays the bound
+    wide = CloserParams(far_mm=2000.0)
+    far = closer_advice(
+        border, (300, 300, 1029), (440, 320, 1029), GEMINI2, min_confidence=0.8, system=SYSTEM, prm=wide
+    )
+    assert "from about 1020 mm or less" in far

@@ -20,10 +20,13 @@ the distance needed lies nearer than either cap, no capture is advised.
 
 A bar with too few clean cross-sections, most of them lost at the image's border, is advised a
 capture aimed at it from no farther than this one (in the middle of the view its sections are
-in the image). Other losses (crossings, shadows, a strip without depth) do not shrink with the
-distance and are given no advice, nor is a bar whose ambiguity is a systematic reading (mask and
-cloud disagreeing, a possible wrong size, ribs whose crests and core disagree): a nearer capture
-reads the same disagreement, and no measurement here says otherwise.
+in the image). No capture is advised from farther than the capture guide's greatest height
+(``CloserParams.far_mm``): a bar 1 m away at the far border of a tilted view would otherwise be
+aimed at from 1 m, where most bars are left between two sizes. Other losses (crossings,
+shadows, a strip without depth) do not shrink with the distance and are given no advice, nor is
+a bar whose ambiguity is a systematic reading (mask and cloud disagreeing, a possible wrong size,
+ribs whose crests and core disagree): a nearer capture reads the same disagreement, and no
+measurement here says otherwise.
 
 The side to aim towards is named as the hidden-position advice names it (``_counts._towards``):
 the image edge the bar's seen middle lies towards, from the image's centre.
@@ -51,11 +54,16 @@ class CloserParams:
         largest spacing (the bar and a neighbour on either side of it, in both directions)
     centre_share : a bar's seen middle within this share of the image's half-size from its
         centre needs no aiming
+    far_mm : no capture is advised from farther than this: the greatest height above the upper
+        bars that docs/capturing.md advises (450-650 mm; from 800-1000 mm many bars are left
+        between two sizes). A bar seen 1 m away at the far border of a tilted view is told to be
+        aimed at from no farther than this, not from its own distance (docs/decisions/041)
     """
 
     near_mm: float = 150.0
     coverage_spacings: float = 2.0
     centre_share: float = 0.25
+    far_mm: float = 650.0
 
 
 def needed_ratio(width_mm, sigma_mm, *, min_confidence, system, deformed=True, tol=1e-3) -> float:
@@ -118,7 +126,7 @@ def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=T
     aim = _aim(mid, intr, prm)
     if reason.startswith("too few clean cross-sections") and reason.endswith("most lost at the image border)"):
         return (
-            f"; a capture {aim}, from about {_floor(z):.0f} mm or less (this one: {z:.0f} mm), "
+            f"; a capture {aim}, from about {_floor(min(z, prm.far_mm)):.0f} mm or less (this one: {z:.0f} mm), "
             "would show it away from the border"
         )
     if not reason.startswith("ambiguous: width"):
@@ -127,7 +135,7 @@ def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=T
     r = needed_ratio(w, s, min_confidence=min_confidence, system=system, deformed=deformed)
     if not math.isfinite(r):
         return ""
-    need = r * z
+    need = min(r * z, prm.far_mm)
     if need < cap:
         return (
             f"; no capture from closer is advised: it would need the camera within about {need:.0f} mm of the bar, "
