@@ -1,0 +1,72 @@
+"""A "bar" off its level by more than a radius beyond the noise allowance is dropped, the level's
+height taken along a line through the set's bars (decision 042). Ground truth: the axes are laid
+out here.
+
+Without a formwork the slab frame's plane comes from the bars and may tilt across a set: real
+bars then lay up to 1.2 r off their level's median height on synthetic scans, and the test kept
+anything within a diameter of it; chairs 2.15 and 3.0 r above their level and a cover block 2.44 r
+below it were kept as bars."""
+
+import math
+
+import numpy as np
+
+from rebarlib import geometry as G
+from rebarlib.scan._axes import _drop_off_level, _level_heights
+
+R = 8.1  # radius, mm
+SIG_H = 4.8  # noise of a point's height, mm
+
+
+def _axis(offset, height, n, t0=-1000.0, t1=1000.0):
+    d = np.array([1.0, 0.0])
+    return G.BarAxis(
+        "lower",
+        d,
+        offset,
+        0.0,
+        height,
+        0.0,
+        t0,
+        t1,
+        R,
+        n,
+        3.0,
+        np.arange(n),
+        0,
+        "top",
+        arc_deg=float("nan"),
+        axis_se_mm=0.1,
+    )
+
+
+def _tilted_set():
+    """Ten bars 200 mm apart, 2 points per mm, on a plane tilted 1.2 r over 900 mm across them."""
+    offsets = np.arange(-900.0, 901.0, 200.0)
+    heights = 40.0 + 1.2 * R * offsets / 900.0
+    return [_axis(o, h, 4000) for o, h in zip(offsets, heights)]
+
+
+def test_the_level_follows_a_tilt_across_the_set():
+    bars = _tilted_set()
+    level = _level_heights(bars)
+    assert np.allclose(level, [b.axis_height_mm for b in bars], atol=1e-6)
+
+
+def test_a_chair_above_the_level_is_dropped_real_bars_on_a_tilt_kept():
+    bars = _tilted_set()
+    # a chair's "bar": 73 points over 130 mm half-way across, its axis 2.15 r above the level
+    chair = _axis(100.0, 40.0 + 1.2 * R * 100.0 / 900.0 + 2.15 * R, 73, t0=-755.0, t1=-625.0)
+    assert 2.15 * R - 4 * SIG_H / math.sqrt(73) <= 2 * R  # within the diameter allowed before
+    kept = _drop_off_level(bars + [chair], SIG_H)
+    assert all(x is not chair for x in kept)
+    # the end bars lie 1.2 r off the set's median height
+    assert all(any(x is b for x in kept) for b in bars)
+
+
+def test_a_cover_block_below_the_level_is_dropped():
+    bars = _tilted_set()
+    block = _axis(-100.0, 40.0 - 1.2 * R * 100.0 / 900.0 - 2.44 * R, 82, t0=-795.0, t1=-650.0)
+    kept = _drop_off_level(bars + [block], 9.0)
+    assert all(x is not block for x in kept)
+    assert len(kept) == len(bars)
