@@ -30,9 +30,12 @@ told (moved across those bars by 1.25 times the distance named, towards the side
 — towards the position — or, on a sheet that names none, towards the slab's middle; height, tilt
 and heading kept), one for each capture that asks (at most 4 captures a slab), and the slab is
 judged again. Then, for each bar no capture of the slab sized whose reason advises a capture
-from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told: the camera
-the advised distance from the bar's seen middle along its optical axis, tilt and heading kept
-(still at most 4 captures a slab); what each says of its bar is printed. Both judgements are
+from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told, aimed as a
+person aims: the camera the advised distance from the bar's seen middle along its optical axis,
+that axis put on the bar's middle with a hand's error (uniform within ±¼ of the bar's design
+spacing across the bar and ±½ along it, seeded: ``AIM_ERROR``), tilt and heading kept (still at
+most 4 captures a slab), and its folder marked with the bar it was aimed at (``aim.json``,
+docs/decisions/043); what each says of its bar is printed. Both judgements are
 printed. ``--second-round`` then acts as an inspector who reads the sheet again: what the
 captures first taken still ask for, judged with the captures of the first round (a capture
 already taken is not taken again), is taken too, up to 6 captures a slab, and the slab judged a
@@ -464,20 +467,32 @@ def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
     return out
 
 
+#: a person's aim at a bar's middle, as fractions of the bar's design spacing: uniform within
+#: this across the bar and within the second along it (docs/decisions/043)
+AIM_ERROR = (0.25, 0.5)
+
+
 def _capture_closer(folder: Path, meta: dict, name: str, bid: int, dist: float) -> str:
-    """Take the capture a bar's advice asks for: the camera ``dist`` mm from the bar's seen middle
-    along its optical axis (that middle on the axis), the capture's tilt and heading kept; returns
-    its name."""
+    """Take the capture a bar's advice asks for, aimed as a person aims: the camera ``dist`` mm
+    from the bar's seen middle along its optical axis, that axis put on the bar's middle with a
+    hand's error (uniform within ``AIM_ERROR`` times the bar's design spacing: ±¼ across the bar,
+    ±½ along it; seeded per slab, capture and bar), the capture's tilt and heading kept. The
+    capture's folder gets the record of its aim (``aim.json``: the capture and bar it was aimed
+    at, docs/formats.md). Returns its name."""
     from rebarlib import synth as S
 
     bar = next(b for b in json.loads((folder / f"result_{name}.json").read_text())["bars"] if int(b["bar_id"]) == bid)
-    _, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+    design, scene, _, _, specs = _slab_plan(meta["slab"], folder)
     j = meta["captures"].index(name)
     spec = specs[j]
     cam = json.loads((folder / name / "truth.json").read_text())["camera"]
     rot, centre = np.array(cam["rotation_world_to_camera"]), np.array(cam["centre_world_mm"])
-    ends = np.array([[bar[f"{e}_{a}_mm"] for a in "xyz"] for e in ("start", "end")])
-    mid = (ends @ rot + centre).mean(axis=0)  # camera to world
+    ends = np.array([[bar[f"{e}_{a}_mm"] for a in "xyz"] for e in ("start", "end")]) @ rot + centre  # to world
+    mid = ends.mean(axis=0)
+    along = (ends[1, :2] - ends[0, :2]) / max(np.linalg.norm(ends[1, :2] - ends[0, :2]), 1e-9)
+    spacing = design.lattice(bar["layer"]).level(bar["level"]).spacing_mm
+    err = np.random.default_rng([2026, meta["slab"], 5, j, bid]).uniform(-1.0, 1.0, 2) * np.array(AIM_ERROR) * spacing
+    mid[:2] += err[0] * np.array([-along[1], along[0]]) + err[1] * along
     axis = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"]).rotation.T[:, 2]
     # the optical axis through the bar's middle, meeting the formwork at the target; the camera
     # dist from the bar along it
@@ -489,8 +504,11 @@ def _capture_closer(folder: Path, meta: dict, name: str, bid: int, dist: float) 
         target=tuple(map(float, target)),
         seed=[2026, meta["slab"], 4, j, bid],
     )
-    if not _rendered_as(folder / new["name"], new):
+    aim = folder / new["name"] / "aim.json"
+    record = {"aimed_at": {"capture": name, "bar_id": int(bid)}}
+    if not _rendered_as(folder / new["name"], new) or not aim.exists():
         _render_one(scene, new, folder)
+        aim.write_text(json.dumps(record) + "\n", encoding="utf-8")
         (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
     return new["name"]
 

@@ -9,6 +9,14 @@ reason, and for each other capture of the slab whether it shows the same rendere
 says of it.
 
     python benchmarks/study_incomplete_bars.py --cache /tmp/verdicts [--verdicts verdict_follow2.json]
+
+``--placings`` instead checks every placing of two captures of every slab (the captures taken and
+those asked for, as the verdict file lists them; ``rebarlib._across.register``, a capture's aim
+included) against the renders' camera poses (``bench_placing``: wrong when a point of the mesh
+lands more than 5 mm from where the other capture sees it), and lists the placings an aim chose
+and the pairs an aim left unplaced, with why (docs/decisions/043).
+
+    python benchmarks/study_incomplete_bars.py --cache /tmp/verdicts --verdicts verdict_follow2.json --placings
 """
 
 from __future__ import annotations
@@ -82,6 +90,50 @@ def study(folder: Path, name: str = "verdict_follow.json") -> list:
     return lines
 
 
+def placings(cache: Path, name: str) -> dict:
+    """Every pair of captures of every slab of ``cache`` (the verdict file ``name``'s captures and
+    follow-ups) placed by ``register`` and checked against the renders' poses."""
+    import rebarlib as R
+    from rebarlib._across import register
+
+    try:
+        from bench_placing import WRONG_MM, _gate, _pose_error
+    except ModuleNotFoundError:
+        from benchmarks.bench_placing import WRONG_MM, _gate, _pose_error
+
+    out = {"pairs": 0, "placed": 0, "wrong": 0, "aimed pairs": 0, "placed by an aim": 0, "wrong by an aim": 0}
+    for sd in sorted(cache.glob("slab_*")):
+        if not (sd / name).exists():
+            continue
+        rec = json.loads((sd / name).read_text())
+        caps = list(rec["captures"]) + list(rec.get("followups") or [])
+        gate = _gate(R.load_design(sd / "design.toml"))
+        res = {c: json.loads((sd / f"result_{c}.json").read_text()) for c in caps}
+        cams = {c: json.loads((sd / c / "truth.json").read_text())["camera"] for c in caps}
+        for i, a in enumerate(caps):
+            for b in caps[i + 1 :]:
+                ra, rb = res[a], res[b]
+                aims = [((r.get("extras") or {}).get("aimed_at") or {}).get("capture") for r in (ra, rb)]
+                aimed = aims[1] == a or aims[0] == b
+                out["pairs"] += 1
+                out["aimed pairs"] += aimed
+                reg, why = register(ra, rb, gate)
+                if reg is None:
+                    if aimed:
+                        print(f"  {sd.name} {a} / {b}: not placed: {why}")
+                    continue
+                e = _pose_error(ra, rb, cams[a], cams[b])(reg)
+                out["placed"] += 1
+                out["wrong"] += e > WRONG_MM
+                if reg.aimed:
+                    out["placed by an aim"] += 1
+                    out["wrong by an aim"] += e > WRONG_MM
+                if reg.aimed or e > WRONG_MM:
+                    how = f"; {reg.aimed}" if reg.aimed else ""
+                    print(f"  {sd.name} {a} / {b}: placed {e:.1f} mm off the truth{how}")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", required=True)
@@ -90,7 +142,11 @@ def main(argv=None) -> int:
         default="verdict_follow.json",
         help="the slabs' judged verdicts to read (verdict_follow2.json: after a second round)",
     )
+    ap.add_argument("--placings", action="store_true", help="check every placing against the renders' poses")
     args = ap.parse_args(argv)
+    if args.placings:
+        print(placings(Path(args.cache), args.verdicts))
+        return 0
     for sd in sorted(Path(args.cache).glob("slab_*")):
         f = sd / args.verdicts
         if not f.exists():

@@ -15,6 +15,12 @@ contradicts neither capture's view, and is 1000 times more likely than every riv
 shift, the half turn, no overlap at all); a mesh too regular to tell is left unregistered and
 its open positions stay "not measured". A wrong registration would turn a hidden missing bar
 into a present one, so the test errs on refusing.
+
+A capture taken because another capture's sheet asked for it, aimed at one of that capture's
+bars (its ``aim.json``, carried into its result as ``extras["aimed_at"]``), says which bar it shows
+at its image's middle. Where its pair is refused as too regular, that aim chooses among the
+placings that fit: only those putting the bar aimed at on the aimed capture's bar at its aim point
+compete (docs/decisions/043-a-capture-placed-where-it-was-aimed.md).
 """
 
 from __future__ import annotations
@@ -54,6 +60,18 @@ LOG_ODDS = math.log(1000.0)
 MAX_RMS_MM = 1.5
 #: the bars' directions of the sets must agree to within this (degrees) after the rotation
 MAX_ANGLE_SPREAD_DEG = 2.0
+#: a person aiming a capture at a bar's middle ("aimed at its middle", the sheet's advice) puts the
+#: image's middle within this share of the bar's design spacing of the bar, across it. The bar
+#: nearest the aim point is taken as the bar aimed at only where it lies within that and every
+#: other bar of its set at least a spacing less twice that (half a spacing) farther: a bar
+#: within a quarter spacing of the aim and its neighbours a spacing from that bar (decision 043)
+AIM_ERROR_SPACINGS = 0.25
+#: along the bar, "its middle" is the middle of the stretch the asking capture saw, found on the
+#: slab among its crossing bars: the aim is taken to lie within this share of the crossing bars'
+#: design spacing of it (more than across: the middle of a stretch is judged, a bar is seen). A
+#: placing is chosen along only where it puts the aim within that and every other placing that
+#: fits at least a crossing spacing less twice that (a quarter spacing) farther (decision 043)
+AIM_ALONG_SPACINGS = 0.375
 #: a bar sized from one edge over this share of its sections or more has its axis fitted to the
 #: side it shows (the diameter stage's ``hidden_fraction``, decision 024)
 _ONE_SIDED_SHARE = 0.5
@@ -152,6 +170,100 @@ def plan_sets(r: dict) -> dict:
     return out
 
 
+@dataclass
+class _Aim:
+    """A capture of a pair aimed at a bar of the other (``aim.json``): which of the two was aimed
+    (``"a"`` or ``"b"`` of :func:`_register`), the bar's set, the bar aimed at as a plan segment in
+    the other (asking) capture's frame, and the bar of the aimed capture's set nearest its aim
+    point (None where that is ambiguous: ``why``)."""
+
+    aimed: str
+    key: tuple
+    seg: np.ndarray
+    target: object
+    why: str = ""
+    text: str = ""  # "capture Z (aimed at bar K of capture C)"
+    xy: np.ndarray | None = None  # the aim point in the aimed capture's plan frame
+    spacing: dict | None = None  # the design spacings, {(layer, level): mm}
+
+
+def _aim_point(r: dict, height_mm: float) -> np.ndarray | None:
+    """Where the optical axis of capture ``r`` (the camera frame's z axis: the image's middle)
+    meets the height ``height_mm`` above its formwork plane, in its plan frame; None where it
+    does not (no plane, an axis along the plane)."""
+    plane = _plane(r)
+    if plane is None:
+        return None
+    q = to_slab_frame(np.array([[0.0, 0.0, 500.0], [0.0, 0.0, 1500.0]]), plane)
+    dh = q[1, 2] - q[0, 2]
+    if abs(dh) < 1e-6:
+        return None
+    return q[0, :2] + (height_mm - q[0, 2]) / dh * (q[1, :2] - q[0, :2])
+
+
+def _aim_of(r_aimed: dict, r_asking: dict, s_aimed: dict, s_asking: dict, spacing: dict) -> tuple | None:
+    """``(key, segment, target bar id or None, why)`` of the aim record of ``r_aimed`` at a bar of
+    ``r_asking``; None where ``r_aimed`` holds no record naming ``r_asking``."""
+    aim = (r_aimed.get("extras") or {}).get("aimed_at") or {}
+    if not aim or str(aim.get("capture")) != str(r_asking.get("capture")):
+        return None
+    bid = aim.get("bar_id")
+    rec = next((b for b in r_asking.get("bars") or [] if b.get("bar_id") == bid), None)
+    plane = _plane(r_asking)
+    e = None if rec is None else _ends(rec)
+    key = None if rec is None else (rec.get("layer"), rec.get("level"))
+    if e is None or plane is None or key not in s_asking or bid not in s_asking[key].bar_ids:
+        return None, None, None, f"bar {bid} of capture {r_asking.get('capture')} is not a bar placed in plan there"
+    seg = s_asking[key].segs[s_asking[key].bar_ids.index(bid)]
+    st = s_aimed.get(key)
+    xy = _aim_point(r_aimed, float(to_slab_frame(e, plane)[:, 2].mean()))
+    if st is None or xy is None or not len(st.mids):
+        return key, seg, None, f"capture {r_aimed.get('capture')} shows no {key[0]} {key[1]} bar at its aim"
+    d, n = st.direction, _perp(st.direction)
+    dist = np.sort([abs(_offset_at(o, float(xy @ d), d, n) - float(xy @ n)) for o in st.segs])
+    sp = spacing.get(key, min(spacing.values()))
+    err = AIM_ERROR_SPACINGS * sp
+    if dist[0] > err:
+        return (
+            key,
+            seg,
+            None,
+            (
+                f"its nearest {key[0]} {key[1]} bar lies {dist[0]:.0f} mm from its aim point, more than a hand's aim "
+                f"error ({err:.0f} mm, a quarter of the {sp:.0f} mm spacing)"
+            ),
+        )
+    if len(dist) > 1 and dist[1] - dist[0] < sp - 2 * err:
+        return (
+            key,
+            seg,
+            None,
+            (
+                f"two of its {key[0]} {key[1]} bars lie {dist[0]:.0f} and {dist[1]:.0f} mm from its aim point: which "
+                f"one it was aimed at is ambiguous (needs {sp - 2 * err:.0f} mm between them)"
+            ),
+        )
+    k = int(np.argmin([abs(_offset_at(o, float(xy @ d), d, n) - float(xy @ n)) for o in st.segs]))
+    return key, seg, st.bar_ids[k], "", xy
+
+
+def _along(h, aim: _Aim, sa: dict, sb: dict) -> float:
+    """How far along the bar aimed at placing ``h`` puts the aim point from the middle of that
+    bar's stretch seen in the asking capture (mm)."""
+    m = aim.seg.mean(axis=0)
+    if aim.aimed == "b":
+        return float((aim.xy - (m @ h.R.T + h.t)) @ sb[aim.key].direction)
+    return float((aim.xy - (m - h.t) @ h.R) @ sa[aim.key].direction)
+
+
+def _puts_on(h, aim: _Aim, sa: dict, sb: dict, gate: float) -> bool:
+    """Whether placing ``h`` (capture a in b's frame) puts the bar aimed at on the aimed capture's
+    bar at its aim point."""
+    if aim.aimed == "b":
+        return _same_bar(aim.seg @ h.R.T + h.t, sb[aim.key], gate) == aim.target
+    return _same_bar((aim.seg - h.t) @ h.R, sa[aim.key], gate) == aim.target
+
+
 def _rot(theta: float) -> np.ndarray:
     c, s = math.cos(theta), math.sin(theta)
     return np.array([[c, -s], [s, c]])
@@ -227,6 +339,7 @@ class Registration:
     n_matched: int
     rms_mm: float
     log_odds: float  # over the likeliest rival placing (no overlap included)
+    aimed: str = ""  # where the placing was chosen by a capture's aim: which aim (decision 043)
 
     def to_b(self, xy) -> np.ndarray:
         return np.asarray(xy, float) @ self.R.T + self.t
@@ -234,12 +347,49 @@ class Registration:
 
 def register(ra: dict, rb: dict, gate_mm: float) -> tuple[Registration | None, str]:
     """Register two captures' results from their bars; ``(registration, "")`` or ``(None,
-    why not)``. ``gate_mm``: a bar is matched to another within this (a quarter spacing)."""
-    return _register(plan_sets(ra), plan_sets(rb), gate_mm, str(ra.get("capture")), str(rb.get("capture")))
+    why not)``. ``gate_mm``: a bar is matched to another within this (a quarter spacing). Where one
+    was aimed at a bar of the other (its ``extras["aimed_at"]``), that aim is used as
+    :func:`resolve_across` uses it."""
+    sa, sb = plan_sets(ra), plan_sets(rb)
+    aim, _ = _pair_aim([ra, rb], [sa, sb], 0, 1, _design_spacings([ra, rb]))
+    return _register(sa, sb, gate_mm, str(ra.get("capture")), str(rb.get("capture")), aim)
 
 
-def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> tuple[Registration | None, str]:
-    """:func:`register` on the captures' plan sets (:func:`plan_sets`)."""
+def _design_spacings(results: list) -> dict:
+    """``{(layer, level): design spacing (mm)}`` from the results' spacings."""
+    spacing = {}
+    for r in results:
+        for s in r.get("spacings") or []:
+            if s.get("design_spacing_mm"):
+                spacing[(s["layer"], s["level"])] = float(s["design_spacing_mm"])
+    return spacing
+
+
+def _pair_aim(results: list, sets: list, i: int, j: int, spacing: dict) -> tuple:
+    """``(_Aim or None, note or "")``: the aim of capture ``j`` at a bar of capture ``i`` (or of
+    ``i`` at one of ``j``), as :func:`_register` of ``(i, j)`` takes it; the note says why a record
+    naming the other capture is not used."""
+    names = [str(r.get("capture")) for r in results]
+    for side, (x, y) in (("b", (j, i)), ("a", (i, j))):
+        got = _aim_of(results[x], results[y], sets[x], sets[y], spacing) if spacing else None
+        if got is None:
+            continue
+        if got[0] is None:
+            return None, f"Capture {names[x]}'s aim is not used: {got[3]}."
+        bid = ((results[x].get("extras") or {}).get("aimed_at") or {}).get("bar_id")
+        text = f"capture {names[x]} was aimed at bar {bid} of capture {names[y]}"
+        xy = got[4] if len(got) > 4 else None
+        return _Aim(side, got[0], got[1], got[2], got[3], text, xy, spacing), ""
+    return None, ""
+
+
+def _register(
+    sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str, aim: _Aim | None = None
+) -> tuple[Registration | None, str]:
+    """:func:`register` on the captures' plan sets (:func:`plan_sets`). ``aim``: one capture was
+    aimed at a bar of the other; where the placings that fit are too alike to tell, only those that
+    put that bar on the aimed capture's bar at its aim point compete (never a placing that does not
+    fit; a placing found without the aim is kept as it is)."""
     keys = [k for k in sa if k in sb]
     if len(keys) < 2:
         return None, "fewer than two sets of bars seen in both"
@@ -292,12 +442,84 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
     ]
     if not strong:
         return None, f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
-    # the placing with the most evidence over a chance alignment in both directions (not the
-    # smallest RMS: one or two pairs of fitted axes fit as tightly as the shift was refined on them)
+    h1, lr = _best(strong, hyps, sw, gate_mm)
+    aimed = ""
+    if lr < LOG_ODDS:
+        why = "the mesh is too regular to tell which bars are the same (two placings fit alike)"
+        if aim is None:
+            return None, why
+        if aim.target is None:
+            return None, f"{why}; {aim.text}, but {aim.why}"
+        pool = [h for h in hyps if _puts_on(h, aim, sa, sb, gate_mm)]
+        fits = [h for h in strong if any(h is x for x in pool)]
+        if not fits:
+            return None, f"{why}; {aim.text}, but no placing that fits puts that bar on bar {aim.target} at its aim"
+        # across the bar aimed at, the aim pairs it: the captures overlap there, and only another
+        # placing that also puts it at the aim (turned) competes; across the other direction the
+        # bars must tell the placing as without an aim
+        g_aim = next(g for g, (_, ks) in enumerate(groups) if aim.key in ks)
+        h1, lr = _best(fits, pool, sw, gate_mm, aimed_dir=g_aim)
+        aimed = f"chosen by the aim of {aim.text} (bar {aim.target} there)"
+        if lr < LOG_ODDS:
+            # along the bar too: the placings that fit differ by crossing spacings there
+            h1, why_along = _along_choice(fits, pool, aim, groups[1 - g_aim][1], sa, sb, gate_mm, 1 - g_aim)
+            if h1 is not None:
+                # the aim chooses among placings the bars cannot tell apart, never against them
+                rivals = [h for h in pool if h is not h1]
+                if _evidence_against(h1, rivals, sw, 1 - g_aim, against_none=False) < -LOG_ODDS:
+                    h1, why_along = None, "the bars favour another placing 1000 : 1"
+            if h1 is None:
+                still = "placings that put that bar at its aim still fit alike"
+                return None, f"{why}; {aim.text}, and {still} ({why_along})"
+            aimed += f", across and along it ({why_along})"
+            lr = min(_evidence_against(h1, [], sw, g) for g in range(2))  # the bars' own, over no overlap
+    n_pairs = int(sum(h1.n) + sum(m for _, m in h1.other))
+    reg = Registration(name_a, name_b, h1.R, h1.t, n_pairs, float(max(h1.rms)), float(lr), aimed)
+    return reg, ""
+
+
+def _along_choice(fits: list, pool: list, aim: _Aim, cross_keys: list, sa: dict, sb: dict, gate: float, g: int):
+    """``(placing, what)`` of the placings that fit and put the bar aimed at on the bar at the aim
+    (``fits``; ``pool``: every such placing), the one that puts the aim point nearest the middle
+    of that bar's stretch seen in the asking capture, along it: where it does so within a hand's
+    error along (``AIM_ALONG_SPACINGS`` of the crossing bars' design spacing) and every other
+    placing of the pool, at another shift across the crossing bars, lies a crossing spacing less
+    twice that farther; else ``(None, why)``."""
+    if aim.xy is None or not aim.spacing:
+        return None, "no aim point"
+    sc = min((aim.spacing[k] for k in cross_keys if k in aim.spacing), default=min(aim.spacing.values()))
+    err = AIM_ALONG_SPACINGS * sc
+    best = min(fits, key=lambda h: abs(_along(h, aim, sa, sb)))
+    d1 = abs(_along(best, aim, sa, sb))
+    others = [
+        abs(_along(h, aim, sa, sb))
+        for h in pool
+        if h is not best
+        and h.n[g] + h.other[g][1] >= 2
+        and (h.theta != best.theta or abs(h.shifts[g] - best.shifts[g]) > gate)
+    ]
+    d2 = min(others, default=math.inf)
+    if d1 > err:
+        return None, f"the nearest puts the aim {d1:.0f} mm along the bar from its seen middle, more than {err:.0f} mm"
+    if d2 - d1 < sc - 2 * err:
+        return None, (
+            f"the nearest that fits puts the aim {d1:.0f} mm along the bar from its seen middle, another placing "
+            f"{d2:.0f} mm (the other must lie {sc - 2 * err:.0f} mm farther)"
+        )
+    nxt = f"the next placing {d2:.0f} mm" if math.isfinite(d2) else "no other placing"
+    return best, f"the aim {d1:.0f} mm along the bar from its seen middle, {nxt}"
+
+
+def _best(strong: list, hyps: list, sw: list, gate_mm: float, aimed_dir: int | None = None) -> tuple:
+    """The placing of ``strong`` with the most evidence over a chance alignment in both directions
+    (not the smallest RMS: one or two pairs of fitted axes fit as tightly as the shift was refined
+    on them), and its least log-odds over every placing of ``hyps`` that pairs a direction's bars
+    otherwise (another shift, or turned) and over no overlap at all. Across direction
+    ``aimed_dir`` (the bars of one a capture was aimed at) no overlap is no rival: the aim pairs
+    that bar."""
     h1 = max(strong, key=lambda h: sum(_evidence_against(h, [], sw, g) for g in range(2)))
     lr = math.inf
     for g in range(2):
-        # every placing that pairs this direction's bars otherwise (another shift, or turned) competes
         rivals = [
             h
             for h in hyps
@@ -305,12 +527,8 @@ def _register(sa: dict, sb: dict, gate_mm: float, name_a: str, name_b: str) -> t
             and h.n[g] + h.other[g][1] >= 2
             and (h.theta != h1.theta or abs(h.shifts[g] - h1.shifts[g]) > gate_mm)
         ]
-        lr = min(lr, _evidence_against(h1, rivals, sw, g))
-    if lr < LOG_ODDS:
-        return None, "the mesh is too regular to tell which bars are the same (two placings fit alike)"
-    n_pairs = int(sum(h1.n) + sum(m for _, m in h1.other))
-    reg = Registration(name_a, name_b, h1.R, h1.t, n_pairs, float(max(h1.rms)), float(lr))
-    return reg, ""
+        lr = min(lr, _evidence_against(h1, rivals, sw, g, g != aimed_dir))
+    return h1, lr
 
 
 def _two_directions(sb: dict, keys: list) -> list | None:
@@ -428,9 +646,9 @@ def _irregularity(sets: list) -> float:
     return float(np.sqrt(np.mean(np.square(dev)))) if len(dev) >= 3 else 0.0
 
 
-def _evidence_against(h1: _Placing, rivals: list, sw: list, g: int) -> float:
+def _evidence_against(h1: _Placing, rivals: list, sw: list, g: int, against_none: bool = True) -> float:
     """The smallest log-odds, from direction ``g``'s bar pairs, of placing ``h1`` over any rival
-    placing and over no overlap at all.
+    placing and (``against_none``) over no overlap at all; ``inf`` where neither is asked.
 
     A placing pairs bars of the two captures. Pairs of the same bar differ by the measurement's
     scatter ``sm`` (``h1``'s RMS, at least ``SIGMA_FLOOR_MM``); pairs of different bars by the
@@ -461,7 +679,7 @@ def _evidence_against(h1: _Placing, rivals: list, sw: list, g: int) -> float:
         return out
 
     g1 = gain(h1)
-    return min([g1] + [g1 - gain(h) for h in rivals])
+    return min(([g1] if against_none else []) + [g1 - gain(h) for h in rivals], default=math.inf)
 
 
 def _position_line(p: dict, plane: Plane) -> np.ndarray | None:
@@ -483,28 +701,37 @@ def resolve_across(
         return list(results), []
     out = [copy.deepcopy(r) for r in results]
     notes = []
-    spacing = {}
-    for r in results:
-        for s in r.get("spacings") or []:
-            if s.get("design_spacing_mm"):
-                spacing[(s["layer"], s["level"])] = float(s["design_spacing_mm"])
+    spacing = _design_spacings(results)
     if not spacing:
         return out, notes  # no spacing measured: nothing a lot could count twice
     gate = gate_fraction * min(spacing.values())
     sets = [plan_sets(r) for r in results]
     regs = {}
+    names = [str(r.get("capture")) for r in results]
+    for i, r in enumerate(results):
+        named = str(((r.get("extras") or {}).get("aimed_at") or {}).get("capture") or "")
+        if named and named not in names:
+            notes.append(f"Capture {names[i]} was aimed at a bar of capture {named}, not among this slab's captures.")
     for i, ra in enumerate(results):
         for j, rb in enumerate(results):
             if j <= i:
                 continue
-            reg, _ = _register(sets[i], sets[j], gate, str(ra.get("capture")), str(rb.get("capture")))
+            aim, why = _pair_aim(results, sets, i, j, spacing)
+            if why:
+                notes.append(why)
+            # (with no aim, called as before: a caller may stand in its own _register)
+            args = (sets[i], sets[j], gate, names[i], names[j])
+            reg, why = _register(*args) if aim is None else _register(*args, aim=aim)
             if reg is None:
+                if aim is not None:
+                    notes.append(f"Captures {names[i]} and {names[j]} are not placed on each other: {why}.")
                 continue
             regs[(i, j)] = reg
+            odds = f"10^{min(reg.log_odds, 99.0) / math.log(10):.0f} : 1"
+            how = f"{reg.aimed}, the bars' own odds {odds}" if reg.aimed else f"odds over any other placing {odds}"
             notes.append(
                 f"Captures {reg.a} and {reg.b} overlap: placed on each other from their bars ({reg.n_matched} "
-                f"matched, {reg.rms_mm:.1f} mm RMS; odds over any other placing "
-                f"10^{min(reg.log_odds, 99.0) / math.log(10):.0f} : 1)."
+                f"matched, {reg.rms_mm:.1f} mm RMS; {how})."
             )
     _sizes_across(out, results, sets, regs, gate)
     _spacings_across(out, results, sets, regs, gate, notes)

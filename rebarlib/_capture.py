@@ -29,6 +29,9 @@ CAPTURE_FILES = ("color.png | color.jpg", "depth.png", "camera.json")
 #: against this and ``camera.json`` before anything is decoded: a few-kilobyte PNG can declare
 #: 30000 x 30000 pixels and take gigabytes to decode.
 MAX_IMAGE_PIXELS = 50_000_000
+#: the optional record of a capture taken because another capture's sheet asked for it, aimed at
+#: one of that capture's bars (docs/formats.md, docs/decisions/043)
+AIM_FILE = "aim.json"
 #: ``depth_scale_mm`` when ``camera.json`` gives none (said in the result's notes).
 DEFAULT_DEPTH_SCALE_MM = 1.0
 
@@ -43,7 +46,9 @@ class Capture:
     depth_mm : (H, W) float64, mm, 0 = no depth
     intrinsics : Intrinsics (of both images: depth is aligned to colour)
     metadata : dict: ``depth_scale_mm``, and optionally ``device``, ``captured_at``, ``name``,
-        ``source`` (the folder it was read from), ``truth`` (synthetic ground truth).
+        ``source`` (the folder it was read from), ``truth`` (synthetic ground truth),
+        ``aimed_at`` (``{"capture": name, "bar_id": k}``: the bar of another capture this one was
+        aimed at, from ``aim.json``, ``read_aim``).
     labels : (H, W) uint8 or None: 0 formwork/background, 1 lower-lattice bar, 2 upper-lattice bar
         (synthetic captures only).
     bar_ids : (H, W) int32 or None: 0 no bar, k + 1 for the bar with id k (synthetic only).
@@ -92,6 +97,33 @@ def _read_json(path: Path) -> dict:
     if not isinstance(data, dict):
         raise RebarInputError(f"{path}: expected a JSON object, got {type(data).__name__}")
     return data
+
+
+def read_aim(path) -> dict:
+    """Read a capture folder's ``aim.json``: the record of a capture taken because another
+    capture's sheet asked for it ("a capture ... aimed at its middle", a bar the other capture
+    could not size), saying which bar it was aimed at::
+
+        {"aimed_at": {"capture": "C1_665", "bar_id": 12}}
+
+    ``capture`` is the asking capture's name (its folder's name, as its sheet and ``result.json``
+    name it) and ``bar_id`` the bar's id there. The camera's optical axis (the image's middle) was
+    put on that bar's middle. Returns ``{"capture": str, "bar_id": int}``; anything else raises
+    :class:`RebarInputError` naming the file and what was expected."""
+    path = Path(path)
+    data = _read_json(path)
+    want = 'expected {"aimed_at": {"capture": "<capture folder name>", "bar_id": <bar id, a whole number >= 0>}}'
+    if set(data) != {"aimed_at"} or not isinstance(data["aimed_at"], dict):
+        raise RebarInputError(f"{path}: {want}; got the keys {sorted(data)}")
+    aim = data["aimed_at"]
+    if set(aim) != {"capture", "bar_id"}:
+        raise RebarInputError(f"{path}: {want}; got aimed_at's keys {sorted(aim)}")
+    cap, bid = aim["capture"], aim["bar_id"]
+    if not isinstance(cap, str) or not cap.strip():
+        raise RebarInputError(f"{path}: {want}; got capture {cap!r}")
+    if isinstance(bid, bool) or not isinstance(bid, int) or bid < 0:
+        raise RebarInputError(f"{path}: {want}; got bar_id {bid!r}")
+    return {"capture": cap.strip(), "bar_id": int(bid)}
 
 
 def read_intrinsics(path) -> tuple[Intrinsics, dict]:
@@ -369,6 +401,8 @@ def load_capture(path) -> Capture:
     meta["name"] = folder.name
     meta["source"] = str(folder)
     labels = bar_ids = None
+    if (folder / AIM_FILE).is_file():
+        meta["aimed_at"] = read_aim(folder / AIM_FILE)
     if (folder / "truth.json").is_file():
         meta["truth"] = _read_json(folder / "truth.json")
     if (folder / "labels.png").is_file():
@@ -432,6 +466,9 @@ def save_capture(capture: Capture, path, *, color_format: str = "png", overwrite
     cv2.imwrite(str(folder / "depth.png"), units.astype(np.uint16))
     extra = {k: capture.metadata[k] for k in ("device", "captured_at") if k in capture.metadata}
     write_intrinsics(folder / "camera.json", capture.intrinsics, depth_scale_mm=scale, **extra)
+    if capture.metadata.get("aimed_at") is not None:
+        aim = {"aimed_at": dict(capture.metadata["aimed_at"])}
+        (folder / AIM_FILE).write_text(json.dumps(aim) + "\n", encoding="utf-8")
     if capture.truth is not None:
         (folder / "truth.json").write_text(json.dumps(capture.truth, indent=1) + "\n", encoding="utf-8")
     if capture.labels is not None:

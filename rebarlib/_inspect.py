@@ -340,7 +340,10 @@ def _budget(res: InspectionResult, capture: Capture, design: Design, cal) -> Ins
 
 
 def _note_inputs(res: InspectionResult, capture: Capture) -> InspectionResult:
-    """Notes on what the capture's files left to a default."""
+    """Notes on what the capture's files left to a default; the bar the capture was aimed at
+    (``aim.json``), which the placing of a slab's captures uses (``_across``, decision 043)."""
+    if capture.metadata.get("aimed_at"):
+        res.extras["aimed_at"] = dict(capture.metadata["aimed_at"])
     if capture.metadata.get("depth_scale_assumed"):
         res.notes.append(
             f"camera.json gives no depth_scale_mm: {capture.depth_scale_mm:g} mm per depth unit was assumed"

@@ -400,3 +400,101 @@ def test_the_gap_of_a_missing_bar_is_judged_under_the_count_not_the_spacing():
     gap = sp[sp["status"] == "excluded"]
     assert len(gap) == 1 and gap["reason"].iloc[0].startswith("the gap of the missing bar")
     assert (sp[sp["status"] != "excluded"]["status"] == "within").all()
+
+
+def _regular_across_bottom(rng):
+    """Offsets of a mesh whose bottom bars lie at their design places to a tenth of a millimetre
+    (two placings a spacing apart across them fit alike) and whose top bars are irregular."""
+    return _irregular(9, rng, 4.0), _irregular(9, rng, 0.05)
+
+
+def _aimed(b, at, bar_id):
+    b.setdefault("extras", {})["aimed_at"] = {"capture": at, "bar_id": bar_id}
+    return b
+
+
+def _lower_bottom_id(r, y):
+    """The id of the lower bottom bar of capture ``r`` (unturned, ``shift`` (sx, sy)) at mesh offset ``y``."""
+    return next(
+        b["bar_id"]
+        for b in r["bars"]
+        if (b["layer"], b["level"]) == ("lower", "bottom") and abs(-b["start_y_mm"] - (y + r["_sy"])) < 1e-6
+    )
+
+
+def _pair_regular_across_bottom(b_shift):
+    rng = np.random.default_rng(11)
+    xs, ys = _regular_across_bottom(rng)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    a["_sy"] = 0.0
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=b_shift)
+    return xs, ys, a, b
+
+
+def test_a_capture_aimed_at_a_bar_is_placed_where_it_was_aimed():
+    # B's optical axis (its plan origin: a camera looking straight down) meets the mesh at
+    # -shift: 12 mm beside the lower bottom bar at ys["lower"][4] (about 0), a hand's aim
+    shift = (20.0, -12.0)
+    xs, ys, a, b = _pair_regular_across_bottom(shift)
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert reg is None and "too regular" in why  # the bars alone cannot tell
+    k = _lower_bottom_id(a, ys["lower"][4])
+    out, notes = resolve_across([a, _aimed(copy.deepcopy(b), "A", k)])
+    placed = [n for n in notes if n.startswith("Captures A and B overlap")]
+    assert placed and "chosen by the aim of capture B" in placed[0], notes
+    assert "not_placed_on" not in (out[0].get("extras") or {})
+    reg, why = register(a, _aimed(copy.deepcopy(b), "A", k), 0.25 * SPACING)
+    assert reg is not None, why
+    for p in ([0.0, 0.0], [150.0, -80.0]):  # the true placing, not one a spacing off
+        assert np.allclose(reg.to_b(np.array(p)), np.array(p) + np.array(shift), atol=0.5)
+
+
+@pytest.mark.parametrize("aim_y", [-100.0, -60.0])
+def test_an_ambiguous_aim_leaves_the_captures_unplaced(aim_y):
+    # the optical axis midway between two bars, or farther from the nearest than a quarter spacing
+    xs, ys, a, b = _pair_regular_across_bottom((20.0, aim_y))
+    k = _lower_bottom_id(a, ys["lower"][4])
+    out, notes = resolve_across([a, _aimed(b, "A", k)])
+    assert not any(n.startswith("Captures A and B overlap") for n in notes)
+    assert out[0]["extras"]["not_placed_on"] == ["B"]
+    why = next(n for n in notes if n.startswith("Captures A and B are not placed"))
+    assert "too regular" in why and "aimed at bar" in why and "hand's aim error" in why
+
+
+def test_an_aim_never_overrides_a_placing_the_bars_make():
+    rng = np.random.default_rng(3)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(35.0, -12.0))
+    # aimed (wrongly) at the bar a spacing away: the bars' own placing stands
+    a["_sy"] = 0.0
+    k = _lower_bottom_id(a, ys["lower"][5])
+    out, notes = resolve_across([a, _aimed(b, "A", k)])
+    placed = [n for n in notes if n.startswith("Captures A and B overlap")]
+    assert placed and "chosen by the aim" not in placed[0]
+
+
+def _pair_regular(b_shift):
+    rng = np.random.default_rng(12)
+    xs, ys = _irregular(9, rng, 0.05), _irregular(9, rng, 0.05)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    a["_sy"] = 0.0
+    return xs, ys, a, _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=b_shift)
+
+
+@pytest.mark.parametrize("aim_x, placed", [(-100.0, True), (-40.0, True), (0.0, False)])
+def test_on_a_mesh_regular_both_ways_the_aim_along_the_bar_chooses_too(aim_x, placed):
+    # the lower bottom bar at y about 0 runs along x; A saw it over x -500..300 (its middle -100);
+    # B's optical axis meets the mesh at -shift: 0 or 60 mm along from that middle (within a
+    # hand's 3/8 of the 200 mm crossing spacing), or 100 mm (not)
+    shift = (-aim_x, -12.0)
+    xs, ys, a, b = _pair_regular(shift)
+    assert register(a, b, 0.25 * SPACING)[0] is None
+    k = _lower_bottom_id(a, ys["lower"][4])
+    reg, why = register(a, _aimed(b, "A", k), 0.25 * SPACING)
+    if not placed:
+        assert reg is None and "along the bar" in why and "more than 75 mm" in why
+        return
+    assert reg is not None and "across and along it" in reg.aimed, why
+    for p in ([0.0, 0.0], [150.0, -80.0]):
+        assert np.allclose(reg.to_b(np.array(p)), np.array(p) + np.array(shift), atol=0.5)

@@ -75,7 +75,7 @@ def test_advice_wording_distance_and_side():
     assert text == (
         "; a capture with the camera about 460 mm or less from the bar (this one: 759 mm), aimed at its middle "
         "(towards the image's left edge), would tell Φ14 from Φ16 (envelopes 2.2 mm apart) at this capture's "
-        "error in pixels"
+        "error in pixels (mark it with an aim.json naming this capture and bar, docs/formats.md)"
     )
     # a bar in the image's middle needs no aiming
     mid = closer_advice(
@@ -139,7 +139,8 @@ def test_a_bar_cut_by_the_border_is_told_to_be_aimed_at():
     )
     assert text == (
         "; a capture aimed at its middle (towards the image's bottom edge), from about 650 mm or less "
-        "(this one: 801 mm), would show it away from the border"
+        "(this one: 801 mm), would show it away from the border (mark it with an aim.json naming this capture "
+        "and bar, docs/formats.md)"
     )
 
 

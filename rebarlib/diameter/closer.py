@@ -29,7 +29,10 @@ ribs whose crests and core disagree): a nearer capture reads the same disagreeme
 measurement here says otherwise.
 
 The side to aim towards is named as the hidden-position advice names it (``_counts._towards``):
-the image edge the bar's seen middle lies towards, from the image's centre.
+the image edge the bar's seen middle lies towards, from the image's centre. The advice ends by
+telling how to mark the capture taken (``MARK``): its folder's ``aim.json`` naming this capture
+and bar, with which the slab's captures are placed where it was aimed (docs/formats.md,
+docs/decisions/043).
 """
 
 from __future__ import annotations
@@ -104,6 +107,10 @@ def _aim(mid_cam: np.ndarray, intr, prm: CloserParams) -> str:
     return f"aimed at its middle (towards the image's {edge} edge)"
 
 
+#: how to mark a capture taken as advised, appended to the advice
+MARK = " (mark it with an aim.json naming this capture and bar, docs/formats.md)"
+
+
 def _floor(z: float) -> float:
     return 10.0 * math.floor(z / 10.0)
 
@@ -127,7 +134,7 @@ def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=T
     if reason.startswith("too few clean cross-sections") and reason.endswith("most lost at the image border)"):
         return (
             f"; a capture {aim}, from about {_floor(min(z, prm.far_mm)):.0f} mm or less (this one: {z:.0f} mm), "
-            "would show it away from the border"
+            "would show it away from the border" + MARK
         )
     if not reason.startswith("ambiguous: width"):
         return ""
@@ -146,5 +153,5 @@ def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=T
     return (
         f"; a capture with the camera about {_floor(need):.0f} mm or less from the bar (this one: {z:.0f} mm), {aim}, "
         f"would tell {sysm.label(a)} from {sysm.label(b)} (envelopes {wb - wa:.1f} mm apart) at this capture's "
-        "error in pixels"
+        "error in pixels" + MARK
     )
