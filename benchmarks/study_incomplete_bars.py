@@ -14,7 +14,8 @@ says of it.
 those asked for, as the verdict file lists them; ``rebarlib._across.register``, a capture's aim
 included) against the renders' camera poses (``bench_placing``: wrong when a point of the mesh
 lands more than 5 mm from where the other capture sees it), and lists the placings an aim chose
-and the pairs an aim left unplaced, with why (docs/decisions/043).
+and the pairs an aim left unplaced, with why (docs/decisions/043), and the placings made through a
+third capture placed on both, as ``resolve_across`` makes them (docs/decisions/044).
 
     python benchmarks/study_incomplete_bars.py --cache /tmp/verdicts --verdicts verdict_follow2.json --placings
 """
@@ -94,6 +95,7 @@ def placings(cache: Path, name: str) -> dict:
     """Every pair of captures of every slab of ``cache`` (the verdict file ``name``'s captures and
     follow-ups) placed by ``register`` and checked against the renders' poses."""
     import rebarlib as R
+    from rebarlib import _across
     from rebarlib._across import register
 
     try:
@@ -102,6 +104,7 @@ def placings(cache: Path, name: str) -> dict:
         from benchmarks.bench_placing import WRONG_MM, _gate, _pose_error
 
     out = {"pairs": 0, "placed": 0, "wrong": 0, "aimed pairs": 0, "placed by an aim": 0, "wrong by an aim": 0}
+    out.update({"placed through a third": 0, "wrong through a third": 0})
     for sd in sorted(cache.glob("slab_*")):
         if not (sd / name).exists():
             continue
@@ -110,8 +113,9 @@ def placings(cache: Path, name: str) -> dict:
         gate = _gate(R.load_design(sd / "design.toml"))
         res = {c: json.loads((sd / f"result_{c}.json").read_text()) for c in caps}
         cams = {c: json.loads((sd / c / "truth.json").read_text())["camera"] for c in caps}
+        regs, refused = {}, {}
         for i, a in enumerate(caps):
-            for b in caps[i + 1 :]:
+            for j, b in enumerate(caps[i + 1 :], i + 1):
                 ra, rb = res[a], res[b]
                 aims = [((r.get("extras") or {}).get("aimed_at") or {}).get("capture") for r in (ra, rb)]
                 aimed = aims[1] == a or aims[0] == b
@@ -119,9 +123,11 @@ def placings(cache: Path, name: str) -> dict:
                 out["aimed pairs"] += aimed
                 reg, why = register(ra, rb, gate)
                 if reg is None:
+                    refused[(i, j)] = why
                     if aimed:
                         print(f"  {sd.name} {a} / {b}: not placed: {why}")
                     continue
+                regs[(i, j)] = reg
                 e = _pose_error(ra, rb, cams[a], cams[b])(reg)
                 out["placed"] += 1
                 out["wrong"] += e > WRONG_MM
@@ -131,6 +137,21 @@ def placings(cache: Path, name: str) -> dict:
                 if reg.aimed or e > WRONG_MM:
                     how = f"; {reg.aimed}" if reg.aimed else ""
                     print(f"  {sd.name} {a} / {b}: placed {e:.1f} mm off the truth{how}")
+        # the pairs resolve_across then places through a third capture placed on both (decision 044)
+        pairwise, notes = set(regs), []
+        _across._through_a_third(regs, refused, [_across.plan_sets(res[c]) for c in caps], caps, gate, notes)
+        for (i, j), reg in sorted(regs.items()):
+            if (i, j) in pairwise:
+                continue
+            e = _pose_error(res[caps[i]], res[caps[j]], cams[caps[i]], cams[caps[j]])(reg)
+            out["placed"] += 1
+            out["wrong"] += e > WRONG_MM
+            out["placed through a third"] += 1
+            out["wrong through a third"] += e > WRONG_MM
+            print(f"  {sd.name} {caps[i]} / {caps[j]}: placed {e:.1f} mm off the truth through capture {reg.through}")
+        for n in notes:
+            if "not placed through" in n:
+                print(f"  {sd.name}: {n}")
     return out
 
 

@@ -20,7 +20,9 @@ A capture taken because another capture's sheet asked for it, aimed at one of th
 bars (its ``aim.json``, carried into its result as ``extras["aimed_at"]``), says which bar it shows
 at its image's middle. Where its pair is refused as too regular, that aim chooses among the
 placings that fit: only those putting the bar aimed at on the aimed capture's bar at its aim point
-compete (docs/decisions/043-a-capture-placed-where-it-was-aimed.md).
+compete (docs/decisions/043-a-capture-placed-where-it-was-aimed.md). A pair the bars alone cannot
+place is placed through a third capture placed on both, where the composed placing contradicts
+neither's bars (docs/decisions/044-two-captures-placed-through-a-third.md).
 """
 
 from __future__ import annotations
@@ -75,6 +77,13 @@ AIM_ALONG_SPACINGS = 0.375
 #: a bar sized from one edge over this share of its sections or more has its axis fitted to the
 #: side it shows (the diameter stage's ``hidden_fraction``, decision 024)
 _ONE_SIDED_SHARE = 0.5
+
+# the refusals of a pair (_register); which of them a placing through a third capture may settle:
+# _chainable (decision 044)
+_NO_FIT = f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
+_TOO_REGULAR = "the mesh is too regular to tell which bars are the same (two placings fit alike)"
+_AIM_DENIED = "no placing that fits puts that bar on bar"
+_BARS_AGAINST_AIM = "the bars favour another placing 1000 : 1"
 
 
 @dataclass
@@ -340,6 +349,7 @@ class Registration:
     rms_mm: float
     log_odds: float  # over the likeliest rival placing (no overlap included)
     aimed: str = ""  # where the placing was chosen by a capture's aim: which aim (decision 043)
+    through: str = ""  # where composed of two placings on a third capture: its name (decision 044)
 
     def to_b(self, xy) -> np.ndarray:
         return np.asarray(xy, float) @ self.R.T + self.t
@@ -441,11 +451,11 @@ def _register(
         h for h in hyps if min(n + m for n, (_, m) in zip(h.n, h.other)) >= MIN_MATCHED and max(h.rms) <= MAX_RMS_MM
     ]
     if not strong:
-        return None, f"no placing fits {MIN_MATCHED} or more bars of each direction to within {MAX_RMS_MM} mm"
+        return None, _NO_FIT
     h1, lr = _best(strong, hyps, sw, gate_mm)
     aimed = ""
     if lr < LOG_ODDS:
-        why = "the mesh is too regular to tell which bars are the same (two placings fit alike)"
+        why = _TOO_REGULAR
         if aim is None:
             return None, why
         if aim.target is None:
@@ -453,7 +463,7 @@ def _register(
         pool = [h for h in hyps if _puts_on(h, aim, sa, sb, gate_mm)]
         fits = [h for h in strong if any(h is x for x in pool)]
         if not fits:
-            return None, f"{why}; {aim.text}, but no placing that fits puts that bar on bar {aim.target} at its aim"
+            return None, f"{why}; {aim.text}, but {_AIM_DENIED} {aim.target} at its aim"
         # across the bar aimed at, the aim pairs it: the captures overlap there, and only another
         # placing that also puts it at the aim (turned) competes; across the other direction the
         # bars must tell the placing as without an aim
@@ -467,7 +477,7 @@ def _register(
                 # the aim chooses among placings the bars cannot tell apart, never against them
                 rivals = [h for h in pool if h is not h1]
                 if _evidence_against(h1, rivals, sw, 1 - g_aim, against_none=False) < -LOG_ODDS:
-                    h1, why_along = None, "the bars favour another placing 1000 : 1"
+                    h1, why_along = None, _BARS_AGAINST_AIM
             if h1 is None:
                 still = "placings that put that bar at its aim still fit alike"
                 return None, f"{why}; {aim.text}, and {still} ({why_along})"
@@ -706,7 +716,7 @@ def resolve_across(
         return out, notes  # no spacing measured: nothing a lot could count twice
     gate = gate_fraction * min(spacing.values())
     sets = [plan_sets(r) for r in results]
-    regs = {}
+    regs, refused = {}, {}
     names = [str(r.get("capture")) for r in results]
     for i, r in enumerate(results):
         named = str(((r.get("extras") or {}).get("aimed_at") or {}).get("capture") or "")
@@ -723,6 +733,7 @@ def resolve_across(
             args = (sets[i], sets[j], gate, names[i], names[j])
             reg, why = _register(*args) if aim is None else _register(*args, aim=aim)
             if reg is None:
+                refused[(i, j)] = why
                 if aim is not None:
                     notes.append(f"Captures {names[i]} and {names[j]} are not placed on each other: {why}.")
                 continue
@@ -733,6 +744,7 @@ def resolve_across(
                 f"Captures {reg.a} and {reg.b} overlap: placed on each other from their bars ({reg.n_matched} "
                 f"matched, {reg.rms_mm:.1f} mm RMS; {how})."
             )
+    _through_a_third(regs, refused, sets, names, gate, notes)
     _sizes_across(out, results, sets, regs, gate)
     _spacings_across(out, results, sets, regs, gate, notes)
     # the captures not placed on each other: whether they show the same bars is unknown, and a
@@ -788,6 +800,106 @@ def resolve_across(
         if changed:
             r.setdefault("extras", {})["judged_across"] = True
     return out, notes
+
+
+def _chainable(why: str) -> bool:
+    """Whether a pair refused for ``why`` (:func:`_register`) may be placed through a third
+    capture: where its bars could not choose a placing (too few matched, or too regular to tell),
+    not where they chose against something (their directions turn apart, an aim no placing that
+    fits meets, the bars against the aim) or cannot check a placing in two directions."""
+    if why == _NO_FIT:
+        return True
+    return why.startswith(_TOO_REGULAR) and _AIM_DENIED not in why and _BARS_AGAINST_AIM not in why
+
+
+def _leg(regs: dict, a: int, b: int):
+    """``(R, t)`` with ``x_b = R x_a + t`` from the placing of the pair (a, b), in either
+    orientation, or None."""
+    reg = regs.get((a, b))
+    if reg is not None:
+        return reg.R, reg.t
+    reg = regs.get((b, a))
+    if reg is None:
+        return None
+    return reg.R.T, -reg.t @ reg.R  # x_a = R^T (x_b - t)
+
+
+def _fits_pair(sa: dict, sb: dict, R: np.ndarray, t: np.ndarray, gate: float) -> tuple | None:
+    """``(fit, why)``: whether a placing found otherwise is consistent with the two captures' own
+    bars: every set seen in both turns onto its twin within ``MAX_ANGLE_SPREAD_DEG``, no bar of
+    either lies in the other's view without a counterpart (:func:`_joint_fit`), and the pairs of
+    fitted axes it matches lie within ``MAX_RMS_MM`` RMS per direction (the test of a placing
+    from the bars; others are within the gate by construction). ``fit`` is None where it fails;
+    where the pair's sets do not run in two directions it cannot be checked: None too."""
+    keys = [k for k in sa if k in sb]
+    groups = _two_directions(sb, keys) if len(keys) >= 2 else None
+    if groups is None:
+        return None, "their bars seen in both do not run in two directions to check it against"
+    for k in keys:
+        da = sa[k].direction @ R.T
+        cos = abs(float(da @ sb[k].direction)) / (np.linalg.norm(da) * np.linalg.norm(sb[k].direction))
+        if math.degrees(math.acos(min(1.0, cos))) > MAX_ANGLE_SPREAD_DEG:
+            return None, f"it turns their {k[0]} {k[1]} bars apart"
+    hull_a = {la: _hull({k: v for k, v in sa.items() if k[0] == la}) for la in {k[0] for k in sa}}
+    hull_b = {la: _hull({k: v for k, v in sb.items() if k[0] == la}) for la in {k[0] for k in sb}}
+    fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate)
+    if fit is None:
+        return None, "it puts a bar of one in the other's view where that shows no bar"
+    worst = max([r for r, c in zip(fit[0], fit[1]) if c] or [0.0])
+    if worst > MAX_RMS_MM:
+        return None, f"their own bars misfit under it by {worst:.1f} mm RMS, over {MAX_RMS_MM} mm"
+    return fit, ""
+
+
+def _through_a_third(regs: dict, refused: dict, sets: list, names: list, gate: float, notes: list) -> None:
+    """Place each pair the bars alone could not (:func:`_chainable` refusals) through a capture
+    placed on both, one step (the placings found from bars only compose): the placing of i on k
+    and of k on j, composed, is taken where it is consistent with i and j's own bars
+    (:func:`_fits_pair`) and every such capture gives the same (within the gate at i's bar ends).
+    Adds the placings to ``regs`` (decision 044)."""
+    found = {}
+    for (i, j), why in sorted(refused.items()):
+        if not _chainable(why):
+            continue
+        comps, bad = [], []
+        for k in range(len(sets)):
+            if k in (i, j):
+                continue
+            ik, kj = _leg(regs, i, k), _leg(regs, k, j)
+            if ik is None or kj is None:
+                continue
+            R, t = kj[0] @ ik[0], ik[1] @ kj[0].T + kj[1]
+            fit, why_not = _fits_pair(sets[i], sets[j], R, t, gate)
+            (comps if fit is not None else bad).append((k, R, t, fit, why_not))
+        if not comps and not bad:
+            continue
+        pair = f"Captures {names[i]} and {names[j]}"
+        if bad:
+            k, *_, why_not = bad[0]
+            notes.append(f"{pair} are not placed through capture {names[k]}: {why_not}.")
+            continue
+        ends = np.vstack([st.segs.reshape(-1, 2) for st in sets[i].values()])
+        k0, R0, t0, fit, _ = comps[0]
+        apart = max(float(np.abs((ends @ R.T + t) - (ends @ R0.T + t0)).max()) for _, R, t, _, _ in comps)
+        if apart > gate:
+            notes.append(
+                f"{pair} are not placed through a third capture: capture {names[comps[1][0]]} places them "
+                f"{apart:.0f} mm otherwise than capture {names[k0]}."
+            )
+            continue
+        n = int(sum(fit[1]) + sum(m for _, m in fit[2]))
+        rms = max([r for r, c in zip(fit[0], fit[1]) if c] or [0.0])
+        odds = min(regs[(min(i, k0), max(i, k0))].log_odds, regs[(min(j, k0), max(j, k0))].log_odds)
+        found[(i, j)] = Registration(names[i], names[j], R0, t0, n, float(rms), float(odds), through=names[k0])
+        own = (
+            f"{n} of their own bars matched under it, {rms:.1f} mm RMS"
+            if n
+            else "their views do not overlap under it: they show different bars"
+        )
+        notes.append(
+            f"{pair} are placed on each other through capture {names[k0]}, placed on both ({own}; alone: {why})."
+        )
+    regs.update(found)
 
 
 def unplaced_pairs(results: list) -> set:

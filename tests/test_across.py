@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from rebarlib._across import register, resolve_across
+from rebarlib._across import register, resolve_across, unplaced_pairs
 
 SPACING = 200.0
 
@@ -498,3 +498,102 @@ def test_on_a_mesh_regular_both_ways_the_aim_along_the_bar_chooses_too(aim_x, pl
     assert reg is not None and "across and along it" in reg.aimed, why
     for p in ([0.0, 0.0], [150.0, -80.0]):
         assert np.allclose(reg.to_b(np.array(p)), np.array(p) + np.array(shift), atol=0.5)
+
+
+def _rot2(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+def _three_in_a_row(order):
+    """Captures A and B of an irregular mesh that do not overlap (their bars alone cannot place
+    them), and C overlapping both; turned and shifted apart; in the ``order`` given."""
+    rng = np.random.default_rng(21)
+    xs, ys = _irregular(15, rng, 4.0), _irregular(15, rng, 4.0)
+    pose = {"A": (0.1, (15.0, -8.0)), "B": (-0.3, (40.0, 25.0)), "C": (0.5, (-20.0, 10.0))}
+    view = {"A": ((-1400, -300), (-300, 250)), "B": ((300, 1400), (-250, 300)), "C": ((-800, 800), (-300, 300))}
+    caps = {n: _capture(n, xs, ys, view[n], turn=pose[n][0], shift=pose[n][1]) for n in "ABC"}
+    return [caps[n] for n in order], pose
+
+
+@pytest.mark.parametrize("order", ["ABC", "CAB", "BCA"])
+def test_two_captures_are_placed_through_a_third_placed_on_both(order):
+    results, pose = _three_in_a_row(order)
+    a, b = (next(r for r in results if r["capture"] == n) for n in "AB")
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert reg is None and "no placing fits" in why  # their bars alone cannot place them
+    out, notes = resolve_across(results)
+    first, second = sorted("AB", key=order.index)
+    placed = [n for n in notes if n.startswith(f"Captures {first} and {second} are placed on each other through")]
+    assert placed and "capture C" in placed[0] and "they show different bars" in placed[0], notes
+    # placed: a lot rule counts their spacings as the placings say (decision 039 settled)
+    assert all("not_placed_on" not in (r.get("extras") or {}) for r in out)
+    assert not unplaced_pairs(out)
+
+
+def test_the_placing_through_a_third_is_the_true_one():
+    from rebarlib import _across
+
+    for order in ("ABC", "CAB", "BCA"):
+        results, pose = _three_in_a_row(order)
+        sets = [_across.plan_sets(r) for r in results]
+        names = [r["capture"] for r in results]
+        regs, refused, notes = {}, {}, []
+        for i in range(3):
+            for j in range(i + 1, 3):
+                reg, why = _across._register(sets[i], sets[j], 0.25 * SPACING, names[i], names[j])
+                if reg is not None:
+                    regs[(i, j)] = reg
+                else:
+                    refused[(i, j)] = why
+        assert len(regs) == 2 and len(refused) == 1
+        _across._through_a_third(regs, refused, sets, names, 0.25 * SPACING, notes)
+        ((i, j),) = refused
+        reg = regs[(i, j)]
+        assert reg.through == "C"
+        (ta, sa), (tb, sb) = pose[names[i]], pose[names[j]]
+        for p in ([0.0, 0.0], [600.0, -80.0], [-900.0, 120.0]):  # mesh points, seen in i's plan frame
+            x_i = _rot2(ta) @ np.array(p) + np.array(sa)
+            assert np.allclose(reg.to_b(x_i), _rot2(tb) @ np.array(p) + np.array(sb), atol=1.0)
+
+
+def test_a_placing_through_a_third_that_contradicts_the_pair_own_bars_is_refused(monkeypatch):
+    from rebarlib import _across
+
+    # A and B overlap but (stood in) their bars alone are refused as too regular; C's placings
+    # compose to a placing half a spacing off: A's bars land between B's, in B's view
+    rng = np.random.default_rng(3)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)))
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)))
+    c = _capture("C", xs, ys, ((-450, 350), (-400, 450)))
+    off = 0.5 * SPACING
+    legs = {
+        ("A", "C"): _across.Registration("A", "C", np.eye(2), np.array([off, off]), 9, 0.1, 20.0),
+        ("B", "C"): _across.Registration("B", "C", np.eye(2), np.zeros(2), 9, 0.1, 20.0),
+    }
+
+    def stand_in(sa, sb, g, na, nb, aim=None):
+        got = legs.get((na, nb))
+        return (got, "") if got is not None else (None, _across._TOO_REGULAR)
+
+    monkeypatch.setattr(_across, "_register", stand_in)
+    out, notes = resolve_across([a, b, c])
+    assert any(n.startswith("Captures A and B are not placed through capture C") for n in notes), notes
+    assert out[0]["extras"]["not_placed_on"] == ["B"]
+    # composed right, the same pair is placed through C, its own bars matched under the placing
+    legs[("A", "C")] = _across.Registration("A", "C", np.eye(2), np.zeros(2), 9, 0.1, 20.0)
+    out, notes = resolve_across([a, b, c])
+    placed = next(n for n in notes if n.startswith("Captures A and B are placed on each other through capture C"))
+    assert "of their own bars matched under it" in placed and "too regular" in placed
+    assert not unplaced_pairs(out)
+
+    # a pair refused for what its bars contradict is never chained
+    def contradicted(sa, sb, g, na, nb, aim=None):
+        got = legs.get((na, nb))
+        return (got, "") if got is not None else (None, "the bars' directions turn by different angles (3.0° apart)")
+
+    monkeypatch.setattr(_across, "_register", contradicted)
+    out, notes = resolve_across([a, b, c])
+    assert out[0]["extras"]["not_placed_on"] == ["B"]
+    assert not any("through capture C" in n for n in notes)
