@@ -543,17 +543,17 @@ def _drop_duplicates(axes: list, min_sep_mm: float) -> list:
 def _drop_off_level(axes: list, sig_h: float) -> list:
     """A "bar" lying far from the other bars of its direction is a chair, a spacer, a tie: not a
     bar of this level. A bar with at least a quarter of its set's typical points per mm is kept
-    unless it lies more than its radius off its level's height (:func:`_level_heights`) beyond
-    four times the noise of its mean height: a bar's axis is placed 2r/π under the mean of its
-    points, which lies between 0 (only its sides seen) and r (only its top) above the axis, so
-    the bars of one level lie within r of each other's estimates; a chair's points stand above
-    the level's top (decision 042: with the level's median and a diameter, chairs 2.15 and 3.0 r
-    above it and a cover block 2.44 r below were kept). A sparser one must *show* that it lies at
-    its level: within its radius even with four times that noise added. A few stray points do
-    not make a bar, and their height is too uncertain to vouch for them (two "bars" about 110 mm
-    beyond a set's last bar, made of formwork points and the crossing bars' points there, were
-    kept on synthetic scans: 1.05 and 1.32 radii off their level, with 17 % and 2 % of their
-    set's points per mm, inside the noise allowance)."""
+    unless it lies more than its diameter off its level's height (:func:`_level_heights`, a line
+    across the set, so that a tilted frame does not count against the set's outer bars) beyond
+    four times the noise of its mean height. Not a radius: the bars of a real level are not
+    coplanar to a radius (on a real laser scan of a wall cage, bars lay up to 1.8 r off their
+    level's line, and a radius dropped three of its 28 bars; decision 042), and a bar out of its
+    level is a defect the cover and layer distance must show, not a phantom to hide. A sparser
+    one must *show* that it lies at its level: within its radius even with four times that
+    noise added. A few stray points do not make a bar, and their height is too uncertain to
+    vouch for them (two "bars" about 110 mm beyond a set's last bar, made of formwork points and
+    the crossing bars' points there, were kept on synthetic scans: 1.05 and 1.32 radii off their
+    level, with 17 % and 2 % of their set's points per mm, inside the noise allowance)."""
     out = []
     for lv in G.LEVELS:
         group = [a for a in axes if a.level == lv]
@@ -566,7 +566,7 @@ def _drop_off_level(axes: list, sig_h: float) -> list:
             allow = 4 * sig_h / math.sqrt(max(a.n_points, 1))
             off = abs(a.axis_height_mm - lv_h)
             if _per_mm(a) >= 0.25 * dens:
-                keep = off - allow <= a.radius_mm
+                keep = off - allow <= 2 * a.radius_mm
             else:
                 keep = off + allow <= a.radius_mm
             if keep:
