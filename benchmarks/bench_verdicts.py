@@ -35,7 +35,10 @@ person aims: the camera the advised distance from the bar's seen middle along it
 that axis put on the bar's middle with a hand's error (uniform within ±¼ of the bar's design
 spacing across the bar and ±½ along it, seeded: ``AIM_ERROR``), tilt and heading kept (still at
 most 4 captures a slab), and its folder marked with the bar it was aimed at (``aim.json``,
-docs/decisions/043); what each says of its bar is printed. Both judgements are
+docs/decisions/043); what each says of its bar is printed. Then, where a spacing lot's verdict
+depends on which spacings two captures not placed on each other share and the sheet says "a
+capture placed on both settles it" (docs/decisions/039), one capture half-way between the first
+such pair (the mean of their targets and heights, the first's tilt and heading). Both judgements are
 printed. ``--second-round`` then acts as an inspector who reads the sheet again: what the
 captures first taken still ask for, judged with the captures of the first round (a capture
 already taken is not taken again), is taken too, up to 6 captures a slab, and the slab judged a
@@ -381,7 +384,8 @@ def _follow_advice(
     such position says (moved across the hidden position's bars by 1.25 times the distance it
     names, towards the position where the sheet says so, else towards the slab's middle; height,
     tilt and heading kept), in the captures' order; then one for each bar asked for from closer
-    (:func:`_bars_to_size`). A capture already ``taken`` is not taken again; at most
+    (:func:`_bars_to_size`); then one placed on both of two captures a lot's verdict depends on
+    (:func:`_capture_on_both`). A capture already ``taken`` is not taken again; at most
     ``max_captures`` a slab. Returns the new captures' names."""
     import rebarlib as R
 
@@ -429,7 +433,51 @@ def _follow_advice(
         if f"Z{meta['captures'].index(name)}_{bid}" in taken:
             continue
         out.append(_capture_closer(folder, meta, name, bid, dist))
+    if n_have + len(out) < max_captures:
+        both = _capture_on_both(folder, meta, results, design, taken)
+        if both:
+            out.append(both)
     return out
+
+
+#: what a lot item's reason says when two captures first taken are not placed on each other and
+#: the lot's verdict depends on which spacings they share (decision 039): the pairs
+BOTH = re.compile(r"captures not placed on each other \(([^)]*)\) may show the same spacings")
+
+
+def _capture_on_both(folder: Path, meta: dict, results: list, design, taken=()) -> str | None:
+    """The capture a lot's reason asks for ("a capture placed on both settles it"): for the first
+    pair it names of captures first taken, one half-way between them (the mean of their targets
+    and heights, the first's tilt and heading), as a person would stand to see both. Returns its
+    name, or None where no lot asks for one."""
+    import rebarlib as R
+
+    acc = R.evaluate(results, design)
+    for why in acc.items["reason"].astype(str):
+        m = BOTH.search(why)
+        if not m:
+            continue
+        for pair in m.group(1).split("; "):
+            a, _, b = pair.partition(" and ")
+            if a not in meta["captures"] or b not in meta["captures"]:
+                continue
+            ia, ib = sorted((meta["captures"].index(a), meta["captures"].index(b)))
+            _, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+            sa, sb = specs[ia], specs[ib]
+            new = dict(
+                sa,
+                name=f"B{ia}{ib}_{int(0.5 * (sa['h'] + sb['h']))}",
+                h=0.5 * (sa["h"] + sb["h"]),
+                target=tuple(float(0.5 * (x + y)) for x, y in zip(sa["target"], sb["target"])),
+                seed=[2026, meta["slab"], 6, ia, ib],
+            )
+            if new["name"] in taken:
+                return None
+            if not _rendered_as(folder / new["name"], new):
+                _render_one(scene, new, folder)
+                (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
+            return new["name"]
+    return None
 
 
 #: what a bar's reason says when a capture from closer, aimed at it, would size it: the distance

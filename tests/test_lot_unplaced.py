@@ -172,3 +172,14 @@ def test_a_spacing_not_measured_breaks_the_run():
         {"what": "bars 7-8", "status": "within", "measured_value": 201.0},
     ]
     assert [[r["what"] for r in run] for run in _runs(rows)] == [["bars 1-2", "bars 2-3"], ["bars 4-5"], ["bars 7-8"]]
+
+
+def test_the_verdict_benchmark_reads_the_pairs_a_lot_asks_a_capture_on_both_for():
+    # benchmarks/bench_verdicts.py --follow-advice takes a capture half-way between the first pair
+    # this reason names; its pattern must keep reading what the verdict writes
+    from benchmarks.bench_verdicts import BOTH
+
+    acc = evaluate([_result("C0", C0), _result("C1", C1), _result("Z1", Z1)], paper_design())
+    m = BOTH.search(_item(acc)["reason"])
+    assert m is not None
+    assert [p.split(" and ") for p in m.group(1).split("; ")] == [["C0", "C1"], ["C0", "Z1"]]
