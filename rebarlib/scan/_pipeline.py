@@ -94,14 +94,26 @@ def inspect_cloud(
                 pts, normal, datum, design, (plane, q, split, result_bars, noise), min_length_mm, rng
             )
     notes.append(f"up: {up_how}")
+    if not result_bars:
+        notes.append(
+            "no bar found: nothing in the cloud lines up as the design's two lattices of bars (a slab's "
+            "mesh seen from above or below); check the units, up= and the design's spacings and diameters"
+        )
     result_bars = mark_cut_sections(q, result_bars, noise)
     sig = float(np.median([v[0] for v in noise.values()]))
-    notes.append(
-        f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
-        f"spread {sig:.1f} mm across the bars in plan (noise and what lies beside them)"
-        if datum.found
-        else f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)"
-    )
+    if not result_bars:  # no spread across bars to report (sig is then the search's starting guess)
+        notes.append(
+            f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork; no bars to measure a spread on"
+            if datum.found
+            else "noise σ: not measured (no formwork and no bars in the scan)"
+        )
+    else:
+        notes.append(
+            f"noise σ: {datum.noise_mm or float('nan'):.1f} mm across the formwork, "
+            f"spread {sig:.1f} mm across the bars in plan (noise and what lies beside them)"
+            if datum.found
+            else f"spread σ: {sig:.1f} mm across the bars in plan (noise and what lies beside them; no formwork)"
+        )
     return _assemble(
         sc, design, plane, datum, result_bars, sig, notes, diameters, q, name=name, t_start=t_start, up_how=up_how
     )
