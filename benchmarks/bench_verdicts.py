@@ -390,7 +390,8 @@ def _follow_advice(
     import rebarlib as R
 
     # the slab's sheet: a position another capture of the slab already judged needs no capture
-    judged = R.evaluate(results, design).results
+    sheet = R.evaluate(results, design)
+    judged = sheet.results
     out = []
     n_have = len(meta["captures"]) + len(taken)
     for j, (name, res) in enumerate(zip(meta["captures"], judged)):
@@ -434,7 +435,7 @@ def _follow_advice(
             continue
         out.append(_capture_closer(folder, meta, name, bid, dist))
     if n_have + len(out) < max_captures:
-        both = _capture_on_both(folder, meta, results, design, taken)
+        both = _capture_on_both(folder, meta, sheet, taken)
         if both:
             out.append(both)
     return out
@@ -445,15 +446,13 @@ def _follow_advice(
 BOTH = re.compile(r"captures not placed on each other \(([^)]*)\) may show the same spacings")
 
 
-def _capture_on_both(folder: Path, meta: dict, results: list, design, taken=()) -> str | None:
-    """The capture a lot's reason asks for ("a capture placed on both settles it"): for the first
-    pair it names of captures first taken, one half-way between them (the mean of their targets
-    and heights, the first's tilt and heading), as a person would stand to see both. Returns its
-    name, or None where no lot asks for one."""
-    import rebarlib as R
-
-    acc = R.evaluate(results, design)
-    for why in acc.items["reason"].astype(str):
+def _capture_on_both(folder: Path, meta: dict, sheet, taken=()) -> str | None:
+    """The capture a lot's reason on the slab's sheet (``sheet``, :func:`rebarlib.evaluate`'s)
+    asks for ("a capture placed on both settles it"): for the first pair it names of captures
+    first taken, one half-way between them (the mean of their targets and heights, the first's
+    tilt and heading), as a person would stand to see both. Returns its name, or None where no lot
+    asks for one."""
+    for why in sheet.items["reason"].astype(str):
         m = BOTH.search(why)
         if not m:
             continue

@@ -211,8 +211,9 @@ def _aim_point(r: dict, height_mm: float) -> np.ndarray | None:
 
 
 def _aim_of(r_aimed: dict, r_asking: dict, s_aimed: dict, s_asking: dict, spacing: dict) -> tuple | None:
-    """``(key, segment, target bar id or None, why)`` of the aim record of ``r_aimed`` at a bar of
-    ``r_asking``; None where ``r_aimed`` holds no record naming ``r_asking``."""
+    """``(key, segment, target bar id or None, why, aim point or None)`` of the aim record of
+    ``r_aimed`` at a bar of ``r_asking`` (key and segment None where that bar is not placed in
+    plan); None where ``r_aimed`` holds no record naming ``r_asking``."""
     aim = (r_aimed.get("extras") or {}).get("aimed_at") or {}
     if not aim or str(aim.get("capture")) != str(r_asking.get("capture")):
         return None
@@ -222,14 +223,16 @@ def _aim_of(r_aimed: dict, r_asking: dict, s_aimed: dict, s_asking: dict, spacin
     e = None if rec is None else _ends(rec)
     key = None if rec is None else (rec.get("layer"), rec.get("level"))
     if e is None or plane is None or key not in s_asking or bid not in s_asking[key].bar_ids:
-        return None, None, None, f"bar {bid} of capture {r_asking.get('capture')} is not a bar placed in plan there"
+        why = f"bar {bid} of capture {r_asking.get('capture')} is not a bar placed in plan there"
+        return None, None, None, why, None
     seg = s_asking[key].segs[s_asking[key].bar_ids.index(bid)]
     st = s_aimed.get(key)
     xy = _aim_point(r_aimed, float(to_slab_frame(e, plane)[:, 2].mean()))
     if st is None or xy is None or not len(st.mids):
-        return key, seg, None, f"capture {r_aimed.get('capture')} shows no {key[0]} {key[1]} bar at its aim"
+        return key, seg, None, f"capture {r_aimed.get('capture')} shows no {key[0]} {key[1]} bar at its aim", None
     d, n = st.direction, _perp(st.direction)
-    dist = np.sort([abs(_offset_at(o, float(xy @ d), d, n) - float(xy @ n)) for o in st.segs])
+    off = np.array([abs(_offset_at(o, float(xy @ d), d, n) - float(xy @ n)) for o in st.segs])
+    dist = np.sort(off)
     sp = spacing.get(key, min(spacing.values()))
     err = AIM_ERROR_SPACINGS * sp
     if dist[0] > err:
@@ -241,6 +244,7 @@ def _aim_of(r_aimed: dict, r_asking: dict, s_aimed: dict, s_asking: dict, spacin
                 f"its nearest {key[0]} {key[1]} bar lies {dist[0]:.0f} mm from its aim point, more than a hand's aim "
                 f"error ({err:.0f} mm, a quarter of the {sp:.0f} mm spacing)"
             ),
+            None,
         )
     if len(dist) > 1 and dist[1] - dist[0] < sp - 2 * err:
         return (
@@ -251,9 +255,9 @@ def _aim_of(r_aimed: dict, r_asking: dict, s_aimed: dict, s_asking: dict, spacin
                 f"two of its {key[0]} {key[1]} bars lie {dist[0]:.0f} and {dist[1]:.0f} mm from its aim point: which "
                 f"one it was aimed at is ambiguous (needs {sp - 2 * err:.0f} mm between them)"
             ),
+            None,
         )
-    k = int(np.argmin([abs(_offset_at(o, float(xy @ d), d, n) - float(xy @ n)) for o in st.segs]))
-    return key, seg, st.bar_ids[k], "", xy
+    return key, seg, st.bar_ids[int(np.argmin(off))], "", xy
 
 
 def _along(h, aim: _Aim, sa: dict, sb: dict) -> float:
@@ -388,8 +392,7 @@ def _pair_aim(results: list, sets: list, i: int, j: int, spacing: dict) -> tuple
             return None, f"Capture {names[x]}'s aim is not used: {got[3]}."
         bid = ((results[x].get("extras") or {}).get("aimed_at") or {}).get("bar_id")
         text = f"capture {names[x]} was aimed at bar {bid} of capture {names[y]}"
-        xy = got[4] if len(got) > 4 else None
-        return _Aim(side, got[0], got[1], got[2], got[3], text, xy, spacing), ""
+        return _Aim(side, *got[:4], text, got[4], spacing), ""
     return None, ""
 
 
@@ -420,8 +423,7 @@ def _register(
         return None, "the bars seen in both captures do not run in two directions"
     # the part of the mesh each capture saw, per lattice (a lower bar shows at another place in
     # the image than an upper bar right above it)
-    hull_a = {la: _hull({k: v for k, v in sa.items() if k[0] == la}) for la in {k[0] for k in sa}}
-    hull_b = {la: _hull({k: v for k, v in sb.items() if k[0] == la}) for la in {k[0] for k in sb}}
+    hull_a, hull_b = _layer_hulls(sa), _layer_hulls(sb)
     sw = [_irregularity([sa[k] for k in ks] + [sb[k] for k in ks]) for _, ks in groups]
     hyps = []  # _Placing
     for theta in (theta0, theta0 + math.pi):
@@ -554,6 +556,12 @@ def _two_directions(sb: dict, keys: list) -> list | None:
         else:
             groups.append((d, [k]))
     return groups if len(groups) == 2 else None
+
+
+def _layer_hulls(sets: dict) -> dict:
+    """``{layer: hull}`` of a capture's plan sets: the part of the mesh it saw, per lattice (a
+    lower bar shows at another place in the image than an upper bar right above it)."""
+    return {la: _hull({k: v for k, v in sets.items() if k[0] == la}) for la in {k[0] for k in sets}}
 
 
 def _hull(sets: dict) -> np.ndarray:
@@ -840,8 +848,7 @@ def _fits_pair(sa: dict, sb: dict, R: np.ndarray, t: np.ndarray, gate: float) ->
         cos = abs(float(da @ sb[k].direction)) / (np.linalg.norm(da) * np.linalg.norm(sb[k].direction))
         if math.degrees(math.acos(min(1.0, cos))) > MAX_ANGLE_SPREAD_DEG:
             return None, f"it turns their {k[0]} {k[1]} bars apart"
-    hull_a = {la: _hull({k: v for k, v in sa.items() if k[0] == la}) for la in {k[0] for k in sa}}
-    hull_b = {la: _hull({k: v for k, v in sb.items() if k[0] == la}) for la in {k[0] for k in sb}}
+    hull_a, hull_b = _layer_hulls(sa), _layer_hulls(sb)
     fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate)
     if fit is None:
         return None, "it puts a bar of one in the other's view where that shows no bar"

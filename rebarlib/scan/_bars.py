@@ -322,10 +322,8 @@ def _cover_between(t_free, crossings, half: float, t0: float, t1: float, cell_mm
     if len(t_free) == 0:
         return 0.0
     ts = np.sort(t_free)
-    j = np.clip(np.searchsorted(ts, grid), 1, len(ts) - 1) if len(ts) > 1 else np.zeros(len(grid), int)
-    d = np.abs(grid - ts[j])
-    if len(ts) > 1:
-        d = np.minimum(d, np.abs(grid - ts[j - 1]))
+    j = np.searchsorted(ts, grid)  # the nearest return is the one after or the one before
+    d = np.minimum(np.abs(grid - ts[np.minimum(j, len(ts) - 1)]), np.abs(grid - ts[np.maximum(j - 1, 0)]))
     return float((free & (d <= 0.5 * cell_mm)).sum() / free.sum())
 
 
