@@ -45,10 +45,20 @@ already taken is not taken again), is taken too, up to 6 captures a slab, and th
 third time; all three judgements are printed (docs/decisions/041). A cached follow-up capture whose camera stood
 elsewhere is rendered again.
 
+``--as-guided`` takes the same number of captures a slab as first taken, but as docs/capturing.md
+says ("cover each area of the slab twice, the second capture moved diagonally to the bars"): the
+first capture of each area as before (``C0``, ``C1``: the first still aimed at the defect), the
+second (``G<j>_<height>``) with the camera moved diagonally to the bars, towards the slab's middle,
+by √2 times the guide's step across them, ``(r_u + r_l)·H / Δh`` (the design's largest upper and
+lower radii, the camera's height above the lower bars' axes, the design's layer distance); height,
+tilt, heading, sensor and light kept. With n captures first taken: ``C0, G0`` (n = 2),
+``C0, G0, C1`` (3), ``C0, G0, C1, G1`` (4). Judged once, no follow-up (docs/decisions/046).
+
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
     python benchmarks/bench_verdicts.py --start 60 --slabs 40 --jobs 2 --cache /tmp/verdicts_held_out
     python benchmarks/bench_verdicts.py --slabs 60 --cache /tmp/verdicts --rejudge --follow-advice --second-round
+    python benchmarks/bench_verdicts.py --slabs 60 --jobs 1 --cache /tmp/verdicts --rejudge --as-guided
 """
 
 from __future__ import annotations
@@ -262,19 +272,25 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
 MAX_CAPTURES = (4, 6)
 
 
-def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False, rounds: int = 1) -> dict:
+def _inspect_slab(
+    folder: str, rejudge: bool = False, follow: bool = False, rounds: int = 1, guided: bool = False
+) -> dict:
     """Inspect and judge one slab's captures; with ``follow``, when a capture says where to take
     another one (a bar position hidden under a bar, a bar a capture from closer would size), take
     it as told and judge again (the first judgement is kept under ``first_pass``). With ``rounds``
     2, what the captures first taken still ask for once those captures are judged with them is
     taken too, up to ``MAX_CAPTURES[1]`` a slab (the judgement after the first round is kept under
-    ``round_1``)."""
+    ``round_1``). With ``guided``, the captures as docs/capturing.md says instead of those first
+    taken (:func:`_guided`), judged once."""
     import rebarlib as R
 
     folder = Path(folder)
     meta = json.loads((folder / "slab.json").read_text())
     design = R.load_design(folder / "design.toml")
     t = time.perf_counter()
+    if guided:
+        meta = {**meta, "captures": _guided(folder, meta, design)}
+        follow = False
     results = [_result(folder, c, design, rejudge) for c in meta["captures"]]
     rec = {**meta, **_judge(results, design)}
     keys = ("verdict", "failed", "incomplete", "reasons")
@@ -292,12 +308,49 @@ def _inspect_slab(folder: str, rejudge: bool = False, follow: bool = False, roun
             rec["closer"] = [_closer_outcome(folder, c) for c in taken if c.startswith("Z")]
     rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
     rec["seconds"] = round(time.perf_counter() - t, 2)
-    (folder / _verdict_file(follow, rounds)).write_text(json.dumps(rec, indent=1), encoding="utf-8")
+    (folder / _verdict_file(follow, rounds, guided)).write_text(json.dumps(rec, indent=1), encoding="utf-8")
     return rec
 
 
-def _verdict_file(follow: bool, rounds: int) -> str:
+def _verdict_file(follow: bool, rounds: int, guided: bool = False) -> str:
+    if guided:
+        return "verdict_guided.json"
     return ("verdict_follow2.json" if rounds > 1 else "verdict_follow.json") if follow else "verdict.json"
+
+
+def _guided(folder: Path, meta: dict, design) -> list:
+    """The slab's captures as docs/capturing.md says, as many as first taken (see the module's
+    docstring, ``--as-guided``): each area's first capture as first taken, its second moved
+    diagonally to the bars towards the slab's middle by √2 times the guide's step. Renders those
+    not in the cache; returns their names."""
+    _, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+    yaw = math.radians(scene.deviations.mesh_yaw_deg)
+    ex = np.array([math.cos(yaw), math.sin(yaw)])
+    ey = np.array([-math.sin(yaw), math.cos(yaw)])
+    pts = np.vstack([b.axis[[0, -1], :2] for b in scene.bars])
+    middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    r_u = 0.5 * max(design.upper.bottom.diameter_mm, design.upper.top.diameter_mm)
+    r_l = 0.5 * max(design.lower.bottom.diameter_mm, design.lower.top.diameter_mm)
+    out = []
+    for j in range((len(specs) + 1) // 2):
+        spec = specs[j]
+        out.append(meta["captures"][j])
+        if len(out) == len(specs):
+            break
+        target = np.array(spec["target"])
+        diag = max((sx * ex + sy * ey for sx in (1, -1) for sy in (1, -1)), key=lambda v: v @ (middle - target))
+        step = (r_u + r_l) * (spec["h"] - design.cover_mm - r_l) / design.layer_distance_mm
+        new = dict(
+            spec,
+            name=f"G{j}_{int(spec['h'])}",
+            target=tuple(map(float, target + step * diag)),  # |diag| = √2
+            seed=[2026, meta["slab"], 7, j],
+        )
+        if not _rendered_as(folder / new["name"], new):
+            _render_one(scene, new, folder)
+            (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
+        out.append(new["name"])
+    return out
 
 
 def _closer_outcome(folder: Path, name: str) -> dict:
@@ -603,22 +656,31 @@ def main(argv=None) -> int:
         f"captures of the first round (up to {MAX_CAPTURES[1]} captures a slab, not {MAX_CAPTURES[0]}), and judge "
         "again; prints all three matrices",
     )
+    ap.add_argument(
+        "--as-guided",
+        action="store_true",
+        help="as many captures a slab as first taken, but each area twice, the second moved diagonally as "
+        "docs/capturing.md says; judged once (not with --follow-advice)",
+    )
     args = ap.parse_args(argv)
+    if args.as_guided and args.follow_advice:
+        ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
     rounds = 2 if args.second_round else 1
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     ks = list(range(args.start, args.start + args.slabs))
     t0 = time.perf_counter()
-    name = _verdict_file(args.follow_advice, rounds)
+    name = _verdict_file(args.follow_advice, rounds, args.as_guided)
     if args.report_only:
         recs = [json.loads(f.read_text()) for f in sorted(cache.glob(f"slab_*/{name}"))]
     elif args.rejudge:
         folders = [str(f.parent) for f in sorted(cache.glob("slab_*/slab.json"))]
         with ProcessPoolExecutor(args.jobs) as ex:
-            recs = list(ex.map(_rejudge, [(f, args.follow_advice, rounds) for f in folders]))
+            recs = list(ex.map(_rejudge, [(f, args.follow_advice, rounds, args.as_guided) for f in folders]))
     else:
         with ProcessPoolExecutor(args.jobs) as ex:
-            recs = list(ex.map(_render_and_judge, [(k, str(cache), args.follow_advice, rounds) for k in ks]))
+            jobs = [(k, str(cache), args.follow_advice, rounds, args.as_guided) for k in ks]
+            recs = list(ex.map(_render_and_judge, jobs))
     print(
         f"{len(recs)} slabs, {sum(len(r['captures']) + len(r.get('followups', [])) for r in recs)} captures "
         f"({time.perf_counter() - t0:.0f} s with {args.jobs} processes; inspect + judge "
@@ -652,13 +714,13 @@ def main(argv=None) -> int:
 
 
 def _render_and_judge(args) -> dict:
-    k, cache, follow, rounds = args
-    return _inspect_slab(_render_slab((k, cache)), follow=follow, rounds=rounds)
+    k, cache, follow, rounds, guided = args
+    return _inspect_slab(_render_slab((k, cache)), follow=follow, rounds=rounds, guided=guided)
 
 
 def _rejudge(args) -> dict:
-    folder, follow, rounds = args
-    return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds)
+    folder, follow, rounds, guided = args
+    return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds, guided=guided)
 
 
 def report(recs: list) -> None:

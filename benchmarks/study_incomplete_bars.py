@@ -18,6 +18,16 @@ and the pairs an aim left unplaced, with why (docs/decisions/043), and the placi
 third capture placed on both, as ``resolve_across`` makes them (docs/decisions/044).
 
     python benchmarks/study_incomplete_bars.py --cache /tmp/verdicts --verdicts verdict_follow2.json --placings
+
+``--evidence`` asks, from the renders' truth, what the captures of each such slab show that the
+judgement does not use (docs/decisions/046): for each pair of captures, whether it is placed (or
+why not) and which rendered bars both show, with how far apart along each bar their seen stretches
+lie (negative: a gap); for each position left not measured, the rendered bar there, how many of
+its pixels its own capture shows (the strip beside the bar above it, and the share of it with
+depth), and what every other capture shows of it; for each bar left unsized, every other reading
+of the same rendered bar and how far along it lies.
+
+    python benchmarks/study_incomplete_bars.py --cache /tmp/verdicts --verdicts verdict.json --evidence
 """
 
 from __future__ import annotations
@@ -86,6 +96,119 @@ def study(folder: Path, name: str = "verdict_follow.json") -> list:
             same = [b for b in r["bars"] if _truth_id(folder / c, b) == tid]
             for b in same:
                 lines.append(f"    - also {_bar_line(folder, c, b)[0]}")
+            if not same:
+                lines.append(f"    - {c}: not found there")
+    return lines
+
+
+def _world(cam: dict, p) -> np.ndarray:
+    return np.array(cam["rotation_world_to_camera"]).T @ np.asarray(p, float) + np.array(cam["centre_world_mm"])
+
+
+def _stretch(cam: dict, tb: dict, origin: np.ndarray, d: np.ndarray) -> tuple:
+    """The rendered bar's seen stretch along its world direction ``d`` from ``origin`` (mm)."""
+    return tuple(sorted(float((_world(cam, tb[k]) - origin) @ d) for k in ("visible_start_mm", "visible_end_mm")))
+
+
+def _shared(ta: dict, tb: dict) -> list:
+    """``[(id, layer/level, overlap mm)]``: rendered bars both captures show; the overlap of their
+    seen stretches along the bar (negative: the gap between them)."""
+    out = []
+    for ba in ta["bars"]:
+        bb = next((x for x in tb["bars"] if x["id"] == ba["id"]), None)
+        if bb is None or not (ba["visible"] and bb["visible"]):
+            continue
+        o = _world(ta["camera"], ba["axis_start_mm"])
+        d = _world(ta["camera"], ba["axis_end_mm"]) - o
+        d /= np.linalg.norm(d)
+        (a0, a1), (b0, b1) = _stretch(ta["camera"], ba, o, d), _stretch(tb["camera"], bb, o, d)
+        out.append((ba["id"], f"{ba['layer']} {ba['level']}", min(a1, b1) - max(a0, b0)))
+    return out
+
+
+def _strip(folder: Path, tid: int) -> tuple:
+    """``(pixels, pixels per mm of the bar's seen length, share with depth)`` the render shows of bar ``tid``."""
+    import cv2
+
+    ids = cv2.imread(str(folder / "bar_ids.png"), cv2.IMREAD_UNCHANGED).astype(int) - 1
+    depth = cv2.imread(str(folder / "depth.png"), cv2.IMREAD_UNCHANGED)
+    m = ids == tid
+    tb = next(b for b in json.loads((folder / "truth.json").read_text())["bars"] if b["id"] == tid)
+    n = int(m.sum())
+    return n, n / max(tb["visible_length_mm"], 1e-9), float((depth[m] > 0).mean()) if n else 0.0
+
+
+def evidence(folder: Path, name: str = "verdict.json") -> list:
+    """What the renders' truth says each capture of the slab shows of the positions and bars its
+    judgement left not measured (docs/decisions/046)."""
+    import rebarlib as R
+    from rebarlib._across import register
+
+    try:
+        from bench_placing import _gate, _pose_error
+        from study_ambiguous_closer import _truth_id
+    except ModuleNotFoundError:
+        from benchmarks.bench_placing import _gate, _pose_error
+        from benchmarks.study_ambiguous_closer import _truth_id
+
+    rec = json.loads((folder / name).read_text())
+    caps = list(rec["captures"]) + list(rec.get("followups", []))
+    res = {c: json.loads((folder / f"result_{c}.json").read_text()) for c in caps}
+    tru = {c: json.loads((folder / c / "truth.json").read_text()) for c in caps}
+    design = R.load_design(folder / "design.toml")
+    lines = [f"slab {rec['slab']:03d}: {rec['verdict']} ({', '.join(caps)}); incomplete {rec['incomplete']}"]
+    for i, a in enumerate(caps):
+        for b in caps[i + 1 :]:
+            reg, why = register(res[a], res[b], _gate(design))
+            err = _pose_error(res[a], res[b], tru[a]["camera"], tru[b]["camera"])(reg) if reg else None
+            how = f"placed, {err:.1f} mm off the truth" if reg else f"not placed: {why}"
+            sh = _shared(tru[a], tru[b])
+            both = ", ".join(f"{t} ({k}) {o:+.0f}" for t, k, o in sh) or "none"
+            lines.append(f"  {a} / {b}: {how}; rendered bars both show, overlap along (mm): {both}")
+    acc = R.evaluate(list(res.values()), design)
+    cp = acc.checkpoints
+    rows = cp[(cp["status"] == "not measured") & cp["item"].str.match("bar_(size|count)")]
+    for _, row in rows.iterrows():
+        cap = str(row["capture"])
+        if str(row["item"]).startswith("bar_count"):
+            for p in res[cap]["positions"]:
+                if p["status"] != "not measured" or f"bar_count_{p['layer']}_{p['level']}" != row["item"]:
+                    continue
+                mid = np.mean([[p[f"{e}_{k}_mm"] for k in "xyz"] for e in ("start", "end")], axis=0)
+
+                def dist(tb, mid=mid):
+                    a0, a1 = np.array(tb["axis_start_mm"]), np.array(tb["axis_end_mm"])
+                    u = (a1 - a0) / np.linalg.norm(a1 - a0)
+                    return float(np.linalg.norm((mid - a0) - ((mid - a0) @ u) * u))
+
+                row_bars = [tb for tb in tru[cap]["bars"] if (tb["layer"], tb["level"]) == (p["layer"], p["level"])]
+                tb = min(row_bars, key=dist)
+                n, w, dep = _strip(folder / cap, tb["id"])
+                lines.append(
+                    f"  - {cap} position {p['layer']} {p['level']} at {p['offset_mm']:.0f} mm "
+                    f"({str(p['reason'])[:60]}…): rendered bar {tb['id']} ({dist(tb):.0f} mm off), "
+                    f"here {tb['visible_length_mm']:.0f} mm seen, {n} px ({w:.1f} px per mm), {dep:.0%} with depth"
+                )
+                for c in caps:
+                    if c == cap:
+                        continue
+                    ob = next(x for x in tru[c]["bars"] if x["id"] == tb["id"])
+                    ov = next((o for t, _, o in _shared(tru[cap], tru[c]) if t == tb["id"]), None)
+                    along = "" if ov is None else f", overlap along {ov:+.0f} mm"
+                    lines.append(f"    - {c}: {ob['visible_length_mm']:.0f} mm seen, {ob['visible_pixels']} px{along}")
+            continue
+        bid = int(str(row["what"]).split()[-1])
+        bar = next(b for b in res[cap]["bars"] if int(b["bar_id"]) == bid)
+        text, tid = _bar_line(folder, cap, bar)
+        lines.append(f"  - {text}")
+        for c in caps:
+            if c == cap or tid is None:
+                continue
+            ov = next((o for t, _, o in _shared(tru[cap], tru[c]) if t == tid), None)
+            along = "" if ov is None else f" (overlap along {ov:+.0f} mm)"
+            same = [b for b in res[c]["bars"] if _truth_id(folder / c, b) == tid]
+            for b in same:
+                lines.append(f"    - also{along} {_bar_line(folder, c, b)[0]}")
             if not same:
                 lines.append(f"    - {c}: not found there")
     return lines
@@ -164,6 +287,7 @@ def main(argv=None) -> int:
         help="the slabs' judged verdicts to read (verdict_follow2.json: after a second round)",
     )
     ap.add_argument("--placings", action="store_true", help="check every placing against the renders' poses")
+    ap.add_argument("--evidence", action="store_true", help="what the captures show that the judgement does not use")
     args = ap.parse_args(argv)
     if args.placings:
         print(placings(Path(args.cache), args.verdicts))
@@ -174,7 +298,7 @@ def main(argv=None) -> int:
             continue
         rec = json.loads(f.read_text())
         if rec["defect"] is None and not rec.get("truth_failed") and rec["verdict"] == "incomplete":
-            print("\n".join(study(sd, args.verdicts)), flush=True)
+            print("\n".join((evidence if args.evidence else study)(sd, args.verdicts)), flush=True)
     return 0
 
 
