@@ -1784,6 +1784,31 @@ def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expec
     assert _colour_ribs(results, keys, DiameterParams(), system=system) is expected, why
 
 
+@pytest.mark.parametrize(
+    "bars, system, expected, why",
+    [
+        ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "GB1499.2", True, "each size's widths at its spacing"),
+        ([(12.0, 7.99), (12.0, 8.02), (14.0, 9.01)], "GB1499.2", True, "three bars of two sizes (a relief capture)"),
+        ([(12.0, 8.1)] * 4 + [(12.0, 9.0)] + [(14.0, 9.05)] * 3, "GB1499.2", True, "one bar of the next size up"),
+        # what an edge-fattening depth camera's fused mask gave smooth bars: a common "pitch" per
+        # size off the table (Φ14 11.3-12.9 mm, Φ12 10.1-10.7 mm against 9 and 8 mm)
+        ([(14.0, 12.91), (14.0, 11.79), (14.0, 11.27), (12.0, 10.67), (12.0, 10.05)], "GB1499.2", False, "off"),
+        ([(10.0, 8.23)] * 5, "GB1499.2", False, "a common period off the table (Φ10's is 7 mm)"),
+        ([(12.0, 10.0)] * 5, "ASTM-A615", True, "no spacing per size to check against"),
+    ],
+)
+def test_mask_widths_resolve_ribs_only_at_the_tables_spacings(bars, system, expected, why):
+    # Periodic mask widths are taken for resolved ribs (each bar then read from its crests, a
+    # size up from its median) only where their clear pitches follow the standard's spacings
+    # (decision 047): the clear pitches here are read over 500 mm at p = 1e-4.
+    from rebarlib.diameter.params import DiameterParams
+    from rebarlib.diameter.pitch import _mask_ribs_follow_table
+
+    results = [BarReading(rib_pitch_mm=pitch, rib_p=1e-4, rib_length_mm=500.0) for _, pitch in bars]
+    keys = [size for size, _ in bars]
+    assert _mask_ribs_follow_table(results, keys, DiameterParams(), system=system) is expected, why
+
+
 @pytest.fixture(scope="module")
 def relief_pitch_scene():
     """A scene drawn with ribs in relief where some bars' widths leave them between two sizes
@@ -2074,3 +2099,55 @@ def test_a_bar_seen_from_one_edge_along_most_of_its_length_under_nearer_bars_is_
     few[:30] = True
     row = _bar_row(bar, replace(reading, occluded=few), None, False, "veto", False, prm, **kw)
     assert row["diameter_status"] == "not measured" and not row["hidden"]
+
+
+@pytest.mark.slow
+def test_an_edge_fattening_camera_does_not_make_smooth_bars_look_ribbed(monkeypatch):
+    """A slab of the verdict benchmark (slab 15's third capture) seen by a depth camera whose
+    matcher fattens every depth edge by up to 3 px: the fused mask's patches gave five of its
+    smooth bars clear common "pitches" off the standard's spacings, the capture was taken to
+    resolve ribs, and every bar read from its crests a size up (8 bars sized Φ16/Φ14 for Φ14/Φ12
+    at confidence 0.98-1.0). Ribs are resolved only at the table's spacings (decision 047)."""
+    import rebarlib.diameter.measure as dm
+    from rebarlib import inspect
+    from rebarlib.synth import CameraPose, make_scene, render_capture
+
+    design = design_from_dict(
+        {
+            "slab": {"id": "V-015"},
+            "design": {
+                "cover_mm": 20,
+                "layer_distance_mm": 85,
+                "lower": {"diameter_mm": 14, "spacing_mm": 200},
+                "upper": {"diameter_mm": 12, "spacing_mm": 200},
+            },
+        }
+    )
+    dev = Deviations(
+        position_sigma_mm=1.5,
+        position_uniform_mm=4.0,
+        mesh_yaw_deg=39.370340883713666,
+        slab_size_mm=1650.699877005205,
+        end_overhang_mm=49.55613093305649,
+        missing_at_end=1,
+    )
+    scene = make_scene(design, dev, rng=np.random.default_rng([2026, 15, 1]))
+    pose = CameraPose.looking_down(
+        556.1382065414166, tilt_deg=3.3094364716917912, yaw_deg=35.25119930212844, target_mm=(470.488, -135.359)
+    )
+    fattened = SensorModel(edge_fatten_px=3, edge_fatten_prob=0.6, edge_hole_prob=0.2, bars_without_depth=1)
+    rust = Appearance(rust_fraction=0.3)
+    cap = render_capture(scene, pose, sensor=fattened, appearance=rust, rng=np.random.default_rng([2026, 15, 2, 2]))
+    # every bar of the scene is of its design size: a bar sized otherwise is sized wrong
+    assert {(b["layer"], b["diameter_mm"]) for b in cap.truth["bars"]} == {("lower", 14.0), ("upper", 12.0)}
+
+    def wrong(res):
+        b = res.bars[res.bars.diameter_status == "measured"]
+        return int((b.nominal_mm != b.design_diameter_mm).sum())
+
+    res = inspect(cap, design, rng=0)
+    assert not res.bars.ribs_resolved.any() and wrong(res) == 0
+    assert (res.bars.diameter_status == "measured").sum() >= 8
+    # the capture is one that needs the rule: without it, bars are sized a size up
+    monkeypatch.setattr(dm, "_mask_ribs_follow_table", lambda *a, **k: True)
+    assert wrong(inspect(cap, design, rng=0)) >= 4

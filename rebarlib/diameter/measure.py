@@ -25,7 +25,7 @@ from .closer import closer_advice
 from .decision import _check_core, _matches_design, _off_centre, _refined_decision
 from .paper import _attribute_pixels, _paper_bar, _paper_vote
 from .params import DIAMETER_COLUMNS, HIDDEN, MEASURED, NOT_MEASURED, DiameterParams
-from .pitch import _colour_ribs, _pitch_settle, _pitch_veto
+from .pitch import _colour_ribs, _mask_ribs_follow_table, _pitch_settle, _pitch_veto
 from .plane import boundary_pixels
 from .ribs import _face_pitch, _ribs_in_view
 from .sections import _refined_bar
@@ -345,6 +345,9 @@ def _capture_ribs(results, prepared, prm, *, method, system, deformed, colour_ed
         else 1.0
     )
     ribs = ribs_p < prm.rib_capture_p
+    if ribs:
+        # periodic widths are ribs only at the standard's spacings (decision 047)
+        ribs = _mask_ribs_follow_table(results, sizes, prm, system=system)
     if method == "refined" and deformed and not ribs and colour_edges:
         # a mask that smooths the ribs away: the colour image may still show them. Where a bar's
         # point cloud would be fused with its mask width (axes found without an assumed radius),

@@ -113,6 +113,45 @@ def _colour_ribs(results, keys, prm, *, system) -> bool:
     return fit is not None and fit[2] >= prm.min_confidence
 
 
+def _mask_ribs_follow_table(results, keys, prm, *, system) -> bool:
+    """Whether the rib pitches a capture's mask widths show clearly lie at the size table's
+    spacings: True for a system that sets no spacing per size.
+
+    Periodic mask widths alone (:func:`_ribs_in_view`) are not enough: a depth camera that
+    fattens its edges widens the fused mask in patches, and on smooth bars those patches gave
+    3-5 bars of a capture a common clear "pitch" (Φ14 bars at 11.3-12.9 mm, Φ12 at 10.1-10.7 mm,
+    against the table's 9.0 and 8.0 mm); read from its crests, every bar of the capture was then
+    a size up, and the widths calibrated on them agreed (docs/decisions/047). Ribs repeat at
+    their standard's spacing; a sensor's or a mask's texture does not. A clear pitch agrees where
+    the table's spacing nearest to it is its design size's or a neighbour's (a bar of another
+    size than designed has its own), and in each design size with two or more clear pitches the
+    spacing nearest to the most of them is its own (as in :func:`_pitch_table`: a common period
+    of parallel bars near a neighbour's spacing does not pass); the capture's pitches follow the
+    table where (agreeing + 1) / (clear + 2) reaches ``prm.min_confidence``. Unlike
+    :func:`_pitch_table`, a size with one clear pitch counts: a capture whose ribs show on
+    three bars of two sizes, each within 0.3 % of its spacing, passes."""
+    sysm = bar_system(system)
+    if not sysm.rib_pitch_mm:
+        return True
+    table = np.array(sysm.rib_pitch_mm, float)
+    nearest = defaultdict(list)  # design size -> the table's spacing nearest each clear pitch
+    n_clear = 0
+    for i, r in enumerate(results):
+        if _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm) is None:
+            continue
+        n_clear += 1
+        if math.isfinite(keys[i]):
+            nearest[keys[i]].append(float(table[np.abs(table - r.rib_pitch_mm).argmin()]))
+    agree = 0
+    for key, spacings in nearest.items():
+        counts = Counter(spacings)
+        if len(spacings) >= 2 and counts[rib_pitch_mm(key, system=system)] < max(counts.values()):
+            return False
+        allowed = {rib_pitch_mm(sz, system=system) for sz in sysm.neighbours(key)}
+        agree += sum(x in allowed for x in spacings)
+    return (agree + 1) / (n_clear + 2) >= prm.min_confidence
+
+
 def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> None:
     """Bars left between two sizes, sized by their rib pitch where the standard sets one per size.
 
