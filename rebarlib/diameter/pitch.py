@@ -210,6 +210,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     if fit is None or fit[2] < prm.min_confidence:
         return
     scale, spread, conf = fit
+    reads = {}  # bar index -> (its pitch read, where), for the bars left between two sizes
     for i, row in enumerate(rows):
         pair = row.get("_pair")
         if row["diameter_status"] != NOT_MEASURED or pair is None:
@@ -219,9 +220,20 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
         read, where = (clear[i], "") if i in clear else (_edge_pitch(results[i], prm), " (along both edges)")
         if read is None:
             read, where = face_read(i), " (in the shading along its face)"
-        if read is None:
-            continue
-        _size_by_pitch(row, read, where, results[i], shadows[i], scale, spread, conf, prm, system=system)
+        if read is not None:
+            reads[i] = (read, where)
+    # the pitches read along edges and faces size bars only where they too follow the table with
+    # the capture's: a renderer's or a mill's own spacing on a whole design group (a Φ12 group's
+    # faces all at 9.7 mm, nearest Φ16's 10 mm) is no GB 1499.2 rib pitch, and read against the
+    # table it names a wrong size (decision 047)
+    extra = {i: read for i, (read, _) in reads.items() if i not in clear}
+    if extra and face is not None:
+        every = {**clear, **{i: c for i, c in faces.items() if c is not None and i not in clear}, **extra}
+        again = _pitch_table(every, keys, prm, system=system, sizes_of=sizes_of)
+        if again is None or again[2] < prm.min_confidence:
+            reads = {i: r for i, r in reads.items() if i in clear}
+    for i, (read, where) in reads.items():
+        _size_by_pitch(rows[i], read, where, results[i], shadows[i], scale, spread, conf, prm, system=system)
 
 
 def _size_by_pitch(row, read, where, reading, in_shadow, scale, spread, conf, prm, *, system) -> None:
