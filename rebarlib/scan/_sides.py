@@ -86,6 +86,7 @@ def seen_sides_centre(
     along=None,
     passes: int = 3,
     around=None,
+    sigma_fixed: bool = False,
 ):
     """Axis (across, height) of a bar from its cross-section points, as the centre of a mixture of
     streaks seen from a grid of directions above it.
@@ -116,13 +117,17 @@ def seen_sides_centre(
         where this bar is); again where the axis moved by more than a tenth of the radius
     around : (directions in radians, their weights) of a fit before: the grid is refined about
         them and the fit starts from their weights (set by the passes)
+    sigma_fixed : hold the range noise at ``sigma0_mm`` instead of fitting it: on a bar seen from
+        one side the noise and the axis's place along the rays trade against each other, and the
+        caller holds the noise at its set's, measured on the set's bars (decision 045)
 
     Returns
     -------
     (centre, sigma, weights) : the axis (across, height) in mm (with ``along``: (across, height,
     across slope, height slope), the values at ``along`` = 0 and their change per unit of it), the
-    range noise along the rays, the weight of each direction of the grid; None where the fit fails
-    (too few points for the bar, a singular step, or an axis outside the band)
+    range noise along the rays (fitted, or ``sigma0_mm`` held), the weight of each direction of the
+    grid; None where the fit fails (too few points for the bar, a singular step, or an axis outside
+    the band)
     """
     a = np.asarray(a, float)
     h = np.asarray(h, float)
@@ -257,7 +262,8 @@ def seen_sides_centre(
             - 2 * k_u * (su * mom[3] + cu * mom[4])
             + k_u * k_u * rj
         )
-        sig = math.sqrt(max(float(tt.sum() - rj @ var_uu_arc) / tot, 0.09))
+        if not sigma_fixed:
+            sig = math.sqrt(max(float(tt.sum() - rj @ var_uu_arc) / tot, 0.09))
         done = float(np.max(np.abs(c_new - c))) < 0.01
         c = c_new
         if done:
@@ -285,6 +291,7 @@ def seen_sides_centre(
             along=s,  # the points sorted along above, with ``a`` and ``h``
             passes=passes - 1,
             around=(phi, weights),  # the directions left holding points, and their weights
+            sigma_fixed=sigma_fixed,
         )
         if again is not None:
             return again
