@@ -64,6 +64,7 @@ tilt, heading, sensor and light kept. With n captures first taken: ``C0, G0`` (n
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import re
@@ -73,6 +74,12 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+#: How the captures are rendered (``--camera``, ``--sensor``, ``--photo``, ``--ribs``): the defaults, or
+#: another camera, depth sensor, a photograph's softening and JPEG, ribs in relief (benchmarks/_cameras.py)
+#: — the verdicts judged on captures unlike those their rules were built on. Kept in each slab.json.
+RENDER = {"camera": "gemini2", "sensor": "default", "photo": False, "ribs": "envelope"}
+RENDER_DEFAULT = dict(RENDER)
 
 DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
 #: the acceptance item a defect must fail
@@ -127,6 +134,8 @@ def _slab_plan(k: int, folder: Path):
         missing_at_end=1 if defect == "missing_end" else 0,
         wrong_size=1 if defect == "wrong_size" else 0,
     )
+    if RENDER["ribs"] == "relief":
+        dev = dataclasses.replace(dev, rib_relief=True)
     scene = S.make_scene(render, dev, rng=np.random.default_rng([2026, k, 1]))
     gap = None
     if defect == "spacing":
@@ -159,12 +168,18 @@ def _render_one(scene, spec: dict, folder: Path) -> str:
     import rebarlib as R
     from rebarlib import synth as S
 
+    from _cameras import CAMERAS, SENSORS
+
     pose = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"], target_mm=spec["target"])
+    app = S.Appearance(rust_fraction=spec["rust"])
+    if RENDER["photo"]:
+        app = dataclasses.replace(app, pixel_samples=3, blur_px=0.8, jpeg_quality=90)
     cap = S.render_capture(
         scene,
         pose,
-        sensor=S.SensorModel(bars_without_depth=spec["shadow"]),
-        appearance=S.Appearance(rust_fraction=spec["rust"]),
+        intrinsics=CAMERAS[RENDER["camera"]],
+        sensor=dataclasses.replace(SENSORS[RENDER["sensor"]], bars_without_depth=spec["shadow"]),
+        appearance=app,
         rng=np.random.default_rng(spec["seed"]),
         name=spec["name"],
     )
@@ -177,12 +192,16 @@ def _render_slab(args) -> str:
     k, cache = args
     folder = Path(cache) / f"slab_{k:03d}"
     if (folder / "slab.json").exists():
+        made = json.loads((folder / "slab.json").read_text()).get("render", RENDER_DEFAULT)
+        if made != RENDER:
+            raise SystemExit(f"{folder}: rendered as {made}, not as asked ({RENDER}): use another --cache")
         return str(folder)
     _, scene, defect, edge_view, specs = _slab_plan(k, folder)
     caps = [_render_one(scene, spec, folder) for spec in specs]
     meta = {
         "slab": k,
         "defect": defect,
+        "render": RENDER,
         "captures": caps,
         "edge_view": edge_view,
         "shadows": sum(spec["shadow"] for spec in specs),
@@ -662,7 +681,18 @@ def main(argv=None) -> int:
         help="as many captures a slab as first taken, but each area twice, the second moved diagonally as "
         "docs/capturing.md says; judged once (not with --follow-advice)",
     )
+    ap.add_argument("--camera", default="gemini2", help="camera the captures are rendered with (_cameras.CAMERAS)")
+    ap.add_argument("--sensor", default="default", help="depth-sensor model they are rendered with (_cameras.SENSORS)")
+    ap.add_argument(
+        "--photo", action="store_true", help="colour images anti-aliased, softened (0.8 px) and JPEG'd (quality 90)"
+    )
+    ap.add_argument("--ribs", choices=("envelope", "relief"), default="envelope", help="bars' ribs drawn or in relief")
     args = ap.parse_args(argv)
+    from _cameras import CAMERAS, SENSORS
+
+    if args.camera not in CAMERAS or args.sensor not in SENSORS:
+        ap.error(f"--camera: one of {sorted(CAMERAS)}; --sensor: one of {sorted(SENSORS)}")
+    RENDER.update(camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs)
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
     rounds = 2 if args.second_round else 1
