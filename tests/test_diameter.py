@@ -1836,6 +1836,8 @@ def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expec
     [
         ([(12.0, 8.0)] * 5 + [(14.0, 9.0)] * 3, "GB1499.2", True, "each size's widths at its spacing"),
         ([(12.0, 7.99), (12.0, 8.02), (14.0, 9.01)], "GB1499.2", True, "three bars of two sizes (a relief capture)"),
+        # a relief capture at 600 mm: six pitches on the table, one stray read far from its size's
+        ([(14.0, 9.02)] * 3 + [(12.0, 8.02)] * 3 + [(12.0, 15.32)], "GB1499.2", True, "a stray read not held"),
         ([(12.0, 8.1)] * 4 + [(12.0, 9.0)] + [(14.0, 9.05)] * 3, "GB1499.2", True, "one bar of the next size up"),
         # what an edge-fattening depth camera's fused mask gave smooth bars: a common "pitch" per
         # size off the table (Φ14 11.3-12.9 mm, Φ12 10.1-10.7 mm against 9 and 8 mm)

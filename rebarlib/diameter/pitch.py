@@ -129,19 +129,27 @@ def _mask_ribs_follow_table(results, keys, prm, *, system) -> bool:
     of parallel bars near a neighbour's spacing does not pass); the capture's pitches follow the
     table where (agreeing + 1) / (clear + 2) reaches ``prm.min_confidence``. Unlike
     :func:`_pitch_table`, a size with one clear pitch counts: a capture whose ribs show on
-    three bars of two sizes, each within 0.3 % of its spacing, passes."""
+    three bars of two sizes, each within 0.3 % of its spacing, passes. Only the pitches that agree
+    with their size's median (as :func:`_ribs_in_view` counts them) are read against the table."""
     sysm = bar_system(system)
     if not sysm.rib_pitch_mm:
         return True
     table = np.array(sysm.rib_pitch_mm, float)
-    nearest = defaultdict(list)  # design size -> the table's spacing nearest each clear pitch
-    n_clear = 0
+    clear = defaultdict(list)  # design size -> its bars' clear pitches
     for i, r in enumerate(results):
-        if _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm) is None:
-            continue
-        n_clear += 1
-        if math.isfinite(keys[i]):
-            nearest[keys[i]].append(float(table[np.abs(table - r.rib_pitch_mm).argmin()]))
+        if math.isfinite(keys[i]) and _clear_pitch(r.rib_pitch_mm, r.rib_p, r.rib_length_mm, prm) is not None:
+            clear[keys[i]].append(float(r.rib_pitch_mm))
+    # the pitches that made the capture ribbed: those within prm.rib_pitch_tol of their size's
+    # median clear pitch (:func:`_ribs_in_view`); a stray read of one bar (15.3 mm among Φ12s
+    # at 8.02) is no rib spacing of the capture's, and not held against it
+    nearest = defaultdict(list)  # design size -> the table's spacing nearest each of those
+    n_clear = 0
+    for key, v in clear.items():
+        med = float(np.median(v))
+        for q in v:
+            if abs(q / med - 1) <= prm.rib_pitch_tol:
+                n_clear += 1
+                nearest[key].append(float(table[np.abs(table - q).argmin()]))
     agree = 0
     for key, spacings in nearest.items():
         counts = Counter(spacings)
