@@ -25,7 +25,6 @@ from ._masks import (  # noqa: F401 (the mask's names are reached through this m
     REGISTRATION_MIN_PX,
     REGISTRATION_WARN_PX,
     _mask,
-    predict_ahead,
     rebar_mask,
     registered_mask,
     trim_edge_fattening,
@@ -281,10 +280,6 @@ def inspect(
     mask_cache = {}  # the colour model's mask, computed once if the counts need it
     from ._refined import inspect_refined  # the refined steps (they use this module's helpers)
 
-    # the diameters' network needs only the colour image: it runs beside the geometry
-    ahead = None
-    if diameters and mask is None and mask_source in (None, "fused", "model"):
-        ahead = predict_ahead(capture, tiled=True, bar_width_px=widest_bar_px(capture, design))
     res = inspect_refined(_trimmed(capture, trim), design, rng, mask_cache)
     if diameters:
         first = res
@@ -308,7 +303,6 @@ def inspect(
             register=register,
             rng=rng,
             refit=refit if edge_trim_px is None else None,
-            ahead=ahead,
         )
     if trim:
         res.extras["edge_trim_px"] = trim
@@ -364,22 +358,11 @@ def _trimmed(capture: Capture, px: int) -> Capture:
 
 
 def _add_diameters(
-    res: InspectionResult,
-    capture: Capture,
-    design: Design,
-    *,
-    method,
-    mask,
-    mask_source,
-    register,
-    rng,
-    refit=None,
-    ahead=None,
+    res: InspectionResult, capture: Capture, design: Design, *, method, mask, mask_source, register, rng, refit=None
 ) -> InspectionResult:
     """``res`` with the diameter columns; ``refit(px)``: ``res`` fitted again on the depth
     trimmed by ``px`` (:func:`trim_edge_fattening`), called where the mask step measures an
-    over-reach of the depth's bars beyond the colour's; ``ahead``: a future of the model's
-    probability for the refined mask, started before the geometry (:func:`predict_ahead`)."""
+    over-reach of the depth's bars beyond the colour's."""
     from .diameter import measure_diameters
 
     t = time.perf_counter()
@@ -403,7 +386,6 @@ def _add_diameters(
             tiled=refined,
             bar_width_px=widest_bar_px(capture, design) if refined else None,
             register=register,
-            proba=ahead.result() if ahead is not None and refined else None,
         )
     else:
         mask = np.asarray(mask)

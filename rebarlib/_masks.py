@@ -161,10 +161,7 @@ def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.nd
     return out
 
 
-def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register, proba=None):
-    """The mask step; ``proba``: the model's probability of ``capture.color`` for these
-    ``tiled``/``bar_width_px``, when it was computed already (``inspect`` runs the network
-    beside the geometry: :func:`predict_ahead`)."""
+def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):
     from .segmentation import (
         depth_overreach_px,
         estimate_registration,
@@ -181,8 +178,7 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
         depth = mask_from_depth(capture, plane=plane, rng=rng)
         return (depth.astype(np.float32) if soft else depth), capture, None
     model = model or _default_model()
-    if proba is None:
-        proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
+    proba = model.predict_proba(capture.color, tiled=tiled, bar_width_px=bar_width_px)
     depth = mask_from_depth(capture, plane=plane, rng=rng) if (register or source == "fused") else None
     valid = capture.depth_mm > 0
     colour = proba > model.threshold
@@ -214,28 +210,6 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
         fused = fuse_masks(colour, depth, color_proba=proba, depth_valid=valid, overreach_px=0)
         mask = soft_mask(fused, proba, threshold=model.threshold) if soft else fused
     return mask, capture, registration
-
-
-def predict_ahead(capture: Capture, *, tiled: bool, bar_width_px):
-    """Start the shipped model on ``capture.color`` in a thread of its own and return a
-    ``concurrent.futures.Future`` of its probability (what :func:`_mask` computes first), or
-    None where it would not save time: in a batch's worker (:data:`MODEL_THREADS` 1, one core
-    per worker, nothing idle to overlap with).
-
-    The network needs only the colour image, the geometry only the depth image: run side by
-    side, the geometry's single-threaded steps use the core the network's runs leave idle. The
-    probability is the same array to the bit as when computed after the geometry (the same
-    session, input and tiles; docs/decisions/027: speed only with the same numbers)."""
-    if MODEL_THREADS is not None:
-        return None
-    from concurrent.futures import ThreadPoolExecutor
-
-    model = _default_model()
-    pool = ThreadPoolExecutor(1, thread_name_prefix="rebarlib-ahead")
-    try:
-        return pool.submit(model.predict_proba, capture.color, tiled=tiled, bar_width_px=bar_width_px)
-    finally:
-        pool.shutdown(wait=False)
 
 
 def widest_bar_px(capture: Capture, design: Design) -> float:

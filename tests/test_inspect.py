@@ -749,26 +749,3 @@ def test_edge_fattening_is_left_out_before_the_bars_are_fitted(paper_design):
     plain = inspect(plain, paper_design, rng=0)
     assert "edge_trim_px" not in plain.extras
     assert plain.extras["registration"]["depth_overreach_px"] == 0
-
-
-def test_the_network_run_beside_the_geometry_gives_the_result_run_after_it(monkeypatch):
-    # inspect() starts the diameters' network on the colour image before the geometry
-    # (predict_ahead); its probability and so every table must be the ones computed after it
-    import rebarlib._inspect as I
-
-    cap, design = load_capture(example_capture("paper_slab", "B_500")), paper_design()
-    started = []
-    real = I.predict_ahead
-
-    def spy(*a, **k):
-        fut = real(*a, **k)
-        started.append(fut is not None)
-        return fut
-
-    monkeypatch.setattr(I, "predict_ahead", spy)
-    beside = inspect(cap, design).to_dict()
-    monkeypatch.setattr(I, "predict_ahead", lambda *a, **k: None)
-    after = inspect(cap, design).to_dict()
-    assert started == [True]
-    beside.pop("timings_s"), after.pop("timings_s")
-    assert json.dumps(beside, sort_keys=True, default=str) == json.dumps(after, sort_keys=True, default=str)
