@@ -36,13 +36,13 @@ PAPER_RIGHT_OR_NEXT = 0.8
 K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)  # a simple camera for hand computations
 
 
-def _design(lower_mm, upper_mm, spacing_mm=200):
+def _design(lower_mm, upper_mm, spacing_mm=200, layer_distance_mm=None):
     return design_from_dict(
         {
             "slab": {"id": "T"},
             "design": {
                 "cover_mm": 20,
-                "layer_distance_mm": 30 + lower_mm + upper_mm,
+                "layer_distance_mm": layer_distance_mm or 30 + lower_mm + upper_mm,
                 "lower": {"diameter_mm": lower_mm, "spacing_mm": spacing_mm},
                 "upper": {"diameter_mm": upper_mm, "spacing_mm": spacing_mm},
             },
@@ -2161,17 +2161,7 @@ def test_an_edge_fattening_camera_does_not_make_smooth_bars_look_ribbed(monkeypa
     from rebarlib import inspect
     from rebarlib.synth import CameraPose, make_scene, render_capture
 
-    design = design_from_dict(
-        {
-            "slab": {"id": "V-015"},
-            "design": {
-                "cover_mm": 20,
-                "layer_distance_mm": 85,
-                "lower": {"diameter_mm": 14, "spacing_mm": 200},
-                "upper": {"diameter_mm": 12, "spacing_mm": 200},
-            },
-        }
-    )
+    design = _design(14, 12, layer_distance_mm=85)  # verdict slab 015's
     dev = Deviations(
         position_sigma_mm=1.5,
         position_uniform_mm=4.0,
