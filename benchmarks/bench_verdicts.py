@@ -168,7 +168,7 @@ def _render_one(scene, spec: dict, folder: Path) -> str:
     import rebarlib as R
     from rebarlib import synth as S
 
-    from _cameras import CAMERAS, SENSORS
+    from _cameras import CAMERAS, SENSORS  # (the script's folder is on sys.path: benchmarks/__init__.py)
 
     pose = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"], target_mm=spec["target"])
     app = S.Appearance(rust_fraction=spec["rust"])
@@ -646,6 +646,8 @@ def _rendered_as(folder: Path, spec: dict) -> bool:
 
 
 def main(argv=None) -> int:
+    from _cameras import CAMERAS, SENSORS
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--slabs", type=int, default=60)
     ap.add_argument("--jobs", type=int, default=2)
@@ -681,17 +683,13 @@ def main(argv=None) -> int:
         help="as many captures a slab as first taken, but each area twice, the second moved diagonally as "
         "docs/capturing.md says; judged once (not with --follow-advice)",
     )
-    ap.add_argument("--camera", default="gemini2", help="camera the captures are rendered with (_cameras.CAMERAS)")
-    ap.add_argument("--sensor", default="default", help="depth-sensor model they are rendered with (_cameras.SENSORS)")
+    ap.add_argument("--camera", default="gemini2", choices=sorted(CAMERAS), help="camera they are rendered with")
+    ap.add_argument("--sensor", default="default", choices=sorted(SENSORS), help="depth sensor they are rendered with")
     ap.add_argument(
         "--photo", action="store_true", help="colour images anti-aliased, softened (0.8 px) and JPEG'd (quality 90)"
     )
     ap.add_argument("--ribs", choices=("envelope", "relief"), default="envelope", help="bars' ribs drawn or in relief")
     args = ap.parse_args(argv)
-    from _cameras import CAMERAS, SENSORS
-
-    if args.camera not in CAMERAS or args.sensor not in SENSORS:
-        ap.error(f"--camera: one of {sorted(CAMERAS)}; --sensor: one of {sorted(SENSORS)}")
     RENDER.update(camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs)
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")

@@ -44,9 +44,8 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
     own = []  # (bar, its size's spacing) for the pitches nearest to their own size's spacing
     for k, v in groups.items():
         lk = rib_pitch_mm(k, system=system)
-        nearest = [float(table[np.abs(table - clear[i][0]).argmin()]) for i in v]
-        counts = Counter(nearest)
-        if counts[lk] < max(counts.values()):
+        nearest, leads = _nearest_spacings(table, [clear[i][0] for i in v], lk)
+        if not leads:
             return None
         own += [(i, lk) for i, x in zip(v, nearest) if x == lk]
     if len(own) < prm.rib_min_bars:
@@ -66,6 +65,14 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
         for i in members
     )
     return scale, spread, (agree + 1) / (len(members) + 2)
+
+
+def _nearest_spacings(table, pitches, own: float) -> tuple:
+    """``(nearest, leads)``: the table's spacing nearest each pitch, and whether ``own`` (the
+    pitches' design size's spacing) is nearest to the most of them (ties count for it)."""
+    nearest = [float(table[np.abs(table - p).argmin()]) for p in pitches]
+    counts = Counter(nearest)
+    return nearest, counts[own] >= max(counts.values())
 
 
 def _pitch_band(spread, resolution, prm) -> float:
@@ -142,21 +149,16 @@ def _mask_ribs_follow_table(results, keys, prm, *, system) -> bool:
     # the pitches that made the capture ribbed: those within prm.rib_pitch_tol of their size's
     # median clear pitch (:func:`_ribs_in_view`); a stray read of one bar (15.3 mm among Φ12s
     # at 8.02) is no rib spacing of the capture's, and not held against it
-    nearest = defaultdict(list)  # design size -> the table's spacing nearest each of those
-    n_clear = 0
+    agree = n_clear = 0
     for key, v in clear.items():
         med = float(np.median(v))
-        for q in v:
-            if abs(q / med - 1) <= prm.rib_pitch_tol:
-                n_clear += 1
-                nearest[key].append(float(table[np.abs(table - q).argmin()]))
-    agree = 0
-    for key, spacings in nearest.items():
-        counts = Counter(spacings)
-        if len(spacings) >= 2 and counts[rib_pitch_mm(key, system=system)] < max(counts.values()):
+        kept = [q for q in v if abs(q / med - 1) <= prm.rib_pitch_tol]
+        spacings, leads = _nearest_spacings(table, kept, rib_pitch_mm(key, system=system))
+        if len(spacings) >= 2 and not leads:
             return False
         allowed = {rib_pitch_mm(sz, system=system) for sz in sysm.neighbours(key)}
         agree += sum(x in allowed for x in spacings)
+        n_clear += len(spacings)
     return (agree + 1) / (n_clear + 2) >= prm.min_confidence
 
 
@@ -235,7 +237,7 @@ def _pitch_settle(rows, results, keys, shadows, prm, *, system, face=None) -> No
     # faces all at 9.7 mm, nearest Φ16's 10 mm) is no GB 1499.2 rib pitch, and read against the
     # table it names a wrong size (decision 047)
     extra = {i: read for i, (read, _) in reads.items() if i not in clear}
-    if extra and face is not None:
+    if extra:
         every = {**clear, **{i: c for i, c in faces.items() if c is not None and i not in clear}, **extra}
         again = _pitch_table(every, keys, prm, system=system, sizes_of=sizes_of)
         if again is None or again[2] < prm.min_confidence:
