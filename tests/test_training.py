@@ -154,3 +154,25 @@ def test_thick_cables_and_hair_mark_no_rebar_and_change_no_other_draw(dr):
         assert not np.any(mask_c & ~mask)
         changed += not np.array_equal(rgb, rgb_c)
     assert changed == 4
+
+
+def test_a_background_out_of_focus_changes_the_picture_not_the_mask(dr):
+    # --dof draws from its own stream: dof=0 is the scene as before; with dof=1 a scene whose
+    # bars stand in front of a room (indoor=1) has its background blurred and its mask unchanged
+    changed = 0
+    for i in range(4):
+        rgb, mask = dr.scene(i, size=160, hard=True, indoor=1.0)
+        np.testing.assert_array_equal(dr.scene(i, size=160, hard=True, indoor=1.0, dof=0.0)[0], rgb)
+        rgb_d, mask_d = dr.scene(i, size=160, hard=True, indoor=1.0, dof=1.0)
+        np.testing.assert_array_equal(mask_d, mask)
+        changed += not np.array_equal(rgb, rgb_d)
+    assert changed == 4
+
+
+def test_defocus_takes_the_detail_out_of_a_texture(dr):
+    rng = np.random.default_rng(3)
+    img = dr.texture(rng, 160, 160, "gravel").astype(np.float32)
+    out = dr._defocus(img, np.random.default_rng(5))
+    assert out.shape == img.shape and out.dtype == np.float32
+    detail = [np.abs(cv2.Laplacian(x.mean(axis=2), cv2.CV_32F)).mean() for x in (img, out)]
+    assert detail[1] < 0.5 * detail[0]

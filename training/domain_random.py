@@ -974,14 +974,32 @@ def _curves(img, cover, rng, light, tile, over):
         _thick_cable(img, cover, rng, light, tile)
 
 
-def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0):
+def _defocus(img, rng):
+    """Everything drawn so far (what lies behind the bars) out of focus: a photo of a cage or of
+    starter bars taken from close, focused on the bars, shows the room, the people and the ground
+    behind them as soft blobs, the bars sharp in front. A disc-like blur (a Gaussian of 1.5-10 px
+    at 640 px, a fifth of the frame at most), sometimes stronger towards the top (further away)."""
+    size = img.shape[0]
+    sigma = float(rng.uniform(1.5, 10.0)) * size / FULL
+    far = cv2.GaussianBlur(img, (0, 0), sigma)
+    if rng.random() < 0.4:  # a floor or a table in focus at the bottom, the blur growing upwards
+        near = cv2.GaussianBlur(img, (0, 0), max(0.5, sigma * 0.2))
+        y0 = rng.uniform(0.4, 1.0) * size
+        w = np.clip((y0 - np.arange(size, dtype=np.float32)) / (0.3 * size) + 0.0, 0, 1)[:, None, None]
+        return (near * (1 - w) + far * w).astype(np.float32)
+    return far.astype(np.float32)
+
+
+def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, dof=0.0):
     """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
 
     ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
     their own (``default_rng([seed, index, 1])``), so every other draw of the scene stays as
     it was without them. ``indoor``: the probability of a room behind the bars (:func:`_indoor`),
     drawn from a stream of its own too (``default_rng([seed, index, 2])``). ``curves``: the
-    probability of thick cables and long hair (:func:`_curves`), stream ``[seed, index, 3]``."""
+    probability of thick cables and long hair (:func:`_curves`), stream ``[seed, index, 3]``.
+    ``dof``: the probability that a cage, starter bars or a room behind the bars is out of focus
+    (:func:`_defocus`), stream ``[seed, index, 4]``."""
     rng = np.random.default_rng([int(seed), int(index)])
     rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
     rng_curves = np.random.default_rng([int(seed), int(index), 3])
@@ -1005,7 +1023,8 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0):
     img = img * light["colour"]
     add_clutter(img, None, rng, light, tile, int(rng.integers(0, 6)), over=False)
     rng_room = np.random.default_rng([int(seed), int(index), 2])
-    if indoor > 0 and rng_room.random() < indoor:
+    room = indoor > 0 and rng_room.random() < indoor
+    if room:
         _indoor(img, rng_room, light, tile)
     if rng_hard is not None:
         _hard_negatives(img, None, rng_hard, light, tile, over=False)
@@ -1013,6 +1032,9 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0):
         _curves(img, None, rng_curves, light, tile, over=False)
     if light["mode"] == "sun" and behind == "ground":
         _cast_bar_shadows(img, bars, rng, light)
+    rng_dof = np.random.default_rng([int(seed), int(index), 4])
+    if dof > 0 and (kind in ("cage", "starters") or room) and rng_dof.random() < dof:
+        img = _defocus(img, rng_dof)
     cover = np.zeros((size, size), np.float32)
     style = bar_style(rng)
     for p0, p1, w0, w1, _ in sorted(bars, key=lambda b: b[4]):
@@ -1032,14 +1054,16 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0):
 # the data step
 
 
-def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0) -> bool:
+def write_sample(
+    index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0, dof=0.0
+) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
     were already there (nothing written: the data step resumes)."""
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves)
+    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -1051,9 +1075,9 @@ def write_sample(index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=
 
 
 def _write_job(job):
-    index, folder, seed, size, hard, indoor, curves = job
+    index, folder, seed, size, hard, indoor, curves, dof = job
     cv2.setNumThreads(1)
-    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor, curves=curves)
+    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof)
 
 
 def main(argv=None):
@@ -1068,12 +1092,21 @@ def main(argv=None):
     ap.add_argument(
         "--curves", type=float, default=0.0, help="probability of thick cables and long dark hair (0: none)"
     )
+    ap.add_argument(
+        "--dof",
+        type=float,
+        default=0.0,
+        help="probability that what lies behind a cage, starter bars or a room is out of focus (0: never)",
+    )
     ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
-    jobs = [(i, folder, args.seed, args.size, args.hard, args.indoor, args.curves) for i in range(args.first, args.n)]
+    jobs = [
+        (i, folder, args.seed, args.size, args.hard, args.indoor, args.curves, args.dof)
+        for i in range(args.first, args.n)
+    ]
     if args.jobs > 1:
         from multiprocessing import Pool
 
@@ -1085,7 +1118,7 @@ def main(argv=None):
     else:
         for i, *_ in jobs:
             made += write_sample(
-                i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor, curves=args.curves
+                i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor, curves=args.curves, dof=args.dof
             )
             if i % 100 == 0:
                 print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
