@@ -14,7 +14,7 @@ from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis, _longest_run
 from .bar_checks import _drop_overlaps, _off_their_level, _rms_outliers, _seen_in_parts, _sparse_bars
 from .directions import _bar_candidates, bar_directions, direction_sharpness
-from .fit import _facing_fit, _fit_bar, _refit_along_rays, _rms_on
+from .fit import _facing_fit, _fit_bar, _place_along_rays, _refit_along_rays, _rms_on
 from .params import GeometryParams
 from .partial import _approximate_axes
 
@@ -233,10 +233,12 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
         par = _fit_bar(t, s_b, h_b, r, parallel=True)
         if _rms_on(par, fit, t, s_b, h_b, r) <= lim.prm.skew_gain * fit[2]:
             fit = par
+    apart = None
     if lim.camera is not None:
         fit, facing = _facing_fit(fit, t, s_b, h_b, r, lim.camera, c, n2)
         if facing:  # depth noise lies along the lines of sight: take its bias out
             fit = _refit_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2)
+            apart = _apart_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2, lim.prm)
     (a0, a1, b0, b1), w, rms, se = fit
     keep = w > 0
     # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
@@ -260,6 +262,8 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
                 "them: a flank seen alone, its axis cannot be placed"
             ),
         )
+    elif apart is not None:
+        status, reason = NOT_MEASURED, apart
     return BarAxis(
         lim.layer,
         d,
@@ -278,6 +282,40 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
         reason=reason,
         arc_deg=arc,
         axis_se_mm=float(max(se)),
+    )
+
+
+def _apart_along_rays(fit, t, s, h, r, camera, c, d, n2, prm: GeometryParams) -> str | None:
+    """Why the circle fit's axis cannot be stated (docs/decisions/048), or None: where the axis
+    placed from the points' ranges along their lines of sight (:func:`_place_along_rays`, free
+    of the depth noise's bias) lies higher or lower than the circle fit's by more than twice
+    their combined standard uncertainty, the circle fit's taken as the uncertainty budget states
+    a bar's height (:data:`~rebarlib.uncertainty.BAR_FIT_SHARE_OF_RMS` times its residual RMS,
+    and :data:`~rebarlib.uncertainty.LEVEL_FIT_COMMON_MM`), the placing's from its profile.
+    Checked only where the depth noise along the lines of sight reaches
+    ``prm.ray_check_noise_share`` of the radius (below it the circle fit's first-order noise
+    correction holds on any arc of 90° or more). Under depth noise of half the bar's radius a
+    section cut by a bar above (a parallel bar of the other lattice hides half of it) lets the
+    circle slide along the arc seen: lifted by up to 6 mm, its stated uncertainty a tenth of
+    that."""
+    from ..uncertainty import BAR_FIT_SHARE_OF_RMS, LEVEL_FIT_COMMON_MM
+
+    placed = _place_along_rays(fit, t, s, h, r, camera, c, d, n2)
+    if placed is None or placed[4] < prm.ray_check_noise_share * r:
+        return None
+    (a0, a1, b0, b1), _, rms, _ = fit
+    if not np.isfinite(rms):
+        return None
+    tm = float(np.mean(t))
+    dh = placed[1] - (b0 + b1 * tm)
+    u_fit = math.hypot(BAR_FIT_SHARE_OF_RMS * rms, LEVEL_FIT_COMMON_MM)
+    lim = 2.0 * math.hypot(u_fit, placed[3])
+    if abs(dh) <= lim:
+        return None
+    return (
+        f"its circle fit and its points' ranges along the lines of sight place its axis {abs(dh):.1f} mm apart in "
+        f"height, more than their uncertainty allows ({lim:.1f} mm): under this depth noise ({rms:.1f} mm "
+        "residual) the section seen does not fix it"
     )
 
 

@@ -210,3 +210,83 @@ def _refit_along_rays(fit, t, s, h, r, camera, c, d, n2):
     return _fit_bar(
         t, s, h, r, start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1), parallel=a1 == 0.0, ray=(vs / norm, vh / norm)
     )
+
+
+#: Candidate offsets across the line of sight tried by :func:`_place_along_rays`.
+_ALONG_GRID = 81
+
+
+def _place_along_rays(fit, t, s, h, r, camera, c, d, n2):
+    """The axis placed from the points' ranges along their lines of sight, where a stereo
+    camera's depth noise lies (docs/decisions/048): ``(offset, height, u_offset, u_height,
+    noise)`` at the points' mean ``t`` (``s`` offsets across less ``c``, as :func:`_fit_bar`
+    takes them), with the standard uncertainties of that placing and the depth noise's robust
+    SD along the lines of sight (mm); None where it cannot be made.
+
+    In the bar's cross-section every line of sight passes through the camera's projection, and
+    depth noise moves a point along its own line only: its direction from the camera is exact
+    (up to the pixel's jitter), its range is noisy. A circle of radius ``r`` centred at range
+    ``l0`` in direction ``θ0`` is met by the line at angle ``θ`` at the range
+    ``l0 cos(θ − θ0) − √(r² − l0² sin²(θ − θ0))`` (the near side); the residual is the
+    point's range less that, additive in the noise, so no noise bias needs taking out (the
+    circle fit's distances to the axis read long by ``σ² b² / 2ρ``, which
+    :func:`_noise_bias` removes only to first order in σ/ρ). For each of
+    :data:`_ALONG_GRID` positions of the axis across the lines of sight, between those that
+    leave the points' span (2nd to 98th percentile) inside the circle's silhouette, the range
+    ``l0`` is the robust mean that zeroes the residuals; the position with the least clipped
+    sum of squares (at three robust SDs) is kept. Each ``u``: the spread of the positions'
+    offsets or heights within four noise variances of that least sum (a 2 SD interval, read as
+    ±2u) with the range's own standard error ``σ/√n`` in quadrature. The drift along the bar is ``fit``'s."""
+    (a0, a1, b0, b1), w, _, _ = fit
+    keep = w > 0
+    if keep.sum() < 20:
+        return None
+    t, s, h = t[keep], s[keep], h[keep]
+    tm = float(np.mean(t))
+    cam = np.asarray(camera, float)
+    cs, ch = float(cam[:2] @ n2) - c, float(cam[2])
+    vs = s - a1 * (t - tm) - cs
+    vh = h - b1 * (t - tm) - ch
+    ell = np.hypot(vs, vh)
+    th = np.arctan2(vh, vs)
+    thc = float(np.arctan2(np.mean(vh), np.mean(vs)))
+    L = float(np.mean(ell))
+    x = L * np.tan(np.angle(np.exp(1j * (th - thc))))
+    lo, hi = np.percentile(x, [2, 98])
+    x_a, x_b = (hi - r, lo + r) if lo + r > hi - r else (0.5 * (lo + hi),) * 2
+
+    def ranged(x0, clip):
+        th0 = thc + math.atan(x0 / L)
+        dd = th - th0
+        sin_dd, cos_dd = np.sin(dd), np.cos(dd)
+
+        def res_at(l0):
+            m = l0 * sin_dd
+            return ell - (l0 * cos_dd - np.sqrt(np.clip(r * r - m * m, 0.0, None)))
+
+        l0 = L + r
+        l0 += _median(res_at(l0))
+        for _ in range(2):
+            res = res_at(l0)
+            k = np.abs(res) < clip
+            if k.sum() < 10:
+                break
+            l0 += float(np.mean(res[k]))
+        return l0, th0, res_at(l0)
+
+    l_mid, _, res_mid = ranged(0.5 * (x_a + x_b), math.inf)
+    noise = 1.4826 * _median(np.abs(res_mid - _median(res_mid)))
+    if not np.isfinite(noise) or noise <= 0:
+        return None
+    prof = []
+    for x0 in np.linspace(x_a, x_b, _ALONG_GRID):
+        l0, th0, res = ranged(x0, 3 * noise)
+        cost = float(np.sum(np.minimum(res**2, 9 * noise**2)))
+        prof.append((cs + l0 * math.cos(th0), ch + l0 * math.sin(th0), cost))
+    prof = np.array(prof)
+    best = int(np.argmin(prof[:, 2]))
+    near = prof[:, 2] - prof[best, 2] <= 4 * noise**2
+    se = noise / math.sqrt(len(t))
+    u_s = math.hypot(float(np.ptp(prof[near, 0])) / 4, se)
+    u_h = math.hypot(float(np.ptp(prof[near, 1])) / 4, se)
+    return float(prof[best, 0]), float(prof[best, 1]), u_s, u_h, float(noise)

@@ -44,6 +44,10 @@ class GeometryParams:
         cross-section do not place its axis
     sparse_density_share : nor where they cover under ``min_arc_deg`` and the bar holds under
         this share of the layer's typical points per mm
+    ray_check_noise_share : where the depth noise along the lines of sight reaches this share
+        of the bar's radius, a circle fit that the placing along the lines of sight contradicts
+        is "not measured" (docs/decisions/048: below it the circle fit's first-order noise
+        correction holds on any arc of 90° or more)
     """
 
     run_cell_mm: float = 5.0
@@ -61,3 +65,4 @@ class GeometryParams:
     level_tol_radii: float = 1.5
     arc_min_share: float = 2 / 3
     sparse_density_share: float = 0.25
+    ray_check_noise_share: float = 0.25
