@@ -61,7 +61,7 @@ def _mask_between_spread(results, prepared, prm) -> None:
         r.mask_between_mm = s_m
 
 
-def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> None:
+def _width_calibration(results, key, prm, *, system, deformed, groups=None, designs=None) -> None:
     """Calibrate an independent width of every bar of a capture (``key`` "circle": the point
     cloud's circle, :func:`_cloud_circle`; "stack": the bar's height above the bars it rests on,
     ``geometry.stack_heights``; "level": its top above the formwork, ``geometry.top_heights``, per
@@ -89,11 +89,22 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
     groups around their own offsets (k = n − groups degrees of freedom, at least
     ``prm.colour_offset_bars`` − 1); each bar's σ then also holds its group's offset's error,
     spread / √(bars it was learnt from). Without ``groups``, all bars are one group, learnt from
-    at least ``prm.colour_offset_bars`` bars, whose offset's error the spread's bound covers."""
+    at least ``prm.colour_offset_bars`` bars, whose offset's error the spread's bound covers.
+
+    A bar's offset is learnt from the other bars (leave one out): a width calibrated on the bar
+    it is then to confirm carries that bar's mask in its own offset and adds no evidence (two Φ14
+    bars whose masks read Φ16 made their level's only clear bars, and their tops, calibrated on
+    themselves, "confirmed" Φ16 at confidence 1.00). ``designs`` (one design size per bar, NaN
+    where none): where every bar an offset would be learnt from has a mask that reads another
+    size than its design, the offset rests on nothing but masks the design contradicts, and the
+    width is not used for that bar (a level whose clear bars all read off the design cannot
+    confirm them, nor settle another bar of it)."""
     per_group = groups is not None
     groups = list(groups) if per_group else [0] * len(results)
-    dev = defaultdict(list)
-    for r, g in zip(results, groups):
+    designs = [math.nan] * len(results) if designs is None else list(designs)
+    # per group: (bar index, width − envelope, whether its mask reads another size than its design)
+    cal = defaultdict(list)
+    for i, (r, g) in enumerate(zip(results, groups)):
         cw = getattr(r, f"{key}_width_mm")
         if len(r.widths) < prm.min_sections or not math.isfinite(cw) or not _two_sided(r):
             continue
@@ -104,11 +115,14 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
         env = observed_width_mm(nominal, system=system, deformed=deformed)
         lo, hi = size_half_gaps_mm(nominal, system=system, deformed=deformed)
         if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
-            dev[g].append(cw - env)
+            off_design = math.isfinite(designs[i]) and abs(nominal - designs[i]) > 1e-6
+            cal[g].append((i, cw - env, off_design))
+    min_bars = 2 if per_group else 1
     if per_group:
-        dev = {g: d for g, d in dev.items() if len(d) >= 2}
+        cal = {g: c for g, c in cal.items() if len(c) >= 2}
+    dev = {g: np.array([d for _, d, _ in c]) for g, c in cal.items()}
     off = {g: float(np.median(d)) for g, d in dev.items()}
-    res = np.concatenate([np.asarray(d) - off[g] for g, d in dev.items()]) if dev else np.zeros(0)
+    res = np.concatenate([d - off[g] for g, d in dev.items()]) if dev else np.zeros(0)
     k = len(res) - len(dev)  # degrees of freedom: one offset learnt per group
     s_c = math.nan
     if k >= prm.colour_offset_bars - 1:
@@ -117,13 +131,19 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None) -> N
         # Wilson-Hilferty approximation)
         chi2_10 = k * (1 - 2 / (9 * k) - 1.2816 * math.sqrt(2 / (9 * k))) ** 3
         s_c = float(np.sqrt(np.sum(np.square(res)) / chi2_10))
-    for r, g in zip(results, groups):
-        learnt = g in off and math.isfinite(s_c)
-        offset = off[g] if learnt else 0.0
+    for i, (r, g) in enumerate(zip(results, groups)):
+        # the bars this one's offset is learnt from: its group's, itself left out
+        others = [(d, o) for j, d, o in cal.get(g, ()) if j != i]
+        learnt = (
+            math.isfinite(s_c)
+            and len(others) >= min_bars
+            and not all(o for _, o in others)  # not only masks the design contradicts
+        )
+        offset = float(np.median([d for d, _ in others])) if learnt else 0.0
         setattr(r, f"{key}_offset_mm", offset)
         setattr(r, f"{key}_width_mm", getattr(r, f"{key}_width_mm") - offset)
         setattr(r, f"{key}_between_mm", s_c if learnt else math.nan)
-        s_g = s_c * math.sqrt(1 + 1 / len(dev[g])) if per_group and learnt else s_c
+        s_g = s_c * math.sqrt(1 + 1 / len(others)) if per_group and learnt else s_c
         setattr(r, f"{key}_sigma_mm", float(np.fmax(getattr(r, f"{key}_sigma_mm"), s_g)))
 
 

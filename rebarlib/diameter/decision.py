@@ -314,6 +314,7 @@ def _refined_decision(
             veto_only=veto_only,
             assumed_mm=assumed_mm,
             covered=covered,
+            sigma_word=_mask_sigma(med, spread, n, info, prm, mask_median, swept=False),
         )
         if done is not None:
             return done
@@ -352,10 +353,14 @@ def _refined_decision(
     return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
 
 
-def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
+def _mask_sigma(med, spread, n, info, prm, mask_median=None, *, swept=True) -> float:
     """The standard uncertainty of a bar's mask width ``med``: the sections' scatter, the mask's
     error per bar, its runs off the axis, the colour edges' disagreement, one-sided sections and
-    the rib crests' reach (see :func:`_refined_decision`)."""
+    the rib crests' reach (see :func:`_refined_decision`).
+
+    ``swept``: the edges' rounding to the pixel grid (``prm.quantisation_px``) is divided by
+    √(pixel phases the edges sweep along the bar), as rounding at many phases averages out.
+    False: it is not (see :func:`_mask_and_cloud`: a mask's word against the cloud's)."""
     px_mm, off = info.px_mm, abs(info.centre_mm)
     # the colour edges of a round bar sit inside its silhouette by an amount set by the light
     # (shading towards the limbs): that common offset of the capture is not the mask's error
@@ -366,7 +371,7 @@ def _mask_sigma(med, spread, n, info, prm, mask_median=None) -> float:
         cdiff = info.colour_weight * min(r, typical) + max(r - typical, 0.0)
     # A learnt mask's error is mostly a bias per bar, not noise that averages out over the
     # sections: part of the spread is kept as a systematic term.
-    quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.phase_sweep_px))
+    quant_px = prm.quantisation_px / math.sqrt(max(1.0, info.phase_sweep_px) if swept else 1.0)
     # the mask's error per bar: pixel rounding and the part of its spread that is a bias of the
     # whole bar, or what the capture's bars of one size show between them if that is more
     per_bar = max(math.hypot(quant_px * px_mm, prm.mask_spread_sys * spread), info.mask_between_mm)
@@ -428,11 +433,13 @@ def _off_bar_reason(info) -> str:
 
 
 def _mask_and_cloud(
-    out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system, deformed, veto_only, assumed_mm, covered
+    out, med, sigma_m, sigma_c, info, in_shadow, prm, *, system, deformed, veto_only, assumed_mm, covered, sigma_word
 ):
     """A sound mask width against a point-cloud width: ``(done, width, sigma, source)``, where
     ``done`` is the bar's finished row where they disagree (else None, and the width to snap:
-    their weighted mean, or in veto mode the mask's alone)."""
+    their weighted mean, or in veto mode the mask's alone). ``sigma_word``: the mask width's σ
+    with its edges' rounding to the pixel grid in full (:func:`_mask_sigma`, ``swept=False``),
+    which its word against the size the axis was placed with is weighed with."""
     dw = info.depth_width_mm
     # With an assumed axis radius the cloud width echoes it: a mask giving another size can
     # never be confirmed by the cloud, so in veto mode the mask must give the assumed size.
@@ -449,6 +456,20 @@ def _mask_and_cloud(
         )
         nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
     strict = veto_only and nom_c != nom_m
+    if strict:
+        # The mask gives another size than the axis was placed with, and the cloud echoes that
+        # radius: the two disagree, and the mask's word against it is weighed at the capture's
+        # pixel size. A slanted bar's edges sweep many pixel phases, which averages a binary
+        # edge's rounding out; a learnt mask placing both edges a fraction of a pixel off along
+        # the whole bar is not averaged, and the robust spread between the capture's bars
+        # (``mask_between_mm``) shows that bias for the typical bar, not for the one bar in
+        # its tail that now overturns a size. So here each edge's rounding counts in full
+        # (``prm.quantisation_px``, 0.41 px for the width): at 1.3-1.5 mm a pixel (a D435-like
+        # camera at 848 × 480, 550-650 mm) that is 0.55-0.6 mm, where Φ12 and Φ14 lie 2.3 mm
+        # (1.7 px) apart, and a Φ14 read a pixel narrow (14.8 mm, σ 0.47) had been "clearly"
+        # Φ12 at 0.87 and sized Φ12 at 0.97 with its top above its level's supports
+        sigma_m = sigma_word
+        nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)
     if strict or abs(med - dw) > prm.veto_k * math.hypot(sigma_m, sigma_c):
         out["diameter_reason"] = f"mask width {med:.1f} mm and point-cloud width {dw:.1f} mm disagree"
         if not veto_only:  # (veto mode has snapped both above)

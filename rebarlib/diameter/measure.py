@@ -376,12 +376,20 @@ def _calibrate(results, prepared, cloud_mode, prm, *, system, deformed) -> None:
         r.stack_width_mm = bar.stack_mm if cloud_mode[i] == "veto" else math.nan
         r.level_width_mm = bar.top_mm if cloud_mode[i] == "veto" else math.nan
         r.stack_sigma_mm = r.level_sigma_mm = 0.0
-    _width_calibration(results, "circle", prm, system=system, deformed=deformed)
-    _width_calibration(results, "stack", prm, system=system, deformed=deformed)
+    # each bar's width calibrated on the other bars, never on masks the design all contradicts
+    designs = [b.design_mm for b in prepared]
+    _width_calibration(results, "circle", prm, system=system, deformed=deformed, designs=designs)
+    _width_calibration(results, "stack", prm, system=system, deformed=deformed, designs=designs)
     # the bars of one level rest on the same supports: a bar's top above the formwork less the
     # supports' height, learnt from its level's bars that the mask sizes clearly
     _width_calibration(
-        results, "level", prm, system=system, deformed=deformed, groups=[(b.layer, b.level) for b in prepared]
+        results,
+        "level",
+        prm,
+        system=system,
+        deformed=deformed,
+        groups=[(b.layer, b.level) for b in prepared],
+        designs=designs,
     )
     for r in results:  # a bar's own top counts once: where it has a stack height, that is its top
         if math.isfinite(r.stack_width_mm) and math.isfinite(r.stack_between_mm):
