@@ -235,6 +235,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
             pitch_mm=pitch,
             camera=camera,
             rng=rng,
+            noise_mm=plane.noise_mm,
         )
         found = G.assign_levels(found)
         if radii["bottom"] != radii["top"]:
@@ -248,6 +249,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
                     pitch_mm=pitch,
                     camera=camera,
                     rng=rng,
+                    noise_mm=plane.noise_mm,
                 )
             )
         found = G.flag_border_cut(found, lat.q[sel], plane=plane, intrinsics=K)

@@ -32,6 +32,7 @@ class _Limits(NamedTuple):
     skew_check_deg: float
     camera: object
     prm: GeometryParams
+    noise_mm: float | None = None
 
 
 def find_bars(
@@ -51,6 +52,7 @@ def find_bars(
     skew_check_deg: float = 2.0,
     rng=None,
     params: GeometryParams | None = None,
+    noise_mm: float | None = None,
 ) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
@@ -90,6 +92,10 @@ def find_bars(
         there; without it, 2 points per cell. The sampled extent of a bar falls short of its
         visible length by about one pitch, so ``min_length_mm`` applies to extent + pitch.
     params : GeometryParams, the search's other tuning (default ``GeometryParams()``)
+    noise_mm : the capture's depth noise (σ, mm), as measured on its formwork plane. Where it
+        reaches ``params.ray_check_noise_share`` of a bar's radius, a bar whose circle fit the
+        placing along its lines of sight contradicts is "not measured" (docs/decisions/048).
+        None: each bar's own range residuals' robust SD is taken instead.
 
     Returns
     -------
@@ -116,7 +122,7 @@ def find_bars(
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
         ambiguous = cand[0].member & cand[1].member
-    lim = _Limits(layer, min_points, min_extent, min_inlier_fraction, skew_check_deg, camera, prm)
+    lim = _Limits(layer, min_points, min_extent, min_inlier_fraction, skew_check_deg, camera, prm, noise_mm)
     bars = []
     for dn in cand:
         for k, c in enumerate(dn.centres):
@@ -238,7 +244,7 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
         fit, facing = _facing_fit(fit, t, s_b, h_b, r, lim.camera, c, n2)
         if facing:  # depth noise lies along the lines of sight: take its bias out
             fit = _refit_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2)
-            apart = _apart_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2, lim.prm)
+            apart = _apart_along_rays(fit, t, s_b, h_b, r, lim.camera, c, d, n2, lim.prm, lim.noise_mm)
     (a0, a1, b0, b1), w, rms, se = fit
     keep = w > 0
     # not a bar: most of the band's points do not lie on a cylinder of the bar's radius
@@ -285,23 +291,26 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
     )
 
 
-def _apart_along_rays(fit, t, s, h, r, camera, c, d, n2, prm: GeometryParams) -> str | None:
+def _apart_along_rays(fit, t, s, h, r, camera, c, d, n2, prm: GeometryParams, noise_mm=None) -> str | None:
     """Why the circle fit's axis cannot be stated (docs/decisions/048), or None: where the axis
     placed from the points' ranges along their lines of sight (:func:`_place_along_rays`, free
     of the depth noise's bias) lies higher or lower than the circle fit's by more than twice
     their combined standard uncertainty, the circle fit's taken as the uncertainty budget states
     a bar's height (:data:`~rebarlib.uncertainty.BAR_FIT_SHARE_OF_RMS` times its residual RMS,
     and :data:`~rebarlib.uncertainty.LEVEL_FIT_COMMON_MM`), the placing's from its profile.
-    Checked only where the depth noise along the lines of sight reaches
-    ``prm.ray_check_noise_share`` of the radius (below it the circle fit's first-order noise
-    correction holds on any arc of 90° or more). Under depth noise of half the bar's radius a
+    Checked only where the capture's depth noise ``noise_mm`` (its formwork plane's; without
+    it, the placing's range residuals' robust SD) reaches ``prm.ray_check_noise_share`` of the
+    radius (below it the circle fit's first-order noise correction holds on any arc of 90° or
+    more). Under depth noise of half the bar's radius a
     section cut by a bar above (a parallel bar of the other lattice hides half of it) lets the
     circle slide along the arc seen: lifted by up to 6 mm, its stated uncertainty a tenth of
     that."""
     from ..uncertainty import BAR_FIT_SHARE_OF_RMS, LEVEL_FIT_COMMON_MM
 
+    if noise_mm is not None and noise_mm < prm.ray_check_noise_share * r:
+        return None
     placed = _place_along_rays(fit, t, s, h, r, camera, c, d, n2)
-    if placed is None or placed[4] < prm.ray_check_noise_share * r:
+    if placed is None or (noise_mm is None and placed[4] < prm.ray_check_noise_share * r):
         return None
     (a0, a1, b0, b1), _, rms, _ = fit
     if not np.isfinite(rms):
