@@ -176,3 +176,16 @@ def test_defocus_takes_the_detail_out_of_a_texture(dr):
     assert out.shape == img.shape and out.dtype == np.float32
     detail = [np.abs(cv2.Laplacian(x.mean(axis=2), cv2.CV_32F)).mean() for x in (img, out)]
     assert detail[1] < 0.5 * detail[0]
+
+
+def test_bars_nearer_than_the_focus_keep_their_label(dr):
+    # --near-blur draws from its own stream: near_blur=0 is the scene as before; blurred bars of
+    # a cage keep the mask they had in focus
+    changed = 0
+    for i in range(12):
+        rgb, mask = dr.scene(i, size=160, hard=True, dof=0.6)
+        np.testing.assert_array_equal(dr.scene(i, size=160, hard=True, dof=0.6, near_blur=0.0)[0], rgb)
+        rgb_n, mask_n = dr.scene(i, size=160, hard=True, dof=0.6, near_blur=1.0)
+        np.testing.assert_array_equal(mask_n, mask)
+        changed += not np.array_equal(rgb, rgb_n)
+    assert changed >= 1

@@ -990,7 +990,22 @@ def _defocus(img, rng):
     return far.astype(np.float32)
 
 
-def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, dof=0.0):
+def _bar_out_of_focus(img, cover, sigma, draw):
+    """``draw(img, cover)`` a bar as usual, then blur the picture where it lies: a bar nearer the
+    camera than the focus (the front bars of a cage photographed from close) shows soft edges
+    and no ribs, while its label stays the bar's footprint, as an annotator outlines it."""
+    before = cover.copy()
+    drawn = img.copy()
+    draw(drawn, cover)
+    foot = ((cover > 0.5) & ~(before > 0.5)).astype(np.float32)
+    if not foot.any():
+        return drawn
+    soft = cv2.GaussianBlur(drawn, (0, 0), sigma)
+    alpha = np.clip(cv2.GaussianBlur(cv2.dilate(foot, np.ones((3, 3), np.uint8)), (0, 0), sigma) * 2.0, 0, 1)
+    return (drawn * (1 - alpha[..., None]) + soft * alpha[..., None]).astype(np.float32)
+
+
+def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, dof=0.0, near_blur=0.0):
     """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
 
     ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
@@ -999,7 +1014,9 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
     drawn from a stream of its own too (``default_rng([seed, index, 2])``). ``curves``: the
     probability of thick cables and long hair (:func:`_curves`), stream ``[seed, index, 3]``.
     ``dof``: the probability that a cage, starter bars or a room behind the bars is out of focus
-    (:func:`_defocus`), stream ``[seed, index, 4]``."""
+    (:func:`_defocus`), stream ``[seed, index, 4]``. ``near_blur``: the probability that some bars
+    of a cage or of starter bars are nearer than the focus (:func:`_bar_out_of_focus`), stream
+    ``[seed, index, 5]``."""
     rng = np.random.default_rng([int(seed), int(index)])
     rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
     rng_curves = np.random.default_rng([int(seed), int(index), 3])
@@ -1037,9 +1054,17 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
         img = _defocus(img, rng_dof)
     cover = np.zeros((size, size), np.float32)
     style = bar_style(rng)
+    rng_near = np.random.default_rng([int(seed), int(index), 5])
+    near = near_blur > 0 and kind in ("cage", "starters") and rng_near.random() < near_blur
+    sigma_near = float(rng_near.uniform(1.0, 4.0)) * size / FULL
     for p0, p1, w0, w1, _ in sorted(bars, key=lambda b: b[4]):
         st = style if rng.random() < 0.85 else bar_style(rng)
-        draw_strip(img, cover, p0, p1, w0, w1, st, light, tile, rng)
+        if near and rng_near.random() < 0.35:  # a bar nearer than the focus: soft, its label sharp
+            img = _bar_out_of_focus(
+                img, cover, sigma_near, lambda im, cov: draw_strip(im, cov, p0, p1, w0, w1, st, light, tile, rng)
+            )
+        else:
+            draw_strip(img, cover, p0, p1, w0, w1, st, light, tile, rng)
     add_clutter(img, cover, rng, light, tile, int(rng.integers(0, 5)), over=True)
     if rng_hard is not None:
         _hard_negatives(img, cover, rng_hard, light, tile, over=True)
@@ -1055,7 +1080,7 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
 
 
 def write_sample(
-    index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0, dof=0.0
+    index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0, dof=0.0, near_blur=0.0
 ) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
@@ -1063,7 +1088,7 @@ def write_sample(
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof)
+    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof, near_blur=near_blur)
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -1075,9 +1100,11 @@ def write_sample(
 
 
 def _write_job(job):
-    index, folder, seed, size, hard, indoor, curves, dof = job
+    index, folder, seed, size, hard, indoor, curves, dof, near_blur = job
     cv2.setNumThreads(1)
-    return write_sample(index, folder, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof)
+    return write_sample(
+        index, folder, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof, near_blur=near_blur
+    )
 
 
 def main(argv=None):
@@ -1098,13 +1125,19 @@ def main(argv=None):
         default=0.0,
         help="probability that what lies behind a cage, starter bars or a room is out of focus (0: never)",
     )
+    ap.add_argument(
+        "--near-blur",
+        type=float,
+        default=0.0,
+        help="probability that some bars of a cage or of starter bars are nearer than the focus (0: never)",
+    )
     ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
     jobs = [
-        (i, folder, args.seed, args.size, args.hard, args.indoor, args.curves, args.dof)
+        (i, folder, args.seed, args.size, args.hard, args.indoor, args.curves, args.dof, args.near_blur)
         for i in range(args.first, args.n)
     ]
     if args.jobs > 1:
@@ -1118,7 +1151,15 @@ def main(argv=None):
     else:
         for i, *_ in jobs:
             made += write_sample(
-                i, folder, args.seed, args.size, hard=args.hard, indoor=args.indoor, curves=args.curves, dof=args.dof
+                i,
+                folder,
+                args.seed,
+                args.size,
+                hard=args.hard,
+                indoor=args.indoor,
+                curves=args.curves,
+                dof=args.dof,
+                near_blur=args.near_blur,
             )
             if i % 100 == 0:
                 print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
