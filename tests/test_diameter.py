@@ -754,10 +754,11 @@ def test_a_width_is_never_calibrated_on_the_bar_it_confirms():
     for i, r in enumerate(res[3:]):
         assert math.isfinite(r.level_between_mm)
         assert r.level_offset_mm == pytest.approx(118 + np.median(np.delete(e_up, i)), abs=1e-9)
-    # without the design (none given) the masks are all there is: A and B are still each other's
-    # only clear bar, one each, under the two a level's offset is learnt from: not used either
+    # without the design (none given) the masks are all there is: A is calibrated on B alone
+    # (35.38 − (35.20 − 18.4) = 18.58 mm: the two stand alike), its σ the spread times √2
     res = calibrated(masks, tops, None, groups)
-    assert math.isnan(res[0].level_between_mm) and math.isnan(res[1].level_between_mm)
+    assert res[0].level_width_mm == pytest.approx(35.38 - 35.20 + 18.4, abs=1e-9)
+    assert res[0].level_sigma_mm == pytest.approx(res[0].level_between_mm * math.sqrt(2), abs=1e-9)
     # a level with a bar D read at its design (16.2 mm, top 36.2) learns A's offset from B and D:
     # median(35.20 − 18.4, 36.2 − 16.2) = 18.4 mm, and A's top reads 16.98 mm, a Φ14's
     res = calibrated(masks[:2] + [16.2] + masks[3:], tops[:2] + [36.2] + tops[3:], designs, groups)

@@ -91,14 +91,15 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None, desi
     spread / √(bars it was learnt from). Without ``groups``, all bars are one group, learnt from
     at least ``prm.colour_offset_bars`` bars, whose offset's error the spread's bound covers.
 
-    A bar's offset is learnt from the other bars (leave one out): a width calibrated on the bar
-    it is then to confirm carries that bar's mask in its own offset and adds no evidence (two Φ14
-    bars whose masks read Φ16 made their level's only clear bars, and their tops, calibrated on
-    themselves, "confirmed" Φ16 at confidence 1.00). ``designs`` (one design size per bar, NaN
-    where none): where every bar an offset would be learnt from has a mask that reads another
-    size than its design, the offset rests on nothing but masks the design contradicts, and the
-    width is not used for that bar (a level whose clear bars all read off the design cannot
-    confirm them, nor settle another bar of it)."""
+    A bar's offset is learnt from the other bars (leave one out; a level still needs 2 clear
+    bars, so a clear bar's offset may come from one other, its σ then the spread times √2): a
+    width calibrated on the bar it is then to confirm carries that bar's mask in its own offset
+    and adds no evidence (two Φ14 bars whose masks read Φ16 made their level's only clear bars,
+    and their tops, calibrated on themselves, "confirmed" Φ16 at confidence 1.00). ``designs``
+    (one design size per bar, NaN where none): where every bar an offset would be learnt from
+    has a mask that reads another size than its design, the offset rests on nothing but masks
+    the design contradicts, and the width is not used for that bar (a level whose clear bars
+    all read off the design cannot confirm them, nor settle another bar of it)."""
     per_group = groups is not None
     groups = list(groups) if per_group else [0] * len(results)
     designs = [math.nan] * len(results) if designs is None else list(designs)
@@ -117,7 +118,6 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None, desi
         if abs(med - env) <= 0.5 * (lo if med < env else hi):  # a quarter of the step to the next size
             off_design = math.isfinite(designs[i]) and abs(nominal - designs[i]) > 1e-6
             cal[g].append((i, cw - env, off_design))
-    min_bars = 2 if per_group else 1
     if per_group:
         cal = {g: c for g, c in cal.items() if len(c) >= 2}
     dev = {g: np.array([d for _, d, _ in c]) for g, c in cal.items()}
@@ -136,7 +136,7 @@ def _width_calibration(results, key, prm, *, system, deformed, groups=None, desi
         others = [(d, o) for j, d, o in cal.get(g, ()) if j != i]
         learnt = (
             math.isfinite(s_c)
-            and len(others) >= min_bars
+            and len(others) > 0
             and not all(o for _, o in others)  # not only masks the design contradicts
         )
         offset = float(np.median([d for d, _ in others])) if learnt else 0.0
