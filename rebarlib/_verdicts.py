@@ -272,6 +272,15 @@ def _item_row(
                 f"share, below {r_min:.0%} under one reading and not under the other; a capture placed on both "
                 "settles it"
             )
+        elif not ok_ratio and ok_max and n_nm and passed + n_nm >= r_min * n - _EPS:
+            # A share below the rule's on the measured checkpoints alone is no failure on
+            # evidence while the checkpoints not measured could still lift it to the rule's:
+            # the item fails only on a share that no reading of them can save (decision 050).
+            verdict = INCOMPLETE
+            why.append(
+                f"{passed}/{n_meas} within tolerance, below {r_min:.0%}; with the {n_nm} checkpoint(s) not measured "
+                f"it could still reach {passed + n_nm}/{n}: measuring them settles it"
+            )
         elif not ok_ratio:
             why.append(f"{passed}/{n_meas} within tolerance, below {r_min:.0%}")
             if differs:
