@@ -1942,6 +1942,10 @@ def test_colour_widths_show_ribs_only_at_the_tables_spacings(bars, system, expec
         ([(14.0, 12.91), (14.0, 11.79), (14.0, 11.27), (12.0, 10.67), (12.0, 10.05)], "GB1499.2", False, "off"),
         ([(10.0, 8.23)] * 5, "GB1499.2", False, "a common period off the table (Φ10's is 7 mm)"),
         ([(12.0, 10.0)] * 5, "ASTM-A615", True, "no spacing per size to check against"),
+        # two clear pitches of one size, each over 10 % from their median (as verdict slab 017's
+        # C0_411 with ribs in relief and flying pixels showed): none agrees with its size's, none
+        # is read against the table (this raised ValueError on max() of no spacings)
+        ([(12.0, 7.0), (12.0, 9.5)] + [(14.0, 9.0)] * 3, "GB1499.2", True, "a size's pitches apart"),
     ],
 )
 def test_mask_widths_resolve_ribs_only_at_the_tables_spacings(bars, system, expected, why):

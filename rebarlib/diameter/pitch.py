@@ -69,10 +69,11 @@ def _pitch_table(clear: dict, keys, prm, *, system, sizes_of=None):
 
 def _nearest_spacings(table, pitches, own: float) -> tuple:
     """``(nearest, leads)``: the table's spacing nearest each pitch, and whether ``own`` (the
-    pitches' design size's spacing) is nearest to the most of them (ties count for it)."""
+    pitches' design size's spacing) is nearest to the most of them (ties count for it; no
+    pitches, nothing against it)."""
     nearest = [float(table[np.abs(table - p).argmin()]) for p in pitches]
     counts = Counter(nearest)
-    return nearest, counts[own] >= max(counts.values())
+    return nearest, counts[own] >= max(counts.values(), default=0)
 
 
 def _pitch_band(spread, resolution, prm) -> float:
