@@ -10,6 +10,7 @@ import pytest
 
 from rebarlib import GEMINI2, RebarInputError
 from rebarlib._inspect import registered_mask
+from rebarlib._masks import widest_bar_px
 from rebarlib.synth import SensorModel, misregister, synth_capture
 from rebarlib.segmentation import (
     SegmentationModel,
@@ -211,6 +212,48 @@ def test_in_test_dynamic_model_keeps_the_pixel_scale_at_any_size(tmp_path):
         assert mask.shape == (h, w)
         assert np.array_equal(mask[:, : w // 2 - 3], truth[:, : w // 2 - 3])
         assert not mask[:, w // 2 + 3 :].any()
+
+
+def test_in_test_model_resize_scale_keeps_the_pixel_scale_and_the_design_input(tmp_path):
+    # input.resize "scale": whole images scaled by input.scale and padded to pad_to only (a
+    # photo of any aspect ratio keeps its pixel scale), as without a size; the size is the
+    # design input that full resolution refers to (tiles enlarged towards twice it)
+    out = {"kind": "logits", "rebar_classes": [0]}
+    side = {"size": [40, 25], "resize": "scale", "scale": 0.5, "pad_to": 8, "full_resolution": "whole"}
+    model = SegmentationModel(_red_minus_blue_model(tmp_path, {"input": side, "output": out}, name="sc"))
+    dyn = SegmentationModel(
+        _red_minus_blue_model(tmp_path, {"input": {"scale": 0.5, "pad_to": 8}, "output": out}, name="dy")
+    )
+    for h, w in ((50, 80), (120, 45), (301, 199)):
+        assert model._input_size(w, h) == dyn._input_size(w, h) == (round(w / 2), round(h / 2))
+        img, _ = _red_left_blue_right(h, w)
+        assert np.array_equal(model.predict_proba(img), dyn.predict_proba(img))
+    # an image under twice the design input is also run enlarged as far as it fits it, the two
+    # maps' probabilities averaged
+    assert model.whole_scales(80, 50) == [0.5] and model.whole_scales(45, 120) == [0.5]
+    assert model.whole_scales(60, 32) == [0.5, 2 / 3] and model.whole_scales(40, 24) == [0.5, 1.0]
+    img, _ = _red_left_blue_right(32, 60)
+    img[:, 45] = (200, 0, 0)  # a thin red line in the blue half: each scale sees it otherwise
+    runs = [model.predict_proba(img, flips=False)]
+    p = [dyn._score(img, False, dyn._prepare(img, f))[0] for f in (0.5, 2 / 3)]
+    want = np.mean([1 / (1 + np.exp(-x.astype(float))) for x in p], axis=0)
+    assert np.allclose(runs[0], want, atol=1e-5)
+    # full resolution: the whole image once, enlarged towards twice the design input (32 x 60 ->
+    # 43 x 80) as a fixed-size model's tiles would be
+    seen = []
+    score = model._score
+    model._score = lambda image, flips=True, *rest: seen.append(image.shape) or score(image, flips, *rest)
+    img, _ = _red_left_blue_right(32, 60)
+    assert model.predict_proba(img, tiled=True).shape == (32, 60) and seen == [(43, 80, 3)]
+    # it needs a size, and a graph that takes any size
+    with pytest.raises(RebarInputError, match="resize 'scale' needs input.size"):
+        SegmentationModel(_red_minus_blue_model(tmp_path, {"input": {"resize": "scale"}, "output": out}, name="nosz"))
+    with pytest.raises(RebarInputError, match="resize 'scale'"):
+        SegmentationModel(
+            _red_minus_blue_model(
+                tmp_path, {"input": {"size": [40, 25], "resize": "scale"}, "output": out}, name="fx", fixed=(25, 40)
+            )
+        )
 
 
 @pytest.mark.parametrize("flips", [[], ["h", "v", "hv"]])
@@ -448,11 +491,19 @@ def fresh_captures():
     return [synth_segmentation_capture(i, seed=FRESH_SEED, intrinsics=HALF) for i in FRESH_INDICES]
 
 
-def test_shipped_model_iou_on_fresh_captures(fresh_captures):
+@pytest.fixture(scope="module")
+def fresh_full_captures():
+    return [synth_segmentation_capture(i, seed=FRESH_SEED) for i in FRESH_INDICES]
+
+
+@pytest.mark.parametrize("which", ["half", "full"])
+def test_shipped_model_iou_on_fresh_captures(which, fresh_captures, fresh_full_captures):
+    # at half the camera's resolution (640 x 400, enlarged to the design input) and at its own
+    # (1280 x 800, run at half its size): rebarlib/models/README.md
     model = SegmentationModel.default()
     assert model.onnx_path.stat().st_size <= 10 * 2**20
     total = {"TP": 0, "FP": 0, "FN": 0, "TN": 0}
-    for cap in fresh_captures:
+    for cap in fresh_captures if which == "half" else fresh_full_captures:
         c = confusion_counts(model.predict_mask(cap.color), cap.labels > 0)
         total = {k: total[k] + c[k] for k in total}
     assert iou(total) >= SHIPPED_MIN_IOU
@@ -616,8 +667,9 @@ def test_depth_overreach_is_fattening_on_every_side_not_a_moved_depth_image(pape
     assert not (trimmed & ~dm).any()
     eu, ev, _ = estimate_registration(truth.astype(np.float32), trimmed, depth_valid=valid)
     assert np.hypot(eu, ev) <= REGISTRATION_MAX_ERR_PX
-    # as inspect does it, with the shipped model's mask: the colour is not moved (measured 0.07 px)
-    reg = registered_mask(fat, rng=0)[2]
+    # as inspect's refined method does it, with the shipped model's soft mask at full resolution:
+    # the colour is not moved (measured 0.07 px)
+    reg = registered_mask(fat, rng=0, soft=True, tiled=True, bar_width_px=widest_bar_px(fat, paper_design))[2]
     assert reg["depth_overreach_px"] >= 1 and not reg["applied"]
     assert np.hypot(*reg["shift_px"]) <= REGISTRATION_MAX_ERR_PX
     # the default sensor's fattening now and then is not an over-reach, nor is a moved depth image

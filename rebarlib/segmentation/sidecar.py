@@ -24,7 +24,10 @@ _DTYPES = {
     "float16": ("tensor(float16)", np.float16),
 }
 _KINDS = ("logits", "probability", "labels")
-_RESIZE = ("keep_aspect", "stretch")  # a fixed input.size: fitted and padded, or stretched
+# with input.size: the image fitted into it and padded, stretched to it, or (a graph that takes
+# any size) scaled by input.scale and padded to input.pad_to only, the size then only the design
+# input that full resolution refers to
+_RESIZE = ("keep_aspect", "stretch", "scale")
 _FLIPS = ("h", "v", "hv")  # test-time flips: horizontal, vertical, both
 # how predict_proba(tiled=True) runs the network at full resolution: on overlapping tiles of
 # the input's size, or once on the whole image (a graph that takes any size)
@@ -159,6 +162,8 @@ def _input_section(path: Path, inp: dict) -> dict:
     full_res = inp.get("full_resolution", "tiles")
     if full_res not in _FULL_RESOLUTION:
         raise _bad(path, f"input.full_resolution: expected one of {_FULL_RESOLUTION}, got {full_res!r}")
+    if resize == "scale" and size is None:
+        raise _bad(path, "input.resize 'scale' needs input.size (the design input full resolution refers to)")
     if full_res == "whole" and size is None:
         raise _bad(path, "input.full_resolution 'whole' needs input.size (the scale the tiles are run at)")
     max_bar_px = inp.get("max_bar_px")
