@@ -503,6 +503,7 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     )
     r = _refined_decision(9.6, 0.2, 100, one, False, prm, assumed_mm=11.6 / 2, covered=0.3, **kw)
     assert r["diameter_reason"].startswith("possible wrong size") and "Φ8" in r["diameter_reason"]
+
     # the same bar with the axis where it belongs is measured as Φ10
     r = _refined_decision(11.5, 0.2, 100, replace(one, depth_width_mm=11.6), False, prm, assumed_mm=11.6 / 2, **kw)
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0
@@ -525,6 +526,39 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
         16.95, 0.3, 150, replace(amb, circle_width_mm=16.3, mask_between_mm=1.0), False, prm, assumed_mm=16.2 / 2, **kw
     )
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
+
+
+@pytest.mark.parametrize("use_cloud", ["veto", True])
+def test_without_a_cloud_the_mask_alone_does_not_overturn_the_assumed_size(use_cloud):
+    # Decision 052: a bar with no depth across it, its axis placed with the Φ16 radius (envelope
+    # 18.4 mm), its mask reading 16.5 mm (Φ14's envelope 16.2): not sized Φ14 on the mask's word
+    # alone, but left "possible wrong size" naming both sizes; the same mask reading Φ16 is sized
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import DiameterParams
+
+    prm = DiameterParams()
+    kw = dict(system="GB1499.2", deformed=True, use_cloud=use_cloud, assumed_mm=18.4 / 2)
+    none = BarReading(
+        px_mm=0.8,
+        centre_mm=0.0,
+        colour_width_mm=math.nan,
+        z_mm=600.0,
+        phase_sweep_px=20.0,
+        mask_between_mm=0.3,
+        depth_width_mm=math.nan,
+        depth_points=0,
+    )
+    r = _refined_decision(16.5, 0.2, 100, none, False, prm, **kw)
+    assert r["diameter_status"] == "not measured" and r.get("nominal_mm") is None
+    assert r["diameter_reason"].startswith("possible wrong size") and "Φ14" in r["diameter_reason"]
+    assert "Φ16" in r["diameter_reason"] and "no point cloud" in r["diameter_reason"]
+    ok = _refined_decision(18.3, 0.2, 100, none, False, prm, **kw)
+    assert ok["diameter_status"] == "measured" and ok["nominal_mm"] == 16.0
+    # no size assumed for the axis, or the cloud not used at all (the paper's way): as before
+    free = _refined_decision(16.5, 0.2, 100, none, False, prm, **{**kw, "assumed_mm": math.nan})
+    assert free["diameter_status"] == "measured" and free["nominal_mm"] == 14.0
+    paper = _refined_decision(16.5, 0.2, 100, none, False, prm, **{**kw, "use_cloud": False})
+    assert paper["diameter_status"] == "measured" and paper["nominal_mm"] == 14.0
 
 
 def _veto_bar(**changes) -> BarReading:

@@ -320,6 +320,10 @@ def _refined_decision(
             return done
     elif not mask_problem:
         width, sigma, source = med, sigma_m, "mask"
+        if use_cloud:
+            sigma = _mask_alone_sigma(out, med, spread, n, info, prm, system, deformed, assumed_mm, mask_median)
+            if sigma is None:
+                return out
     elif cloud and not veto_only:
         width, sigma, source = dw, sigma_c, "cloud"
         cap = prm.cloud_only_confidence
@@ -351,6 +355,42 @@ def _refined_decision(
         return out
     reason = f"size from the point cloud; {mask_problem}" if source == "cloud" else ""
     return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
+
+
+def _mask_alone_sigma(out, med, spread, n, info, prm, system, deformed, assumed_mm, mask_median):
+    """The σ a bar's mask width is snapped with where the bar has no point cloud (no depth
+    across it: the projector's shadow of a bar above, a hole), or None where ``out`` now says
+    it is "possible wrong size" (decision 052).
+
+    Where a cloud exists, a mask that gives another size than the one the axis was placed with
+    (``assumed_mm``, a radius) must be confirmed by widths that depend on neither
+    (:func:`_mask_and_cloud`, :func:`_arbitrate`); without a cloud there are none, and the
+    mask's edges, a learnt network's, are the bar's only reading. So where the mask's nearest
+    size is not the assumed one, its word is weighed as against a cloud, each edge's rounding to
+    the pixel grid in full (:func:`_mask_sigma` with ``swept=False``): clear about another size
+    even so, the bar is a possible wrong size, not measured, and names it; not clear, it is
+    ambiguous at that σ (and the advice for a closer capture follows). Where the mask gives the
+    assumed size, or no size was assumed, the mask's σ is as before. Seen on a bar of the
+    lowest layer, ribs in relief, no depth along it: a Φ16 whose mask read 16.5 mm was sized Φ14
+    at 0.82 and failed a clean slab's bar sizes."""
+    sigma_m = _mask_sigma(med, spread, n, info, prm, mask_median)
+    if not math.isfinite(assumed_mm):
+        return sigma_m
+    nom_c = snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0]
+    nearest = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_m)[0]
+    if not math.isfinite(nearest) or not math.isfinite(nom_c) or nearest == nom_c:
+        return sigma_m
+    sigma_word = _mask_sigma(med, spread, n, info, prm, mask_median, swept=False)
+    nom_m, conf_m = snap_diameter(med, system=system, deformed=deformed, sigma_mm=sigma_word)
+    if conf_m < prm.min_confidence or nom_m == nom_c:
+        return sigma_word
+    out.update(width_source="mask", width_used_mm=round(med, 3), width_sigma_mm=round(sigma_word, 3))
+    out["diameter_reason"] = (
+        f"possible wrong size: the mask width {med:.1f} mm gives Φ{nom_m:g} (confidence {conf_m:.2f}), "
+        f"but the bar has no point cloud and its axis was placed with the radius of Φ{nom_c:g}: "
+        "nothing but the mask says another size: check this bar by hand"
+    )
+    return None
 
 
 def _mask_sigma(med, spread, n, info, prm, mask_median=None, *, swept=True) -> float:
