@@ -187,8 +187,11 @@ def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, regi
         # the depth's bars reach beyond the colour's on every side where the sensor fattens its
         # edges: that over-reach would widen the fused mask and, with one side of each bar in
         # the projector's shadow, pull the registration towards the other (3 px of fattening:
-        # 0.8 px); it is left out of the depth mask for both
-        reach = depth_overreach_px(colour, depth, color_proba=proba, depth_valid=valid)
+        # 0.8 px); it is left out of the depth mask for both. A ring pixel is background where
+        # the colour mask leaves it out (under the model's threshold): the shipped network's
+        # edges ramp over a pixel or two, its first ring outside a bar at 0.2-0.5, and with a
+        # margin below the threshold 3 px of fattening went unseen (decision 053)
+        reach = depth_overreach_px(colour, depth, color_proba=proba, low_proba=model.threshold, depth_valid=valid)
         depth = trim_depth_overreach(colour, depth, reach)
     registration = None
     if register:

@@ -2323,11 +2323,20 @@ def test_an_edge_fattening_camera_does_not_make_smooth_bars_look_ribbed(monkeypa
     res = inspect(cap, design, rng=0)
     assert not res.bars.ribs_resolved.any() and wrong(res) == 0
     assert (res.bars.diameter_status == "measured").sum() >= 8
-    # the capture is one that needs the rule: without it, bars are read a size up from their
-    # crests. Before decision 049 their tops, calibrated on those same readings, confirmed them
-    # (8 bars sized Φ16 / Φ14 at 0.985-0.996); now no width confirms the bar it was calibrated
-    # on, and they are alerted as possibly of another size instead (10 of them), none sized
+    # the capture is one that needs the rule where the fattened edges are left in the depth: the
+    # mask step now finds their over-reach here (1 px) and leaves it out, so no common pitch
+    # appears with the rule or without it; before decision 053 it took a colour pixel 0.2-0.5 for
+    # unsure and found none. With the over-reach left in and the rule off, every bar is read as
+    # ribbed from its crests, a size up. Before decision 049 their tops, calibrated on those
+    # same readings, confirmed them (8 bars sized Φ16 / Φ14 at 0.985-0.996); now no width
+    # confirms the bar it was calibrated on, and they are alerted as possibly of another size
+    # instead (10 of them), none sized
+    import rebarlib.segmentation as seg
+
     monkeypatch.setattr(dm, "_mask_ribs_follow_table", lambda *a, **k: True)
+    res = inspect(cap, design, rng=0)
+    assert not res.bars.ribs_resolved.any() and wrong(res) == 0
+    monkeypatch.setattr(seg, "depth_overreach_px", lambda *a, **k: 0)
     res = inspect(cap, design, rng=0)
     up = int(res.bars.diameter_reason.str.startswith("possible wrong size").sum())
     assert res.bars.ribs_resolved.all() and wrong(res) + up >= 4

@@ -65,6 +65,7 @@ def depth_overreach_px(
         colour mask as 1 / 0 (every pixel outside it is background)
     low_proba : a ring's pixel counts as background only where ``color_proba`` is under this;
         a pixel 1 px inside the colour mask counts as sure only where it is over ``1 - low_proba``
+        (``inspect`` passes the model's threshold: the mask's own edge, decision 053)
     depth_valid : (H, W) bool, where depth exists (e.g. ``capture.depth_mm > 0``); default all
     max_px : the farthest ring looked at, px: the largest over-reach returned
     min_pixels : fewest pixels with depth in a side's ring for that side to be read (and
