@@ -321,7 +321,9 @@ def _refined_decision(
     elif not mask_problem:
         width, sigma, source = med, sigma_m, "mask"
         if use_cloud:
-            sigma = _mask_alone_sigma(out, med, spread, n, info, prm, system, deformed, assumed_mm, mask_median)
+            sigma = _mask_alone_sigma(
+                out, med, sigma_m, spread, n, info, prm, system, deformed, assumed_mm, mask_median
+            )
             if sigma is None:
                 return out
     elif cloud and not veto_only:
@@ -357,8 +359,9 @@ def _refined_decision(
     return _sized(out, nominal, min(conf, cap), width, sigma, source, reason, in_shadow, prm)
 
 
-def _mask_alone_sigma(out, med, spread, n, info, prm, system, deformed, assumed_mm, mask_median):
-    """The σ a bar's mask width is snapped with where the bar has no point cloud (no depth
+def _mask_alone_sigma(out, med, sigma_m, spread, n, info, prm, system, deformed, assumed_mm, mask_median):
+    """The σ a bar's mask width ``med`` (its usual σ ``sigma_m``, :func:`_mask_sigma`) is
+    snapped with where the bar has no point cloud (no depth
     across it: the projector's shadow of a bar above, a hole), or None where ``out`` now says
     it is "possible wrong size" (decision 052).
 
@@ -373,7 +376,6 @@ def _mask_alone_sigma(out, med, spread, n, info, prm, system, deformed, assumed_
     assumed size, or no size was assumed, the mask's σ is as before. Seen on a bar of the
     lowest layer, ribs in relief, no depth along it: a Φ16 whose mask read 16.5 mm was sized Φ14
     at 0.82 and failed a clean slab's bar sizes."""
-    sigma_m = _mask_sigma(med, spread, n, info, prm, mask_median)
     if not math.isfinite(assumed_mm):
         return sigma_m
     nom_c = snap_diameter(2 * assumed_mm, system=system, deformed=deformed)[0]
