@@ -184,3 +184,37 @@ def test_defocus_takes_the_detail_out_of_a_texture(dr):
     assert out.shape == img.shape and out.dtype == np.float32
     detail = [np.abs(cv2.Laplacian(x.mean(axis=2), cv2.CV_32F)).mean() for x in (img, out)]
     assert detail[1] < 0.5 * detail[0]
+
+
+def test_bundled_bars_are_parallel_packed_and_labelled_with_gaps_between(dr):
+    # --bundles draws from its own stream: 0 is the scene as before
+    for i in range(3):
+        plain = dr.scene(i, size=160, hard=True)[0]
+        np.testing.assert_array_equal(dr.scene(i, size=160, hard=True, bundles=0.0)[0], plain)
+    # each added bar lies beside the bar it follows, moved across it (not along it) at both ends
+    # by 1.1 to 2.5 of their mean width there (the last bar of its group, or the bar it starts
+    # from): parallel in the image where the widths are equal, opening with the perspective
+    # where they grow along the bar; drawn in that bar's order
+    bar = (np.array([100.0, 50.0]), np.array([500.0, 350.0]), 20.0, 30.0, 1)
+    d = (bar[1] - bar[0]) / np.linalg.norm(bar[1] - bar[0])
+    n = np.array([-d[1], d[0]])
+    for seed in range(20):
+        out = dr._bundle([bar], np.random.default_rng(seed))
+        assert out[0] is bar and 2 <= len(out) <= 9
+        for k, (q0, q1, w0, w1, order) in enumerate(out[1:], start=1):
+            assert order == 1 and 0.85 * 20 - 1e-9 <= w0 <= 1.1 * 20 + 1e-9 and abs(w1 / w0 - 1.5) < 1e-9
+            ok = False
+            for c0, c1, cw0, cw1, _ in {id(b): b for b in (out[k - 1], bar)}.values():
+                s0, s1 = q0 - c0, q1 - c1
+                if max(abs(float(np.dot(s0, d))), abs(float(np.dot(s1, d)))) > 1e-6:
+                    continue  # not moved straight across that bar
+                g0, g1 = abs(float(np.dot(s0, n))) / ((cw0 + w0) / 2), abs(float(np.dot(s1, n))) / ((cw1 + w1) / 2)
+                ok |= abs(g0 - g1) < 1e-6 and 1.1 - 1e-6 <= g0 <= 2.5 + 1e-6
+            assert ok
+    # in whole scenes the packed bars are labelled bar by bar: more rebar in most of them
+    grew = 0
+    for i in range(12):
+        _, mask = dr.scene(i, size=160, hard=True)
+        _, mask_b = dr.scene(i, size=160, hard=True, bundles=1.0)
+        grew += int(mask_b.sum() > mask.sum())
+    assert grew >= 6

@@ -1005,7 +1005,34 @@ def _bar_out_of_focus(img, cover, sigma, draw):
     return (drawn * (1 - alpha[..., None]) + soft * alpha[..., None]).astype(np.float32)
 
 
-def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, dof=0.0, near_blur=0.0):
+def _bundle(bars, rng):
+    """Bars packed side by side: 1-4 more bars parallel to one of ``bars``, each a tenth of a
+    width to one and a half widths from the last. Where real photos show them: a column cage's
+    side seen at a slant (its main bars foreshortened into a tight group), bundled bars, lap
+    splices, a cage's corner. A network that has seen bars only one by one, with background
+    between them, misses such a group or marks it as one dark blob; labelled bar by bar, the
+    gaps stay background."""
+    if not bars:
+        return bars
+    out = list(bars)
+    for _ in range(int(rng.integers(1, 3))):
+        p0, p1, w0, w1, order = bars[int(rng.integers(len(bars)))]
+        v = np.asarray(p1, float) - np.asarray(p0, float)
+        d = v / max(float(np.hypot(*v)), 1e-6)
+        n = np.array([-d[1], d[0]]) * (1 if rng.random() < 0.5 else -1)
+        q0, q1, v0, v1 = np.asarray(p0, float), np.asarray(p1, float), w0, w1
+        for _ in range(int(rng.integers(1, 5))):
+            gap = rng.uniform(0.1, 1.5)
+            k = rng.uniform(0.85, 1.1)
+            u0, u1 = w0 * k, w1 * k
+            q0 = q0 + n * (v0 + u0) / 2 * (1 + gap)
+            q1 = q1 + n * (v1 + u1) / 2 * (1 + gap)
+            v0, v1 = u0, u1
+            out.append((q0.copy(), q1.copy(), u0, u1, order))
+    return out
+
+
+def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, dof=0.0, near_blur=0.0, bundles=0.0):
     """Composed scene ``index``: ((size, size, 3) uint8 RGB, (size, size) bool rebar mask).
 
     ``hard``: also draw the hard negatives of :func:`_hard_negatives`, from a random stream of
@@ -1016,7 +1043,8 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
     ``dof``: the probability that a cage, starter bars or a room behind the bars is out of focus
     (:func:`_defocus`), stream ``[seed, index, 4]``. ``near_blur``: the probability that some bars
     of a cage or of starter bars are nearer than the focus (:func:`_bar_out_of_focus`), stream
-    ``[seed, index, 5]``."""
+    ``[seed, index, 5]``. ``bundles``: the probability that some bars come packed side by side
+    (:func:`_bundle`), stream ``[seed, index, 6]``."""
     rng = np.random.default_rng([int(seed), int(index)])
     rng_hard = np.random.default_rng([int(seed), int(index), 1]) if hard else None
     rng_curves = np.random.default_rng([int(seed), int(index), 3])
@@ -1024,6 +1052,9 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
     names = list(LAYOUTS)
     kind = names[int(rng.choice(len(names), p=[LAYOUTS[k][1] for k in names]))]
     bars, behind = LAYOUTS[kind][0](rng, size) if LAYOUTS[kind][0] else ([], "ground")
+    rng_bundle = np.random.default_rng([int(seed), int(index), 6])
+    if bundles > 0 and rng_bundle.random() < bundles:
+        bars = _bundle(bars, rng_bundle)
     light = _light(rng, str(rng.choice(["overcast", "sun", "sun", "flash", "night"], p=[0.3, 0.25, 0.2, 0.13, 0.12])))
     if behind == "sky":
         img = texture(rng, size, size, "sky")
@@ -1080,7 +1111,17 @@ def scene(index, seed=DR_SEED, size=FULL, hard=False, indoor=0.0, curves=0.0, do
 
 
 def write_sample(
-    index, folder: Path, seed=DR_SEED, size=FULL, quality=92, hard=False, indoor=0.0, curves=0.0, dof=0.0, near_blur=0.0
+    index,
+    folder: Path,
+    seed=DR_SEED,
+    size=FULL,
+    quality=92,
+    hard=False,
+    indoor=0.0,
+    curves=0.0,
+    dof=0.0,
+    near_blur=0.0,
+    bundles=0.0,
 ) -> bool:
     """Write scene ``index`` as ``NNNNN.jpg`` (the network's input: half of ``size``, area
     averaged) and ``NNNNN.png`` (the full-resolution mask, 1 bit per pixel). False where both
@@ -1088,7 +1129,9 @@ def write_sample(
     f_img, f_mask = folder / f"{index:05d}.jpg", folder / f"{index:05d}.png"
     if f_img.exists() and f_mask.exists():
         return False
-    rgb, mask = scene(index, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof, near_blur=near_blur)
+    rgb, mask = scene(
+        index, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof, near_blur=near_blur, bundles=bundles
+    )
     small = cv2.resize(rgb, (size // 2, size // 2), interpolation=cv2.INTER_AREA)
     tmp = f_mask.with_suffix(".tmp.png")
     cv2.imwrite(str(tmp), mask.astype(np.uint8) * 255, [cv2.IMWRITE_PNG_COMPRESSION, 9, cv2.IMWRITE_PNG_BILEVEL, 1])
@@ -1100,10 +1143,19 @@ def write_sample(
 
 
 def _write_job(job):
-    index, folder, seed, size, hard, indoor, curves, dof, near_blur = job
+    index, folder, seed, size, hard, indoor, curves, dof, near_blur, bundles = job
     cv2.setNumThreads(1)
     return write_sample(
-        index, folder, seed, size, hard=hard, indoor=indoor, curves=curves, dof=dof, near_blur=near_blur
+        index,
+        folder,
+        seed,
+        size,
+        hard=hard,
+        indoor=indoor,
+        curves=curves,
+        dof=dof,
+        near_blur=near_blur,
+        bundles=bundles,
     )
 
 
@@ -1131,13 +1183,19 @@ def main(argv=None):
         default=0.0,
         help="probability that some bars of a cage or of starter bars are nearer than the focus (0: never)",
     )
+    ap.add_argument(
+        "--bundles",
+        type=float,
+        default=0.0,
+        help="probability that some bars come packed side by side (a cage's side at a slant, laps; 0: never)",
+    )
     ap.add_argument("--jobs", type=int, default=1, help="processes; scenes are written in index order, about")
     args = ap.parse_args(argv)
     folder = Path(args.work) / "dr"
     folder.mkdir(parents=True, exist_ok=True)
     t0, made = time.time(), 0
     jobs = [
-        (i, folder, args.seed, args.size, args.hard, args.indoor, args.curves, args.dof, args.near_blur)
+        (i, folder, args.seed, args.size, args.hard, args.indoor, args.curves, args.dof, args.near_blur, args.bundles)
         for i in range(args.first, args.n)
     ]
     if args.jobs > 1:
@@ -1160,6 +1218,7 @@ def main(argv=None):
                 curves=args.curves,
                 dof=args.dof,
                 near_blur=args.near_blur,
+                bundles=args.bundles,
             )
             if i % 100 == 0:
                 print(f"{i}/{args.n} ({made} written) {time.time() - t0:.0f} s", flush=True)
