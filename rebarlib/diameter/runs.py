@@ -32,6 +32,27 @@ def _deep_end(end, end2, deep, sample_px, min_px) -> np.ndarray:
     return (n * sample_px >= min_px) & (2 * (part & deep).sum(axis=1) >= np.maximum(n, 1))
 
 
+def _shaded_end(end, end2, behind, deep, nearer, b) -> np.ndarray:
+    """Per section, whether the mask run's end ``end2`` (cut where the depth ends) lies at the
+    edge of a nearer bar's projector shadow rather than at this bar's own edge: the first
+    sample cut off has no depth (not a surface behind), and the rebar run goes on from there,
+    still without depth or with depth nearer than this bar, into a nearer bar (``nearer``)
+    before it ends at ``end``. A bar lying beside the bar over it in the image, its side towards
+    that bar in that bar's shadow, shows its whole width in colour but depth over part of it
+    only; the end of its depth is not its edge (a bar that casts the shadow itself onto a bar
+    behind it keeps the edge: beyond the hole the run reaches a surface behind)."""
+    M, K = b.shape
+    idx = np.arange(K)[None, :]
+    lo, hi = np.minimum(end, end2), np.maximum(end, end2)
+    between = (idx > lo[:, None]) & (idx < hi[:, None])
+    first = np.clip(end2, 0, K - 1)
+    hole = behind[np.arange(M), first] & ~deep[np.arange(M), first] & (end2 != end)
+    # between the cut and the run's end: rebar samples only, none of them deep behind this bar,
+    # and some of them nearer than it
+    clean = ~(between & deep).any(axis=1)
+    return hole & clean & (between & nearer).any(axis=1)
+
+
 def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
     """ "lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
     ``t``; ``left2``, ``right2``: the same ends with the samples behind the bar or without depth
@@ -69,7 +90,7 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     K = u.shape[1]
     m = _remap(maskf, u, v)  # (M, K) mask profile across the bar, 0..1
     b = m >= 0.5
-    behind, deep = _behind(bar, sec, b, depth, prm)
+    behind, deep, nearer = _behind(bar, sec, b, depth, prm)
     kc = K // 2
     idx = np.arange(K)
     # seed: the bar pixel nearest the expected axis within a third of the expected width
@@ -103,6 +124,8 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     sec.strip_side = (
         "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
     )
+    sec.shaded_lo = too_far_lo & _shaded_end(left, left2, behind, deep, nearer, b)
+    sec.shaded_hi = too_far_hi & _shaded_end(right, right2, behind, deep, nearer, b)
     left = np.where(too_far_lo, left2, left)
     right = np.where(too_far_hi, right2, right)
     _edges_or_border(bar, sec, left, right, has_seed, reading)
@@ -132,11 +155,13 @@ def _behind(bar: _Bar, sec: _Sections, b, depth, prm) -> tuple:
         (beside a bar the projector's shadow often hides the bar behind).
     deep : ndarray of bool
         (M, K) rebar samples behind the bar with a valid depth.
+    nearer : ndarray of bool
+        (M, K) rebar samples with a valid depth well in front of the bar (a bar over it).
     """
     behind = np.zeros_like(b)
     deep = np.zeros_like(b)
     if depth is None:
-        return behind, deep
+        return behind, deep, np.zeros_like(b)
     import cv2
 
     t, z, in_img = sec.t, sec.z, sec.in_img
@@ -154,7 +179,8 @@ def _behind(bar: _Bar, sec: _Sections, b, depth, prm) -> tuple:
     core = np.abs(t) <= bar.expected_mm / 4
     own_none = in_img.any() and float((dz[in_img][:, core] <= 0).mean()) >= prm.own_no_depth_share
     behind = deep if own_none else deep | (b & (dz <= 0))
-    return behind, deep
+    nearer = b & (dz > 0) & (dz < z - bar.expected_mm / 2 - prm.behind_mm)
+    return behind, deep, nearer
 
 
 def _edges_or_border(bar: _Bar, sec: _Sections, left, right, has_seed, reading) -> None:

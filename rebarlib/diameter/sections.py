@@ -92,7 +92,9 @@ class _Sections:
     edges (``edge_lo``, ``edge_hi``) or its one edge (``side_lo``, ``side_hi``). From the mask
     runs: the profiles ``m``, the samples ``behind`` the bar, the runs' ends ``left`` and
     ``right`` (indices into ``t``), the sections with only their low or high edge
-    (``one_lo``, ``one_hi``) and the side of a strip without depth (``strip_side``).
+    (``one_lo``, ``one_hi``), the side of a strip without depth (``strip_side``) and the
+    sections whose low or high end was cut where a nearer bar's shadow takes the depth
+    (``shaded_lo``, ``shaded_hi``: no edge of this bar there).
     """
 
     st: np.ndarray
@@ -122,6 +124,8 @@ class _Sections:
     one_lo: np.ndarray = None
     one_hi: np.ndarray = None
     strip_side: str = ""
+    shaded_lo: np.ndarray = None
+    shaded_hi: np.ndarray = None
 
 
 def _refined_bar(
@@ -256,6 +260,9 @@ def _section_edges(i, bar: _Bar, sec: _Sections, rows, rgb, cand, intr, fp, prm,
         reading.holed = int(two.sum())
         bad_lo |= sec.strip_side == "lo"
         bad_hi |= sec.strip_side == "hi"
+    if sec.shaded_lo is not None:  # nor an end cut where a nearer bar's shadow begins
+        bad_lo |= sec.shaded_lo[rows]
+        bad_hi |= sec.shaded_hi[rows]
     # the side at another bar is lost; the other side may still give a one-sided width, if
     # the axis may be measured from
     if not bar.axis_ok:
