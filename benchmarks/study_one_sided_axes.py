@@ -27,9 +27,9 @@ import pandas as pd
 
 
 def _truth_match(cap, bars: pd.DataFrame) -> list:
-    """Per bar of ``bars``: the visible true bar nearest to its axis among those parallel to it
-    (within 8°), its offsets (across, along the line of sight) in mm and its envelope; None
-    where none is parallel or nearer than 20 mm."""
+    """Per bar of ``bars``: its offsets (across, along the line of sight; mm) from the visible
+    true bar nearest to its axis among those parallel to it (within 8°), and that bar's
+    envelope; None where none is parallel or nearer than 20 mm."""
     truth = [b for b in cap.truth["bars"] if b.get("visible")]
     out = []
     for b in bars.itertuples():
@@ -53,7 +53,7 @@ def _truth_match(cap, bars: pd.DataFrame) -> list:
             out.append(None)
             continue
         t, perp = best
-        out.append((float(np.dot(perp, across)), float(np.dot(perp, ray)), float(t["envelope_mm"]), across))
+        out.append((float(np.dot(perp, across)), float(np.dot(perp, ray)), float(t["envelope_mm"])))
     return out
 
 
@@ -71,7 +71,7 @@ def _one(args):
         for b, m in zip(bars.itertuples(), _truth_match(cap, bars)):
             if m is None or b.status != "measured":
                 continue
-            off_across, off_ray, env, _ = m
+            off_across, off_ray, env = m
             one = float(b.one_sided_share or 0) >= 0.5
             covered = float(b.occluded_fraction or 0) >= 0.5
             kind = "one edge, under a nearer bar" if one and covered else "one edge" if one else "two edges"

@@ -40,7 +40,7 @@ def test_an_axis_is_matched_to_the_nearest_parallel_bar_and_its_offsets_split():
     )
     first, far = _truth_match(cap, bars)
     assert far is None
-    across, ray, env, _ = first
+    across, ray, env = first
     assert env == 16.2
     assert abs(abs(across) - 0.6) < 1e-3  # (the line of sight to the bar leans 0.07°)
     assert abs(ray + 0.3) < 1e-3  # nearer the camera: against the line of sight

@@ -54,6 +54,11 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_MODEL = "rebar_seg"
 
 
+def _sigmoid(x):
+    """The probability of a logit ``x`` (in ``x``'s float type)."""
+    return 1.0 / (1.0 + np.exp(-x))
+
+
 class SegmentationModel:
     """An ONNX rebar segmentation network and the sidecar JSON that says how to use it.
 
@@ -442,7 +447,7 @@ class SegmentationModel:
         thr, is_logit = runs[0][1], runs[0][2]
         if not is_logit:
             return np.mean([r[0] for r in runs], axis=0).astype(np.float32), thr, is_logit
-        p = np.mean([1.0 / (1.0 + np.exp(-r[0].astype(np.float64))) for r in runs], axis=0)
+        p = np.mean([_sigmoid(r[0].astype(np.float64)) for r in runs], axis=0)
         p = np.clip(p, 1e-7, 1 - 1e-7)
         return np.log(p / (1 - p)).astype(np.float32), thr, is_logit
 
@@ -579,7 +584,7 @@ class SegmentationModel:
         """
         score, _, is_logit = self._score_tiled(color, bar_width_px, flips) if tiled else self._score(color, flips)
         if is_logit:
-            return (1.0 / (1.0 + np.exp(-score))).astype(np.float32)
+            return _sigmoid(score).astype(np.float32)
         return np.clip(score, 0, 1).astype(np.float32)
 
     def predict_mask(self, color) -> np.ndarray:
