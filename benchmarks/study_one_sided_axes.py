@@ -12,7 +12,7 @@ a change of the fit can be judged on both kinds of bar.
 
 Usage (a cache of ``bench_verdicts.py``; its captures with their ``truth.json``)::
 
-    python benchmarks/study_one_sided_axes.py --cache DIR [--slabs 0-59] [--trims 0,1] [--jobs 2]
+    python benchmarks/study_one_sided_axes.py --cache DIR [--slabs 0-59] [--trims 0,1,auto] [--jobs 2]
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def _one(args):
     cap = R.load_capture(cap_dir)
     rows = []
     for trim in trims:
-        res = inspect(cap, design, rng=0, edge_trim_px=trim)
+        res = inspect(cap, design, rng=0, edge_trim_px=None if trim == "auto" else trim)
         bars = res.bars
         for b, m in zip(bars.itertuples(), _truth_match(cap, bars)):
             if m is None or b.status != "measured":
@@ -78,7 +78,7 @@ def _one(args):
             w = b.width_median_mm
             rows.append(
                 {
-                    "trim": trim,
+                    "trim": str(trim),
                     "capture": f"{Path(folder).name}/{Path(cap_dir).name}",
                     "bar": int(b.bar_id),
                     "kind": kind,
@@ -96,11 +96,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cache", required=True, help="a bench_verdicts.py cache")
     ap.add_argument("--slabs", default="0-59", help="first-last slab numbers, clean ones only")
-    ap.add_argument("--trims", default="0,1", help="edge_trim_px values to compare")
+    ap.add_argument("--trims", default="0,1", help="edge_trim_px values to compare ('auto': inspect's default)")
     ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args(argv)
     lo, hi = (int(x) for x in args.slabs.split("-"))
-    trims = [int(x) for x in args.trims.split(",")]
+    trims = [x if x == "auto" else int(x) for x in args.trims.split(",")]
     jobs = []
     for k in range(lo, hi + 1):
         folder = Path(args.cache) / f"slab_{k:03d}"

@@ -117,6 +117,37 @@ def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | No
     return depth_to_points(depth, capture.intrinsics)
 
 
+def edge_flags(depth_mm, pixels, *, edge_mm: float = EDGE_MM, beside_px: int = 3) -> tuple:
+    """Per point (its ``(u, v)`` pixel): ``(silhouette, beside_nearer)``, two bool arrays.
+
+    ``silhouette``: the pixel is the nearer surface's last at an occluding edge (a pixel of its
+    3×3 neighbourhood has depth more than ``edge_mm`` farther; the pixels
+    ``trim_edge_fattening(depth, 1)`` leaves out). ``beside_nearer``: a pixel within
+    ``beside_px`` (a square) has depth more than ``edge_mm`` nearer: the point lies at the edge of
+    what a nearer surface leaves of its own (``prepare_cloud`` drops the fringe pixel itself; the
+    thinned cloud's next points lie up to ``STRIDE + 1`` pixels from the nearer surface, hence 3).
+    Pixels without depth are neither farther nor nearer. The refined bar search uses both
+    (``geometry.find_bars(edges=...)``, docs/decisions/055).
+
+    Examples
+    --------
+    >>> depth = np.full((1, 9), 500.0); depth[0, 3:6] = 470.0
+    >>> sil, beside = edge_flags(depth, np.array([[u, 0] for u in range(9)]))
+    >>> sil.astype(int).tolist(), beside.astype(int).tolist()
+    ([0, 0, 0, 1, 0, 1, 0, 0, 0], [1, 1, 1, 0, 0, 0, 1, 1, 1])
+    """
+    import cv2
+
+    d = np.asarray(depth_mm).astype(np.float32)
+    farthest = cv2.dilate(d, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
+    silhouette = (d > 0) & (farthest - d > edge_mm)
+    near = np.where(d > 0, d, np.float32(1e9))
+    nearest = cv2.erode(near, np.ones((2 * beside_px + 1, 2 * beside_px + 1), np.uint8))
+    beside = (d > 0) & (d - nearest > edge_mm)
+    u, v = np.asarray(pixels)[:, 0], np.asarray(pixels)[:, 1]
+    return silhouette[v, u], beside[v, u]
+
+
 def _check(capture, design, method):
     if not isinstance(capture, Capture):
         raise RebarInputError(

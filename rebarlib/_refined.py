@@ -32,6 +32,7 @@ from ._inspect import (
     _mean_measure,
     _radii,
     _top_cover,
+    edge_flags,
     facing_up,
     prepare_cloud,
     registered_mask,
@@ -218,6 +219,9 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
     bars, bar_clouds = [], []
     K = capture.intrinsics
     camera = G.to_slab_frame(np.zeros((1, 3)), plane)[0]  # where the bars' visible sides face
+    # which points are a nearer surface's last pixel, or lie beside a nearer surface (the
+    # fit of a bar half under a nearer bar leaves its clear flank's last pixel out)
+    silhouette, beside = edge_flags(capture.depth_mm, cloud.pixels)
     for li, lname in enumerate(lat.names):
         sel = np.where(lat.layer_of == li)[0]
         if len(sel) == 0:
@@ -225,6 +229,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
         # sample pitch on this lattice: STRIDE pixels at its median depth
         pitch = STRIDE * float(np.median(cloud.points[lat.sel[sel], 2])) / (0.5 * (K.fx + K.fy))
         radii = _radii(design, lname)
+        edges = (silhouette[lat.sel[sel]], beside[lat.sel[sel]])
         # direction groups do not know their level yet: fit with the larger radius first, then
         # refit each group with its level's radius once the levels are known
         found = G.find_bars(
@@ -236,6 +241,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
             camera=camera,
             rng=rng,
             noise_mm=plane.noise_mm,
+            edges=edges,
         )
         found = G.assign_levels(found)
         if radii["bottom"] != radii["top"]:
@@ -250,6 +256,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
                     camera=camera,
                     rng=rng,
                     noise_mm=plane.noise_mm,
+                    edges=edges,
                 )
             )
         found = G.flag_border_cut(found, lat.q[sel], plane=plane, intrinsics=K)

@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._checks import RebarInputError
 from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis, _longest_run
 from .bar_checks import _drop_overlaps, _off_their_level, _rms_outliers, _seen_in_parts, _sparse_bars
@@ -33,6 +34,7 @@ class _Limits(NamedTuple):
     camera: object
     prm: GeometryParams
     noise_mm: float | None = None
+    edges: tuple | None = None
 
 
 def find_bars(
@@ -53,6 +55,7 @@ def find_bars(
     rng=None,
     params: GeometryParams | None = None,
     noise_mm: float | None = None,
+    edges=None,
 ) -> list:
     """Every bar of one lattice (refined method): directions by angular scan, bars as offset
     peaks, each bar's points fitted with a cylinder of its envelope radius.
@@ -96,6 +99,12 @@ def find_bars(
         reaches ``params.ray_check_noise_share`` of a bar's radius, a bar whose circle fit the
         placing along its lines of sight contradicts is "not measured" (docs/decisions/048).
         None: each bar's own range residuals' robust SD is taken instead.
+    edges : ``(silhouette, beside_nearer)``, two (N,) bool arrays from the depth image
+        (``rebarlib._inspect.edge_flags``): the point is the nearer surface's last pixel at an occluding edge,
+        or lies within a few pixels of a nearer surface. Given them, a bar bordered along a
+        stretch by a nearer surface on one flank and clear on the other (a lower bar half under
+        an upper bar) is fitted there without its clear flank's last pixel, as the cloud has
+        none at its covered flank (docs/decisions/055). None: every point as it comes.
 
     Returns
     -------
@@ -122,7 +131,11 @@ def find_bars(
     ambiguous = np.zeros(len(q), bool)
     if len(cand) == 2:
         ambiguous = cand[0].member & cand[1].member
-    lim = _Limits(layer, min_points, min_extent, min_inlier_fraction, skew_check_deg, camera, prm, noise_mm)
+    if edges is not None:
+        edges = tuple(np.asarray(e, bool) for e in edges)
+        if len(edges) != 2 or any(e.shape != (len(q),) for e in edges):
+            raise RebarInputError(f"edges: expected two ({len(q)},) bool arrays (one flag per point), got {len(edges)}")
+    lim = _Limits(layer, min_points, min_extent, min_inlier_fraction, skew_check_deg, camera, prm, noise_mm, edges)
     bars = []
     for dn in cand:
         for k, c in enumerate(dn.centres):
@@ -232,6 +245,8 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
     depth noise's bias out; None where most of its points are not on the cylinder."""
     g, d, n2, off, r = dn.g, dn.d, dn.n2, dn.off, dn.r
     fit, idx, t = _refit_band(dn, c, idx, t, t0, t1, h, ambiguous, lim.min_points, lim.prm)
+    if lim.edges is not None:
+        fit, idx, t = _without_clear_flank_edge(fit, idx, t, off[idx] - c, h, c, r, lim)
     s_b, h_b = off[idx] - c, h[idx]
     if abs(fit[0][1]) > math.tan(math.radians(lim.skew_check_deg)):
         # more skewed than a mesh's bars are: unless the skew fits the points clearly
@@ -326,6 +341,57 @@ def _apart_along_rays(fit, t, s, h, r, camera, c, d, n2, prm: GeometryParams, no
         f"height, more than their uncertainty allows ({lim:.1f} mm): under this depth noise ({rms:.1f} mm "
         "residual) the section seen does not fix it"
     )
+
+
+def _without_clear_flank_edge(fit, idx, t, s, h, c, r, lim: _Limits):
+    """``(fit, idx, t)`` refitted without the clear flank's last pixel along the stretches where
+    the bar's other flank borders a nearer surface (docs/decisions/055).
+
+    The cloud has no points in the fringe just behind an occluding edge (``prepare_cloud``):
+    a lower bar half under an upper bar loses its last pixel at the covered flank, while its
+    clear flank keeps its own, with whatever the sensor's edge effects add there (fattening,
+    mixed depths). The circle then slides towards the clear flank. Leaving that flank's last
+    pixel out too makes the two flanks alike again; a bar seen between two clear flanks, or
+    with nearer surfaces on both sides (under a crossing bar), keeps every point.
+    Cells are one diameter long; a cell is seen from one flank where its points beside a nearer
+    surface reach along at least half of it and the bar's own edge pixels all lie across the
+    bar beyond every one of them. A bar with ``prm.one_sided_cells`` or more such cells covered
+    on the same flank, twice as many as on the other, loses every edge pixel of its own on the
+    clear side of its points beside the nearer surface (a cell can miss the test where the
+    nearer bar's edge leaves a hole, or the clear flank's last pixel is missing)."""
+    silhouette, beside = (e[idx] for e in lim.edges)
+    if not beside.any() or not silhouette.any():
+        return fit, idx, t
+    a0, a1 = fit[0][0], fit[0][1]
+    across = s - (a0 + a1 * t)  # from the fitted axis
+    cell = np.floor((t - t.min()) / (2.0 * r)).astype(int)
+    order = np.argsort(cell, kind="stable")
+    sides = []
+    for part in np.split(order, np.flatnonzero(np.diff(cell[order])) + 1):
+        b, e = part[beside[part]], part[silhouette[part]]
+        # a parallel bar's cover runs along the whole cell (a crossing bar's edge runs across
+        # it, its points beside the nearer surface within a few pixels along), on one flank:
+        # every edge pixel of the bar's own lies across the bar beyond all of those points
+        if len(b) and len(e) and t[b].max() - t[b].min() >= r:
+            if across[e].min() > across[b].max():
+                sides.append(-1)
+            elif across[e].max() < across[b].min():
+                sides.append(1)
+    covered = int(np.sign(sum(sides)))
+    n_covered = sides.count(covered)
+    if covered == 0 or n_covered < lim.prm.one_sided_cells or n_covered < 2 * sides.count(-covered):
+        return fit, idx, t
+    # the clear flank's own edge pixels: beyond the middle of the points beside the nearer bar
+    mid = float(np.median(across[beside]))
+    drop = silhouette & (covered * (across - mid) < 0)
+    if not drop.any() or (~drop).sum() < lim.min_points:
+        return fit, idx, t
+    keep = ~drop
+    idx, t, s = idx[keep], t[keep], s[keep]
+    a0, a1, b0, b1 = fit[0]
+    tm = float(t.mean())
+    refit = _fit_bar(t, s, h[idx], r, start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1))
+    return refit, idx, t
 
 
 def _refit_band(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, min_points, prm):

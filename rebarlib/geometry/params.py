@@ -44,6 +44,9 @@ class GeometryParams:
         cross-section do not place its axis
     sparse_density_share : nor where they cover under ``min_arc_deg`` and the bar holds under
         this share of the layer's typical points per mm
+    one_sided_cells : a bar is taken as covered along one flank by a parallel nearer bar (its
+        clear flank's last pixel then left out of its fit, docs/decisions/055) where this many
+        cells of one diameter show it so (one crossing bar's edge makes one at most)
     ray_check_noise_share : where the depth noise along the lines of sight reaches this share
         of the bar's radius, a circle fit that the placing along the lines of sight contradicts
         is "not measured" (docs/decisions/048: below it the circle fit's first-order noise
@@ -66,3 +69,4 @@ class GeometryParams:
     arc_min_share: float = 2 / 3
     sparse_density_share: float = 0.25
     ray_check_noise_share: float = 0.25
+    one_sided_cells: int = 3
