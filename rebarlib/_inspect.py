@@ -140,12 +140,14 @@ def edge_flags(depth_mm, pixels, *, edge_mm: float = EDGE_MM, beside_px: int = 3
 
     d = np.asarray(depth_mm).astype(np.float32)
     farthest = cv2.dilate(d, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
-    silhouette = (d > 0) & (farthest - d > edge_mm)
-    near = np.where(d > 0, d, np.float32(1e9))
+    near = d.copy()
+    near[near <= 0] = np.float32(1e9)
     nearest = cv2.erode(near, np.ones((2 * beside_px + 1, 2 * beside_px + 1), np.uint8))
-    beside = (d > 0) & (d - nearest > edge_mm)
+    # (compared at the points' pixels only)
     u, v = np.asarray(pixels)[:, 0], np.asarray(pixels)[:, 1]
-    return silhouette[v, u], beside[v, u]
+    dp = d[v, u]
+    valid = dp > 0
+    return valid & (farthest[v, u] - dp > edge_mm), valid & (dp - nearest[v, u] > edge_mm)
 
 
 def _check(capture, design, method):
@@ -311,7 +313,7 @@ def inspect(
     mask_cache = {}  # the colour model's mask, computed once if the counts need it
     from ._refined import inspect_refined  # the refined steps (they use this module's helpers)
 
-    res = inspect_refined(_trimmed(capture, trim), design, rng, mask_cache)
+    res = inspect_refined(_trimmed(capture, trim), design, rng, mask_cache, trimmed=trim > 0)
     if diameters:
         first = res
 
@@ -320,7 +322,7 @@ def inspect(
             # fattening that drew the bars' axes towards it is left out and the bars fitted again
             nonlocal trim
             trim = reach
-            again = inspect_refined(_trimmed(capture, reach), design, rng_again, mask_cache)
+            again = inspect_refined(_trimmed(capture, reach), design, rng_again, mask_cache, trimmed=True)
             again.timings_s["first_fit"] = round(sum(first.timings_s.values()), 6)
             return again
 

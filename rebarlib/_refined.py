@@ -66,9 +66,15 @@ class _Lattices:
     names: list
 
 
-def inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | None = None) -> InspectionResult:
+def inspect_refined(
+    capture: Capture, design: Design, rng, mask_cache: dict | None = None, *, trimmed: bool = False
+) -> InspectionResult:
     """The refined method's result for one capture (no diameters: :func:`rebarlib.inspect`
-    adds them). ``mask_cache``: a dict the colour mask is kept in between calls."""
+    adds them). ``mask_cache``: a dict the colour mask is kept in between calls. ``trimmed``:
+    the capture's depth has had the nearer surface's last pixels left out at every occluding
+    edge (``trim_edge_fattening``); a bar seen from one flank is then fitted with every point
+    (that trim already took the clear flank's edge effects, and gave the covered flank its
+    fringe back, docs/decisions/055)."""
     T, notes = {}, []
     t = time.perf_counter()
     cloud = prepare_cloud(capture)
@@ -82,7 +88,7 @@ def inspect_refined(capture: Capture, design: Design, rng, mask_cache: dict | No
     lat = _lattices(capture, design, cloud, ground, notes)
     T["layers"] = time.perf_counter() - t
     t = time.perf_counter()
-    bars, bar_clouds = _bars(capture, design, cloud, ground.plane, lat, rng)
+    bars, bar_clouds = _bars(capture, design, cloud, ground.plane, lat, rng, one_sided=not trimmed)
     T["bars"] = time.perf_counter() - t
     t = time.perf_counter()
     cover, layer_distance, upper_top, top_cover = _heights(bars, ground, design)
@@ -213,15 +219,17 @@ def _lattices(capture: Capture, design: Design, cloud, ground: _Ground, notes: l
     return _Lattices(bar_sel, q, split, layer_of, layer_names)
 
 
-def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattices, rng) -> tuple:
+def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattices, rng, one_sided=True) -> tuple:
     """The bars of each lattice (cylinders fitted with the design radii), then a second look at
-    full resolution at the positions of each row where none was found: (bars, their clouds)."""
+    full resolution at the positions of each row where none was found: (bars, their clouds).
+    ``one_sided``: a bar seen from one flank under a nearer bar is fitted without its clear
+    flank's edge pixels (docs/decisions/055)."""
     bars, bar_clouds = [], []
     K = capture.intrinsics
     camera = G.to_slab_frame(np.zeros((1, 3)), plane)[0]  # where the bars' visible sides face
     # which points are a nearer surface's last pixel, or lie beside a nearer surface (the
     # fit of a bar half under a nearer bar leaves its clear flank's last pixel out)
-    silhouette, beside = edge_flags(capture.depth_mm, cloud.pixels)
+    flags = edge_flags(capture.depth_mm, cloud.pixels[lat.sel]) if one_sided else None
     for li, lname in enumerate(lat.names):
         sel = np.where(lat.layer_of == li)[0]
         if len(sel) == 0:
@@ -229,7 +237,7 @@ def _bars(capture: Capture, design: Design, cloud, plane: G.Plane, lat: _Lattice
         # sample pitch on this lattice: STRIDE pixels at its median depth
         pitch = STRIDE * float(np.median(cloud.points[lat.sel[sel], 2])) / (0.5 * (K.fx + K.fy))
         radii = _radii(design, lname)
-        edges = (silhouette[lat.sel[sel]], beside[lat.sel[sel]])
+        edges = None if flags is None else tuple(f[sel] for f in flags)
         # direction groups do not know their level yet: fit with the larger radius first, then
         # refit each group with its level's radius once the levels are known
         found = G.find_bars(

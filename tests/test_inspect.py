@@ -750,3 +750,20 @@ def test_edge_fattening_is_left_out_before_the_bars_are_fitted(paper_design):
     plain = inspect(plain, paper_design, rng=0)
     assert "edge_trim_px" not in plain.extras
     assert plain.extras["registration"]["depth_overreach_px"] == 0
+
+
+def test_a_trimmed_depth_fits_half_covered_bars_with_every_point(paper_design, monkeypatch):
+    # Decision 055 leaves a half-covered bar's clear flank edge out only on the depth as it
+    # comes: a depth already trimmed at every occluding edge (edge_trim_px, or the over-reach
+    # inspect measures) has lost that flank's fattening and kept the covered flank's fringe, so
+    # the edge flags are not even computed
+    import rebarlib._refined as RF
+
+    cap = synth_capture(paper_design, height_mm=450, tilt_deg=10, seed=2)
+    calls = []
+    flags = RF.edge_flags
+    monkeypatch.setattr(RF, "edge_flags", lambda *a, **k: calls.append(1) or flags(*a, **k))
+    inspect(cap, paper_design, diameters=False, edge_trim_px=1, rng=0)
+    assert calls == []
+    inspect(cap, paper_design, diameters=False, edge_trim_px=0, rng=0)
+    assert calls == [1]
