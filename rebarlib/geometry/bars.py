@@ -100,8 +100,8 @@ def find_bars(
         placing along its lines of sight contradicts is "not measured" (docs/decisions/048).
         None: each bar's own range residuals' robust SD is taken instead.
     edges : ``(silhouette, beside_nearer)``, two (N,) bool arrays from the depth image
-        (``rebarlib._inspect.edge_flags``): the point is the nearer surface's last pixel at an occluding edge,
-        or lies within a few pixels of a nearer surface. Given them, a bar bordered along a
+        (``rebarlib._inspect.edge_flags``): the point is the nearer surface's last pixel at an
+        occluding edge, or lies within a few pixels of a nearer surface. Given them, a bar bordered along a
         stretch by a nearer surface on one flank and clear on the other (a lower bar half under
         an upper bar) is fitted there without its clear flank's last pixel, as the cloud has
         none at its covered flank (docs/decisions/055). None: every point as it comes.
@@ -246,7 +246,7 @@ def _fitted_bar(dn: _Direction, c, idx, t, t0, t1, h, ambiguous, lim: _Limits):
     g, d, n2, off, r = dn.g, dn.d, dn.n2, dn.off, dn.r
     fit, idx, t = _refit_band(dn, c, idx, t, t0, t1, h, ambiguous, lim.min_points, lim.prm)
     if lim.edges is not None:
-        fit, idx, t = _without_clear_flank_edge(fit, idx, t, off[idx] - c, h, c, r, lim)
+        fit, idx, t = _without_clear_flank_edge(fit, idx, t, off[idx] - c, h, r, lim)
     s_b, h_b = off[idx] - c, h[idx]
     if abs(fit[0][1]) > math.tan(math.radians(lim.skew_check_deg)):
         # more skewed than a mesh's bars are: unless the skew fits the points clearly
@@ -343,7 +343,7 @@ def _apart_along_rays(fit, t, s, h, r, camera, c, d, n2, prm: GeometryParams, no
     )
 
 
-def _without_clear_flank_edge(fit, idx, t, s, h, c, r, lim: _Limits):
+def _without_clear_flank_edge(fit, idx, t, s, h, r, lim: _Limits):
     """``(fit, idx, t)`` refitted without the clear flank's last pixel along the stretches where
     the bar's other flank borders a nearer surface (docs/decisions/055).
 
