@@ -24,7 +24,9 @@ from ._masks import (  # noqa: F401 (the mask's names are reached through this m
     MODEL_THREADS,
     REGISTRATION_MIN_PX,
     REGISTRATION_WARN_PX,
+    _farthest_within,
     _mask,
+    _nearest_within,
     rebar_mask,
     registered_mask,
     trim_edge_fattening,
@@ -104,12 +106,8 @@ def prepare_cloud(capture: Capture, *, stride: int = STRIDE, edge_mm: float | No
     """
     depth = capture.depth_mm
     if edge_mm is not None:
-        import cv2
-
         d = depth.astype(np.float32)
-        near = np.where(d > 0, d, np.float32(1e9))
-        nearest = cv2.erode(near, np.ones((3, 3), np.uint8))
-        depth = np.where(d - nearest > edge_mm, 0.0, depth)
+        depth = np.where(d - _nearest_within(d, 1) > edge_mm, 0.0, depth)
     if stride > 1:
         sub = np.zeros_like(depth)
         sub[::stride, ::stride] = depth[::stride, ::stride]
@@ -136,13 +134,8 @@ def edge_flags(depth_mm, pixels, *, edge_mm: float = EDGE_MM, beside_px: int = 3
     >>> sil.astype(int).tolist(), beside.astype(int).tolist()
     ([0, 0, 0, 1, 0, 1, 0, 0, 0], [1, 1, 1, 0, 0, 0, 1, 1, 1])
     """
-    import cv2
-
     d = np.asarray(depth_mm).astype(np.float32)
-    farthest = cv2.dilate(d, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
-    near = d.copy()
-    near[near <= 0] = np.float32(1e9)
-    nearest = cv2.erode(near, np.ones((2 * beside_px + 1, 2 * beside_px + 1), np.uint8))
+    farthest, nearest = _farthest_within(d, 1), _nearest_within(d, beside_px)
     # (compared at the points' pixels only)
     u, v = np.asarray(pixels)[:, 0], np.asarray(pixels)[:, 1]
     dp = d[v, u]

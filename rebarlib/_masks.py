@@ -144,8 +144,6 @@ def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.nd
     >>> trim_edge_fattening(depth, 1)[0].tolist()
     [500.0, 500.0, 500.0, 0.0, 470.0, 0.0, 500.0, 500.0, 0.0]
     """
-    import cv2
-
     depth = np.asarray(depth_mm)
     if depth.ndim != 2:
         raise RebarInputError(f"depth_mm: expected an (H, W) depth image, got shape {depth.shape}")
@@ -155,10 +153,26 @@ def trim_edge_fattening(depth_mm, px: int, *, edge_mm: float = EDGE_MM) -> np.nd
     if px == 0:
         return out
     d = depth.astype(np.float32)
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(px) + 1, 2 * int(px) + 1))
-    farthest = cv2.dilate(d, disk)  # (pixels without depth are 0: never the farther surface)
-    out[(d > 0) & (farthest - d > edge_mm)] = 0
+    out[(d > 0) & (_farthest_within(d, px) - d > edge_mm)] = 0
     return out
+
+
+def _farthest_within(d, px: int) -> np.ndarray:
+    """Per pixel of the float32 depth image ``d``, the farthest depth within ``px`` (a disk);
+    pixels without depth are 0, never the farther surface."""
+    import cv2
+
+    return cv2.dilate(d, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(px) + 1, 2 * int(px) + 1)))
+
+
+def _nearest_within(d, px: int) -> np.ndarray:
+    """Per pixel of the float32 depth image ``d``, the nearest valid depth within ``px`` (a
+    square); 1e9 where there is none."""
+    import cv2
+
+    near = d.copy()
+    near[near <= 0] = np.float32(1e9)
+    return cv2.erode(near, np.ones((2 * int(px) + 1, 2 * int(px) + 1), np.uint8))
 
 
 def _mask(capture, *, source, plane, model, rng, soft, tiled, bar_width_px, register):

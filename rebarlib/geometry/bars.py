@@ -362,7 +362,7 @@ def _without_clear_flank_edge(fit, idx, t, s, h, r, lim: _Limits):
     silhouette, beside = (e[idx] for e in lim.edges)
     if not beside.any() or not silhouette.any():
         return fit, idx, t
-    a0, a1 = fit[0][0], fit[0][1]
+    a0, a1, b0, b1 = fit[0]
     across = s - (a0 + a1 * t)  # from the fitted axis
     cell = np.floor((t - t.min()) / (2.0 * r)).astype(int)
     order = np.argsort(cell, kind="stable")
@@ -388,7 +388,6 @@ def _without_clear_flank_edge(fit, idx, t, s, h, r, lim: _Limits):
         return fit, idx, t
     keep = ~drop
     idx, t, s = idx[keep], t[keep], s[keep]
-    a0, a1, b0, b1 = fit[0]
     tm = float(t.mean())
     refit = _fit_bar(t, s, h[idx], r, start=(a0 + a1 * tm, a1, b0 + b1 * tm, b1))
     return refit, idx, t
