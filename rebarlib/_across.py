@@ -595,6 +595,46 @@ def _offset_at(seg: np.ndarray, s: float, d: np.ndarray, n: np.ndarray) -> float
     return float((p0 + (s - p0 @ d) / ds * (p1 - p0)) @ n)
 
 
+def _candidates(mine: np.ndarray, other: np.ndarray, d: np.ndarray, n: np.ndarray) -> list:
+    """For each bar of ``mine`` (segments, (M, 2, 2)), the bars of ``other`` it may pair with, in
+    their order, as ``(j, s)``: bar j is compared with it at ``s`` along ``d``, the middle of what
+    their stretches share (or of the gap between them, at most ``MAX_GAP_MM``). Of those, only
+    the ones whose offset across from it may be the smallest are listed: the offsets are estimated
+    all at once, and every bar kept whose estimate lies within 1 µm of the smallest (the estimate
+    and :func:`_offset_at` round differently, by far less). The caller computes the offsets of
+    the bars kept exactly as before: the same pair, to the bit, in a fraction of the time. The
+    stretches and ``s`` are computed as before, one segment at a time."""
+    if not len(mine) or not len(other):
+        return [[] for _ in mine]
+    lo_m, hi_m = np.array([sorted(seg @ d) for seg in mine]).T
+    lo_o, hi_o = np.array([sorted(o @ d) for o in other]).T
+    a0 = np.maximum(lo_m[:, None], lo_o[None, :])
+    a1 = np.minimum(hi_m[:, None], hi_o[None, :])
+    near = a1 - a0 >= -MAX_GAP_MM
+    s = 0.5 * (a0 + a1)
+
+    # offset of a line through p0, p1 at s along d: p0·n + (s − p0·d) / ds · (p1 − p0)·n
+    def at(segs, rows: bool):
+        p0, p1 = segs[:, 0], segs[:, 1]
+        ds, p0d, p0n, dn = (p1 - p0) @ d, p0 @ d, p0 @ n, (p1 - p0) @ n
+        flat = np.abs(ds) < 1e-6
+        ds = np.where(flat, 1.0, ds)
+        if rows:
+            out = p0n[:, None] + (s - p0d[:, None]) / ds[:, None] * dn[:, None]
+            return np.where(flat[:, None], p0n[:, None], out)
+        out = p0n[None, :] + (s - p0d[None, :]) / ds[None, :] * dn[None, :]
+        return np.where(flat[None, :], p0n[None, :], out)
+
+    r = np.abs(at(other, False) - at(mine, True))
+    out = []
+    for i in range(len(mine)):
+        js = np.flatnonzero(near[i])
+        if len(js) > 1 and np.all(np.isfinite(r[i, js])):
+            js = js[r[i, js] <= r[i, js].min() + 1e-3]
+        out.append([(int(j), float(s[i, j])) for j in js])
+    return out
+
+
 def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
     """Residuals of one placing of capture a in capture b's frame: per direction, the RMS and the
     count of the pairs of two fitted axes, and ``(RMS, count)`` of the other pairs (a bar placed
@@ -616,19 +656,11 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
             h_a = None if h_a is None else h_a @ R.T + t
             fa, fb = sa[k].fitted, sb[k].fitted
             for mine, other, hull, opens, f_mine, f_other in ((A, B, h_b, open_b, fa, fb), (B, A, h_a, open_a, fb, fa)):
+                candidates = _candidates(mine, other, d, n)
                 for i_seg, seg in enumerate(mine):
-                    # how much of this bar lies in the other capture's view
-                    samples = seg[0] + np.linspace(0, 1, 41)[:, None] * (seg[1] - seg[0])
-                    seen = 0.0 if hull is None else _inside(samples, hull).mean() * np.linalg.norm(seg[1] - seg[0])
                     best, j_best = None, -1
-                    lo, hi = sorted(seg @ d)
-                    for j_o, o in enumerate(other):
-                        olo, ohi = sorted(o @ d)
-                        a0, a1 = max(lo, olo), min(hi, ohi)
-                        if a1 - a0 < -MAX_GAP_MM:
-                            continue
-                        sm = 0.5 * (a0 + a1)
-                        r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
+                    for j_o, sm in candidates[i_seg]:
+                        r = _offset_at(other[j_o], sm, d, n) - _offset_at(seg, sm, d, n)
                         if best is None or abs(r) < abs(best):
                             best, j_best = r, j_o
                     if best is not None and abs(best) < gate:
@@ -636,6 +668,11 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
                             # a pair of two fitted axes (_well_placed), or one with a bar placed otherwise
                             (res if f_mine[i_seg] and f_other[j_best] else res_u).append(best)
                         continue
+                    # unpaired: how much of this bar lies in the other capture's view
+                    if hull is None:
+                        continue
+                    samples = seg[0] + np.linspace(0, 1, 41)[:, None] * (seg[1] - seg[0])
+                    seen = _inside(samples, hull).mean() * np.linalg.norm(seg[1] - seg[0])
                     if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
                         return None
         rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)

@@ -597,3 +597,46 @@ def test_a_placing_through_a_third_that_contradicts_the_pair_own_bars_is_refused
     out, notes = resolve_across([a, b, c])
     assert out[0]["extras"]["not_placed_on"] == ["B"]
     assert not any("through capture C" in n for n in notes)
+
+
+def test_each_bar_pairs_with_the_bar_a_full_search_finds():
+    """The pairing of a bar with the other capture's bars (``_candidates`` narrows them down before
+    the exact offsets) gives the pair a search over every bar gives, to the bit: the same partner
+    and the same offset, ties included (bars at the same offset, segments along the direction
+    and across it, gaps and overlaps)."""
+    from rebarlib._across import MAX_GAP_MM, _candidates, _offset_at
+
+    rng = np.random.default_rng(5)
+    d = np.array([math.cos(0.3), math.sin(0.3)])
+    n = np.array([-d[1], d[0]])
+    for _ in range(60):
+
+        def segs(k):
+            s0 = rng.uniform(-400, 400, k)
+            s1 = s0 + rng.uniform(-600, 600, k)
+            off = np.round(rng.uniform(-300, 300, k) / 50) * 50 + rng.choice([0.0, 0.4], k)  # equal offsets: ties
+            tilt = rng.choice([0.0, 1e-3, 0.05], k)
+            a = s0[:, None] * d + off[:, None] * n
+            b = s1[:, None] * d + (off + tilt * (s1 - s0))[:, None] * n
+            return np.stack([a, b], axis=1)
+
+        mine, other = segs(rng.integers(1, 9)), segs(rng.integers(1, 9))
+        cands = _candidates(mine, other, d, n)
+        for i, seg in enumerate(mine):
+            full_best, full_j = None, -1
+            lo, hi = sorted(seg @ d)
+            for j, o in enumerate(other):
+                olo, ohi = sorted(o @ d)
+                a0, a1 = max(lo, olo), min(hi, ohi)
+                if a1 - a0 < -MAX_GAP_MM:
+                    continue
+                sm = 0.5 * (a0 + a1)
+                r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
+                if full_best is None or abs(r) < abs(full_best):
+                    full_best, full_j = r, j
+            best, jb = None, -1
+            for j, sm in cands[i]:
+                r = _offset_at(other[j], sm, d, n) - _offset_at(seg, sm, d, n)
+                if best is None or abs(r) < abs(best):
+                    best, jb = r, j
+            assert (best, jb) == (full_best, full_j)
