@@ -1,8 +1,9 @@
 """A model's blocked variant (its graph padded to whole channel blocks, written by
 training/pad_graph.py) computes the graph's numbers, to the bit, and is what the model runs on a
 CPU with 16-channel blocks (decision 027). Checked on the stage-4 network (shipped until decision
-051, kept in training/candidates), whose one concatenation of 48 + 8 channels needs it; the
-shipped network's concatenations fill whole blocks already, so it has no variant."""
+051, kept in training/candidates), whose one concatenation of 48 + 8 channels needs it. The
+shipped network is its trained export rewritten by ``pad_graph.py --resize-scales`` (decision
+056): its resizes at constant scales and its concatenations padded, so it needs no variant."""
 
 import shutil
 import sys
@@ -16,6 +17,7 @@ from rebarlib.segmentation.model import MODELS_DIR, _channel_block
 
 CANDIDATES = Path(__file__).resolve().parents[1] / "training" / "candidates"
 STAGE4 = CANDIDATES / "deeplab_fine_stage4.onnx"
+TRAINED = CANDIDATES / "deeplab_fine_w_dr11.onnx"  # the shipped network as exported after training
 SHIPPED = MODELS_DIR / "rebar_seg.onnx"
 
 
@@ -87,3 +89,34 @@ def test_pad_graph_pads_only_what_needs_it(stage4, tmp_path):
     assert pad_graph.pad_concat_channels(onnx.load(str(stage4[0])), 8) is None
     assert pad_graph.pad_concat_channels(onnx.load(str(out)), 16) is None
     assert pad_graph.pad_concat_channels(onnx.load(str(SHIPPED)), 16) is None
+
+
+def test_the_shipped_graph_is_the_trained_export_rewritten(tmp_path):
+    """``pad_graph.py --resize-scales`` on the trained export writes the shipped file's graph again
+    (the same output bits); its output stays within 1e-5 of the export's on any input whose sides
+    are multiples of 16, and it leaves nothing more to pad."""
+    pad_graph = _pad_graph()
+    import onnx
+
+    out = tmp_path / "rewritten.onnx"
+    assert pad_graph.main([str(TRAINED), "--resize-scales", "--out", str(out)]) == 0
+    trained, shipped, again = _session(TRAINED), _session(SHIPPED), _session(out)
+    for hw in [(800, 1280), (400, 640), (96, 160), (208, 336)]:
+        x = np.random.default_rng(hw[1]).standard_normal((1, 3) + hw).astype(np.float32)
+        ys, ya, yt = (s.run(None, {"image": x})[0] for s in (shipped, again, trained))
+        assert ys.shape == yt.shape == (1, 1) + hw
+        assert ys.tobytes() == ya.tobytes()
+        assert np.max(np.abs(ys - yt)) < 1e-5
+    graph = onnx.load(str(SHIPPED))
+    resizes = [n for n in graph.graph.node if n.op_type == "Resize"]
+    assert sum(len(n.input) == 3 for n in resizes) == 2  # the two decoder upsamplings; the logits' keeps its size
+    assert pad_graph.pad_concat_channels(graph, 16) is None
+    assert pad_graph.resize_scales(graph, 16) is None
+
+
+def test_pad_graph_refuses_a_rewrite_beyond_its_limit(tmp_path, capsys):
+    pad_graph = _pad_graph()
+    out = tmp_path / "r.onnx"
+    with pytest.raises(SystemExit, match="over --max-diff"):
+        pad_graph.main([str(TRAINED), "--resize-scales", "--max-diff", "0", "--out", str(out)])
+    assert not out.exists()

@@ -136,7 +136,7 @@ class SegmentationModel:
         of onnxruntime's blocked layout, AVX-512: 16) and where it gives the file's numbers to the
         bit on a probe input; otherwise keep the file's graph. About 15 % less CPU time per run of
         the stage-4 network (shipped until decision 051) on an AVX-512 CPU (docs/batch.md, "A
-        fourth pass"); the network shipped now fills whole blocks and has no variant."""
+        fourth pass"); the network shipped now is padded in its own file (decision 056) and has no variant."""
         import onnxruntime as ort
 
         block = _channel_block()
