@@ -235,7 +235,6 @@ def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
     sides are multiples of its stride, as the sidecar's ``input.pad_to`` gives it.
     """
     import onnx
-    import onnxruntime as ort
     from onnx import numpy_helper
 
     model = onnx.ModelProto.FromString(model.SerializeToString())  # a copy
@@ -253,10 +252,7 @@ def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
             if t not in known:
                 probe.graph.output.append(onnx.helper.make_empty_tensor_value_info(t))
                 known.add(t)
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.log_severity_level = 3
-    session = ort.InferenceSession(probe.SerializeToString(), so, providers=["CPUExecutionProvider"])
+    session = _session(probe.SerializeToString())
     names = [o.name for o in session.get_outputs()]
     scales = {n.name: set() for n in candidates}
     for h, w in probes:
@@ -285,21 +281,30 @@ def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
     return model
 
 
-def max_difference(original: bytes, rewritten: bytes, shapes=((400, 640), (96, 160))) -> float:
-    """The largest absolute difference between the two graphs' outputs on seeded probe inputs of
-    ``shapes`` (one thread each); inf where their shapes differ."""
+def _session(model: bytes):
+    """An onnxruntime CPU session of a serialised model, on one thread."""
     import onnxruntime as ort
 
     so = ort.SessionOptions()
     so.intra_op_num_threads = 1
     so.log_severity_level = 3
-    a = ort.InferenceSession(original, so, providers=["CPUExecutionProvider"])
-    b = ort.InferenceSession(rewritten, so, providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
+
+
+def _probe_outputs(original: bytes, other: bytes, shapes):
+    """The two graphs' outputs ``(ya, yb)`` on a seeded probe input of each of ``shapes``."""
+    a, b = _session(original), _session(other)
     name = a.get_inputs()[0].name
-    worst = 0.0
     for h, w in shapes:
         x = np.random.default_rng(h).standard_normal((1, 3, h, w)).astype(np.float32)
-        ya, yb = a.run(None, {name: x})[0], b.run(None, {name: x})[0]
+        yield a.run(None, {name: x})[0], b.run(None, {name: x})[0]
+
+
+def max_difference(original: bytes, rewritten: bytes, shapes=((400, 640), (96, 160))) -> float:
+    """The largest absolute difference between the two graphs' outputs on seeded probe inputs of
+    ``shapes`` (one thread each); inf where their shapes differ."""
+    worst = 0.0
+    for ya, yb in _probe_outputs(original, rewritten, shapes):
         if ya.shape != yb.shape:
             return float("inf")
         worst = max(worst, float(np.max(np.abs(ya.astype(np.float64) - yb))))
@@ -309,20 +314,9 @@ def max_difference(original: bytes, rewritten: bytes, shapes=((400, 640), (96, 1
 def same_numbers(original: bytes, padded: bytes, shapes=((400, 640), (96, 160))) -> bool:
     """Whether the two graphs give the same output bits on seeded probe inputs of ``shapes``
     (one thread each)."""
-    import onnxruntime as ort
-
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.log_severity_level = 3
-    a = ort.InferenceSession(original, so, providers=["CPUExecutionProvider"])
-    b = ort.InferenceSession(padded, so, providers=["CPUExecutionProvider"])
-    name = a.get_inputs()[0].name
-    for h, w in shapes:
-        x = np.random.default_rng(h).standard_normal((1, 3, h, w)).astype(np.float32)
-        ya, yb = a.run(None, {name: x})[0], b.run(None, {name: x})[0]
-        if ya.shape != yb.shape or ya.tobytes() != yb.tobytes():
-            return False
-    return True
+    return all(
+        ya.shape == yb.shape and ya.tobytes() == yb.tobytes() for ya, yb in _probe_outputs(original, padded, shapes)
+    )
 
 
 def main(argv=None) -> int:
