@@ -254,22 +254,23 @@ def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
                 known.add(t)
     session = _session(probe.SerializeToString())
     names = [o.name for o in session.get_outputs()]
-    scales = {n.name: set() for n in candidates}
+    # per resize, what each probe shows: (output size / input size per axis, input channels)
+    seen = {n.name: set() for n in candidates}
     for h, w in probes:
         x = np.zeros((1, 3, h, w), np.float32)
         shapes = dict(zip(names, (y.shape for y in session.run(None, {session.get_inputs()[0].name: x}))))
         for n in candidates:
             a, b = shapes[n.input[0]], shapes[n.output[0]]
-            scales[n.name].add(tuple(bo / ai for ai, bo in zip(a, b)) + (a[1],))
+            seen[n.name].add((tuple(bo / ai for ai, bo in zip(a, b)), a[1]))
     changed = False
     for n in candidates:
-        (s,) = scales[n.name] if len(scales[n.name]) == 1 else (None,)
-        if s is None or s[0] != 1 or s[1] != 1 or not all(float(f).is_integer() for f in s[2:4]):
+        if len(seen[n.name]) != 1:  # another scale at another input size: not a constant scale
             continue
-        if s[4] < block:
+        ((factors, channels),) = seen[n.name]
+        if factors[:2] != (1, 1) or not all(float(f).is_integer() for f in factors[2:]) or channels < block:
             continue
         name = f"{n.output[0].strip('/').replace('/', '_')}_scales"
-        g.initializer.append(numpy_helper.from_array(np.array(s[:4], np.float32), name))
+        g.initializer.append(numpy_helper.from_array(np.array(factors, np.float32), name))
         x = n.input[0]
         del n.input[:]
         n.input.extend([x, "", name])
