@@ -613,19 +613,15 @@ def _candidates(mine: np.ndarray, other: np.ndarray, d: np.ndarray, n: np.ndarra
     near = a1 - a0 >= -MAX_GAP_MM
     s = 0.5 * (a0 + a1)
 
-    # offset of a line through p0, p1 at s along d: p0·n + (s − p0·d) / ds · (p1 − p0)·n
-    def at(segs, rows: bool):
+    def at(segs, shape):
+        """Each segment's line at s along d, across it (p0·n + (s − p0·d) / ds · (p1 − p0)·n), its
+        per-segment terms laid out in ``shape`` to meet ``s`` (M, K)."""
         p0, p1 = segs[:, 0], segs[:, 1]
-        ds, p0d, p0n, dn = (p1 - p0) @ d, p0 @ d, p0 @ n, (p1 - p0) @ n
+        ds, p0d, p0n, dn = (v.reshape(shape) for v in ((p1 - p0) @ d, p0 @ d, p0 @ n, (p1 - p0) @ n))
         flat = np.abs(ds) < 1e-6
-        ds = np.where(flat, 1.0, ds)
-        if rows:
-            out = p0n[:, None] + (s - p0d[:, None]) / ds[:, None] * dn[:, None]
-            return np.where(flat[:, None], p0n[:, None], out)
-        out = p0n[None, :] + (s - p0d[None, :]) / ds[None, :] * dn[None, :]
-        return np.where(flat[None, :], p0n[None, :], out)
+        return np.where(flat, p0n, p0n + (s - p0d) / np.where(flat, 1.0, ds) * dn)
 
-    r = np.abs(at(other, False) - at(mine, True))
+    r = np.abs(at(other, (1, -1)) - at(mine, (-1, 1)))
     out = []
     for i in range(len(mine)):
         js = np.flatnonzero(near[i])

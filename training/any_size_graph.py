@@ -23,6 +23,8 @@ import sys
 
 import numpy as np
 
+from pad_graph import prune  # (training/, beside this script)
+
 
 def any_size(model):
     """The graph of ``model`` (an ``onnx.ModelProto``, changed in place) with its fixed sizes
@@ -67,13 +69,7 @@ def any_size(model):
             d.ClearField("dim_value")
             d.dim_param = name
     del g.value_info[:]
-    while True:  # drop the nodes that computed the fixed sizes
-        used = {i for n in g.node for i in n.input} | {o.name for o in g.output}
-        dead = [n for n in g.node if not any(o in used for o in n.output)]
-        if not dead:
-            break
-        for n in dead:
-            g.node.remove(n)
+    prune(g, initializers=False)  # drop the nodes that computed the fixed sizes
     return model
 
 

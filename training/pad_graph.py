@@ -206,8 +206,9 @@ def pad_concat_channels(model, block: int):
     return model
 
 
-def _prune(g):
-    """Remove from graph ``g`` the nodes whose outputs nothing reads, and unread initializers."""
+def prune(g, *, initializers: bool = True) -> None:
+    """Remove from graph ``g`` the nodes whose outputs nothing reads (over and over, as removing
+    one may leave another unread) and, with ``initializers``, the initializers nothing reads."""
     outputs = {o.name for o in g.output}
     while True:
         read = {i for n in g.node for i in n.input} | outputs
@@ -216,9 +217,10 @@ def _prune(g):
             break
         for n in dead:
             g.node.remove(n)
-    read = {i for n in g.node for i in n.input}
-    for t in [t for t in g.initializer if t.name not in read]:
-        g.initializer.remove(t)
+    if initializers:
+        read = {i for n in g.node for i in n.input}
+        for t in [t for t in g.initializer if t.name not in read]:
+            g.initializer.remove(t)
 
 
 def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
@@ -277,7 +279,7 @@ def resize_scales(model, block: int, probes=((400, 640), (208, 320))):
         changed = True
     if not changed:
         return None
-    _prune(g)
+    prune(g)
     del g.value_info[:]
     return model
 
