@@ -237,6 +237,17 @@ def collect_results(slab_dir, *, results_dir=None, design=None, method: str = "r
 def run(args) -> int:
     if _floor.is_floor(args.slab_dir):  # one report per slab and a floor summary
         return _floor.run_floor(args)
+    from contextlib import nullcontext
+
+    from ._pdf_writer import PdfWriter
+
+    html = args.format == "html" or (args.format is None and str(args.out or "").lower().endswith((".html", ".htm")))
+    # WeasyPrint loads in a helper process while this one reads the results and judges the slab
+    with nullcontext() if html else PdfWriter() as writer:
+        return _run(args, writer)
+
+
+def _run(args, writer) -> int:
     from ._design import load_design
     from .acceptance import evaluate, load_tolerances
     from .report import build_report, find_captures
@@ -261,7 +272,7 @@ def run(args) -> int:
         slab, results_dir=args.results, design=design, method=args.method, design_path=design_path
     )
     acc = evaluate(results, design, tolerances, missing_captures=missing)
-    path = build_report(slab, design, acc, out_path=out, format=fmt, exports=not args.no_exports)
+    path = build_report(slab, design, acc, out_path=out, format=fmt, exports=not args.no_exports, pdf_writer=writer)
     n_items = len(acc.items)
     counts = acc.items["verdict"].value_counts().to_dict()
     print(

@@ -13,6 +13,7 @@ import base64
 import datetime as _dt
 from pathlib import Path
 
+from . import _pdf_writer
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import Design
@@ -106,32 +107,14 @@ def templates_dir() -> Path:
 
 
 def safe_url_fetcher(allowed_dir=None, *, refused=None):
-    """A weasyprint URL fetcher that serves only ``data:`` URIs and files inside ``allowed_dir``.
+    """A weasyprint URL fetcher that serves only ``data:`` URIs and files inside ``allowed_dir``
+    (default: the templates folder).
 
     Every other URL (http, ftp, any other local path) is refused with ``ValueError``, which
     weasyprint turns into a missing resource. Refused URLs are appended to ``refused`` (a list)
     when one is given, so callers and tests can see what a document tried to load.
     """
-    from weasyprint.urls import URLFetcher
-
-    root = Path(allowed_dir or templates_dir()).resolve()
-
-    class _ProjectOnlyFetcher(URLFetcher):
-        def fetch(self, url, headers=None):
-            scheme = url.split(":", 1)[0].lower() if ":" in url else ""
-            if scheme == "data":
-                return super().fetch(url, headers)
-            if scheme == "file":
-                from urllib.request import url2pathname
-
-                path = Path(url2pathname(url.split("?")[0].split("#")[0][len("file:") :])).resolve()
-                if path.is_relative_to(root) and path.is_file():
-                    return super().fetch(url, headers)
-            if refused is not None:
-                refused.append(url)
-            raise ValueError(f"refused to load {url!r}: the report loads only its own template assets")
-
-    return _ProjectOnlyFetcher(allowed_protocols=("data", "file"), allow_redirects=False)
+    return _pdf_writer.safe_url_fetcher(allowed_dir or templates_dir(), refused=refused)
 
 
 # --------------------------------------------------------------------------------------------
@@ -454,6 +437,7 @@ def build_report(
     format: str = "pdf",
     exports: bool = True,
     now=None,
+    pdf_writer=None,
 ) -> Path:
     """Write the slab's acceptance report.
 
@@ -466,6 +450,9 @@ def build_report(
     out_path : where the PDF (or HTML) goes
     format : "pdf" or "html"
     exports : also write ``<stem>_checkpoints.csv`` and ``<stem>_acceptance.json`` next to it
+    pdf_writer : a ``PdfWriter`` (``rebarlib._pdf_writer``) started earlier (``rebar report``
+        starts one before it judges the slab, so that WeasyPrint loads meanwhile); default: the
+        PDF is rendered in this process
 
     Returns
     -------
@@ -479,11 +466,10 @@ def build_report(
     html = render_html(report_context(slab_dir_or_results, design, acceptance, now=now))
     if format == "html":
         out.write_text(html, encoding="utf-8")
+    elif pdf_writer is not None:
+        pdf_writer.write(html, out, templates_dir())
     else:
-        import weasyprint
-
-        root = templates_dir()
-        weasyprint.HTML(string=html, base_url=str(root) + "/", url_fetcher=safe_url_fetcher(root)).write_pdf(str(out))
+        _pdf_writer.write_pdf(html, out, templates_dir())
     if exports:
         write_exports(acceptance, out)
     return out

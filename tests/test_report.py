@@ -157,6 +157,32 @@ def test_url_fetcher_serves_only_data_uris_and_template_files(tmp_path):
     }
 
 
+def test_a_pdf_written_by_the_helper_process_is_the_same_file(paper, tmp_path):
+    """``rebar report`` renders its PDF in a helper process that loaded WeasyPrint while the slab
+    was judged: the same bytes as rendering here; the helper's failure is raised here, naming the
+    file; a helper given nothing is ended."""
+    import datetime
+
+    from rebarlib._pdf_writer import PdfWriter
+
+    design, res = paper
+    acc = evaluate(list(res.values()), design)
+    now = datetime.datetime(2026, 1, 2, 3, 4)
+    here = build_report(PAPER, design, acc, out_path=tmp_path / "here.pdf", now=now, exports=False)
+    with PdfWriter() as writer:
+        helper = build_report(
+            PAPER, design, acc, out_path=tmp_path / "helper.pdf", now=now, exports=False, pdf_writer=writer
+        )
+    assert helper.read_bytes() == here.read_bytes()
+    with PdfWriter() as writer, pytest.raises(RuntimeError, match="nowhere"):
+        writer.write("<p>a page</p>", tmp_path / "nowhere" / "x.pdf", templates_dir())
+    assert not (tmp_path / "nowhere").exists()
+    writer = PdfWriter()
+    proc = writer._proc
+    writer.close()
+    assert proc.poll() is not None
+
+
 def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     design, res = paper
     results = tmp_path / "results"
