@@ -19,6 +19,7 @@ from .acceptance import is_true
 #: Colour of a bar drawn on the image by its verdict (colour-blind-safe pair for pass / fail).
 BAR_COLOURS = {PASS: "#1b9e77", FAIL: "#d62728", INCOMPLETE: "#e7c21f", NOT_CHECKED: "#f0a30a", HIDDEN: "#7f3fbf"}
 LAYER_COLOURS = {"lower": "#1f5fa8", "upper": "#e07b00"}
+PLAN_BACKGROUND = "#fbfaf7"
 IMAGE_WIDTH_PX = 720  # embedded colour images are re-encoded at this width: sharp enough on A4, small PDF
 
 
@@ -180,10 +181,25 @@ def _plan_view(
         "w": (hi - lo)[0] + 2 * pad,
         "h": (hi - lo)[1] + 3 * pad,
         "font": span / 45,
+        "background": PLAN_BACKGROUND,
         "scale_mm": _scale_bar(span),
         "sx": lo[0],
         "sy": hi[1] + pad * 2.0,
     }
+
+
+def over(colour: str, alpha: float, background: str = "#ffffff") -> str:
+    """The colour seen where ``colour`` is drawn at opacity ``alpha`` over ``background`` (both
+    ``#rrggbb``): the drawings are opaque, their translucency mixed beforehand.
+
+    Examples
+    --------
+    >>> over("#000000", 0.5), over("#1f5fa8", 1.0, "#fbfaf7")
+    ('#808080', '#1f5fa8')
+    """
+    c = [int(colour[i : i + 2], 16) for i in (1, 3, 5)]
+    b = [int(background[i : i + 2], 16) for i in (1, 3, 5)]
+    return "#" + "".join(f"{round(alpha * x + (1 - alpha) * y):02x}" for x, y in zip(c, b))
 
 
 def _plan_segments(bars: list, design: Design, e1, e2) -> tuple:

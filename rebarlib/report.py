@@ -17,7 +17,7 @@ from . import _pdf_writer
 from ._capture import read_intrinsics
 from ._checks import RebarInputError
 from ._design import Design
-from ._report_figures import BAR_COLOURS, LAYER_COLOURS, _image_data_uri, _image_overlay, _plan_view
+from ._report_figures import BAR_COLOURS, LAYER_COLOURS, _image_data_uri, _image_overlay, _plan_view, over
 from ._results import table_records
 from ._status import ACCEPTED, NOT_CHECKED, REJECTED, SLAB_INCOMPLETE
 from .acceptance import Acceptance
@@ -361,7 +361,7 @@ def _env():
         lstrip_blocks=True,
         undefined=jinja2.StrictUndefined,
     )
-    env.filters.update(fmt=_fmt, signed=_signed, pct=_pct, cls=_css_class, size=_size)
+    env.filters.update(fmt=_fmt, signed=_signed, pct=_pct, cls=_css_class, size=_size, over=over)
     return env
 
 
