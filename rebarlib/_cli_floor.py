@@ -168,15 +168,35 @@ def _inspect_all(slabs: list, *, method: str, jobs, quiet: bool) -> None:
             s.missing.append((cap.name, f"inspection failed: {o.error}"))
 
 
-def _judge_and_write(s: _Slab, out: Path, fmt: str, *, exports: bool, standard) -> None:
+def _judge(s: _Slab, out: Path, fmt: str, *, exports: bool, standard, html_only: bool):
+    """Judge a slab: ``(acceptance, report path, HTML)``. With ``html_only`` the report's HTML is
+    returned for a helper to render (:class:`PdfWriter`); else the report is written here and
+    the HTML is None."""
     from .acceptance import evaluate, load_tolerances
-    from .report import build_report
+    from .report import build_report, render_html, report_context
 
     tolerances = load_tolerances(standard) if standard else None
     acc = evaluate(s.results, s.design, tolerances, missing_captures=s.missing)
-    path = build_report(
-        s.folder, s.design, acc, out_path=_outputs(out, s.name, fmt, exports)[0], format=fmt, exports=exports
-    )
+    path = _outputs(out, s.name, fmt, exports)[0]
+    if html_only:
+        return acc, path, render_html(report_context(s.folder, s.design, acc))
+    build_report(s.folder, s.design, acc, out_path=path, format=fmt, exports=exports)
+    return acc, path, None
+
+
+def _finish(s: _Slab, acc, path: Path, *, exports: bool, writer) -> None:
+    """Wait for the slab's PDF (a failure makes the slab's row "not reported"), write its exports
+    and its row of the floor summary."""
+    from .report import write_exports
+
+    if writer is not None:
+        try:
+            writer.collect()
+        except (RuntimeError, OSError) as exc:
+            s.row = {"verdict": "not reported", "reason": str(exc)}
+            return
+        if exports:
+            write_exports(acc, path)
     items = acc.items
     s.row = {
         "slab_id": s.design.slab_id,
@@ -214,9 +234,13 @@ def _line(s: _Slab) -> str:
 
 def run_floor(args) -> int:
     """``rebar report FLOOR_DIR --out DIR``: see the module's description."""
+    from contextlib import nullcontext
+
     from ._checks import RebarInputError
     from ._cli_inspect import progress_bar
     from ._outdir import locked, write_file_atomically
+    from ._pdf_writer import PdfWriter
+    from .report import templates_dir
 
     floor, out = Path(args.slab_dir), Path(args.out)
     if getattr(args, "jobs", None) is not None and args.jobs < 1:
@@ -239,14 +263,34 @@ def run_floor(args) -> int:
         else:
             _inspect_all(slabs, method=args.method, jobs=getattr(args, "jobs", None), quiet=quiet)
         bar = progress_bar(len(slabs), quiet=quiet, unit="slab")
-        try:
-            for s in slabs:
-                if s.design is not None:
-                    try:
-                        _judge_and_write(s, out, fmt, exports=exports, standard=args.standard)
-                    except RebarInputError as exc:
-                        s.row = {"verdict": "not reported", "reason": str(exc)}
-                bar.update(1)
+        try:  # PDFs: a helper process renders a slab's report while the next slab is judged
+            with PdfWriter() if fmt == "pdf" else nullcontext() as writer:
+                pending = None  # (slab, acceptance, path) whose PDF the helper is writing
+                for s in slabs:
+                    made = None
+                    if s.design is not None:
+                        try:
+                            acc, path, html = _judge(
+                                s, out, fmt, exports=exports, standard=args.standard, html_only=writer is not None
+                            )
+                            made = (s, acc, path)
+                        except RebarInputError as exc:
+                            s.row = {"verdict": "not reported", "reason": str(exc)}
+                    if pending is not None:
+                        _finish(*pending, exports=exports, writer=writer)
+                        bar.update(1)
+                        pending = None
+                    if made is None:
+                        bar.update(1)
+                    elif writer is None:
+                        _finish(*made, exports=exports, writer=None)
+                        bar.update(1)
+                    else:
+                        writer.submit(html, path, templates_dir())
+                        pending = made
+                if pending is not None:
+                    _finish(*pending, exports=exports, writer=writer)
+                    bar.update(1)
         finally:
             bar.close()
             write_file_atomically(out / FLOOR_SUMMARY, floor_summary_csv(slabs))

@@ -3,7 +3,8 @@
 Importing WeasyPrint takes about half a second (it parses its C declarations and its user-agent
 stylesheets on every start), and judging a slab takes about as long. ``rebar report`` starts a
 :class:`PdfWriter` before it reads the results: a second Python process imports WeasyPrint on
-another core while this one judges the slab, then renders the HTML it is given. The PDF is the
+another core while this one judges the slab, then renders the HTML it is given. A floor report
+hands each slab's HTML over and judges the next slab while the helper renders it. The PDF is the
 same file either way (a test compares them byte for byte); docs/batch.md has the timings.
 
 This module imports nothing heavy, so that the helper process starts with WeasyPrint alone.
@@ -61,46 +62,75 @@ def write_pdf(html: str, out_path, assets_dir) -> None:
 class PdfWriter:
     """Writes PDFs in a helper process that imports WeasyPrint as soon as the writer is made.
 
-    Use it as a context manager; :meth:`write` blocks until the PDF is written and raises what
-    rendering raised (as ``RuntimeError`` with the helper's message, or the original exception
-    where the helper could not start or died: then the PDF is rendered here). Leaving the
-    ``with`` block ends a helper that was not used.
+    :meth:`write` blocks until the PDF is written. :meth:`submit` only hands the document over,
+    so that the caller can go on (judge the next slab of a floor) while the helper renders it;
+    :meth:`collect` then waits for it. One document at a time: collect before the next submit.
+    A failure is raised by :meth:`write` / :meth:`collect`: ``RuntimeError`` with the helper's
+    message, naming the file, or, where the helper could not start or died, the exception of
+    rendering the document in this process instead. Use it as a context manager: leaving the
+    ``with`` block waits for a document still being written and ends the helper.
     """
 
     def __init__(self):
         code = (
             "import sys; sys.path[:] = " + repr(list(sys.path)) + "; from rebarlib._pdf_writer import _serve; _serve()"
         )
+        self._job = None  # (html, out_path, assets_dir) handed over and not collected
+        self._used = False
         try:
             self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        except OSError:  # no helper: write() renders here
+        except OSError:  # no helper: documents are rendered here
             self._proc = None
 
-    def write(self, html: str, out_path, assets_dir) -> None:
-        proc, self._proc = self._proc, None  # one document per helper
-        if proc is None:
-            write_pdf(html, out_path, assets_dir)
+    def submit(self, html: str, out_path, assets_dir) -> None:
+        if self._job is not None:
+            raise RuntimeError(f"PdfWriter: {self._job[1]} was not collected before the next document")
+        self._job, self._used = (html, str(out_path), str(assets_dir)), True
+        if self._proc is not None:
+            try:
+                pickle.dump(self._job, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+                self._proc.stdin.flush()
+            except OSError:  # the helper is gone (a broken pipe): collect() renders it here
+                self._end()
+
+    def collect(self) -> None:
+        job, self._job = self._job, None
+        if job is None:
             return
-        try:
-            pickle.dump((html, str(out_path), str(assets_dir)), proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            proc.stdin.close()
-            reply = proc.stdout.readline()
-        except OSError:  # the helper is gone (a broken pipe)
-            reply = b""
-        finally:
-            _close(proc)
-        if not reply:  # the helper died (could not import WeasyPrint?): render here, raising what it raises
-            write_pdf(html, out_path, assets_dir)
+        reply = b""
+        if self._proc is not None:
+            try:
+                reply = self._proc.stdout.readline()
+            except OSError:
+                reply = b""
+            if not reply:  # the helper died (could not import WeasyPrint?)
+                self._end()
+        if not reply:
+            write_pdf(*job)
             return
         answer = json.loads(reply)
         if answer.get("error"):
-            raise RuntimeError(f"writing the PDF {out_path}: {answer['error']}")
+            raise RuntimeError(f"writing the PDF {job[1]}: {answer['error']}")
+
+    def write(self, html: str, out_path, assets_dir) -> None:
+        self.submit(html, out_path, assets_dir)
+        self.collect()
 
     def close(self) -> None:
+        if self._job is not None and self._proc is not None:
+            try:  # never leave a half-written PDF behind
+                self.collect()
+            except Exception:  # noqa: BLE001 - closing after a failure elsewhere: that one is raised
+                pass
+        self._job = None
+        if self._proc is not None and not self._used:
+            self._proc.kill()  # never used: nothing to wait for
+        self._end()
+
+    def _end(self) -> None:
         proc, self._proc = self._proc, None
-        if proc is not None:  # not used: nothing to wait for
-            proc.kill()
-            _close(proc)
+        if proc is not None:
+            _close(proc)  # the helper sees the end of its input and exits
 
     def __enter__(self):
         return self
@@ -123,23 +153,23 @@ def _close(proc) -> None:
 
 
 def _serve() -> None:
-    """The helper: import WeasyPrint, read one document from standard input, write its PDF, and
-    answer one JSON line on standard output."""
+    """The helper: import WeasyPrint, then for each document read from standard input write its
+    PDF and answer one JSON line on standard output, until the input ends."""
     out = sys.stdout.buffer
-    sys.stdout = sys.stderr  # nothing but the answer goes to the parent's pipe
+    sys.stdout = sys.stderr  # nothing but the answers goes to the parent's pipe
     try:
         import weasyprint  # noqa: F401  (the point of the helper: imported while the parent works)
     except Exception:  # noqa: BLE001 - no answer: the parent renders in its own process and raises
         return
-
-    try:
-        html, out_path, assets_dir = pickle.load(sys.stdin.buffer)
-    except EOFError:  # the parent closed without a document
-        return
-    try:
-        write_pdf(html, out_path, assets_dir)
-        answer = {"ok": True}
-    except Exception as exc:  # noqa: BLE001 - the parent raises it with this message
-        answer = {"error": f"{type(exc).__name__}: {exc}"}
-    out.write(json.dumps(answer).encode() + b"\n")
-    out.flush()
+    while True:
+        try:
+            html, out_path, assets_dir = pickle.load(sys.stdin.buffer)
+        except EOFError:  # the parent has no more documents
+            return
+        try:
+            write_pdf(html, out_path, assets_dir)
+            answer = {"ok": True}
+        except Exception as exc:  # noqa: BLE001 - the parent raises it with this message
+            answer = {"error": f"{type(exc).__name__}: {exc}"}
+        out.write(json.dumps(answer).encode() + b"\n")
+        out.flush()

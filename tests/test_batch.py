@@ -377,6 +377,44 @@ def test_floor_report_one_report_per_slab_and_a_summary(floor, tmp_path, capsys)
     assert "1 not reported" in capsys.readouterr().err
 
 
+def test_floor_report_as_pdf_renders_each_slab_while_the_next_is_judged(tmp_path, capsys):
+    """PDFs of a floor are rendered by a helper process while the next slab is judged: every
+    slab still gets its report, exports and row, in the floor's order."""
+    import pypdf
+
+    fl = tmp_path / "floor"
+    fl.mkdir()
+    for name, slab in (("S1", "paper_slab"), ("S2", "site_slab"), ("S3", "paper_slab")):
+        (fl / name).symlink_to(example_slab(slab)[0], target_is_directory=True)
+    out = tmp_path / "reports"
+    for name in ("S1", "S2", "S3"):  # no capture has a result: every slab is reported incomplete
+        (tmp_path / "none" / name).mkdir(parents=True)
+    assert main(["report", str(fl), "--results", str(tmp_path / "none"), "--out", str(out), "--quiet"]) == 0
+    rows = {r["slab"]: r for r in _summary_of(out / "floor_summary.csv")}
+    assert list(rows) == ["S1", "S2", "S3"]
+    for name, row in rows.items():
+        assert row["verdict"] == "incomplete" and row["report"] == f"{name}.pdf"
+        text = " ".join(p.extract_text() for p in pypdf.PdfReader(str(out / f"{name}.pdf")).pages)
+        assert row["slab_id"] in text and "NOT ACCEPTED (incomplete" in text
+        saved = json.loads((out / f"{name}_acceptance.json").read_text(encoding="utf-8"))
+        assert saved["verdict"] == "incomplete" and (out / f"{name}_checkpoints.csv").is_file()
+    assert "floor floor: 3 slabs: 3 incomplete" in capsys.readouterr().out
+
+
+def test_pdf_writer_hands_one_document_at_a_time(tmp_path):
+    from rebarlib._pdf_writer import PdfWriter
+    from rebarlib.report import templates_dir
+
+    with PdfWriter() as writer:
+        writer.submit("<p>one</p>", tmp_path / "one.pdf", templates_dir())
+        with pytest.raises(RuntimeError, match="one.pdf was not collected"):
+            writer.submit("<p>two</p>", tmp_path / "two.pdf", templates_dir())
+        writer.collect()
+        writer.submit("<p>two</p>", tmp_path / "two.pdf", templates_dir())
+    # leaving the block waited for the second document
+    assert (tmp_path / "one.pdf").read_bytes()[:5] == b"%PDF-" and (tmp_path / "two.pdf").read_bytes()[:5] == b"%PDF-"
+
+
 def test_floor_report_checks_its_outputs_before_computing(floor, tmp_path, capsys, no_compute):
     out = tmp_path / "reports"
     out.mkdir()
