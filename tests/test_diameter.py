@@ -2451,3 +2451,42 @@ def test_a_bar_beside_the_bar_over_it_in_its_shadow_is_sized_from_its_clear_edge
     beside = bars[(bars.layer == "lower") & (bars.occluded_fraction == 1.0) & (bars.one_sided_share == 1.0)]
     assert len(beside) >= 2 and (beside.nominal_mm == 16.0).all()
     assert (abs(beside.width_used_mm - beside.cloud_width_mm) < 1.0).all()
+
+
+def test_a_capture_s_mask_lean_needs_the_bars_whose_stack_confirms_their_size():
+    """The mask's lean (px) is the median of mask width less design envelope over the capture's
+    bars, where the bars whose stack height gives their design size agree with it; a set of bars
+    of another size (their stacks say so) is no lean, and a lean within twice its standard error
+    of 0 is none."""
+    from types import SimpleNamespace
+
+    from rebarlib.diameter.barsizes import observed_width_mm
+    from rebarlib.diameter.calibration import _mask_lean
+    from rebarlib.diameter.params import DiameterParams
+
+    prm = DiameterParams()
+
+    def capture(bars, px_mm=0.6):
+        """bars: (design size, mask width less that size's envelope in px, stack height)"""
+        results = [
+            SimpleNamespace(
+                widths=[0.0] * 20, one_sided_share=0.0, px_mm=px_mm, mask_width_mm=observed_width_mm(d) + lean * px_mm
+            )
+            for d, lean, _ in bars
+        ]
+        prepared = [SimpleNamespace(design_mm=d, stack_mm=s) for d, _, s in bars]
+        return _mask_lean(results, prepared, prm, system="GB1499.2", deformed=True)
+
+    wide = [0.9, 1.0, 1.1, 1.0, 0.95, 1.05, 1.0, 0.98]
+    assert capture([(14.0, x, 16.0) for x in wide]) == pytest.approx(1.0)
+    # Φ16 bars where Φ14 are designed (their masks 2.2 mm = 3.7 px over Φ14's envelope), their
+    # stacks reading Φ16: not a lean
+    assert capture([(14.0, x + 3.7, 18.3) for x in wide]) == 0.0
+    # the same bars with stack heights that confirm no size: nothing to tell them by
+    assert capture([(14.0, x + 3.7, math.nan) for x in wide]) == 0.0
+    # most bars lean 1 px; five whose stacks confirm them, 1.05 px: the lean is the majority's
+    assert capture(
+        [(14.0, x, math.nan) for x in wide * 3] + [(14.0, x, 16.0) for x in (1.0, 1.2, 0.9, 1.3, 1.05)]
+    ) == pytest.approx(1.0, abs=0.03)
+    # a lean lost in the bars' scatter is none
+    assert capture([(14.0, x, 16.0) for x in (0.5, -0.4, 0.3, -0.3, 0.1, -0.2, 0.4)]) == 0.0

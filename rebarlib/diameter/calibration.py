@@ -43,6 +43,49 @@ def _mask_width(result) -> float:
     return float(w) if w is not None else float(np.median(result.widths))
 
 
+def _mask_lean(results, prepared, prm, *, system, deformed) -> float:
+    """How far the capture's mask reads its bars wide (px; negative: narrow), or 0 where the
+    capture cannot tell it.
+
+    A photograph's softened, compressed edges make a network's mask lean outwards by a share of a
+    pixel, alike on every bar of the capture (docs/verdicts.md, "Slabs rendered a way not tried
+    before"). Two readings must agree:
+
+    - the capture's bars with a design size, seen from both edges: the median of their mask
+      width less the design's envelope, in pixels at each bar. A lean if it lies farther from 0
+      than twice its standard error (1.2533 x the robust spread / sqrt(n)). Alone it cannot tell
+      a lean from a set of bars of another size than designed;
+    - the bars among them whose height above the bars they rest on (their stack height, which
+      does not depend on the colour) gives their design size (``snap_diameter``): those are of
+      that size, so their median is the lean itself, from fewer bars. It must lie within twice
+      the two medians' combined standard error of the first.
+
+    Each needs ``prm.colour_offset_bars`` bars; the lean is the first median.
+    """
+    every, confirmed = [], []
+    for r, b in zip(results, prepared):
+        if len(r.widths) < prm.min_sections or not _two_sided(r) or not math.isfinite(r.px_mm):
+            continue
+        if not math.isfinite(b.design_mm):
+            continue
+        lean = (_mask_width(r) - observed_width_mm(b.design_mm, system=system, deformed=deformed)) / r.px_mm
+        every.append(lean)
+        if math.isfinite(b.stack_mm) and snap_diameter(b.stack_mm, system=system, deformed=deformed)[0] == b.design_mm:
+            confirmed.append(lean)
+    if len(confirmed) < prm.colour_offset_bars:
+        return 0.0
+
+    def median_and_se(v):
+        med = float(np.median(v))
+        return med, 1.2533 * _robust_sigma(np.asarray(v) - med) / math.sqrt(len(v))
+
+    lean, se = median_and_se(every)
+    lean_c, se_c = median_and_se(confirmed)
+    if abs(lean) <= 2.0 * se or abs(lean_c - lean) > 2.0 * math.hypot(se, se_c):
+        return 0.0
+    return lean
+
+
 def _mask_between_spread(results, prepared, prm) -> None:
     """Store in every bar's info ``mask_between_mm``: the robust spread (1.4826 MAD) of the mask
     widths between the capture's bars of the same design size, around each size's median.

@@ -20,7 +20,7 @@ from .._checks import RebarInputError
 from .._design import DEFAULT_BAR_SYSTEM
 from .bars import _check_inputs, _footprints, _prepare
 from .barsizes import bar_system, observed_width_mm, rib_height_mm, snap_diameter
-from .calibration import _colour_calibration, _mask_between_spread, _width_calibration
+from .calibration import _colour_calibration, _mask_between_spread, _mask_lean, _width_calibration
 from .closer import closer_advice
 from .decision import _check_core, _matches_design, _off_centre, _refined_decision
 from .paper import _attribute_pixels, _paper_bar, _paper_vote
@@ -190,6 +190,15 @@ def measure_diameters(
     )
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
+    if method == "refined" and not ribs:
+        # the capture's masks leaning wide or narrow (a photograph's soft edges), taken off them
+        lean_px = _mask_lean(results, prepared, prm, system=system, deformed=deformed)
+        if lean_px:
+            for r in results:
+                if len(r.widths) and math.isfinite(r.px_mm):
+                    r.mask_lean_mm = lean_px * r.px_mm
+                    r.widths = np.asarray(r.widths) - r.mask_lean_mm
+                    r.mask_width_mm = float(np.median(r.widths))
     _calibrate(results, prepared, cloud_mode, prm, system=system, deformed=deformed)
     rows, shadows = _bar_rows(
         prepared,
@@ -417,6 +426,7 @@ def _new_row(bar, reading, occ_frac, ribs, prm, method) -> dict:
         "width_source": "",
         "width_used_mm": math.nan,
         "width_sigma_mm": math.nan,
+        "mask_lean_mm": round(reading.mask_lean_mm, 3),
         "circle_width_mm": reading.circle_width_mm,
         "circle_sigma_mm": reading.circle_sigma_mm,
         "crest_width_mm": reading.crest_mm,

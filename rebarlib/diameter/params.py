@@ -42,6 +42,7 @@ DIAMETER_COLUMNS = (
     "width_source",
     "width_used_mm",
     "width_sigma_mm",
+    "mask_lean_mm",
     "circle_width_mm",
     "circle_sigma_mm",
     "crest_width_mm",

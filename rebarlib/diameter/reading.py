@@ -69,6 +69,8 @@ class BarReading:
     mask_width_mm : the width the mask gives (the rib envelope from the crests where the capture
         resolves ribs); None until :func:`measure_diameters` sets it (the sections' median then)
     rib_sigma_mm : σ of a width read from the rib crests (how far they reach with the roll)
+    mask_lean_mm : how far the capture's masks read bars wide at this bar's distance, taken off
+        its widths (``calibration._mask_lean``; 0 where not learnt)
     mask_between_mm : the spread of mask widths between the capture's bars of one size
     colour_offset_px, colour_weight, colour_spread_mm : the capture's colour-minus-mask offset,
         the share of a colour-mask disagreement blamed on the mask, and their combined spread
@@ -116,6 +118,7 @@ class BarReading:
     z_mm: float = math.nan
     lum: float = math.nan
     mask_width_mm: float | None = None
+    mask_lean_mm: float = 0.0
     rib_sigma_mm: float = 0.0
     mask_between_mm: float = 0.0
     colour_offset_px: float = 0.0
