@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
+import math
+import statistics
 from pathlib import Path
 
 from . import _pdf_writer
@@ -297,6 +299,14 @@ def report_context(source, design: Design, acceptance: Acceptance, *, now=None) 
     }
 
 
+def _mask_lean_mm(bars: list) -> float:
+    """The lean the diameter stage took off this capture's mask widths (median over its bars that
+    have one, mm at each bar), or 0: none taken off, or a result from before it was recorded."""
+    leans = [b["mask_lean_mm"] for b in bars if isinstance(b.get("mask_lean_mm"), (int, float)) and b["mask_lean_mm"]]
+    leans = [v for v in leans if math.isfinite(v)]
+    return float(statistics.median(leans)) if leans else 0.0
+
+
 def _capture_context(
     r: dict, info: dict, folders: dict, acceptance: Acceptance, status_of: dict, design: Design
 ) -> dict:
@@ -348,6 +358,7 @@ def _capture_context(
         "captured_at": meta.get("captured_at", "not recorded"),
         "camera_basis": _camera_basis(r),
         "has_diameter": any("nominal_mm" in b or "diameter_status" in b for b in bars),
+        "mask_lean_mm": _mask_lean_mm(bars),
     }
 
 

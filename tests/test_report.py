@@ -183,6 +183,22 @@ def test_a_pdf_written_by_the_helper_process_is_the_same_file(paper, tmp_path):
     assert proc.poll() is not None
 
 
+def test_a_capture_s_mask_lean_is_said_under_its_bars(paper):
+    """Where the diameter stage took a lean off a capture's mask widths (``mask_lean_mm``), the
+    capture's section says how much and which way; a capture without one says nothing."""
+    design, res = paper
+    a = copy.deepcopy(res["A_400"])
+    for b, lean in zip(a["bars"], (0.31, 0.29, 0.33, 0.30)):
+        b["mask_lean_mm"] = lean
+    html = render_html(report_context(PAPER, design, evaluate([a, res["B_500"]], design)))
+    assert html.count("The colour mask read every bar of this capture") == 1
+    assert "this capture 0.30 mm wide" in html
+    a["bars"][0]["mask_lean_mm"] = a["bars"][1]["mask_lean_mm"] = -0.2
+    a["bars"][2]["mask_lean_mm"] = a["bars"][3]["mask_lean_mm"] = -0.2
+    html = render_html(report_context(PAPER, design, evaluate([a], design)))
+    assert "this capture 0.20 mm narrow" in html
+
+
 def test_cli_report_with_a_missing_capture(paper, tmp_path, capsys):
     design, res = paper
     results = tmp_path / "results"
