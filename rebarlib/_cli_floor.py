@@ -265,7 +265,7 @@ def run_floor(args) -> int:
         bar = progress_bar(len(slabs), quiet=quiet, unit="slab")
         try:  # PDFs: a helper process renders a slab's report while the next slab is judged
             with PdfWriter() if fmt == "pdf" else nullcontext() as writer:
-                pending = None  # (slab, acceptance, path) whose PDF the helper is writing
+                pending = None  # (slab, acceptance, path) whose row waits for its PDF
                 for s in slabs:
                     made = None
                     if s.design is not None:
@@ -279,15 +279,11 @@ def run_floor(args) -> int:
                     if pending is not None:
                         _finish(*pending, exports=exports, writer=writer)
                         bar.update(1)
-                        pending = None
                     if made is None:
                         bar.update(1)
-                    elif writer is None:
-                        _finish(*made, exports=exports, writer=None)
-                        bar.update(1)
-                    else:
+                    elif writer is not None:
                         writer.submit(html, path, templates_dir())
-                        pending = made
+                    pending = made
                 if pending is not None:
                     _finish(*pending, exports=exports, writer=writer)
                     bar.update(1)

@@ -74,6 +74,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _names_folder(out) -> bool:
+    """Whether ``--out`` names a folder: an existing one, or a path ending in a separator."""
+    return Path(out).is_dir() or str(out).endswith(("/", "\\"))
+
+
+def report_format(out, fmt: str | None) -> str:
+    """The report's format: ``fmt`` where given, else html for an ``--out`` file ending in
+    ``.html`` / ``.htm``, else pdf (also for a folder)."""
+    if fmt:
+        return fmt
+    if _names_folder(out):
+        return "pdf"
+    return "html" if Path(out).suffix.lower() in (".html", ".htm") else "pdf"
+
+
 def report_paths(out, *, slab_id: str, fmt: str | None, exports: bool) -> tuple[Path, str, list]:
     """Where the report and its exports go: ``(report, format, [report, csv, json])``.
 
@@ -81,13 +96,11 @@ def report_paths(out, *, slab_id: str, fmt: str | None, exports: bool) -> tuple[
     the report is then ``<out>/<slab id>.<format>``, the id reduced to letters, digits, ``.``,
     ``_`` and ``-`` and cut to :data:`MAX_STEM_CHARS`.
     """
-    text = str(out)
-    out = Path(out)
-    if out.is_dir() or text.endswith(("/", "\\")):
-        fmt = fmt or "pdf"
+    fmt = report_format(out, fmt)
+    folder, out = _names_folder(out), Path(out)
+    if folder:
         stem = re.sub(r"[^A-Za-z0-9._-]+", "_", slab_id).strip("._")[:MAX_STEM_CHARS] or "report"
         out = out / f"{stem}.{fmt}"
-    fmt = fmt or ("html" if out.suffix.lower() in (".html", ".htm") else "pdf")
     paths = [out]
     if exports:
         paths += [out.with_name(out.stem + "_checkpoints.csv"), out.with_name(out.stem + "_acceptance.json")]
@@ -241,9 +254,8 @@ def run(args) -> int:
 
     from ._pdf_writer import PdfWriter
 
-    html = args.format == "html" or (args.format is None and str(args.out or "").lower().endswith((".html", ".htm")))
     # WeasyPrint loads in a helper process while this one reads the results and judges the slab
-    with nullcontext() if html else PdfWriter() as writer:
+    with nullcontext() if report_format(args.out, args.format) == "html" else PdfWriter() as writer:
         return _run(args, writer)
 
 

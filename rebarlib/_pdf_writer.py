@@ -76,7 +76,6 @@ class PdfWriter:
             "import sys; sys.path[:] = " + repr(list(sys.path)) + "; from rebarlib._pdf_writer import _serve; _serve()"
         )
         self._job = None  # (html, out_path, assets_dir) handed over and not collected
-        self._used = False
         try:
             self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         except OSError:  # no helper: documents are rendered here
@@ -85,7 +84,7 @@ class PdfWriter:
     def submit(self, html: str, out_path, assets_dir) -> None:
         if self._job is not None:
             raise RuntimeError(f"PdfWriter: {self._job[1]} was not collected before the next document")
-        self._job, self._used = (html, str(out_path), str(assets_dir)), True
+        self._job = (html, str(out_path), str(assets_dir))
         if self._proc is not None:
             try:
                 pickle.dump(self._job, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
@@ -123,8 +122,8 @@ class PdfWriter:
             except Exception:  # noqa: BLE001 - closing after a failure elsewhere: that one is raised
                 pass
         self._job = None
-        if self._proc is not None and not self._used:
-            self._proc.kill()  # never used: nothing to wait for
+        if self._proc is not None:
+            self._proc.kill()  # nothing in progress: no need to wait for it to see its input end
         self._end()
 
     def _end(self) -> None:
