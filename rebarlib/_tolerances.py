@@ -49,7 +49,10 @@ _ITEM_KEYS = {
     "confirmed",
     "note",
 }
-_RULE_KEYS = {"min_pass_ratio", "max_factor", "text", "clause", "interpretation", "confirmed"}
+#: a lot rule's fields, in the order its table is written (a tuple: the written JSON is the same on
+#: every run)
+_RULE_FIELDS = ("min_pass_ratio", "max_factor", "text", "clause", "interpretation", "confirmed")
+_RULE_KEYS = set(_RULE_FIELDS)
 _BASE_ITEMS = ("cover", "layer_distance", "spacing", "bar_size", "bar_count", "top_cover")
 
 
@@ -257,7 +260,7 @@ class Tolerances:
             "overrides": list(self.overrides),
             "decision_rule": self.decision_rule,
             "items": {k: _item_as_table(v) for k, v in self.items.items()},
-            "lot_rules": {k: {f: getattr(v, f) for f in _RULE_KEYS} for k, v in self.lot_rules.items()},
+            "lot_rules": {k: {f: getattr(v, f) for f in _RULE_FIELDS} for k, v in self.lot_rules.items()},
         }
 
 
