@@ -307,12 +307,14 @@ def _fit_shift(pairs: list, gate: float, fitted: list | None = None) -> list:
         for _ in range(2):  # refine: the mean residual of the matched bars, twice
             res, res_f = [], []
             for (u, _, o, _), (fu, fo) in zip(pairs, fitted):
-                for i, x in enumerate(u + tau):
-                    j = np.argmin(np.abs(o - x))
-                    if abs(o[j] - x) < gate:
-                        res.append(o[j] - x)
-                        if fu[i] and fo[j]:
-                            res_f.append(o[j] - x)
+                if not len(u) or not len(o):
+                    continue
+                x = u + tau
+                j = np.argmin(np.abs(o[None, :] - x[:, None]), axis=1)
+                r = o[j] - x
+                hit = np.abs(r) < gate
+                res += list(r[hit])
+                res_f += list(r[hit & fu & fo[j]])
             if not res:
                 break
             tau = tau + float(np.mean(res_f or res))
@@ -335,9 +337,8 @@ def _conflicts(pairs: list, tau: float, gate: float) -> int:
             if not len(allx):
                 continue
             lo, hi = allx.min() - gate, allx.max() + gate
-            for x in other[(other > lo) & (other < hi)]:
-                if not np.any(np.abs(allx - x) < gate):
-                    n += 1
+            x = other[(other > lo) & (other < hi)]
+            n += int(np.count_nonzero(~np.any(np.abs(allx[None, :] - x[:, None]) < gate, axis=1)))
     return n
 
 
@@ -595,40 +596,43 @@ def _offset_at(seg: np.ndarray, s: float, d: np.ndarray, n: np.ndarray) -> float
     return float((p0 + (s - p0 @ d) / ds * (p1 - p0)) @ n)
 
 
-def _candidates(mine: np.ndarray, other: np.ndarray, d: np.ndarray, n: np.ndarray) -> list:
-    """For each bar of ``mine`` (segments, (M, 2, 2)), the bars of ``other`` it may pair with, in
-    their order, as ``(j, s)``: bar j is compared with it at ``s`` along ``d``, the middle of what
-    their stretches share (or of the gap between them, at most ``MAX_GAP_MM``). Of those, only
-    the ones whose offset across from it may be the smallest are listed: the offsets are estimated
-    all at once, and every bar kept whose estimate lies within 1 µm of the smallest (the estimate
-    and :func:`_offset_at` round differently, by far less). The caller computes the offsets of
-    the bars kept exactly as before: the same pair, to the bit, in a fraction of the time. The
-    stretches and ``s`` are computed as before, one segment at a time."""
-    if not len(mine) or not len(other):
-        return [[] for _ in mine]
-    lo_m, hi_m = np.array([sorted(seg @ d) for seg in mine]).T
-    lo_o, hi_o = np.array([sorted(o @ d) for o in other]).T
+def _dots(x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Each 2-vector of ``x`` (..., 2) dotted with ``v``, every one computed as NumPy computes one
+    such product alone (a stack of (1, 2) @ (2,) products): the same bits as ``x[i] @ v``, which a
+    single matrix product over the rows does not give (it may fuse the multiply and add otherwise)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    return (x.reshape(-1, 1, 2) @ v).reshape(x.shape[:-1])
+
+
+def _offsets_at(segs: np.ndarray, s: np.ndarray, d: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """:func:`_offset_at` of segment ``segs[i]`` at ``s[..., i]`` along ``d``, for a whole array at
+    once, to the bit: ``segs`` (K, 2, 2), ``s`` (..., K)."""
+    p0, p1 = segs[:, 0], segs[:, 1]
+    ds, p0d, p0n = _dots(p1 - p0, d), _dots(p0, d), _dots(p0, n)
+    flat = np.abs(ds) < 1e-6
+    q = p0 + ((s - p0d) / np.where(flat, 1.0, ds))[..., None] * (p1 - p0)
+    return np.where(flat, p0n, _dots(q, n))
+
+
+def _pairs(mine: np.ndarray, other: np.ndarray, d: np.ndarray, n: np.ndarray) -> tuple:
+    """For each bar of ``mine`` (segments, (M, 2, 2)), its nearest bar of ``other`` across ``d``:
+    ``(r, j)``, the offset of bar ``j`` of ``other`` from it (mm, signed) and ``j``; ``(nan, -1)``
+    where no bar of ``other`` may pair with it. Two bars are compared at ``s`` along ``d``, the
+    middle of what their stretches share (or of the gap between them, at most ``MAX_GAP_MM``), with
+    :func:`_offset_at`'s arithmetic; of equal offsets the first bar is taken."""
+    m = len(mine)
+    if not m or not len(other):
+        return np.full(m, np.nan), np.full(m, -1)
+    lo_m, hi_m = np.sort(mine @ d, axis=1).T
+    lo_o, hi_o = np.sort(other @ d, axis=1).T
     a0 = np.maximum(lo_m[:, None], lo_o[None, :])
     a1 = np.minimum(hi_m[:, None], hi_o[None, :])
     near = a1 - a0 >= -MAX_GAP_MM
     s = 0.5 * (a0 + a1)
-
-    def at(segs, shape):
-        """Each segment's line at s along d, across it (p0·n + (s − p0·d) / ds · (p1 − p0)·n), its
-        per-segment terms laid out in ``shape`` to meet ``s`` (M, K)."""
-        p0, p1 = segs[:, 0], segs[:, 1]
-        ds, p0d, p0n, dn = (v.reshape(shape) for v in ((p1 - p0) @ d, p0 @ d, p0 @ n, (p1 - p0) @ n))
-        flat = np.abs(ds) < 1e-6
-        return np.where(flat, p0n, p0n + (s - p0d) / np.where(flat, 1.0, ds) * dn)
-
-    r = np.abs(at(other, (1, -1)) - at(mine, (-1, 1)))
-    out = []
-    for i in range(len(mine)):
-        js = np.flatnonzero(near[i])
-        if len(js) > 1 and np.all(np.isfinite(r[i, js])):
-            js = js[r[i, js] <= r[i, js].min() + 1e-3]
-        out.append([(int(j), float(s[i, j])) for j in js])
-    return out
+    r = _offsets_at(other, s, d, n) - _offsets_at(mine, s.T, d, n).T
+    j = np.argmin(np.where(near, np.abs(r), np.inf), axis=1)
+    ok = near[np.arange(m), j]
+    return np.where(ok, r[np.arange(m), j], np.nan), np.where(ok, j, -1)
 
 
 def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
@@ -652,29 +656,34 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
             h_a = None if h_a is None else h_a @ R.T + t
             fa, fb = sa[k].fitted, sb[k].fitted
             for mine, other, hull, opens, f_mine, f_other in ((A, B, h_b, open_b, fa, fb), (B, A, h_a, open_a, fb, fa)):
-                candidates = _candidates(mine, other, d, n)
-                for i_seg, seg in enumerate(mine):
-                    best, j_best = None, -1
-                    for j_o, sm in candidates[i_seg]:
-                        r = _offset_at(other[j_o], sm, d, n) - _offset_at(seg, sm, d, n)
-                        if best is None or abs(r) < abs(best):
-                            best, j_best = r, j_o
-                    if best is not None and abs(best) < gate:
-                        if mine is A:
-                            # a pair of two fitted axes (_well_placed), or one with a bar placed otherwise
-                            (res if f_mine[i_seg] and f_other[j_best] else res_u).append(best)
-                        continue
-                    # unpaired: how much of this bar lies in the other capture's view
-                    if hull is None:
-                        continue
-                    samples = seg[0] + np.linspace(0, 1, 41)[:, None] * (seg[1] - seg[0])
-                    seen = _inside(samples, hull).mean() * np.linalg.norm(seg[1] - seg[0])
-                    if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
-                        return None
+                best, j_best = _pairs(mine, other, d, n)
+                paired = np.abs(best) < gate
+                if mine is A:
+                    # a pair of two fitted axes (_well_placed), or one with a bar placed otherwise
+                    both = np.zeros(len(mine), bool)
+                    both[paired] = f_mine[paired] & f_other[j_best[paired]]
+                    for i in np.flatnonzero(paired):
+                        (res if both[i] else res_u).append(best[i])
+                if hull is not None and not paired.all() and _unpaired_in_view(mine[~paired], hull, opens, n, gate):
+                    return None
         rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)
         cnt.append(len(res))
         unfitted.append((float(np.sqrt(np.mean(np.square(res_u)))) if res_u else math.inf, len(res_u)))
     return rms, cnt, unfitted
+
+
+def _unpaired_in_view(segs: np.ndarray, hull: np.ndarray, opens: np.ndarray, n: np.ndarray, gate: float) -> bool:
+    """Whether any of these bars (segments, unpaired) lies in the other capture's view (``hull``)
+    over ``MIN_CONFLICT_MM`` or more (41 points along it), with no open position of that capture
+    within ``gate`` across: a bar the other capture would have shown."""
+    samples = segs[:, :1] + np.linspace(0, 1, 41)[None, :, None] * (segs[:, 1:] - segs[:, :1])
+    share = _inside(samples.reshape(-1, 2), hull).reshape(len(segs), 41).mean(axis=1)
+    for i in np.flatnonzero(share > 0) if MIN_CONFLICT_MM > 0 else range(len(segs)):
+        seg = segs[i]
+        seen = share[i] * np.linalg.norm(seg[1] - seg[0])
+        if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
+            return True
+    return False
 
 
 def _irregularity(sets: list) -> float:

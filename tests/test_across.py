@@ -600,43 +600,102 @@ def test_a_placing_through_a_third_that_contradicts_the_pair_own_bars_is_refused
 
 
 def test_each_bar_pairs_with_the_bar_a_full_search_finds():
-    """The pairing of a bar with the other capture's bars (``_candidates`` narrows them down before
-    the exact offsets) gives the pair a search over every bar gives, to the bit: the same partner
-    and the same offset, ties included (bars at the same offset, segments along the direction
-    and across it, gaps and overlaps)."""
-    from rebarlib._across import MAX_GAP_MM, _candidates, _offset_at
+    """The pairing of a bar with the other capture's bars (``_pairs``, all of them at once) gives
+    the pair a search over every bar, one at a time, gives, to the bit: the same partner and the
+    same offset, ties included (bars at the same offset, segments along the direction and across
+    it, gaps and overlaps)."""
+    from rebarlib._across import MAX_GAP_MM, _offset_at, _pairs
 
     rng = np.random.default_rng(5)
-    d = np.array([math.cos(0.3), math.sin(0.3)])
-    n = np.array([-d[1], d[0]])
-    for _ in range(60):
+    for angle in (0.3, 1.2, 2.9):
+        d = np.array([math.cos(angle), math.sin(angle)])
+        n = np.array([-d[1], d[0]])
+        for _ in range(40):
 
-        def segs(k):
-            s0 = rng.uniform(-400, 400, k)
-            s1 = s0 + rng.uniform(-600, 600, k)
-            off = np.round(rng.uniform(-300, 300, k) / 50) * 50 + rng.choice([0.0, 0.4], k)  # equal offsets: ties
-            tilt = rng.choice([0.0, 1e-3, 0.05], k)
-            a = s0[:, None] * d + off[:, None] * n
-            b = s1[:, None] * d + (off + tilt * (s1 - s0))[:, None] * n
-            return np.stack([a, b], axis=1)
+            def segs(k):
+                s0 = rng.uniform(-400, 400, k)
+                s1 = s0 + rng.uniform(-600, 600, k) * rng.choice([1.0, 1.0, 1e-9], k)  # some across d
+                off = np.round(rng.uniform(-300, 300, k) / 50) * 50 + rng.choice([0.0, 0.4], k)  # ties
+                tilt = rng.choice([0.0, 1e-3, 0.05], k)
+                a = s0[:, None] * d + off[:, None] * n
+                b = s1[:, None] * d + (off + tilt * (s1 - s0))[:, None] * n
+                return np.stack([a, b], axis=1)
 
-        mine, other = segs(rng.integers(1, 9)), segs(rng.integers(1, 9))
-        cands = _candidates(mine, other, d, n)
-        for i, seg in enumerate(mine):
-            full_best, full_j = None, -1
-            lo, hi = sorted(seg @ d)
-            for j, o in enumerate(other):
-                olo, ohi = sorted(o @ d)
-                a0, a1 = max(lo, olo), min(hi, ohi)
-                if a1 - a0 < -MAX_GAP_MM:
+            mine, other = segs(rng.integers(1, 9)), segs(rng.integers(1, 9))
+            got_r, got_j = _pairs(mine, other, d, n)
+            for i, seg in enumerate(mine):
+                full_best, full_j = None, -1
+                lo, hi = sorted(seg @ d)
+                for j, o in enumerate(other):
+                    olo, ohi = sorted(o @ d)
+                    a0, a1 = max(lo, olo), min(hi, ohi)
+                    if a1 - a0 < -MAX_GAP_MM:
+                        continue
+                    sm = 0.5 * (a0 + a1)
+                    r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
+                    if full_best is None or abs(r) < abs(full_best):
+                        full_best, full_j = r, j
+                if full_best is None:
+                    assert got_j[i] == -1 and math.isnan(got_r[i])
+                else:
+                    assert (float(got_r[i]), int(got_j[i])) == (full_best, full_j)
+
+
+def test_shift_candidates_match_a_bar_by_bar_search():
+    """``_fit_shift`` (each shift's bars matched all at once) gives the shifts, counts and RMS that
+    matching one bar at a time gives, to the bit, and ``_conflicts`` the same count."""
+    from rebarlib._across import _conflicts, _fit_shift
+
+    def conflicts_ref(pairs, tau, gate):
+        n = 0
+        for u, uo, o, oo in pairs:
+            for mine, mine_open, other in ((o, oo, u + tau), (u + tau, uo + tau, o)):
+                allx = np.concatenate([mine, mine_open])
+                if not len(allx):
                     continue
-                sm = 0.5 * (a0 + a1)
-                r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
-                if full_best is None or abs(r) < abs(full_best):
-                    full_best, full_j = r, j
-            best, jb = None, -1
-            for j, sm in cands[i]:
-                r = _offset_at(other[j], sm, d, n) - _offset_at(seg, sm, d, n)
-                if best is None or abs(r) < abs(best):
-                    best, jb = r, j
-            assert (best, jb) == (full_best, full_j)
+                lo, hi = allx.min() - gate, allx.max() + gate
+                n += sum(1 for x in other[(other > lo) & (other < hi)] if not np.any(np.abs(allx - x) < gate))
+        return n
+
+    def fit_shift_ref(pairs, gate, fitted):
+        cands = np.unique(np.round(np.concatenate([(o[None, :] - u[:, None]).ravel() for u, _, o, _ in pairs]), 1))
+        seen = []
+        for tau in cands:
+            if any(abs(tau - t2) < gate for _, _, t2 in seen):
+                continue
+            for _ in range(2):
+                res, res_f = [], []
+                for (u, _, o, _), (fu, fo) in zip(pairs, fitted):
+                    for i, x in enumerate(u + tau):
+                        j = np.argmin(np.abs(o - x))
+                        if abs(o[j] - x) < gate:
+                            res.append(o[j] - x)
+                            if fu[i] and fo[j]:
+                                res_f.append(o[j] - x)
+                if not res:
+                    break
+                tau = tau + float(np.mean(res_f or res))
+            if not res or any(abs(tau - t2) < gate for _, _, t2 in seen) or conflicts_ref(pairs, tau, gate):
+                continue
+            r = np.asarray(res_f or res)
+            seen.append((float(np.sqrt(np.mean(r**2))), len(res), float(tau)))
+        seen.sort(key=lambda x: (-x[1], x[0]))
+        return seen
+
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        pairs, fitted = [], []
+        for _set in range(rng.integers(1, 3)):
+            sp = rng.uniform(100, 250)
+            row = np.arange(12) * sp + rng.normal(0, 3, 12)
+            a, b = rng.integers(0, 6), rng.integers(6, 12)
+            shift = rng.uniform(-300, 300)
+            u, o = row[a:b] - shift, row[rng.integers(0, 4) : rng.integers(8, 13)]
+            u, o = np.delete(u, rng.integers(0, len(u), rng.integers(0, 2))), o
+            uo, oo = row[:0] + rng.uniform(-500, 500, rng.integers(0, 2)), row[:0]
+            pairs.append((u, uo, o, oo))
+            fitted.append((rng.random(len(u)) > 0.2, rng.random(len(o)) > 0.2))
+        gate = 0.25 * 100
+        assert _fit_shift(pairs, gate, fitted) == fit_shift_ref(pairs, gate, fitted)
+        for tau in rng.uniform(-300, 300, 5):
+            assert _conflicts(pairs, tau, gate) == conflicts_ref(pairs, tau, gate)
