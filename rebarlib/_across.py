@@ -443,12 +443,12 @@ def _register(
         N = np.array(normals)
         if abs(np.linalg.det(N)) < 0.2:
             return None, "the two directions are too close to parallel"
-        for t1 in shortlists[0]:
-            for t2 in shortlists[1]:
-                t = np.linalg.solve(N, np.array([t1, t2]))
-                fit = _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate_mm)
-                if fit is not None:
-                    hyps.append(_Placing(fit[0], fit[1], theta, R, t, (t1, t2), fit[2]))
+        shifts = [(t1, t2) for t1 in shortlists[0] for t2 in shortlists[1]]
+        ts = [np.linalg.solve(N, np.array(sh)) for sh in shifts]
+        fits = _joint_fits(sa, sb, groups, R, np.array(ts).reshape(-1, 2), hull_a, hull_b, gate_mm) if ts else []
+        for sh, t, fit in zip(shifts, ts, fits):
+            if fit is not None:
+                hyps.append(_Placing(fit[0], fit[1], theta, R, t, sh, fit[2]))
     # enough bars paired in each direction (of fitted axes or not), the pairs of fitted axes within the RMS
     strong = [
         h for h in hyps if min(n + m for n, (_, m) in zip(h.n, h.other)) >= MIN_MATCHED and max(h.rms) <= MAX_RMS_MM
@@ -605,34 +605,36 @@ def _dots(x: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _offsets_at(segs: np.ndarray, s: np.ndarray, d: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """:func:`_offset_at` of segment ``segs[i]`` at ``s[..., i]`` along ``d``, for a whole array at
-    once, to the bit: ``segs`` (K, 2, 2), ``s`` (..., K)."""
-    p0, p1 = segs[:, 0], segs[:, 1]
-    ds, p0d, p0n = _dots(p1 - p0, d), _dots(p0, d), _dots(p0, n)
+    """:func:`_offset_at` of segment ``segs[..., k, :, :]`` at ``s[..., m, k]`` along ``d``, for
+    whole arrays at once, to the bit: ``segs`` (..., K, 2, 2), ``s`` (..., M, K), leading axes
+    broadcast."""
+    p0, p1 = segs[..., 0, :], segs[..., 1, :]
+    ds, p0d, p0n = (v[..., None, :] for v in (_dots(p1 - p0, d), _dots(p0, d), _dots(p0, n)))
     flat = np.abs(ds) < 1e-6
-    q = p0 + ((s - p0d) / np.where(flat, 1.0, ds))[..., None] * (p1 - p0)
+    q = p0[..., None, :, :] + ((s - p0d) / np.where(flat, 1.0, ds))[..., None] * (p1 - p0)[..., None, :, :]
     return np.where(flat, p0n, _dots(q, n))
 
 
 def _pairs(mine: np.ndarray, other: np.ndarray, d: np.ndarray, n: np.ndarray) -> tuple:
-    """For each bar of ``mine`` (segments, (M, 2, 2)), its nearest bar of ``other`` across ``d``:
-    ``(r, j)``, the offset of bar ``j`` of ``other`` from it (mm, signed) and ``j``; ``(nan, -1)``
+    """For each bar of ``mine`` (segments, (..., M, 2, 2)), its nearest bar of ``other`` ((..., K, 2,
+    2); leading axes broadcast: one set of segments per placing) across ``d``: ``(r, j)``, each
+    (..., M), the offset of bar ``j`` of ``other`` from it (mm, signed) and ``j``; ``(nan, -1)``
     where no bar of ``other`` may pair with it. Two bars are compared at ``s`` along ``d``, the
     middle of what their stretches share (or of the gap between them, at most ``MAX_GAP_MM``), with
     :func:`_offset_at`'s arithmetic; of equal offsets the first bar is taken."""
-    m = len(mine)
-    if not m or not len(other):
-        return np.full(m, np.nan), np.full(m, -1)
-    lo_m, hi_m = np.sort(mine @ d, axis=1).T
-    lo_o, hi_o = np.sort(other @ d, axis=1).T
-    a0 = np.maximum(lo_m[:, None], lo_o[None, :])
-    a1 = np.minimum(hi_m[:, None], hi_o[None, :])
+    lead = np.broadcast_shapes(mine.shape[:-3], other.shape[:-3])
+    m = mine.shape[-3]
+    if not m or not other.shape[-3]:
+        return np.full((*lead, m), np.nan), np.full((*lead, m), -1)
+    sm, so = np.sort(mine @ d, axis=-1), np.sort(other @ d, axis=-1)
+    a0 = np.maximum(sm[..., :, None, 0], so[..., None, :, 0])
+    a1 = np.minimum(sm[..., :, None, 1], so[..., None, :, 1])
     near = a1 - a0 >= -MAX_GAP_MM
     s = 0.5 * (a0 + a1)
-    r = _offsets_at(other, s, d, n) - _offsets_at(mine, s.T, d, n).T
-    j = np.argmin(np.where(near, np.abs(r), np.inf), axis=1)
-    ok = near[np.arange(m), j]
-    return np.where(ok, r[np.arange(m), j], np.nan), np.where(ok, j, -1)
+    r = _offsets_at(other, s, d, n) - np.swapaxes(_offsets_at(mine, np.swapaxes(s, -1, -2), d, n), -1, -2)
+    j = np.argmin(np.where(near, np.abs(r), np.inf), axis=-1)[..., None]
+    ok = np.take_along_axis(near, j, -1)[..., 0]
+    return np.where(ok, np.take_along_axis(r, j, -1)[..., 0], np.nan), np.where(ok, j[..., 0], -1)
 
 
 def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
@@ -643,33 +645,50 @@ def _joint_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
     ``MAX_GAP_MM`` (a bar is not straight: two captures see different stretches of it, and a line
     is extrapolated no farther than half that gap). None where the placing puts a bar of either
     capture in the other's view with no bar (or open position) of its own there."""
-    rms, cnt, unfitted = [], [], []
+    return _joint_fits(sa, sb, groups, R, np.asarray(t, float)[None], hull_a, hull_b, gate)[0]
+
+
+def _joint_fits(sa, sb, groups, R, ts, hull_a, hull_b, gate) -> list:
+    """:func:`_joint_fit` of the placings ``x_b = R x_a + t`` for each row ``t`` of ``ts`` (P, 2),
+    all at once: a list of P fits (or None), each the same to the bit as one placing alone."""
+    P = len(ts)
+    alive = np.ones(P, bool)
+    fits = [([], [], []) for _ in range(P)]
     for d, ks in groups:
         n = _perp(d)
-        res, res_u = [], []
+        res = [[] for _ in range(P)]
+        res_u = [[] for _ in range(P)]
         for k in ks:
-            A = sa[k].segs @ R.T + t
+            A = (sa[k].segs @ R.T)[None] + ts[:, None, None, :]
             B = sb[k].segs
             open_b = sb[k].open_mids @ n
-            open_a = (sa[k].open_mids @ R.T + t) @ n
+            open_a = ((sa[k].open_mids @ R.T)[None] + ts[:, None, :]) @ n
             h_b, h_a = hull_b.get(k[0]), hull_a.get(k[0])
-            h_a = None if h_a is None else h_a @ R.T + t
+            h_a = None if h_a is None else (h_a @ R.T)[None] + ts[:, None, :]
             fa, fb = sa[k].fitted, sb[k].fitted
-            for mine, other, hull, opens, f_mine, f_other in ((A, B, h_b, open_b, fa, fb), (B, A, h_a, open_a, fb, fa)):
+            for a_side in (True, False):
+                mine, other = (A, B[None]) if a_side else (B[None], A)
                 best, j_best = _pairs(mine, other, d, n)
                 paired = np.abs(best) < gate
-                if mine is A:
+                if a_side:
                     # a pair of two fitted axes (_well_placed), or one with a bar placed otherwise
-                    both = np.zeros(len(mine), bool)
-                    both[paired] = f_mine[paired] & f_other[j_best[paired]]
-                    for i in np.flatnonzero(paired):
-                        (res if both[i] else res_u).append(best[i])
-                if hull is not None and not paired.all() and _unpaired_in_view(mine[~paired], hull, opens, n, gate):
-                    return None
-        rms.append(float(np.sqrt(np.mean(np.square(res)))) if res else math.inf)
-        cnt.append(len(res))
-        unfitted.append((float(np.sqrt(np.mean(np.square(res_u)))) if res_u else math.inf, len(res_u)))
-    return rms, cnt, unfitted
+                    both = paired & fa[None, :] & (fb[np.maximum(j_best, 0)] if len(fb) else False)
+                    for p in range(P):
+                        res[p].extend(best[p][both[p]])
+                        res_u[p].extend(best[p][paired[p] & ~both[p]])
+                hull = h_b if a_side else h_a
+                if hull is None:
+                    continue
+                for p in np.flatnonzero(alive & ~paired.all(axis=1)):
+                    segs = (mine[p] if a_side else B)[~paired[p]]
+                    if _unpaired_in_view(segs, hull if a_side else hull[p], open_b if a_side else open_a[p], n, gate):
+                        alive[p] = False
+        for p in range(P):
+            rms, cnt, unfitted = fits[p]
+            rms.append(float(np.sqrt(np.mean(np.square(res[p])))) if res[p] else math.inf)
+            cnt.append(len(res[p]))
+            unfitted.append((float(np.sqrt(np.mean(np.square(res_u[p])))) if res_u[p] else math.inf, len(res_u[p])))
+    return [fit if ok else None for fit, ok in zip(fits, alive)]
 
 
 def _unpaired_in_view(segs: np.ndarray, hull: np.ndarray, opens: np.ndarray, n: np.ndarray, gate: float) -> bool:
