@@ -599,12 +599,31 @@ def test_a_placing_through_a_third_that_contradicts_the_pair_own_bars_is_refused
     assert not any("through capture C" in n for n in notes)
 
 
+def _nearest_by_search(seg, other, d, n):
+    """The bar of ``other`` nearest ``seg`` across ``d`` by a search over every bar, one at a time,
+    as the placing once paired them: ``(offset, j)``, or ``(None, -1)`` where none may pair."""
+    from rebarlib._across import MAX_GAP_MM, _offset_at
+
+    best, jb = None, -1
+    lo, hi = sorted(seg @ d)
+    for j, o in enumerate(other):
+        olo, ohi = sorted(o @ d)
+        a0, a1 = max(lo, olo), min(hi, ohi)
+        if a1 - a0 < -MAX_GAP_MM:
+            continue
+        sm = 0.5 * (a0 + a1)
+        r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
+        if best is None or abs(r) < abs(best):
+            best, jb = r, j
+    return best, jb
+
+
 def test_each_bar_pairs_with_the_bar_a_full_search_finds():
     """The pairing of a bar with the other capture's bars (``_pairs``, all of them at once) gives
     the pair a search over every bar, one at a time, gives, to the bit: the same partner and the
     same offset, ties included (bars at the same offset, segments along the direction and across
     it, gaps and overlaps)."""
-    from rebarlib._across import MAX_GAP_MM, _offset_at, _pairs
+    from rebarlib._across import _pairs
 
     rng = np.random.default_rng(5)
     for angle in (0.3, 1.2, 2.9):
@@ -624,17 +643,7 @@ def test_each_bar_pairs_with_the_bar_a_full_search_finds():
             mine, other = segs(rng.integers(1, 9)), segs(rng.integers(1, 9))
             got_r, got_j = _pairs(mine, other, d, n)
             for i, seg in enumerate(mine):
-                full_best, full_j = None, -1
-                lo, hi = sorted(seg @ d)
-                for j, o in enumerate(other):
-                    olo, ohi = sorted(o @ d)
-                    a0, a1 = max(lo, olo), min(hi, ohi)
-                    if a1 - a0 < -MAX_GAP_MM:
-                        continue
-                    sm = 0.5 * (a0 + a1)
-                    r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
-                    if full_best is None or abs(r) < abs(full_best):
-                        full_best, full_j = r, j
+                full_best, full_j = _nearest_by_search(seg, other, d, n)
                 if full_best is None:
                     assert got_j[i] == -1 and math.isnan(got_r[i])
                 else:
@@ -706,17 +715,7 @@ def test_placings_tried_together_fit_as_one_at_a_time():
     pairing one bar at a time with every bar of the other capture gives, to the bit: the same RMS
     and counts of both kinds of pairs, and None for the same placings (a bar of one capture in the
     other's view with nothing there)."""
-    from rebarlib._across import (
-        MAX_GAP_MM,
-        MIN_CONFLICT_MM,
-        _inside,
-        _joint_fits,
-        _layer_hulls,
-        _offset_at,
-        _perp,
-        _rot,
-        _Set,
-    )
+    from rebarlib._across import MIN_CONFLICT_MM, _inside, _joint_fits, _layer_hulls, _perp, _rot, _Set
 
     def ref_fit(sa, sb, groups, R, t, hull_a, hull_b, gate):
         rms, cnt, unfitted = [], [], []
@@ -734,17 +733,7 @@ def test_placings_tried_together_fit_as_one_at_a_time():
                     (B, A, h_a, open_a, fb, fa),
                 ):
                     for i, seg in enumerate(mine):
-                        best, jb = None, -1
-                        lo, hi = sorted(seg @ d)
-                        for j, o in enumerate(other):
-                            olo, ohi = sorted(o @ d)
-                            a0, a1 = max(lo, olo), min(hi, ohi)
-                            if a1 - a0 < -MAX_GAP_MM:
-                                continue
-                            sm = 0.5 * (a0 + a1)
-                            r = _offset_at(o, sm, d, n) - _offset_at(seg, sm, d, n)
-                            if best is None or abs(r) < abs(best):
-                                best, jb = r, j
+                        best, jb = _nearest_by_search(seg, other, d, n)
                         if best is not None and abs(best) < gate:
                             if mine is A:
                                 (res if f_mine[i] and f_other[jb] else res_u).append(best)
