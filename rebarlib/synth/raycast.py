@@ -310,10 +310,22 @@ def _relief_gap(x, p0, a, u, w, rib):
     return rho - _relief_radius(s + rib[..., 5], psi, rib[..., 0], rib[..., 1], rib[..., 2], rib[..., 3]), s
 
 
+#: rays marched through the ribs' relief at a time: each ray's samples of one block are held at once
+#: (about 4 kB a ray), so a supersampled image with many bars in view stays within a few hundred MB
+RELIEF_CHUNK = 32768
+
+
 def _ray_relief(o, d, p0, p1, rib, step_mm=0.03, block=48, bisections=12):
     """Nearest intersection of rays o + t d with bar segments drawn in relief (``rib`` rows as
     ``_Geometry.seg_rib``); (t, normal, hit). Marched in ``step_mm`` steps through the rib
-    envelope's cylinder, then bisected: a ray that grazes between two ribs is a miss here."""
+    envelope's cylinder, then bisected: a ray that grazes between two ribs is a miss here. The
+    rays go ``RELIEF_CHUNK`` at a time (each ray's result does not depend on the others)."""
+    if len(o) > RELIEF_CHUNK:
+        parts = [
+            _ray_relief(*(x[i : i + RELIEF_CHUNK] for x in (o, d, p0, p1, rib)), step_mm, block, bisections)
+            for i in range(0, len(o), RELIEF_CHUNK)
+        ]
+        return tuple(np.concatenate(x) for x in zip(*parts))
     n = len(o)
     t_hit, normal, hit = np.full(n, np.inf), np.zeros((n, 3)), np.zeros(n, bool)
     axis = p1 - p0
