@@ -8,7 +8,9 @@ the nearest true bar of its layer (its axis within 8 mm of the bar's middle). Pr
 1. per diameter status (and the first words of its reason): how many bars, and their mask width
    (``width_median_mm``) less the true bar's rib envelope, median and 10th / 90th percentiles;
    the cloud's width less the envelope, median;
-2. per capture with at least 5 such bars seen from both edges: the mask's true lean (median of
+2. the bars sized (status "measured"): how many to their true size, how many to another (each
+   named: slab, capture, bar, size given, true size, confidence);
+3. per capture with at least 5 such bars seen from both edges: the mask's true lean (median of
    width less envelope) against the lean read on the capture, the median of mask width less stack
    height (``stack_mm``: a top-level bar's top above the bars it rests on) over at least 5 bars
    that have one; the error's median and spread (IQR), and their correlation.
@@ -60,6 +62,7 @@ def _num(v) -> float:
 def study(cache: Path) -> None:
     by_kind = defaultdict(list)  # kind -> [(mask - envelope, cloud - envelope)]
     captures = []  # (true lean, lean from stacks)
+    right, wrong = 0, []
     for f in sorted(cache.glob("slab_*/result_*.json")):
         cap = f.parent / f.name[len("result_") : -len(".json")]
         truth = json.loads((cap / "truth.json").read_text(encoding="utf-8"))
@@ -71,6 +74,20 @@ def study(cache: Path) -> None:
             if t is None:
                 continue
             w, env = _num(b.get("width_median_mm")), t["envelope_mm"]
+            if b["diameter_status"] == "measured":
+                if abs(_num(b.get("nominal_mm")) - t["diameter_mm"]) < 0.01:
+                    right += 1
+                else:
+                    wrong.append(
+                        (
+                            f.parent.name,
+                            cap.name,
+                            b["bar_id"],
+                            b.get("nominal_mm"),
+                            t["diameter_mm"],
+                            b.get("confidence"),
+                        )
+                    )
             reason = re.split(r"[0-9(]", (b.get("diameter_reason") or "").split(":")[0])[0].strip()
             kind = f"{b['diameter_status']}: {reason}" if reason else b["diameter_status"]
             by_kind[kind].append((w - env, _num(b.get("cloud_width_mm")) - env))
@@ -92,6 +109,9 @@ def study(cache: Path) -> None:
         p10, p50, p90 = np.nanpercentile(m, [10, 50, 90])
         cloud = f"{np.nanmedian(c):+.2f}" if np.isfinite(c).any() else "—"
         print(f"| {kind} | {len(rows)} | {p50:+.2f} ({p10:+.2f}, {p90:+.2f}) | {cloud} |")
+    print(f"\nsized: {right} to their true size, {len(wrong)} to another")
+    for slab, cap, bar, got, true_mm, conf in wrong:
+        print(f"- {slab} {cap} bar {bar}: sized Φ{got:g}, truly Φ{true_mm:g} (confidence {conf})")
     true = np.array([c[0] for c in captures])
     est = np.array([c[1] for c in captures])
     ok = np.isfinite(est)
