@@ -2456,8 +2456,8 @@ def test_a_bar_beside_the_bar_over_it_in_its_shadow_is_sized_from_its_clear_edge
 def test_a_capture_s_mask_lean_needs_the_bars_whose_stack_confirms_their_size():
     """The mask's lean (px) is the median of mask width less design envelope over the capture's
     bars, where the bars whose stack height gives their design size agree with it; a set of bars
-    of another size (their stacks say so) is no lean, and a lean within twice its standard error
-    of 0 is none."""
+    of another size (their stacks say so) is no lean, a lean within twice its standard error of 0
+    is none, and so is a mask reading the bars narrow (decision 058)."""
     from types import SimpleNamespace
 
     from rebarlib.diameter.barsizes import observed_width_mm
@@ -2490,3 +2490,6 @@ def test_a_capture_s_mask_lean_needs_the_bars_whose_stack_confirms_their_size():
     ) == pytest.approx(1.0, abs=0.03)
     # a lean lost in the bars' scatter is none
     assert capture([(14.0, x, 16.0) for x in (0.5, -0.4, 0.3, -0.3, 0.1, -0.2, 0.4)]) == 0.0
+    # masks that read the bars narrow, as clearly as the wide ones above: ribs in relief showing
+    # their core by each bar's roll, not a lean the capture's bars share (decision 058)
+    assert capture([(14.0, -x, 16.0) for x in wide]) == 0.0

@@ -44,12 +44,15 @@ def _mask_width(result) -> float:
 
 
 def _mask_lean(results, prepared, prm, *, system, deformed) -> float:
-    """How far the capture's mask reads its bars wide (px; negative: narrow), or 0 where the
-    capture cannot tell it.
+    """How far the capture's mask reads its bars wide (px, > 0), or 0 where the capture cannot
+    tell it or its mask reads them narrow.
 
     A photograph's softened, compressed edges make a network's mask lean outwards by a share of a
     pixel, alike on every bar of the capture (docs/verdicts.md, "Slabs rendered a way not tried
-    before"). Two readings must agree:
+    before"). A mask that reads the bars narrow is not taken for such a lean: ribs in relief show
+    their core between the transverse ribs more or less by each bar's roll, so that narrow reading
+    is a bar's own, not the capture's (decision 058: a Φ14 that showed its full envelope was read
+    a size up once a capture's narrow median was taken off it). Two readings must agree:
 
     - the capture's bars with a design size, seen from both edges: the median of their mask
       width less the design's envelope, in pixels at each bar. A lean if it lies farther from 0
@@ -81,7 +84,7 @@ def _mask_lean(results, prepared, prm, *, system, deformed) -> float:
 
     lean, se = median_and_se(every)
     lean_c, se_c = median_and_se(confirmed)
-    if abs(lean) <= 2.0 * se or abs(lean_c - lean) > 2.0 * math.hypot(se, se_c):
+    if lean <= 2.0 * se or abs(lean_c - lean) > 2.0 * math.hypot(se, se_c):
         return 0.0
     return lean
 

@@ -191,7 +191,7 @@ def measure_diameters(
     if ribs:
         cloud_mode = [False if m is True else m for m in cloud_mode]
     if method == "refined" and not ribs:
-        # the capture's masks leaning wide or narrow (a photograph's soft edges), taken off them
+        # the capture's masks leaning wide (a photograph's soft edges), taken off them (decision 058)
         lean_px = _mask_lean(results, prepared, prm, system=system, deformed=deformed)
         if lean_px:
             for r in results:
