@@ -119,6 +119,38 @@ def _straight_parts(mask, length_px):
     return out
 
 
+def _hysteresis(proba, low: float, high: float):
+    """The pixels above ``low`` connected (8 neighbours) to a pixel above ``high``."""
+    n, lab = cv2.connectedComponents((proba > low).astype(np.uint8), connectivity=8)
+    keep = np.zeros(n, bool)
+    keep[np.unique(lab[proba > high])] = True
+    keep[0] = False
+    return keep[lab]
+
+
+def _normalised(rgb, how: str):
+    """The photo with its colours normalised before the network (training/README.md, 'At
+    inference'): ``grayworld`` (each channel scaled to the image's mean grey), ``stretch`` (the
+    1st-99th percentile stretched to 0-255), ``clahe`` (contrast-limited equalisation of the
+    lightness, 8 x 8 tiles, limit 2), ``gammaG`` (each value to the power G)."""
+    if how == "none":
+        return rgb
+    f = rgb.astype(np.float32)
+    if how == "grayworld":
+        g = f.reshape(-1, 3).mean(axis=0)
+        return np.clip(f * (g.mean() / g), 0, 255).astype(np.uint8)
+    if how == "stretch":
+        lo, hi = np.percentile(f, (1, 99))
+        return np.clip((f - lo) * 255 / max(hi - lo, 1e-6), 0, 255).astype(np.uint8)
+    if how == "clahe":
+        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB)
+        lab[..., 0] = cv2.createCLAHE(2.0, (8, 8)).apply(lab[..., 0])
+        return cv2.cvtColor(lab, cv2.COLOR_LAB2RGB)
+    if how.startswith("gamma"):
+        return cv2.LUT(rgb, (255 * (np.arange(256) / 255.0) ** float(how[5:])).astype(np.uint8))
+    raise ValueError(how)
+
+
 def _labelme_mask(path: Path, shape):
     spec = json.loads(path.read_text(encoding="utf-8"))
     mask = np.zeros(shape, np.uint8)
@@ -231,7 +263,23 @@ def main(argv=None):
         help="keep only the mask's parts that survive an opening by a line this long (px at 640 px of "
         "width) in one of 12 directions (0: off)",
     )
+    ap.add_argument(
+        "--threshold", type=float, default=None, help="the probability a pixel needs (default: the model's)"
+    )
+    ap.add_argument(
+        "--hysteresis",
+        type=float,
+        default=0.0,
+        help="also keep pixels above this probability connected to one above the threshold (0: off)",
+    )
+    ap.add_argument(
+        "--normalise",
+        default="none",
+        help="the photo's colours before the network: none, grayworld, stretch, clahe or gammaG (e.g. gamma0.8)",
+    )
     args = ap.parse_args(argv)
+    if not re.fullmatch(r"none|grayworld|stretch|clahe|gamma[0-9.]+", args.normalise):
+        sys.exit(f"--normalise {args.normalise}: expected none, grayworld, stretch, clahe or gammaG (e.g. gamma0.8)")
     scales = [float(v) for v in args.scales.split(",")]
     if not scales or min(scales) <= 0:
         sys.exit(f"--scales {args.scales}: expected positive factors, e.g. 1,0.75")
@@ -255,9 +303,12 @@ def main(argv=None):
             tot, ms = {}, []
             for stem, rgb, ref, left_out in items:
                 t0 = time.perf_counter()
-                proba = _multi_scale(model, rgb, scales, tiled=args.tiled, flips=not args.no_flips)
+                proba = _multi_scale(
+                    model, _normalised(rgb, args.normalise), scales, tiled=args.tiled, flips=not args.no_flips
+                )
                 ms.append(1000 * (time.perf_counter() - t0))
-                pred = proba > model.threshold
+                thr = model.threshold if args.threshold is None else args.threshold
+                pred = _hysteresis(proba, args.hysteresis, thr) if args.hysteresis > 0 else proba > thr
                 if args.straight_px > 0:
                     pred = _straight_parts(pred, args.straight_px * rgb.shape[1] / 640)
                 c = score(pred, ref, left_out, args.tol_px * rgb.shape[1] / 640)

@@ -36,3 +36,25 @@ def test_straight_parts_keep_a_long_bar_and_drop_a_blob_and_a_short_stub():
     assert kept[100:106, 10:190].all()
     assert not kept[20:40, 20:40].any()
     assert not kept[150:170, 150:153].any()
+
+
+def test_hysteresis_keeps_weak_pixels_only_where_they_touch_a_strong_one():
+    from benchmarks.bench_real_photos import _hysteresis
+
+    p = np.zeros((5, 9))
+    p[2, 0:4] = [0.9, 0.4, 0.35, 0.3]  # a strong seed and the weaker pixels running from it
+    p[2, 6:9] = 0.4  # as weak, touching no seed
+    got = _hysteresis(p, 0.3, 0.5)
+    assert got[2].astype(int).tolist() == [1, 1, 1, 0, 0, 0, 0, 0, 0]
+
+
+def test_normalisations_keep_the_photo_s_shape_and_type():
+    from benchmarks.bench_real_photos import _normalised
+
+    rgb = (np.random.default_rng(0).random((20, 30, 3)) * 200).astype(np.uint8)
+    for how in ("none", "grayworld", "stretch", "clahe", "gamma0.8"):
+        out = _normalised(rgb, how)
+        assert out.shape == rgb.shape and out.dtype == np.uint8
+    assert (_normalised(rgb, "stretch").max(), _normalised(rgb, "stretch").min()) == (255, 0)
+    g = _normalised(rgb, "grayworld").reshape(-1, 3).mean(axis=0)
+    assert np.ptp(g) < 1.0  # the channels' means made equal
