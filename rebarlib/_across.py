@@ -697,7 +697,7 @@ def _unpaired_in_view(segs: np.ndarray, hull: np.ndarray, opens: np.ndarray, n: 
     within ``gate`` across: a bar the other capture would have shown."""
     samples = segs[:, :1] + np.linspace(0, 1, 41)[None, :, None] * (segs[:, 1:] - segs[:, :1])
     share = _inside(samples.reshape(-1, 2), hull).reshape(len(segs), 41).mean(axis=1)
-    for i in np.flatnonzero(share > 0) if MIN_CONFLICT_MM > 0 else range(len(segs)):
+    for i in np.flatnonzero(share > 0):  # a bar wholly outside the view: nothing seen (MIN_CONFLICT_MM > 0)
         seg = segs[i]
         seen = share[i] * np.linalg.norm(seg[1] - seg[0])
         if seen >= MIN_CONFLICT_MM and not np.any(np.abs(opens - float(seg.mean(axis=0) @ n)) < gate):
