@@ -1113,6 +1113,18 @@ def _judge_in(p: dict, xy: np.ndarray, sb: _Set | None, rb: dict, gate: float, m
             overlap = min(hi, t[1]) - max(lo, t[0])
             if abs(across) < gate and overlap >= min_overlap:
                 return PRESENT, sb.bar_ids[k], abs(across)
+        # the same line further along: a bar seen over a verdict's length, overlapping the
+        # position by less or lying beyond it by at most a lap's shortest length, is the bar there
+        # (docs/decisions/059-a-hidden-position-on-a-bar-seen-further-along.md)
+        for k in range(len(sb.mids)):
+            t = np.sort(sb.segs[k] @ d)
+            a0, a1 = max(lo, float(t[0])), min(hi, float(t[1]))
+            if a1 - a0 >= min_overlap or a1 - a0 < -MAX_GAP_MM or t[1] - t[0] < min_overlap:
+                continue
+            sm = 0.5 * (a0 + a1)
+            across = _offset_at(sb.segs[k], sm, d, n) - _offset_at(xy, sm, d, n)
+            if abs(across) < gate:
+                return PRESENT, sb.bar_ids[k], abs(across)
     plane = _plane(rb)
     for q in rb.get("positions") or []:
         if q.get("status") != MISSING or (q.get("layer"), q.get("level")) != key:

@@ -798,3 +798,61 @@ def test_placings_tried_together_fit_as_one_at_a_time():
             checked += 1
             nones += want is None
     assert nones and nones < checked  # both kinds of placing were compared
+
+
+@pytest.mark.parametrize(
+    "gap, length, judged", [(100.0, 250.0, True), (-80.0, 250.0, True), (350.0, 250.0, False), (100.0, 100.0, False)]
+)
+def test_a_hidden_position_is_present_where_a_placed_capture_sees_its_bar_further_along(gap, length, judged):
+    """A position hidden in capture A, whose bar capture B sees only beyond A's stretch of it (or
+    overlapping it by less than a position's verdict needs): on the same line across a gap
+    shorter than the shortest lap (200 mm) it is the same bar, so the position is present, where
+    B sees that bar over a verdict's length (150 mm); across a longer gap, or on a shorter stretch,
+    it stays not measured (decision 059)."""
+    rng = np.random.default_rng(6)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    hidden = ys["lower"][4]
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)), positions=[("lower", "bottom", hidden)])
+    a["bars"] = [
+        b_
+        for b_ in a["bars"]
+        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
+    ]
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
+    twin = next(
+        bar
+        for bar in b["bars"]
+        if (bar["layer"], bar["level"]) == ("lower", "bottom") and abs(-bar["start_y_mm"] - hidden) < 1e-6
+    )
+    # A's position runs to x = 300 (mesh); B's frame is shifted by 30 mm
+    twin["start_x_mm"] = 300.0 + gap + 30.0
+    twin["end_x_mm"] = twin["start_x_mm"] + length
+    out, _ = resolve_across([a, b])
+    pos = out[0]["positions"][0]
+    if judged:
+        assert pos["status"] == "present" and pos["judged_in"] == "B"
+        assert pos["reason"].startswith("judged in capture B: bar")
+    else:
+        assert pos["status"] == "not measured" and "judged_in" not in pos
+
+
+def test_a_place_seen_empty_only_further_along_does_not_make_a_hidden_position_missing():
+    """Evidence of an empty place is taken only where it overlaps the hidden stretch by a
+    verdict's length: a bar may begin just beyond an empty stretch (decision 059)."""
+    rng = np.random.default_rng(6)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    hidden = ys["lower"][4]
+    a = _capture("A", xs, ys, ((-500, 0), (-450, 400)), positions=[("lower", "bottom", hidden)])
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
+    for r in (a, b):
+        r["bars"] = [
+            b_
+            for b_ in r["bars"]
+            if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
+        ]
+    miss = _capture("B", xs, ys, ((100, 420), (-350, 480)), shift=(30.0, 0.0), positions=[("lower", "bottom", hidden)])
+    p = miss["positions"][0]
+    p["status"], p["reason"] = "missing", "seen empty along 320 mm"
+    b["positions"] = [p]
+    out, _ = resolve_across([a, b])
+    assert out[0]["positions"][0]["status"] == "not measured"
