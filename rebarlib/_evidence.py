@@ -235,9 +235,18 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
 
     step = prm.sample_mm
     in_view = np.all(inside | ~core[None, :], axis=1)
+    # slices at the image's border: the core partly outside, the would-be bar's own width (± r of
+    # its place) inside. They cannot show a position empty or occupied (a bar off its place could
+    # lie outside), but they can show a bar without depth in the colour (decision 060)
+    edge = ~in_view & np.any(inside & (np.abs(c) <= r)[None, :], axis=1)
     state = np.zeros(len(t), np.int8)  # 0 unknown, 1 empty, 2 occupied
     cause_nd = np.zeros(len(t), bool)
     cause_hid = np.zeros(len(t), bool)
+    for k in np.flatnonzero(edge):
+        if any((b - a) * step >= r for a, b in _runs(band[k])):
+            continue  # something at the bar's height there: its own evidence, not this slice's
+        unseen = nodepth[k] & core & inside[k]
+        cause_nd[k] = any((b - a) * step >= 2 * r for a, b in _runs(unseen))
     for k in np.flatnonzero(in_view):
         if any((b - a) * step >= r for a, b in _runs(band[k])):
             state[k] = 2
@@ -273,6 +282,7 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
         "t_mask": None,
     }
     ev["_state"], ev["_nd"], ev["_t"], ev["_c"], ev["_in_view"] = (state, in_view & cause_nd, t, c, in_view)
+    ev["_nd_edge"] = edge & cause_nd
     return ev
 
 
@@ -290,13 +300,17 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
     on = free & m[v2, u2]
     shows = np.zeros(len(t), bool)
     centre = np.full(len(t), np.nan)
-    for k in np.flatnonzero(in_view):
+    edge = ev["_nd_edge"]
+    n_c = len(c)
+    for k in np.flatnonzero(in_view | edge):
         runs = [(a, b) for a, b in _runs(on[k]) if (b - a) * step >= r]
+        if edge[k]:  # at the image's border: a run the border cuts has no centre
+            runs = [(a, b) for a, b in runs if a > 0 and b < n_c and inside2[k, a - 1] and inside2[k, b]]
         if runs:
             a, b = max(runs, key=lambda ab: ab[1] - ab[0])
             shows[k] = True
             centre[k] = 0.5 * (c[a] + c[b - 1])
-    ev["mask_mm"] = float(shows.sum() * L)
+    ev["mask_mm"] = float(shows[in_view].sum() * L)
     for key, sel in (
         ("mask_empty_share", state == 1),
         ("mask_nodepth_share", ev["_nd"]),

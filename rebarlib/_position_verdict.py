@@ -160,7 +160,8 @@ def _evidence_at(row: _Row, p: float, nb, *, plane, depth, intr, foot, higher, m
         prm=prm,
     )
     E = prm.min_evidence_mm
-    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or ev["no_depth_mm"] >= E)
+    nd_mm = ev["no_depth_mm"] + float(ev["_nd_edge"].sum()) * prm.step_mm
+    needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or nd_mm >= E)
     m = mask() if (mask is not None and needs) else None
     if m is not None:
         ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
@@ -197,6 +198,14 @@ def _verdict(row: _Row, p: float, ev: dict, rec: dict, plane, intr, prm) -> dict
         sel = ev["_nd"] & ev["_shows"]
         if share >= prm.min_share and sel.sum() * prm.step_mm >= E:
             return _present(row, p, ev, sel, plane, intr, prm, rec, PRESENT_NO_DEPTH, "")
+    # the same with the slices at the image's border, where only the bar's own width is in view:
+    # the bar is there, but its place is not stated to an accuracy (decision 060)
+    nd = ev["_nd"] | ev["_nd_edge"]
+    if ev["_nd_edge"].any() and nd.sum() * prm.step_mm >= E and "_shows" in ev:
+        share = float(ev["_shows"][nd].mean())
+        sel = nd & ev["_shows"]
+        if share >= prm.min_share and sel.sum() * prm.step_mm >= E:
+            return _present(row, p, ev, sel, plane, intr, prm, rec, PRESENT_NO_DEPTH, "", border=True)
     return _not_measured(ev, rec, prm)
 
 
@@ -320,7 +329,17 @@ def _not_measured(ev: dict, rec: dict, prm) -> dict:
 
 
 def _present(
-    row: _Row, p: float, ev: dict, sel: np.ndarray, plane, intr, prm, rec: dict, status: str, why: str
+    row: _Row,
+    p: float,
+    ev: dict,
+    sel: np.ndarray,
+    plane,
+    intr,
+    prm,
+    rec: dict,
+    status: str,
+    why: str,
+    border: bool = False,
 ) -> dict:
     """A position found holding a bar: the bar placed on the mask's centre line over the slices
     ``sel`` at its level's height, status "not measured" (its axis is not fitted to points).
@@ -338,6 +357,10 @@ def _present(
         ``PRESENT`` or ``PRESENT_NO_DEPTH``.
     why : str
         The reason's first part (for ``PRESENT``).
+    border : bool
+        Whether ``sel`` takes slices at the image's border (decision 060): the bar counts as
+        found, its place is not stated to an accuracy (``position_sigma_mm`` NaN), so its
+        spacings are not measured.
 
     Returns
     -------
@@ -351,6 +374,14 @@ def _present(
         + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured")
         + ")"
     )
+    if border:
+        at = float((sel & ev["_nd_edge"]).sum()) * prm.step_mm
+        how = (
+            f"the colour mask shows it over {sel.sum() * prm.step_mm:.0f} mm, {at:.0f} mm of that where the "
+            "image's border cuts its corridor: placed from the mask's centre line at its level's height, its "
+            "place not stated to an accuracy, so its spacings are not measured"
+        )
+        sd = math.nan
     reason = ("no depth on it: " if status == PRESENT_NO_DEPTH else why + "; ") + how
     ref = row.bars[0]
     bar = BarAxis(

@@ -111,6 +111,66 @@ def test_bar_without_depth_counts_as_found_and_is_placed_from_the_mask():
 
 
 @pytest.mark.slow
+def test_a_bar_without_depth_at_the_image_border_counts_as_found_without_a_stated_place():
+    """A lower bar without depth that runs along the image's side border: its core (± a quarter
+    spacing) lies in the image over only a short stretch, the bar itself over much more. The
+    colour shows it there, so it counts as found (decision 060); its place, read partly where
+    the border cuts its corridor, is not stated to an accuracy and its spacings are not
+    measured."""
+    import cv2
+
+    cap = S.synth_capture(
+        DESIGN,
+        height_mm=550,
+        tilt_deg=8,
+        yaw_deg=-12,
+        target_mm=(0, 70),
+        seed=3,
+        deviations=S.Deviations(end_overhang_mm=50),
+    )
+    W = cap.intrinsics.width
+
+    def to_border(tb):
+        _, xs = np.nonzero(cap.bar_ids == tb["id"] + 1)
+        return min(xs.min(), W - 1 - xs.max())
+
+    side = [
+        tb
+        for tb in cap.truth["bars"]
+        if tb["layer"] == "lower" and tb["level"] == "top" and tb["visible_length_mm"] >= 300
+    ]
+    tb = min(side, key=to_border)
+    assert to_border(tb) <= 2  # it reaches the image's side border
+    blank = cv2.dilate((cap.bar_ids == tb["id"] + 1).astype(np.uint8), np.ones((5, 5), np.uint8))
+    cap.depth_mm[blank > 0] = 0
+    res = R.inspect(cap, DESIGN, diameters=False, rng=0)
+    c = _counts(res)
+    assert (c["missing"].fillna(0) == 0).all()
+    assert int(c.loc[("lower", "top"), "not_measured"]) == 0
+    placed = res.positions[res.positions["status"] == C.PRESENT_NO_DEPTH]
+    assert len(placed) == 1
+    row = placed.iloc[0]
+    assert "image's border cuts its corridor" in row["reason"] and "spacings are not measured" in row["reason"]
+    assert row["in_view_mm"] < tb["visible_length_mm"] / 2  # its core is in the image over a short stretch
+    assert np.isnan(row["position_sigma_mm"])
+    # where the mask placed it: within 2 mm across of the rendered axis
+    bar = res.bars.set_index("bar_id").loc[int(row["bar_id"])]
+    mid = 0.5 * (
+        np.array([bar["start_x_mm"], bar["start_y_mm"], bar["start_z_mm"]])
+        + np.array([bar["end_x_mm"], bar["end_y_mm"], bar["end_z_mm"]])
+    )
+    a0, a1 = np.array(tb["axis_start_mm"]), np.array(tb["axis_end_mm"])
+    u = (a1 - a0) / np.linalg.norm(a1 - a0)
+    n = np.asarray(res.formwork["normal"], float)
+    n = n - (n @ u) * u
+    n /= np.linalg.norm(n)
+    d = (mid - a0) - ((mid - a0) @ u) * u
+    assert np.linalg.norm(d - (d @ n) * n) < 2.0
+    sp = res.spacings[(res.spacings["bar_a"] == row["bar_id"]) | (res.spacings["bar_b"] == row["bar_id"])]
+    assert (sp["status"] != "measured").all()
+
+
+@pytest.mark.slow
 def test_bar_without_depth_is_sized_from_its_mask():
     # its own pixels have no depth: they are the bar's, not a bar under it peeking out
     cap = S.synth_capture(
