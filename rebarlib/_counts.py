@@ -27,10 +27,11 @@ Verdicts: **missing** when at least ``min_evidence_mm`` of slices are empty, at 
 ``max_share`` of the empty slices. **present, no depth** when the slices lack depth over at
 least ``min_evidence_mm`` and the mask shows a bar on at least ``min_share`` of them with a
 steady centre line: the bar is placed on that centre line at its level's height and counts as
-found. Where that holds only with the slices at the image's border added (the core partly outside
-the image, the bar's own width inside; a run of the mask the border cuts does not count), the
-bar counts as found too, but its place is not stated to an accuracy and its spacings are not
-measured (docs/decisions/060). **present** when the slices are occupied (points at the bar's height along it) and the
+found. Where that holds only with the slices at the image's border added (the core partly
+outside the image, the bar's own width inside; a run of the mask the border cuts does not
+count), the bar counts as found too, but its place is not stated to an accuracy and its
+spacings are not measured (docs/decisions/060-a-bar-without-depth-at-the-image-s-border.md).
+**present** when the slices are occupied (points at the bar's height along it) and the
 mask agrees. Anything else is **not measured**, with the reason: no depth there, hidden under
 another bar, something at the bar's height that the mask does not call a bar, or a mask that
 contradicts the depth.
