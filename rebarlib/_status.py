@@ -15,6 +15,7 @@ __all__ = [
     "MEASURED",
     "NOT_MEASURED",
     "HIDDEN",
+    "AXIS_OUTSIDE",
     "MISSING",
     "PRESENT",
     "PRESENT_NO_DEPTH",
@@ -44,6 +45,9 @@ MEASURED, NOT_MEASURED, HIDDEN = "measured", "not measured", "hidden"
 # A design position examined for a bar (the ``positions`` table's ``status``).
 MISSING, PRESENT, PRESENT_NO_DEPTH = "missing", "present", "present (no depth)"
 OUTSIDE, NOT_IN_VIEW = "outside the mesh", "not in view"
+#: a bar's diameter reason where no cross-section's axis point lies in the image: less than half
+#: of the bar's width is in view (a bar at the image's border)
+AXIS_OUTSIDE = "bar axis is outside the image"
 #: a bar-size checkpoint left to another capture of the slab that sized the same bar
 SIZED_ELSEWHERE = "sized in capture"
 #: a spacing checkpoint left to an earlier capture of the slab that measured the same spacing

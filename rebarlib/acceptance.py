@@ -19,6 +19,7 @@ from ._design import Design
 from ._results import table_records
 from ._status import (
     ACCEPTED,
+    AXIS_OUTSIDE,
     BEYOND,
     BEYOND_MAX,
     EXCLUDED,
@@ -493,6 +494,14 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
                 f"{NOT_IN_VIEW}: only {seen_mm:.0f} mm of it in the capture (a bar is checked over at least "
                 f"{in_view_mm:.0f} mm); " + (rec.get("diameter_reason") or "diameter not measured")
             )
+        elif has_diam and not ok and rec.get("diameter_reason") == AXIS_OUTSIDE:
+            # less than half of the bar's width in the image: the line it lies on is outside what
+            # this capture inspects, as a bar position whose core leaves the image is
+            # (docs/decisions/061-a-bar-whose-axis-leaves-the-image-is-not-in-view.md)
+            excluded = (
+                f"{NOT_IN_VIEW}: its axis lies outside the image, less than half its width in the capture "
+                "(a bar is sized where its axis is in view)"
+            )
         elif has_diam and not ok and isinstance(rec.get("sized_in"), str) and rec["sized_in"]:
             # the same bar, registered in another capture of the slab, was sized there: its size
             # is checked once, there (docs/decisions/028-captures-of-one-slab-together.md). (A bar
@@ -584,16 +593,23 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     if thickness_mm is None:
         notes.append("The design gives no slab thickness: the top cover is not checked.")
     excluded = cp[cp["status"] == EXCLUDED]
-    n_view = int(excluded["reason"].astype(str).str.startswith(NOT_IN_VIEW).sum())
+    reasons = excluded["reason"].astype(str)
+    n_axis = int(reasons.str.startswith(f"{NOT_IN_VIEW}: its axis").sum())
+    n_view = int(reasons.str.startswith(NOT_IN_VIEW).sum()) - n_axis
     n_else = int(excluded["reason"].astype(str).str.startswith(SIZED_ELSEWHERE).sum())
     n_same = int(excluded["reason"].astype(str).str.startswith((SAME_SPACING, SPANS_MISSING)).sum())
-    n_hidden = len(excluded) - n_view - n_else - n_same
+    n_hidden = len(excluded) - n_view - n_axis - n_else - n_same
     if n_hidden:
         notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
     if n_view:
         notes.append(
             f"{n_view} bar(s) with less than {in_view_mm:.0f} mm in view are excluded from the "
             "bar-size check (another capture shows them)."
+        )
+    if n_axis:
+        notes.append(
+            f"{n_axis} bar(s) whose axis lies outside the image (less than half the bar in view) are excluded "
+            "from the bar-size check (another capture shows them)."
         )
     if n_else:
         notes.append(f"{n_else} bar(s) not sized in one capture are checked where another capture sized them.")

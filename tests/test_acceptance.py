@@ -325,6 +325,43 @@ def test_a_bar_barely_in_view_is_left_to_another_capture_not_left_open():
     assert _verdict(acc, "bar_size_lower_bottom") == "fail"
 
 
+def test_a_bar_whose_axis_leaves_the_image_is_left_to_another_capture():
+    # less than half of the bar's width in the image (its axis outside it in every section): not
+    # in view for its size, however long the flank seen (decision 061); another reason on the same
+    # bar keeps the item open
+    def bars(reason):
+        return [
+            {
+                "bar_id": 1,
+                "layer": "lower",
+                "level": "bottom",
+                "nominal_mm": 14.0,
+                "diameter_status": "measured",
+                "visible_length_mm": 800.0,
+            },
+            {
+                "bar_id": 2,
+                "layer": "lower",
+                "level": "bottom",
+                "nominal_mm": None,
+                "diameter_status": "not measured",
+                "visible_length_mm": 700.0,
+                "diameter_reason": reason,
+            },
+        ]
+
+    acc = evaluate([_result(bars=bars("bar axis is outside the image"))], _design())
+    row = acc.items.set_index("item").loc["bar_size_lower_bottom"]
+    assert (row["verdict"], row["excluded"], row["measured"]) == ("pass", 1, 1)
+    cp = acc.checkpoints[acc.checkpoints["what"] == "bar 2"].iloc[0]
+    assert cp["reason"].startswith("not in view: its axis lies outside the image")
+    assert acc.bars.set_index("bar_id")["verdict"][2] == "not checked"
+    assert any("axis lies outside the image" in n for n in acc.notes)
+    assert not any("less than 150 mm in view" in n or "hidden" in n for n in acc.notes)
+    acc = evaluate([_result(bars=bars("mask widths too scattered (robust σ 1.8 mm over 23 sections)"))], _design())
+    assert _verdict(acc, "bar_size_lower_bottom") == "incomplete"
+
+
 def test_bar_verdict_is_incomplete_when_only_part_of_it_was_checked():
     # bar "lb0" has a spacing within tolerance but its size could not be measured: not "pass"
     bars = [

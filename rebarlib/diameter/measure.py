@@ -18,6 +18,7 @@ import numpy as np
 
 from .._checks import RebarInputError
 from .._design import DEFAULT_BAR_SYSTEM
+from .._status import AXIS_OUTSIDE
 from .bars import _check_inputs, _footprints, _prepare
 from .barsizes import bar_system, observed_width_mm, rib_height_mm, snap_diameter
 from .calibration import _colour_calibration, _mask_between_spread, _mask_lean, _width_calibration
@@ -453,7 +454,7 @@ def _bar_row(bar, reading, paper_w, in_shadow, cloud_mode, ribs, prm, *, method,
         row.update(width_median_mm=float(med), width_spread_mm=float((q3 - q1) / 1.349), n_sections=len(w))
     few = len(w) < (1 if method == "paper" else prm.min_sections)
     if n_in == 0:
-        row["diameter_reason"] = "bar axis is outside the image"
+        row["diameter_reason"] = AXIS_OUTSIDE
     elif clean < prm.min_sections and occ_frac >= prm.hidden_fraction:
         row.update(diameter_status=HIDDEN, hidden=True, diameter_reason=_hidden_reason(bar, reading, occ_frac, prm))
     elif few:
