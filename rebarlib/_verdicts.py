@@ -272,14 +272,21 @@ def _item_row(
                 f"share, below {r_min:.0%} under one reading and not under the other; a capture placed on both "
                 "settles it"
             )
-        elif not ok_ratio and ok_max and n_nm and passed + n_nm >= r_min * n - _EPS:
+        elif not ok_ratio and ok_max and n_nm and high[0] + n_nm >= r_min * (high[1] + n_nm) - _EPS:
             # A share below the rule's on the measured checkpoints alone is no failure on
             # evidence while the checkpoints not measured could still lift it to the rule's:
-            # the item fails only on a share that no reading of them can save (decision 050).
+            # the item fails only on a share that no reading of them can save (decision 050) —
+            # under the reading of captures not placed on each other that leaves the highest
+            # share (their repeats dropped; decision 062)
             verdict = INCOMPLETE
+            under = (
+                f", if captures not placed on each other ({names}) show the same spacings"
+                if (high[0], high[1]) != (passed, n_meas)
+                else ""
+            )
             why.append(
                 f"{passed}/{n_meas} within tolerance, below {r_min:.0%}; with the {n_nm} checkpoint(s) not measured "
-                f"it could still reach {passed + n_nm}/{n}: measuring them settles it"
+                f"it could still reach {high[0] + n_nm}/{high[1] + n_nm}{under}: measuring them settles it"
             )
         elif not ok_ratio:
             why.append(f"{passed}/{n_meas} within tolerance, below {r_min:.0%}")

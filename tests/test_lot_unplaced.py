@@ -183,3 +183,36 @@ def test_the_verdict_benchmark_reads_the_pairs_a_lot_asks_a_capture_on_both_for(
     m = BOTH.search(_item(acc)["reason"])
     assert m is not None
     assert [p.split(" and ") for p in m.group(1).split("; ")] == [["C0", "C1"], ["C0", "Z1"]]
+
+
+def _result_pairs(name, rows):
+    """A capture measuring ``(bar_a, bar_b, value)`` between the lower bottom bars; a value of
+    None is a spacing not measured."""
+    res = _result(name, [])
+    for a, b, v in rows:
+        sp = _spacing(0, v)
+        sp.update(bar_a=a, bar_b=b)
+        if v is None:
+            sp.update(spacing_mm=None, uncertainty_mm=None, status="not measured", reason="a bar seen only in parts")
+        res["spacings"].append(sp)
+    return res
+
+
+def test_the_unmeasured_can_save_a_share_under_the_reading_that_drops_the_repeats():
+    """Held-out verdict slab 161 as guided (two captures not placed on each other, each with one
+    spacing not measured): as counted 4 of 6 within (one spacing beyond seen twice); were the
+    second capture's run the first's, 2 of 3 measured, and with the two spacings not measured —
+    distinct ones under that reading — 4 of 5 (80 %). No reading fails it on evidence: incomplete,
+    not fail (decision 062)."""
+    c0 = _result_pairs("C0", [(0, 1, 203.56), (1, 2, 187.94), (2, 3, 203.87), (3, 4, None)])
+    g0 = _result_pairs("G0", [(9, 4, None), (4, 5, 203.62), (5, 6, 187.74), (6, 7, 204.21)])
+    it = _item(evaluate([c0, g0], paper_design()))
+    assert (it["passed"], it["measured"], it["not_measured"]) == (4, 6, 2)
+    assert it["verdict"] == "incomplete"
+    assert (
+        "could still reach 4/5, if captures not placed on each other (C0 and G0) show the same spacings" in it["reason"]
+    )
+    # the same captures with the two spacings measured, one of them beyond: a fail however read
+    c0 = _result_pairs("C0", [(0, 1, 203.56), (1, 2, 187.94), (2, 3, 203.87), (3, 4, 212.0)])
+    g0 = _result_pairs("G0", [(9, 4, 189.0), (4, 5, 203.62), (5, 6, 187.74), (6, 7, 204.21)])
+    assert _item(evaluate([c0, g0], paper_design()))["verdict"] == "fail"
