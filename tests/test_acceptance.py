@@ -284,32 +284,36 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert acc.verdict == "rejected"
 
 
+def _sized_and_second(seen_mm, nominal, reason):
+    """Two lower bottom bars: bar 1 sized Φ14 over 800 mm; bar 2 seen over ``seen_mm``, sized
+    ``nominal`` (None: not measured, for ``reason``)."""
+    first = {
+        "bar_id": 1,
+        "layer": "lower",
+        "level": "bottom",
+        "nominal_mm": 14.0,
+        "diameter_status": "measured",
+        "visible_length_mm": 800.0,
+    }
+    second = {
+        "bar_id": 2,
+        "layer": "lower",
+        "level": "bottom",
+        "nominal_mm": nominal,
+        "diameter_status": "measured" if nominal else "not measured",
+        "visible_length_mm": seen_mm,
+        "diameter_reason": reason,
+    }
+    return [first, second]
+
+
 def test_a_bar_barely_in_view_is_left_to_another_capture_not_left_open():
     # under 150 mm of a bar in view (what a bar position needs to be judged in view) and no size:
     # excluded ("not checked"); the same with 400 mm in view keeps the item open; a short bar
     # that was sized is judged as any other
     def bars(seen_mm, nominal=None):
-        return [
-            {
-                "bar_id": 1,
-                "layer": "lower",
-                "level": "bottom",
-                "nominal_mm": 14.0,
-                "diameter_status": "measured",
-                "visible_length_mm": 800.0,
-            },
-            {
-                "bar_id": 2,
-                "layer": "lower",
-                "level": "bottom",
-                "nominal_mm": nominal,
-                "diameter_status": "measured" if nominal else "not measured",
-                "visible_length_mm": seen_mm,
-                "diameter_reason": ""
-                if nominal
-                else "too few clean cross-sections (0 of 25; most lost at the image border)",
-            },
-        ]
+        reason = "" if nominal else "too few clean cross-sections (0 of 25; most lost at the image border)"
+        return _sized_and_second(seen_mm, nominal, reason)
 
     acc = evaluate([_result(bars=bars(60.0))], _design())
     row = acc.items.set_index("item").loc["bar_size_lower_bottom"]
@@ -330,25 +334,7 @@ def test_a_bar_whose_axis_leaves_the_image_is_left_to_another_capture():
     # in view for its size, however long the flank seen (decision 061); another reason on the same
     # bar keeps the item open
     def bars(reason):
-        return [
-            {
-                "bar_id": 1,
-                "layer": "lower",
-                "level": "bottom",
-                "nominal_mm": 14.0,
-                "diameter_status": "measured",
-                "visible_length_mm": 800.0,
-            },
-            {
-                "bar_id": 2,
-                "layer": "lower",
-                "level": "bottom",
-                "nominal_mm": None,
-                "diameter_status": "not measured",
-                "visible_length_mm": 700.0,
-                "diameter_reason": reason,
-            },
-        ]
+        return _sized_and_second(700.0, None, reason)
 
     acc = evaluate([_result(bars=bars("bar axis is outside the image"))], _design())
     row = acc.items.set_index("item").loc["bar_size_lower_bottom"]

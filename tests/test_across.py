@@ -99,6 +99,13 @@ def _capture(name, offsets_x, offsets_y, view, *, turn=0.0, shift=(0.0, 0.0), po
     }
 
 
+def _without_lower_bottom(bars, y):
+    """``bars`` less the lower bottom bar at mesh offset ``y`` (a capture that did not find it)."""
+    return [
+        b for b in bars if not (b["layer"] == "lower" and b["level"] == "bottom" and abs(-b["start_y_mm"] - y) < 1e-6)
+    ]
+
+
 def _irregular(n, rng, jitter):
     """Offsets of both lattices' bars of one direction: the design spacing, the upper bars 60 mm
     aside, each bar off its place by a normal draw of ``jitter`` (mm)."""
@@ -192,20 +199,12 @@ def test_a_hidden_position_is_judged_by_the_capture_that_shows_it(present):
     view_a, view_b = ((-500, 300), (-450, 400)), ((-400, 420), (-350, 480))
     a = _capture("A", xs, ys, view_a, positions=[("lower", "bottom", hidden)])
     # A found no bar at the hidden place: drop its lower bottom bar there
-    a["bars"] = [
-        b_
-        for b_ in a["bars"]
-        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
-    ]
+    a["bars"] = _without_lower_bottom(a["bars"], hidden)
     if present:
         b = _capture("B", xs, ys, view_b, shift=(30.0, 0.0))
     else:
         b = _capture("B", xs, ys, view_b, shift=(30.0, 0.0))
-        b["bars"] = [
-            b_
-            for b_ in b["bars"]
-            if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
-        ]
+        b["bars"] = _without_lower_bottom(b["bars"], hidden)
         miss = copy.deepcopy(_capture("B", xs, ys, view_b, shift=(30.0, 0.0), positions=[("lower", "bottom", hidden)]))
         p = miss["positions"][0]
         p["status"], p["reason"] = "missing", "seen empty along 400 mm"
@@ -387,11 +386,7 @@ def test_the_gap_of_a_missing_bar_is_judged_under_the_count_not_the_spacing():
     xs, ys = _irregular(9, rng, 2.0), _irregular(9, rng, 2.0)
     gone = ys["lower"][4]
     a = _capture("A", xs, ys, ((-500, 300), (-450, 400)), positions=[("lower", "bottom", gone)])
-    a["bars"] = [
-        b_
-        for b_ in a["bars"]
-        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - gone) < 1e-6)
-    ]
+    a["bars"] = _without_lower_bottom(a["bars"], gone)
     a["positions"][0].update(status="missing", reason="empty: the support is seen along 700 mm")
     a = _with_spacings(a)
     acc = evaluate([a], paper_design())
@@ -813,11 +808,7 @@ def test_a_hidden_position_is_present_where_a_placed_capture_sees_its_bar_furthe
     xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
     hidden = ys["lower"][4]
     a = _capture("A", xs, ys, ((-500, 300), (-450, 400)), positions=[("lower", "bottom", hidden)])
-    a["bars"] = [
-        b_
-        for b_ in a["bars"]
-        if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
-    ]
+    a["bars"] = _without_lower_bottom(a["bars"], hidden)
     b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
     twin = next(
         bar
@@ -845,11 +836,7 @@ def test_a_place_seen_empty_only_further_along_does_not_make_a_hidden_position_m
     a = _capture("A", xs, ys, ((-500, 0), (-450, 400)), positions=[("lower", "bottom", hidden)])
     b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), shift=(30.0, 0.0))
     for r in (a, b):
-        r["bars"] = [
-            b_
-            for b_ in r["bars"]
-            if not (b_["layer"] == "lower" and b_["level"] == "bottom" and abs(-b_["start_y_mm"] - hidden) < 1e-6)
-        ]
+        r["bars"] = _without_lower_bottom(r["bars"], hidden)
     miss = _capture("B", xs, ys, ((100, 420), (-350, 480)), shift=(30.0, 0.0), positions=[("lower", "bottom", hidden)])
     p = miss["positions"][0]
     p["status"], p["reason"] = "missing", "seen empty along 320 mm"
