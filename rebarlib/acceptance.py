@@ -596,8 +596,8 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     reasons = excluded["reason"].astype(str)
     n_axis = int(reasons.str.startswith(f"{NOT_IN_VIEW}: its axis").sum())
     n_view = int(reasons.str.startswith(NOT_IN_VIEW).sum()) - n_axis
-    n_else = int(excluded["reason"].astype(str).str.startswith(SIZED_ELSEWHERE).sum())
-    n_same = int(excluded["reason"].astype(str).str.startswith((SAME_SPACING, SPANS_MISSING)).sum())
+    n_else = int(reasons.str.startswith(SIZED_ELSEWHERE).sum())
+    n_same = int(reasons.str.startswith((SAME_SPACING, SPANS_MISSING)).sum())
     n_hidden = len(excluded) - n_view - n_axis - n_else - n_same
     if n_hidden:
         notes.append(f"{n_hidden} bar(s) hidden under nearer bars are excluded from the bar-size check.")
