@@ -1107,17 +1107,16 @@ def _judge_in(p: dict, xy: np.ndarray, sb: _Set | None, rb: dict, gate: float, m
     off = float(xy.mean(axis=0) @ n)
     lo, hi = sorted((float(xy[0] @ d), float(xy[1] @ d)))
     if sb is not None:
-        for k in range(len(sb.mids)):
+        spans = [np.sort(seg @ d) for seg in sb.segs]  # each bar's seen stretch along the position
+        for k, t in enumerate(spans):
             across = float(sb.mids[k] @ n) - off
-            t = np.sort(sb.segs[k] @ d)
             overlap = min(hi, t[1]) - max(lo, t[0])
             if abs(across) < gate and overlap >= min_overlap:
                 return PRESENT, sb.bar_ids[k], abs(across)
         # the same line further along: a bar seen over a verdict's length, overlapping the
         # position by less or lying beyond it by at most a lap's shortest length, is the bar there
         # (docs/decisions/059-a-hidden-position-on-a-bar-seen-further-along.md)
-        for k in range(len(sb.mids)):
-            t = np.sort(sb.segs[k] @ d)
+        for k, t in enumerate(spans):
             a0, a1 = max(lo, float(t[0])), min(hi, float(t[1]))
             if a1 - a0 >= min_overlap or a1 - a0 < -MAX_GAP_MM or t[1] - t[0] < min_overlap:
                 continue

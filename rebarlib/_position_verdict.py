@@ -368,12 +368,6 @@ def _present(
         The ``positions`` row, with ``_bar`` True and ``_new`` the placed :class:`BarAxis`.
     """
     off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
-    ok = sd <= prm.max_position_sigma_mm
-    how = (
-        f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
-        + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured")
-        + ")"
-    )
     if border:
         at = float((sel & ev["_nd_edge"]).sum()) * prm.step_mm
         how = (
@@ -382,6 +376,13 @@ def _present(
             "place not stated to an accuracy, so its spacings are not measured"
         )
         sd = math.nan
+    else:
+        ok = sd <= prm.max_position_sigma_mm
+        how = (
+            f"placed from the colour mask's centre line at its level's height (± {sd:.1f} mm across"
+            + ("" if ok else f"; over {prm.max_position_sigma_mm:g} mm, so its spacings are not measured")
+            + ")"
+        )
     reason = ("no depth on it: " if status == PRESENT_NO_DEPTH else why + "; ") + how
     ref = row.bars[0]
     bar = BarAxis(

@@ -474,6 +474,10 @@ def _length_checkpoints(sheet: _Sheet, r: dict, cap: str, design: Design) -> Non
         )
 
 
+#: the start of a bar-size checkpoint's reason where the bar is excluded for its axis (decision 061)
+_AXIS_OUT_OF_VIEW = f"{NOT_IN_VIEW}: its axis lies outside the image"
+
+
 def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Design, in_view_mm: float) -> None:
     """One bar-size checkpoint per bar: its snapped size against the design's, or excluded
     (hidden under nearer bars; too little of it in view and not sized), or not measured."""
@@ -499,7 +503,7 @@ def _size_checkpoints(sheet: _Sheet, bars: pd.DataFrame, cap: str, design: Desig
             # this capture inspects, as a bar position whose core leaves the image is
             # (docs/decisions/061-a-bar-whose-axis-leaves-the-image-is-not-in-view.md)
             excluded = (
-                f"{NOT_IN_VIEW}: its axis lies outside the image, less than half its width in the capture "
+                f"{_AXIS_OUT_OF_VIEW}, less than half its width in the capture "
                 "(a bar is sized where its axis is in view)"
             )
         elif has_diam and not ok and isinstance(rec.get("sized_in"), str) and rec["sized_in"]:
@@ -594,7 +598,7 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
         notes.append("The design gives no slab thickness: the top cover is not checked.")
     excluded = cp[cp["status"] == EXCLUDED]
     reasons = excluded["reason"].astype(str)
-    n_axis = int(reasons.str.startswith(f"{NOT_IN_VIEW}: its axis").sum())
+    n_axis = int(reasons.str.startswith(_AXIS_OUT_OF_VIEW).sum())
     n_view = int(reasons.str.startswith(NOT_IN_VIEW).sum()) - n_axis
     n_else = int(reasons.str.startswith(SIZED_ELSEWHERE).sum())
     n_same = int(reasons.str.startswith((SAME_SPACING, SPANS_MISSING)).sum())
