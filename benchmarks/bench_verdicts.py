@@ -54,6 +54,10 @@ lower radii, the camera's height above the lower bars' axes, the design's layer 
 tilt, heading, sensor and light kept. With n captures first taken: ``C0, G0`` (n = 2),
 ``C0, G0, C1`` (3), ``C0, G0, C1, G1`` (4). Judged once, no follow-up (docs/decisions/046).
 
+``--heights LO,HI`` draws the captures' heights above the formwork from another band than
+400-700 mm (the other draws stay as they are): a camera with fewer pixels rendered as the capture
+guide says for it (docs/capturing.md, docs/decisions/063).
+
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
     python benchmarks/bench_verdicts.py --start 60 --slabs 40 --jobs 2 --cache /tmp/verdicts_held_out
@@ -78,7 +82,7 @@ import numpy as np
 #: How the captures are rendered (``--camera``, ``--sensor``, ``--photo``, ``--ribs``): the defaults, or
 #: another camera, depth sensor, a photograph's softening and JPEG, ribs in relief (benchmarks/_cameras.py)
 #: — the verdicts judged on captures unlike those their rules were built on. Kept in each slab.json.
-RENDER = {"camera": "gemini2", "sensor": "default", "photo": False, "ribs": "envelope"}
+RENDER = {"camera": "gemini2", "sensor": "default", "photo": False, "ribs": "envelope", "heights": [400.0, 700.0]}
 RENDER_DEFAULT = dict(RENDER)
 
 DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
@@ -145,7 +149,7 @@ def _slab_plan(k: int, folder: Path):
     targets = _targets(scene, defect, gap, n_cap, edge_view, rng)
     specs = []
     for j, target in enumerate(targets):
-        h = float(rng.uniform(400, 700))
+        h = float(rng.uniform(*RENDER["heights"]))
         tilt, yaw = float(rng.uniform(0, 20)), float(rng.uniform(0, 360))
         shadow = int(rng.random() < 0.25)
         rust = float(rng.choice([0.0, 0.0, 0.3, 0.8]))
@@ -192,7 +196,7 @@ def _render_slab(args) -> str:
     k, cache = args
     folder = Path(cache) / f"slab_{k:03d}"
     if (folder / "slab.json").exists():
-        made = json.loads((folder / "slab.json").read_text()).get("render", RENDER_DEFAULT)
+        made = {**RENDER_DEFAULT, **json.loads((folder / "slab.json").read_text()).get("render", {})}
         if made != RENDER:
             raise SystemExit(f"{folder}: rendered as {made}, not as asked ({RENDER}): use another --cache")
         return str(folder)
@@ -689,8 +693,19 @@ def main(argv=None) -> int:
         "--photo", action="store_true", help="colour images anti-aliased, softened (0.8 px) and JPEG'd (quality 90)"
     )
     ap.add_argument("--ribs", choices=("envelope", "relief"), default="envelope", help="bars' ribs drawn or in relief")
+    ap.add_argument(
+        "--heights",
+        default="400,700",
+        help="LO,HI: the band the captures' heights above the formwork are drawn from, mm (default 400,700)",
+    )
     args = ap.parse_args(argv)
-    RENDER.update(camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs)
+    try:
+        lo, hi = (float(x) for x in args.heights.split(","))
+    except ValueError:
+        ap.error(f"--heights: expected two numbers LO,HI in mm, got {args.heights!r}")
+    if not 0 < lo <= hi:
+        ap.error(f"--heights: expected 0 < LO <= HI, got {args.heights!r}")
+    RENDER.update(camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs, heights=[lo, hi])
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
     rounds = 2 if args.second_round else 1

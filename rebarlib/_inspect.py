@@ -431,8 +431,22 @@ def _add_diameters(
         dia = measure_diameters(capture, res.bars, mask, design=design, method=method)
         new = [c for c in dia.columns if c not in res.bars.columns or c == "bar_id"]
         res.bars = res.bars.merge(dia[new], on="bar_id", how="left")
+        if method == "refined":
+            _note_pixels_for_sizes(res, capture, design)
     res.timings_s["diameter"] = time.perf_counter() - t
     return res
+
+
+def _note_pixels_for_sizes(res: InspectionResult, capture: Capture, design: Design) -> None:
+    """One note for the bars left unsized by their widths where the capture's pixels put two
+    neighbouring sizes too close (``rebarlib.diameter.closer.pixels_for_sizes``); its figures in
+    ``res.extras["pixels_for_sizes"]``."""
+    from .diameter.closer import pixels_for_sizes
+
+    adv = pixels_for_sizes(res.bars, capture.intrinsics, system=design.bar_system, design=design)
+    if adv is not None:
+        res.extras["pixels_for_sizes"] = {k: v for k, v in adv.items() if k != "note"}
+        res.notes.append(adv["note"])
 
 
 def _note_registration(res: InspectionResult, reg: dict) -> None:

@@ -357,7 +357,7 @@ def evaluate(results, design: Design, tolerances=None, *, missing_captures=()) -
         tolerances=tol,
         results=tuple(res),
         missing_captures=missing,
-        notes=tuple(_notes(cp, design.thickness_mm, in_view_mm) + across),
+        notes=tuple(_notes(cp, design.thickness_mm, in_view_mm) + _pixels_notes(res, cp) + across),
     )
 
 
@@ -618,6 +618,45 @@ def _notes(cp: pd.DataFrame, thickness_mm, in_view_mm: float) -> list:
     if n_else:
         notes.append(f"{n_else} bar(s) not sized in one capture are checked where another capture sized them.")
     return notes
+
+
+def _pixels_notes(res: list, cp: pd.DataFrame) -> list:
+    """One note for the bars still unsized on the sheet that their captures put down to the
+    camera's pixels (``extras["pixels_for_sizes"]``, ``rebarlib.diameter.closer.pixels_for_sizes``):
+    how many, in which captures, and from how near a capture (or with how many more pixels) sizes
+    them."""
+    open_sizes = cp[cp["item"].astype(str).str.startswith("bar_size") & (cp["status"] == NOT_MEASURED)]
+    counts, near, focal, gap = {}, [], [], math.inf
+    for r in res:
+        adv = (r.get("extras") or {}).get("pixels_for_sizes")
+        if not isinstance(adv, dict):
+            continue
+        cap = str(r["capture"])
+        whats = set(open_sizes.loc[open_sizes["capture"] == cap, "what"].astype(str))
+        n = sum(f"bar {int(b)}" in whats for b in adv.get("bar_ids") or ())
+        if not n:
+            continue
+        counts[cap] = n
+        gap = min(gap, float(adv.get("min_gap_px", math.nan)))
+        (near if adv.get("reachable") else focal).append(adv)
+    if not counts:
+        return []
+    n = sum(counts.values())
+    caps = ", ".join(counts)
+    head = (
+        f"{n} bar(s) left unsized ({caps}) lie where the camera's pixels put two neighbouring sizes' rib envelopes "
+        f"under {gap:g} px apart"
+    )
+    if near:
+        d = min(float(a["needed_mm"]) for a in near)
+        head += f": from about {d:.0f} mm or nearer to the bars a capture puts them {gap:g} px apart"
+    if focal:
+        f = max(float(a["focal_needed_px"]) for a in focal)
+        head += (
+            f"{'; elsewhere' if near else ':'} the camera cannot stand near enough, and a focal length of about "
+            f"{f:.0f} px or more is needed"
+        )
+    return [head + " (each capture's notes say which bars)."]
 
 
 def _open_positions(positions: pd.DataFrame, layer: str, level: str) -> str:

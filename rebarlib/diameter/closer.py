@@ -28,6 +28,13 @@ a bar whose ambiguity is a systematic reading (mask and cloud disagreeing, a pos
 ribs whose crests and core disagree): a nearer capture reads the same disagreement, and no
 measurement here says otherwise.
 
+A capture whose bars are left unsized by their widths (:data:`WIDTH_REASONS`) where its pixels
+put two neighbouring sizes' envelopes less than ``CloserParams.min_gap_px`` apart gets one note
+for them all (:func:`pixels_for_sizes`): how near a capture must be for that gap, or, where that is
+nearer than the camera can stand, how many more pixels it needs. This is the capture-wide form of
+the advice above, read from the camera's focal length and the size table alone; the gap that
+sizes bars reliably is measured on the verdict benchmark (docs/capturing.md).
+
 The side to aim towards is named as the hidden-position advice names it (``_counts._towards``):
 the image edge the bar's seen middle lies towards, from the image's centre. The advice ends by
 telling how to mark the capture taken (``MARK``): its folder's ``aim.json`` naming this capture
@@ -42,9 +49,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._status import NOT_MEASURED
 from .barsizes import bar_system, bracketing_sizes, snap_diameter
 
-__all__ = ["CloserParams", "needed_ratio", "closer_advice"]
+__all__ = ["CloserParams", "needed_ratio", "closer_advice", "envelope_gap_mm", "pixels_for_sizes", "WIDTH_REASONS"]
 
 
 @dataclass(frozen=True)
@@ -61,12 +69,19 @@ class CloserParams:
         bars that docs/capturing.md advises (450-650 mm; from 800-1000 mm many bars are left
         between two sizes). A bar seen 1 m away at the far border of a tilted view is told to be
         aimed at from no farther than this, not from its own distance (docs/decisions/041)
+    min_gap_px : the gap in pixels, focal length x envelope gap / distance, between a bar's size
+        and its neighbouring sizes' rib envelopes below which a bar left unsized by its width is
+        put down to the camera's pixels (:func:`pixels_for_sizes`). Measured on the verdict
+        benchmark's captures (reference and D435-like cameras, default and noisy depth): from
+        2.5 px 96-100 % of the bars were sized, at 2 px 91-96 %, at 1.5 px 54-60 %
+        (docs/capturing.md, docs/decisions/063)
     """
 
     near_mm: float = 150.0
     coverage_spacings: float = 2.0
     centre_share: float = 0.25
     far_mm: float = 650.0
+    min_gap_px: float = 2.5
 
 
 def needed_ratio(width_mm, sigma_mm, *, min_confidence, system, deformed=True, tol=1e-3) -> float:
@@ -115,6 +130,133 @@ def _floor(z: float) -> float:
     return 10.0 * math.floor(z / 10.0)
 
 
+def _nearest_cap(intr, design, prm: CloserParams) -> float:
+    """The nearest a capture of the slab can stand: the camera's near range, or where the view's
+    short side still spans ``coverage_spacings`` of the design's largest spacing."""
+    caps = [prm.near_mm]
+    if design is not None:
+        fov = min(intr.width / intr.fx, intr.height / intr.fy)  # the view's short side per mm of depth
+        spacings = [design.lattice(ly).level(lv).spacing_mm for ly in ("lower", "upper") for lv in ("bottom", "top")]
+        caps.append(prm.coverage_spacings * max(spacings) / fov)
+    return max(caps)
+
+
+#: how a bar's reason begins where its width alone left it unsized: between two sizes, the mask's
+#: and the cloud's widths disagreeing, the mask's widths scattered (decision.py) — what more
+#: pixels across the bar settle; other reasons (hidden, outside the image, too few sections,
+#: shadows, a possible wrong size) are not put down to the pixels
+WIDTH_REASONS = ("ambiguous: width", "mask width ", "mask widths too scattered")
+
+
+def envelope_gap_mm(nominal_mm: float, *, system: str, deformed: bool = True) -> float:
+    """The smaller of the gaps between a size's rib envelope (its nominal size where not
+    ``deformed``) and its neighbours' in the size table: what the image must resolve to tell the
+    size from the next one. NaN for a size not in the table.
+
+    >>> round(envelope_gap_mm(12, system="GB1499.2"), 1)  # Φ10 11.6, Φ12 13.9, Φ14 16.2 mm
+    2.3
+    """
+    sysm = bar_system(system)
+    sizes = np.asarray(sysm.sizes_mm, float)
+    obs = np.asarray(sysm.envelope_mm if deformed else sysm.sizes_mm, float)
+    if not math.isfinite(float(nominal_mm)) or len(sizes) < 2:
+        return math.nan
+    k = int(np.argmin(np.abs(sizes - float(nominal_mm))))
+    if abs(sizes[k] - float(nominal_mm)) > 0.25:
+        return math.nan
+    gaps = [obs[k] - obs[k - 1]] if k > 0 else []
+    gaps += [obs[k + 1] - obs[k]] if k + 1 < len(obs) else []
+    return float(min(gaps))
+
+
+def pixels_for_sizes(bars, intr, *, system: str, deformed: bool = True, design=None, prm=None) -> dict | None:
+    """The capture-wide advice for its bars left unsized by their widths where its pixels are too
+    few: None where no such bar lies where its design size's envelope and its neighbour's are
+    less than ``prm.min_gap_px`` apart in the image (``focal · gap / distance``, the focal length
+    the geometric mean of ``fx`` and ``fy``, the distance the bar's seen middle's depth).
+
+    ``bars``: the capture's bar table with the diameter columns (``design_diameter_mm``,
+    ``diameter_status``, ``diameter_reason``) and the seen ends (``start_z_mm``, ``end_z_mm``).
+
+    Returns a dict: ``bar_ids`` (those bars), ``distance_mm`` and ``gap_px`` (their [least,
+    greatest]), ``envelope_gap_mm`` (the least), ``focal_px``, ``min_gap_px``, ``needed_mm`` (the
+    distance, rounded down to 5 mm, from which every one of them gets ``min_gap_px``),
+    ``nearest_mm`` (the nearest a capture of the slab can stand: the camera's near range or its
+    view keeping two of the largest spacing), ``reachable`` (the distance needed is no nearer),
+    ``focal_needed_px`` (the focal length that gives ``min_gap_px`` from ``nearest_mm``),
+    ``unsized_with_enough_px`` (the capture's bars left unsized by their widths although their
+    sizes lie ``min_gap_px`` or more apart: where there are any, the note says the pixels are
+    not the whole cause) and ``note`` (the sentence for the result's notes).
+    """
+    prm = prm or CloserParams()
+    need_cols = {"bar_id", "design_diameter_mm", "diameter_status", "diameter_reason", "start_z_mm", "end_z_mm"}
+    if intr is None or bars is None or len(bars) == 0 or not need_cols <= set(bars.columns):
+        return None
+    focal = math.sqrt(intr.fx * intr.fy)
+    rows, enough = [], 0
+    for b in bars.itertuples(index=False):
+        reason = str(b.diameter_reason or "")
+        if b.diameter_status != NOT_MEASURED or not reason.startswith(WIDTH_REASONS):
+            continue
+        try:
+            z = 0.5 * (float(b.start_z_mm) + float(b.end_z_mm))
+            gap = envelope_gap_mm(float(b.design_diameter_mm), system=system, deformed=deformed)
+        except (TypeError, ValueError):  # a bar without its design size or its ends
+            continue
+        if not (math.isfinite(z) and z > 0 and math.isfinite(gap)):
+            continue
+        if focal * gap / z < prm.min_gap_px:
+            rows.append((int(b.bar_id), z, gap, focal * gap / z))
+        else:
+            enough += 1
+    if not rows:
+        return None
+    ids, zs, gaps, pxs = (list(c) for c in zip(*rows))
+    need = min(focal * g / prm.min_gap_px for g in gaps)
+    nearest = _nearest_cap(intr, design, prm)
+    reachable = need >= nearest
+    # rounded down to 5 mm, but not below the nearest a capture can stand where it can stand there
+    needed = max(5.0 * math.floor(need / 5.0), math.ceil(nearest)) if reachable else 5.0 * math.floor(need / 5.0)
+    focal_needed = prm.min_gap_px * nearest / min(gaps)
+    n = len(ids)
+    where = f"{zs[0]:.0f} mm" if n == 1 else f"{min(zs):.0f}–{max(zs):.0f} mm"
+    px = f"{pxs[0]:.1f} px" if n == 1 else f"{min(pxs):.1f}–{max(pxs):.1f} px"
+    head = (
+        f"bar sizes: {n} bar(s) left unsized by their widths (between two sizes, or the widths disagreeing) "
+        f"{'lies' if n == 1 else 'lie'} {where} from the camera, where its focal length ({focal:.0f} px) puts a "
+        f"size's rib envelope and its neighbour's ({min(gaps):.1f} mm apart) {px} apart; bars were sized reliably "
+        f"from {prm.min_gap_px:g} px apart (docs/capturing.md)"
+    )
+    if enough:  # the capture's own bars say the pixels are not the whole cause
+        head += (
+            f" — though {enough} other bar(s) of this capture, with {prm.min_gap_px:g} px or more, were left unsized "
+            "by their widths too: not the pixels alone"
+        )
+    head += ": "
+    if reachable:
+        tail = f"a capture from about {needed:.0f} mm or nearer to {'it' if n == 1 else 'them'} gives that"
+    else:
+        tail = (
+            f"that needs the camera within about {needed:.0f} mm, nearer than a capture of this slab can stand "
+            f"({nearest:.0f} mm: the camera's near range, or two spacings in view); a camera or mode with more pixels "
+            f"across the bars (a focal length of about {focal_needed:.0f} px or more) gives it from there"
+        )
+    return {
+        "bar_ids": ids,
+        "distance_mm": [round(min(zs), 1), round(max(zs), 1)],
+        "gap_px": [round(min(pxs), 2), round(max(pxs), 2)],
+        "envelope_gap_mm": round(min(gaps), 2),
+        "focal_px": round(focal, 1),
+        "min_gap_px": prm.min_gap_px,
+        "needed_mm": needed,
+        "nearest_mm": round(nearest, 1),
+        "reachable": reachable,
+        "focal_needed_px": round(focal_needed, 0),
+        "unsized_with_enough_px": enough,
+        "note": head + tail,
+    }
+
+
 def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=True, design=None, prm=None) -> str:
     """The advice to append to a not-measured bar's reason ("" where a capture from closer is not
     expected to settle it). ``p0``, ``p1``: the bar's seen axis ends (camera frame, mm)."""
@@ -124,12 +266,7 @@ def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=T
     if intr is None or not np.all(np.isfinite(mid)) or mid[2] <= 0:
         return ""
     z = float(mid[2])
-    fov = min(intr.width / intr.fx, intr.height / intr.fy)  # the view's short side per mm of depth
-    caps = [prm.near_mm]
-    if design is not None:
-        spacings = [design.lattice(ly).level(lv).spacing_mm for ly in ("lower", "upper") for lv in ("bottom", "top")]
-        caps.append(prm.coverage_spacings * max(spacings) / fov)
-    cap = max(caps)
+    cap = _nearest_cap(intr, design, prm)
     aim = _aim(mid, intr, prm)
     if reason.startswith("too few clean cross-sections") and reason.endswith("most lost at the image border)"):
         return (
