@@ -18,15 +18,29 @@ from .directions import _bar_candidates
 __all__: list = []
 
 
+def _weighted_median(values, weights) -> float:
+    """The value at which half the total weight lies on either side (the lower one on a tie)."""
+    order = np.argsort(values)
+    v = np.asarray(values, float)[order]
+    c = np.cumsum(np.asarray(weights, float)[order])
+    return float(v[int(np.searchsorted(c, 0.5 * c[-1]))])
+
+
 def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
     """Something lying well below the other bars of its direction (a spacer block's top, the
-    stub of a chair) is not a bar of this lattice level and is left out; a bar fitted well
-    above them was fitted on a sliver (seen beside a bar over it) and its axis is not where it
-    seems: "not measured"."""
+    stub of a chair, the mixed pixels along a bar's silhouette fitted as a short bar) is not a
+    bar of this lattice level and is left out; a bar fitted well above them was fitted on a
+    sliver (seen beside a bar over it) and its axis is not where it seems: "not measured".
+
+    The direction's level is the median of its bars' axis heights weighted by the length each
+    is seen over: a bar's height rests on its whole stretch, and with two bars the plain median
+    lies half-way between them, so a 55 mm stretch fitted 19 mm low would pass beside a 460 mm
+    bar at its true height (docs/decisions/064)."""
     for g in {b.group for b in bars}:
-        hs = [b.axis_height_mm for b in bars if b.group == g and b.status == MEASURED]
-        if len(hs) >= 2:
-            med, tol = float(np.median(hs)), prm.level_tol_radii * radii.get(g, max_r)
+        mine = [b for b in bars if b.group == g and b.status == MEASURED]
+        if len(mine) >= 2:
+            med = _weighted_median([b.axis_height_mm for b in mine], [max(b.t1_mm - b.t0_mm, 1.0) for b in mine])
+            tol = prm.level_tol_radii * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != MEASURED or b.axis_height_mm >= med - tol]
             bars = [
                 replace(
