@@ -29,8 +29,12 @@ the slab judged that position (the captures judged together), one more capture i
 told (moved across those bars by 1.25 times the distance named, towards the side the sheet names
 — towards the position — or, on a sheet that names none, towards the slab's middle; height, tilt
 and heading kept), one for each capture that asks (at most 4 captures a slab), and the slab is
-judged again. Then, for each bar no capture of the slab sized whose reason advises a capture
-from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told, aimed as a
+judged again. Then, for each capture first taken whose note says its bars were left unsized for
+its camera's pixels and a capture from nearer gives enough (docs/decisions/063), one capture as
+a person takes it (``P<j>``): the optical axis on the middle of the bars still unsized, with a
+hand's aim error, the farthest of them at the distance the note names, tilt and heading kept.
+Then, for each bar no capture of the slab sized (and no such capture was taken for) whose reason
+advises a capture from closer (``rebarlib.diameter.closer``, docs/decisions/038), one capture as told, aimed as a
 person aims: the camera the advised distance from the bar's seen middle along its optical axis,
 that axis put on the bar's middle with a hand's error (uniform within ±¼ of the bar's design
 spacing across the bar and ±½ along it, seeded: ``AIM_ERROR``), tilt and heading kept (still at
@@ -328,7 +332,9 @@ def _inspect_slab(
             rec.update(_judge(results, design))
             taken += added
             rec["followups"] = list(taken)
-            rec["closer"] = [_closer_outcome(folder, c) for c in taken if c.startswith("Z")]
+            rec["closer"] = [_closer_outcome(folder, c) for c in taken if c.startswith("Z")] + [
+                o for c in taken if c.startswith("P") for o in _area_outcomes(folder, c)
+            ]
     rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
     rec["seconds"] = round(time.perf_counter() - t, 2)
     (folder / _verdict_file(follow, rounds, guided)).write_text(json.dumps(rec, indent=1), encoding="utf-8")
@@ -380,19 +386,40 @@ def _closer_outcome(folder: Path, name: str) -> dict:
     """What a capture taken from closer for a bar (``Z<capture>_<bar id>``) says of that bar: the
     rendered bar it is (its bar ids), its true size, and the size found for it there (None: not
     found or not sized)."""
+    j, bid = (int(x) for x in name[1:].split("_"))
+    meta = json.loads((folder / "slab.json").read_text())
+    return _bar_outcome(folder, meta["captures"][j], bid, name)
+
+
+def _area_outcomes(folder: Path, name: str) -> list:
+    """What a capture taken from nearer for a capture's pixels (``P<j>``) says of each bar it was
+    taken for (``area_P<j>.json``): as :func:`_closer_outcome`, one per bar."""
+    rec = json.loads((folder / f"area_{name}.json").read_text())
+    return [
+        {**_bar_outcome(folder, rec["capture"], int(bid), name), "capture": f"{name} ({rec['capture']} bar {bid})"}
+        for bid in rec["bar_ids"]
+    ]
+
+
+def _bar_outcome(folder: Path, cap: str, bid: int, name: str) -> dict:
+    """What capture ``name`` says of bar ``bid`` of capture ``cap``."""
     try:
         from study_ambiguous_closer import _truth_id
     except ModuleNotFoundError:
         from benchmarks.study_ambiguous_closer import _truth_id
 
-    j, bid = (int(x) for x in name[1:].split("_"))
-    meta = json.loads((folder / "slab.json").read_text())
-    cap = meta["captures"][j]
     bar = next(b for b in json.loads((folder / f"result_{cap}.json").read_text())["bars"] if b["bar_id"] == bid)
     tid = _truth_id(folder / cap, bar)
     truth = next((b for b in json.loads((folder / cap / "truth.json").read_text())["bars"] if b["id"] == tid), None)
     seen = json.loads((folder / f"result_{name}.json").read_text())["bars"]
-    got = [b for b in seen if _truth_id(folder / name, b) == tid]
+    # the same rendered bar, of the same lattice and level (a bar of the other lattice beside or
+    # under it can match the same rendered bar by position alone)
+    got = [
+        b
+        for b in seen
+        if (b.get("layer"), b.get("level")) == (bar.get("layer"), bar.get("level"))
+        and _truth_id(folder / name, b) == tid
+    ]
     sized = [b for b in got if b.get("diameter_status") == "measured"]
     return {
         "capture": name,
@@ -504,10 +531,19 @@ def _follow_advice(
                 (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
             out.append(new["name"])
             break
+    covered = set()  # (capture, bar id) a capture from nearer for the capture's pixels was taken for
+    for name, g, adv in _areas_to_retake(folder, meta, results, design):
+        j = meta["captures"].index(name)
+        covered |= {(name, int(b)) for b in adv["bar_ids"]}
+        if f"P{j}_{g}" in taken:
+            continue
+        if n_have + len(out) >= max_captures:
+            break
+        out.append(_capture_area(folder, meta, name, g, adv))
     for name, bid, dist in _bars_to_size(folder, meta, results, design):
         if n_have + len(out) >= max_captures:
             break
-        if f"Z{meta['captures'].index(name)}_{bid}" in taken:
+        if f"Z{meta['captures'].index(name)}_{bid}" in taken or (name, bid) in covered:
             continue
         out.append(_capture_closer(folder, meta, name, bid, dist))
     if n_have + len(out) < max_captures:
@@ -588,6 +624,88 @@ def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
         if m:
             out.append((name, bid, float(m.group(1) or m.group(2))))
     return out
+
+
+def _areas_to_retake(folder: Path, meta: dict, results: list, design) -> list:
+    """(capture, group, advice) for each group of bars (``groups``: those one capture covers) of
+    each capture first taken whose note says its bars were left unsized for its camera's pixels
+    and a capture from nearer would give enough (``extras["pixels_for_sizes"]``, ``reachable``;
+    docs/decisions/063), counting only the bars the slab's sheet still leaves unsized. Computed
+    from the saved bar table where the result was saved before the note existed (the advice is a
+    function of the table, the intrinsics and the design alone)."""
+    import pandas as pd
+
+    import rebarlib as R
+    from rebarlib.diameter.closer import pixels_for_sizes
+
+    acc = R.evaluate(results, design)
+    cp = acc.checkpoints
+    open_ = cp[cp["item"].str.startswith("bar_size") & (cp["status"] == "not measured")]
+    out = []
+    for name, res in zip(meta["captures"], results):
+        adv = (res.get("extras") or {}).get("pixels_for_sizes")
+        if adv is None:
+            intr = R.load_capture(folder / name).intrinsics
+            adv = pixels_for_sizes(pd.DataFrame(res.get("bars") or []), intr, system=design.bar_system, design=design)
+        if not adv or not adv.get("reachable"):
+            continue
+        still = set(open_.loc[open_["capture"] == name, "what"].astype(str))
+        for g, group in enumerate(adv.get("groups") or [adv["bar_ids"]]):
+            ids = [int(b) for b in group if f"bar {int(b)}" in still]
+            if ids:
+                out.append((name, g, {**adv, "bar_ids": ids}))
+    return out
+
+
+def _capture_area(folder: Path, meta: dict, name: str, g: int, adv: dict) -> str:
+    """Take the capture a capture's pixels note asks for, as a person would: the camera's optical
+    axis on the middle of the bars it names (with a hand's aim error, ``AIM_ERROR`` of the
+    largest design spacing, seeded), tilt and heading kept, the camera as far from that middle
+    along the axis as puts the farthest of them at the distance advised (``needed_mm``), not
+    nearer than the nearest the note allows; its folder's ``aim.json`` names the bar nearest that
+    middle. Returns its name (``P<j>_<group>``)."""
+    from rebarlib import synth as S
+
+    bars = [
+        b
+        for b in json.loads((folder / f"result_{name}.json").read_text())["bars"]
+        if int(b["bar_id"]) in set(adv["bar_ids"])
+    ]
+    design, scene, _, _, specs = _slab_plan(meta["slab"], folder)
+    j = meta["captures"].index(name)
+    spec = specs[j]
+    cam = json.loads((folder / name / "truth.json").read_text())["camera"]
+    rot, centre = np.array(cam["rotation_world_to_camera"]), np.array(cam["centre_world_mm"])
+    mids_cam = np.array([[0.5 * (b[f"start_{a}_mm"] + b[f"end_{a}_mm"]) for a in "xyz"] for b in bars])
+    mids = mids_cam @ rot + centre  # to world
+    mid = mids.mean(axis=0)
+    spacing = max(design.lattice(ly).level(lv).spacing_mm for ly in ("lower", "upper") for lv in ("bottom", "top"))
+    err = np.random.default_rng([2026, meta["slab"], 8, j, g]).uniform(-1.0, 1.0, 2) * np.array(AIM_ERROR) * spacing
+    mid[:2] += err
+    axis = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"]).rotation.T[:, 2]
+    target = mid[:2] - (mid[2] / axis[2]) * axis[:2]
+    # the bars' depths behind their middle along the axis stay as they were: the farthest at needed_mm
+    behind = float((mids_cam[:, 2] - mids_cam[:, 2].mean()).max())
+    dist = max(float(adv["needed_mm"]) - behind, float(adv["nearest_mm"]))
+    nearest_bar = bars[int(np.argmin(np.linalg.norm(mids[:, :2] - mid[:2], axis=1)))]
+    new = dict(
+        spec,
+        name=f"P{j}_{g}",
+        h=float(mid[2] - dist * axis[2]),
+        target=tuple(map(float, target)),
+        seed=[2026, meta["slab"], 9, j, g],
+    )
+    aim = folder / new["name"] / "aim.json"
+    if not _rendered_as(folder / new["name"], new) or not aim.exists():
+        _render_one(scene, new, folder)
+        record = {"aimed_at": {"capture": name, "bar_id": int(nearest_bar["bar_id"])}}
+        aim.write_text(json.dumps(record) + "\n", encoding="utf-8")
+        (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
+    # the bars it was taken for, for the outcome table (beside the capture, not in it)
+    (folder / f"area_{new['name']}.json").write_text(
+        json.dumps({"capture": name, "bar_ids": [int(b) for b in adv["bar_ids"]]}) + "\n", encoding="utf-8"
+    )
+    return new["name"]
 
 
 #: a person's aim at a bar's middle, as fractions of the bar's design spacing: uniform within

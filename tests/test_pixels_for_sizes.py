@@ -153,3 +153,20 @@ def test_the_sheet_counts_only_the_bars_it_still_leaves_unsized():
         "under 2.5 px apart: the camera cannot stand near enough, and a focal length of about 524 px or more is "
         "needed (each capture's notes say which bars)."
     )
+
+
+def test_bars_one_capture_cannot_hold_are_grouped():
+    # GEMINI2 from 540 mm sees 540 x 1280 / 616.4 = 1121 mm by 700.8 mm; less the design's 200 mm
+    # spacing: cells of 921 x 500.8 mm. Bars 1 and 2 (middles 300 mm apart) share one, bar 3
+    # (1200 mm to the side) another
+    bars = _bars(*((i, 14.0, "not measured", AMBIGUOUS, 640.0) for i in (1, 2, 3)))
+    bars["start_x_mm"] = bars["end_x_mm"] = [0.0, 300.0, 1200.0]
+    bars["start_y_mm"] = bars["end_y_mm"] = [0.0, 0.0, 0.0]
+    adv = pixels_for_sizes(bars, GEMINI2, system=SYSTEM, design=paper_design())
+    assert adv["groups"] == [[1, 2], [3]]
+    assert adv["note"].endswith(
+        "a capture from about 540 mm or nearer to them gives that (2 such captures cover them: bars 1, 2; 3)"
+    )
+    # without the middles (a table without the x, y columns): one group
+    one = pixels_for_sizes(bars.drop(columns=["start_x_mm", "end_x_mm"]), GEMINI2, system=SYSTEM, design=paper_design())
+    assert one["groups"] == [[1, 2, 3]] and "such captures" not in one["note"]

@@ -186,7 +186,8 @@ def pixels_for_sizes(bars, intr, *, system: str, deformed: bool = True, design=N
     ``focal_needed_px`` (the focal length that gives ``min_gap_px`` from ``nearest_mm``),
     ``unsized_with_enough_px`` (the capture's bars left unsized by their widths although their
     sizes lie ``min_gap_px`` or more apart: where there are any, the note says the pixels are
-    not the whole cause) and ``note`` (the sentence for the result's notes).
+    not the whole cause), ``groups`` (the bars' ids in groups one capture from ``needed_mm``
+    each covers, :func:`_groups`) and ``note`` (the sentence for the result's notes).
     """
     prm = prm or CloserParams()
     need_cols = {"bar_id", "design_diameter_mm", "diameter_status", "diameter_reason", "start_z_mm", "end_z_mm"}
@@ -206,18 +207,22 @@ def pixels_for_sizes(bars, intr, *, system: str, deformed: bool = True, design=N
         if not (math.isfinite(z) and z > 0 and math.isfinite(gap)):
             continue
         if focal * gap / z < prm.min_gap_px:
-            rows.append((int(b.bar_id), z, gap, focal * gap / z))
+            mid = [
+                0.5 * (float(getattr(b, f"start_{a}_mm", 0.0)) + float(getattr(b, f"end_{a}_mm", 0.0))) for a in "xy"
+            ]
+            rows.append((int(b.bar_id), z, gap, focal * gap / z, mid))
         else:
             enough += 1
     if not rows:
         return None
-    ids, zs, gaps, pxs = (list(c) for c in zip(*rows))
+    ids, zs, gaps, pxs, mids = (list(c) for c in zip(*rows))
     need = min(focal * g / prm.min_gap_px for g in gaps)
     nearest = _nearest_cap(intr, design, prm)
     reachable = need >= nearest
     # rounded down to 5 mm, but not below the nearest a capture can stand where it can stand there
     needed = max(5.0 * math.floor(need / 5.0), math.ceil(nearest)) if reachable else 5.0 * math.floor(need / 5.0)
     focal_needed = prm.min_gap_px * nearest / min(gaps)
+    groups = _groups(ids, mids, needed, intr, design)
     n = len(ids)
     where = f"{zs[0]:.0f} mm" if n == 1 else f"{min(zs):.0f}–{max(zs):.0f} mm"
     px = f"{pxs[0]:.1f} px" if n == 1 else f"{min(pxs):.1f}–{max(pxs):.1f} px"
@@ -235,6 +240,12 @@ def pixels_for_sizes(bars, intr, *, system: str, deformed: bool = True, design=N
     head += ": "
     if reachable:
         tail = f"a capture from about {needed:.0f} mm or nearer to {'it' if n == 1 else 'them'} gives that"
+        if len(groups) > 1:
+            tail += (
+                f" ({len(groups)} such captures cover them: bars "
+                + "; ".join(", ".join(str(i) for i in g) for g in groups)
+                + ")"
+            )
     else:
         tail = (
             f"that needs the camera within about {needed:.0f} mm, nearer than a capture of this slab can stand "
@@ -253,8 +264,30 @@ def pixels_for_sizes(bars, intr, *, system: str, deformed: bool = True, design=N
         "reachable": reachable,
         "focal_needed_px": round(focal_needed, 0),
         "unsized_with_enough_px": enough,
+        "groups": groups,
         "note": head + tail,
     }
+
+
+def _groups(ids: list, mids: list, dist: float, intr, design) -> list:
+    """The bars' ids in groups that one capture from ``dist`` each covers: the bars' seen middles
+    (camera x, y) binned on a grid of the view's extent at that distance, less the design's
+    largest spacing (half of it on either side, so that a bar at a cell's edge keeps its
+    neighbours in view; at least half the view), from the least x and y. One group where the
+    middles are not known."""
+    w, h = dist * intr.width / intr.fx, dist * intr.height / intr.fy
+    margin = 0.0
+    if design is not None:
+        margin = max(design.lattice(ly).level(lv).spacing_mm for ly in ("lower", "upper") for lv in ("bottom", "top"))
+    cw, ch = max(w - margin, 0.5 * w), max(h - margin, 0.5 * h)
+    xy = np.asarray(mids, float).reshape(-1, 2)
+    if not np.all(np.isfinite(xy)):
+        return [list(ids)]
+    cells = np.floor((xy - xy.min(axis=0)) / np.array([cw, ch])).astype(int)
+    out: dict = {}
+    for i, c in zip(ids, map(tuple, cells)):
+        out.setdefault(c, []).append(int(i))
+    return [out[c] for c in sorted(out)]
 
 
 def closer_advice(row: dict, p0, p1, intr, *, min_confidence, system, deformed=True, design=None, prm=None) -> str:
