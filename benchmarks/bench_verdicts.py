@@ -664,7 +664,6 @@ def _capture_area(folder: Path, meta: dict, name: str, g: int, adv: dict) -> str
     along the axis as puts the farthest of them at the distance advised (``needed_mm``), not
     nearer than the nearest the note allows; its folder's ``aim.json`` names the bar nearest that
     middle. Returns its name (``P<j>_<group>``)."""
-    from rebarlib import synth as S
 
     bars = [
         b
@@ -682,30 +681,17 @@ def _capture_area(folder: Path, meta: dict, name: str, g: int, adv: dict) -> str
     spacing = max(design.lattice(ly).level(lv).spacing_mm for ly in ("lower", "upper") for lv in ("bottom", "top"))
     err = np.random.default_rng([2026, meta["slab"], 8, j, g]).uniform(-1.0, 1.0, 2) * np.array(AIM_ERROR) * spacing
     mid[:2] += err
-    axis = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"]).rotation.T[:, 2]
-    target = mid[:2] - (mid[2] / axis[2]) * axis[:2]
     # the bars' depths behind their middle along the axis stay as they were: the farthest at needed_mm
     behind = float((mids_cam[:, 2] - mids_cam[:, 2].mean()).max())
     dist = max(float(adv["needed_mm"]) - behind, float(adv["nearest_mm"]))
     nearest_bar = bars[int(np.argmin(np.linalg.norm(mids[:, :2] - mid[:2], axis=1)))]
-    new = dict(
-        spec,
-        name=f"P{j}_{g}",
-        h=float(mid[2] - dist * axis[2]),
-        target=tuple(map(float, target)),
-        seed=[2026, meta["slab"], 9, j, g],
-    )
-    aim = folder / new["name"] / "aim.json"
-    if not _rendered_as(folder / new["name"], new) or not aim.exists():
-        _render_one(scene, new, folder)
-        record = {"aimed_at": {"capture": name, "bar_id": int(nearest_bar["bar_id"])}}
-        aim.write_text(json.dumps(record) + "\n", encoding="utf-8")
-        (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
+    aim = {"aimed_at": {"capture": name, "bar_id": int(nearest_bar["bar_id"])}}
+    new = _take_aimed(folder, scene, spec, mid, dist, f"P{j}_{g}", [2026, meta["slab"], 9, j, g], aim)
     # the bars it was taken for, for the outcome table (beside the capture, not in it)
-    (folder / f"area_{new['name']}.json").write_text(
+    (folder / f"area_{new}.json").write_text(
         json.dumps({"capture": name, "bar_ids": [int(b) for b in adv["bar_ids"]]}) + "\n", encoding="utf-8"
     )
-    return new["name"]
+    return new
 
 
 #: a person's aim at a bar's middle, as fractions of the bar's design spacing: uniform within
@@ -720,7 +706,6 @@ def _capture_closer(folder: Path, meta: dict, name: str, bid: int, dist: float) 
     ±½ along it; seeded per slab, capture and bar), the capture's tilt and heading kept. The
     capture's folder gets the record of its aim (``aim.json``: the capture and bar it was aimed
     at, docs/formats.md). Returns its name."""
-    from rebarlib import synth as S
 
     bar = next(b for b in json.loads((folder / f"result_{name}.json").read_text())["bars"] if int(b["bar_id"]) == bid)
     design, scene, _, _, specs = _slab_plan(meta["slab"], folder)
@@ -734,24 +719,26 @@ def _capture_closer(folder: Path, meta: dict, name: str, bid: int, dist: float) 
     spacing = design.lattice(bar["layer"]).level(bar["level"]).spacing_mm
     err = np.random.default_rng([2026, meta["slab"], 5, j, bid]).uniform(-1.0, 1.0, 2) * np.array(AIM_ERROR) * spacing
     mid[:2] += err[0] * np.array([-along[1], along[0]]) + err[1] * along
+    aim = {"aimed_at": {"capture": name, "bar_id": int(bid)}}
+    return _take_aimed(folder, scene, spec, mid, dist, f"Z{j}_{bid}", [2026, meta["slab"], 4, j, bid], aim)
+
+
+def _take_aimed(folder: Path, scene, spec: dict, mid, dist: float, name: str, seed: list, aim: dict) -> str:
+    """Render (where the cache does not hold it already) the capture ``name`` a person takes
+    aiming at ``mid`` (world, mm): the optical axis of ``spec``'s tilt and heading through it,
+    meeting the formwork at the capture's target, the camera ``dist`` mm from it along that axis;
+    its folder's ``aim.json`` holds ``aim``. Returns ``name``."""
+    from rebarlib import synth as S
+
     axis = S.CameraPose.looking_down(spec["h"], tilt_deg=spec["tilt"], yaw_deg=spec["yaw"]).rotation.T[:, 2]
-    # the optical axis through the bar's middle, meeting the formwork at the target; the camera
-    # dist from the bar along it
     target = mid[:2] - (mid[2] / axis[2]) * axis[:2]
-    new = dict(
-        spec,
-        name=f"Z{j}_{bid}",
-        h=float(mid[2] - dist * axis[2]),
-        target=tuple(map(float, target)),
-        seed=[2026, meta["slab"], 4, j, bid],
-    )
-    aim = folder / new["name"] / "aim.json"
-    record = {"aimed_at": {"capture": name, "bar_id": int(bid)}}
-    if not _rendered_as(folder / new["name"], new) or not aim.exists():
+    new = dict(spec, name=name, h=float(mid[2] - dist * axis[2]), target=tuple(map(float, target)), seed=seed)
+    aim_file = folder / name / "aim.json"
+    if not _rendered_as(folder / name, new) or not aim_file.exists():
         _render_one(scene, new, folder)
-        aim.write_text(json.dumps(record) + "\n", encoding="utf-8")
-        (folder / f"result_{new['name']}.json").unlink(missing_ok=True)  # inspect it anew
-    return new["name"]
+        aim_file.write_text(json.dumps(aim) + "\n", encoding="utf-8")
+        (folder / f"result_{name}.json").unlink(missing_ok=True)  # inspect it anew
+    return name
 
 
 def _rendered_as(folder: Path, spec: dict) -> bool:
