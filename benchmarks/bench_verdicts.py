@@ -58,9 +58,11 @@ lower radii, the camera's height above the lower bars' axes, the design's layer 
 tilt, heading, sensor and light kept. With n captures first taken: ``C0, G0`` (n = 2),
 ``C0, G0, C1`` (3), ``C0, G0, C1, G1`` (4). Judged once, no follow-up (docs/decisions/046).
 
-``--heights LO,HI`` draws the captures' heights above the formwork from another band than
-400-700 mm (the other draws stay as they are): a camera with fewer pixels rendered as the capture
-guide says for it (docs/capturing.md, docs/decisions/063).
+``--designs other`` draws the slabs' designs from another family (``DESIGNS_OTHER``: Φ10 at
+100-120 mm, Φ20/Φ16 at 150 mm, Φ25/Φ20 at 200-250 mm; covers 15-40 mm): rules checked on
+designs they were not built on. ``--heights LO,HI`` draws the captures' heights above the
+formwork from another band than 400-700 mm (the other draws stay as they are): a camera with
+fewer pixels rendered as the capture guide says for it (docs/capturing.md, docs/decisions/063).
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
@@ -86,7 +88,14 @@ import numpy as np
 #: How the captures are rendered (``--camera``, ``--sensor``, ``--photo``, ``--ribs``): the defaults, or
 #: another camera, depth sensor, a photograph's softening and JPEG, ribs in relief (benchmarks/_cameras.py)
 #: — the verdicts judged on captures unlike those their rules were built on. Kept in each slab.json.
-RENDER = {"camera": "gemini2", "sensor": "default", "photo": False, "ribs": "envelope", "heights": [400.0, 700.0]}
+RENDER = {
+    "camera": "gemini2",
+    "sensor": "default",
+    "photo": False,
+    "ribs": "envelope",
+    "heights": [400.0, 700.0],
+    "designs": "default",
+}
 RENDER_DEFAULT = dict(RENDER)
 
 DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
@@ -104,10 +113,13 @@ DESIGNS = (  # (lower Φ, lower spacing, upper Φ, upper spacing, cover, layer d
     (12, 150, 10, 150, 25, 70),
     (16, 200, 14, 180, 30, 100),
 )
+#: another family (``--designs other``): a light mesh at tight spacings, heavier bars and covers
+DESIGNS_OTHER = ((10, 100, 10, 120, 15, 55), (20, 150, 16, 150, 35, 110), (25, 200, 20, 250, 40, 130))
 
 
 def design_toml(k: int, defect: str | None) -> str:
-    dl, sl, du, su, cover, ld = DESIGNS[k % len(DESIGNS)]
+    family = DESIGNS_OTHER if RENDER["designs"] == "other" else DESIGNS
+    dl, sl, du, su, cover, ld = family[k % len(family)]
     std = "EN13670-class1" if defect == "spacing" else "GB50204-2015"
     return (
         f'[slab]\nid = "V-{k:03d}"\nstandard = "{std}"\n\n[design]\ncover_mm = {cover}\n'
@@ -803,6 +815,12 @@ def main(argv=None) -> int:
         default="400,700",
         help="LO,HI: the band the captures' heights above the formwork are drawn from, mm (default 400,700)",
     )
+    ap.add_argument(
+        "--designs",
+        choices=("default", "other"),
+        default="default",
+        help="the slabs' designs: the default family, or another (Φ10 at 100 mm to Φ25 at 200 mm, covers 15-40 mm)",
+    )
     args = ap.parse_args(argv)
     try:
         lo, hi = (float(x) for x in args.heights.split(","))
@@ -810,7 +828,9 @@ def main(argv=None) -> int:
         ap.error(f"--heights: expected two numbers LO,HI in mm, got {args.heights!r}")
     if not 0 < lo <= hi:
         ap.error(f"--heights: expected 0 < LO <= HI, got {args.heights!r}")
-    RENDER.update(camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs, heights=[lo, hi])
+    RENDER.update(
+        camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs, heights=[lo, hi], designs=args.designs
+    )
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
     rounds = 2 if args.second_round else 1
