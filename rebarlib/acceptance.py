@@ -625,6 +625,8 @@ def _pixels_notes(res: list, cp: pd.DataFrame) -> list:
     camera's pixels (``extras["pixels_for_sizes"]``, ``rebarlib.diameter.closer.pixels_for_sizes``):
     how many, in which captures, and from how near a capture (or with how many more pixels) sizes
     them."""
+    from .diameter.closer import CloserParams
+
     open_sizes = cp[cp["item"].astype(str).str.startswith("bar_size") & (cp["status"] == NOT_MEASURED)]
     counts, near, focal, gap = {}, [], [], math.inf
     for r in res:
@@ -637,7 +639,7 @@ def _pixels_notes(res: list, cp: pd.DataFrame) -> list:
         if not n:
             continue
         counts[cap] = n
-        gap = min(gap, float(adv.get("min_gap_px", math.nan)))
+        gap = min(gap, float(adv.get("min_gap_px") or CloserParams.min_gap_px))
         (near if adv.get("reachable") else focal).append(adv)
     if not counts:
         return []

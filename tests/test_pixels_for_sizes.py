@@ -170,3 +170,9 @@ def test_bars_one_capture_cannot_hold_are_grouped():
     # without the middles (a table without the x, y columns): one group
     one = pixels_for_sizes(bars.drop(columns=["start_x_mm", "end_x_mm"]), GEMINI2, system=SYSTEM, design=paper_design())
     assert one["groups"] == [[1, 2, 3]] and "such captures" not in one["note"]
+
+
+def test_the_sheet_reads_a_note_without_its_gap_at_the_default():
+    adv = {"bar_ids": [3], "needed_mm": 500.0, "reachable": True}  # (a result written by hand)
+    notes = _pixels_notes([{"capture": "C0", "extras": {"pixels_for_sizes": adv}}], _cp(("C0", 3, "not measured")))
+    assert "under 2.5 px apart: from about 500 mm or nearer" in notes[0]
