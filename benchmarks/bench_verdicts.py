@@ -544,7 +544,8 @@ def _follow_advice(
             out.append(new["name"])
             break
     covered = set()  # (capture, bar id) a capture from nearer for the capture's pixels was taken for
-    for name, g, adv in _areas_to_retake(folder, meta, results, design):
+    unsized = _unsized(sheet)
+    for name, g, adv in _areas_to_retake(folder, meta, results, design, unsized):
         j = meta["captures"].index(name)
         covered |= {(name, int(b)) for b in adv["bar_ids"]}
         if f"P{j}_{g}" in taken:
@@ -552,7 +553,7 @@ def _follow_advice(
         if n_have + len(out) >= max_captures:
             break
         out.append(_capture_area(folder, meta, name, g, adv))
-    for name, bid, dist in _bars_to_size(folder, meta, results, design):
+    for name, bid, dist in _bars_to_size(folder, meta, results, design, unsized):
         if n_have + len(out) >= max_captures:
             break
         if f"Z{meta['captures'].index(name)}_{bid}" in taken or (name, bid) in covered:
@@ -607,7 +608,14 @@ def _capture_on_both(folder: Path, meta: dict, sheet, taken=()) -> str | None:
 CLOSER = re.compile(r"a capture with the camera about (\d+) mm or less from the bar|from about (\d+) mm or less \(this")
 
 
-def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
+def _unsized(sheet):
+    """The bar-size checkpoints a slab's sheet (:func:`rebarlib.evaluate`'s, its captures judged
+    together) leaves not measured."""
+    cp = sheet.checkpoints
+    return cp[cp["item"].str.startswith("bar_size") & (cp["status"] == "not measured")]
+
+
+def _bars_to_size(folder: Path, meta: dict, results: list, design, unsized) -> list:
     """(capture, bar id, advised distance) of each bar the slab's sheet leaves unsized (its
     captures judged together: a bar another capture sized is not asked for) whose reason advises a
     capture from closer (:func:`rebarlib.diameter.closer.closer_advice`, computed on the saved
@@ -616,11 +624,8 @@ def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
     import rebarlib as R
     from rebarlib.diameter.closer import closer_advice
 
-    acc = R.evaluate(results, design)
-    cp = acc.checkpoints
-    rows = cp[cp["item"].str.startswith("bar_size") & (cp["status"] == "not measured")]
     out = []
-    for _, row in rows.iterrows():
+    for _, row in unsized.iterrows():
         name, bid = str(row["capture"]), int(str(row["what"]).split()[-1])
         if name not in meta["captures"]:
             continue
@@ -638,7 +643,7 @@ def _bars_to_size(folder: Path, meta: dict, results: list, design) -> list:
     return out
 
 
-def _areas_to_retake(folder: Path, meta: dict, results: list, design) -> list:
+def _areas_to_retake(folder: Path, meta: dict, results: list, design, unsized) -> list:
     """(capture, group, advice) for each group of bars (``groups``: those one capture covers) of
     each capture first taken whose note says its bars were left unsized for its camera's pixels
     and a capture from nearer would give enough (``extras["pixels_for_sizes"]``, ``reachable``;
@@ -650,9 +655,6 @@ def _areas_to_retake(folder: Path, meta: dict, results: list, design) -> list:
     import rebarlib as R
     from rebarlib.diameter.closer import pixels_for_sizes
 
-    acc = R.evaluate(results, design)
-    cp = acc.checkpoints
-    open_ = cp[cp["item"].str.startswith("bar_size") & (cp["status"] == "not measured")]
     out = []
     for name, res in zip(meta["captures"], results):
         adv = (res.get("extras") or {}).get("pixels_for_sizes")
@@ -661,7 +663,7 @@ def _areas_to_retake(folder: Path, meta: dict, results: list, design) -> list:
             adv = pixels_for_sizes(pd.DataFrame(res.get("bars") or []), intr, system=design.bar_system, design=design)
         if not adv or not adv.get("reachable"):
             continue
-        still = set(open_.loc[open_["capture"] == name, "what"].astype(str))
+        still = set(unsized.loc[unsized["capture"] == name, "what"].astype(str))
         for g, group in enumerate(adv.get("groups") or [adv["bar_ids"]]):
             ids = [int(b) for b in group if f"bar {int(b)}" in still]
             if ids:
