@@ -95,6 +95,7 @@ RENDER = {
     "ribs": "envelope",
     "heights": [400.0, 700.0],
     "designs": "default",
+    "jitter_mm": 4.0,
 }
 RENDER_DEFAULT = dict(RENDER)
 
@@ -148,7 +149,7 @@ def _slab_plan(k: int, folder: Path):
         end_overhang_mm=float(rng.uniform(25, 75)),
         mesh_yaw_deg=float(rng.uniform(0, 180)),
         position_sigma_mm=1.5,
-        position_uniform_mm=4.0,
+        position_uniform_mm=float(RENDER["jitter_mm"]),
         slab_size_mm=float(rng.uniform(1600, 2400)),
         missing=1 if defect == "missing_inside" else 0,
         missing_at_end=1 if defect == "missing_end" else 0,
@@ -332,7 +333,7 @@ def _inspect_slab(
         follow = False
     results = [_result(folder, c, design, rejudge) for c in meta["captures"]]
     rec = {**meta, **_judge(results, design)}
-    keys = ("verdict", "failed", "incomplete", "reasons")
+    keys = ("verdict", "failed", "failed_lots", "incomplete", "reasons")
     rec["first_pass"] = {k: rec[k] for k in keys}
     taken: list = []
     for rnd in range(rounds if follow else 0):
@@ -347,7 +348,8 @@ def _inspect_slab(
             rec["closer"] = [_closer_outcome(folder, c) for c in taken if c.startswith("Z")] + [
                 o for c in taken if c.startswith("P") for o in _area_outcomes(folder, c)
             ]
-    rec["truth_failed"] = _truth_failed(folder, list(meta["captures"]) + rec.get("followups", []), design)
+    truth = _truth_judged(folder, list(meta["captures"]) + rec.get("followups", []), design)
+    rec["truth_failed"], rec["truth_passed_lots"] = truth["failed"], truth["passed_lots"]
     rec["seconds"] = round(time.perf_counter() - t, 2)
     (folder / _verdict_file(follow, rounds, guided)).write_text(json.dumps(rec, indent=1), encoding="utf-8")
     return rec
@@ -355,8 +357,11 @@ def _inspect_slab(
 
 def _verdict_file(follow: bool, rounds: int, guided: bool = False) -> str:
     if guided:
-        return "verdict_guided.json"
-    return ("verdict_follow2.json" if rounds > 1 else "verdict_follow.json") if follow else "verdict.json"
+        name = "verdict_guided.json"
+    else:
+        name = ("verdict_follow2.json" if rounds > 1 else "verdict_follow.json") if follow else "verdict.json"
+    # judged under another decision rule than the presets': kept beside, not over, those verdicts
+    return name if not JUDGE["rule"] else name.replace(".json", "_" + JUDGE["rule"].replace(" ", "_") + ".json")
 
 
 def _guided(folder: Path, meta: dict, design) -> list:
@@ -442,7 +447,7 @@ def _bar_outcome(folder: Path, cap: str, bid: int, name: str) -> dict:
     }
 
 
-def _truth_failed(folder: Path, caps: list, design) -> list:
+def _truth_judged(folder: Path, caps: list, design) -> dict:
     """The items the slab's own as-built truth fails, judged as a perfect inspection of the same
     captures would be (``rebarlib.synth.result_from_truth``): the placing jitter can put a
     spacing of a slab without a designed defect out of tolerance, and then rejecting it is right.
@@ -454,7 +459,7 @@ def _truth_failed(folder: Path, caps: list, design) -> list:
     for r in results:  # the truth's spacings are exact: two captures' readings of one pair are equal
         for s in r.get("spacings") or []:
             s.setdefault("uncertainty_mm", 0.0)
-    return _judge(results, design)["failed"]
+    return _judge(results, design, as_asked=False)
 
 
 def _result(folder: Path, c: str, design, rejudge: bool) -> dict:
@@ -468,10 +473,25 @@ def _result(folder: Path, c: str, design, rejudge: bool) -> dict:
     return res.to_dict()
 
 
-def _judge(results: list, design) -> dict:
+#: the decision rule the slabs are judged under (``--decision-rule``): None = as their standard's
+#: preset names it
+JUDGE = {"rule": None}
+
+
+def _judge(results: list, design, *, as_asked: bool = True) -> dict:
+    """The slab's verdict, its failed and open items; under ``--decision-rule`` where
+    ``as_asked`` (the truth is judged as its standard's preset says: its values carry no
+    uncertainty, but a bar size's confidence may still leave it "not proven")."""
+    import dataclasses
+
     import rebarlib as R
 
-    acc = R.evaluate(results, design)
+    tol = None
+    if JUDGE["rule"] and as_asked:
+        from rebarlib._tolerances import load_tolerances
+
+        tol = dataclasses.replace(load_tolerances(design.standard), decision_rule=JUDGE["rule"])
+    acc = R.evaluate(results, design, tol)
     items = acc.items
 
     def short(i):
@@ -480,6 +500,8 @@ def _judge(results: list, design) -> dict:
     return {
         "verdict": acc.verdict,
         "failed": sorted({short(i) for i, v in zip(items["item"], items["verdict"]) if v == "fail"}),
+        "failed_lots": sorted(str(i) for i, v in zip(items["item"], items["verdict"]) if v == "fail"),
+        "passed_lots": sorted(str(i) for i, v in zip(items["item"], items["verdict"]) if v == "pass"),
         "incomplete": sorted({short(i) for i, v in zip(items["item"], items["verdict"]) if v not in ("pass", "fail")}),
         "reasons": list(acc.reasons),
     }
@@ -823,7 +845,29 @@ def main(argv=None) -> int:
         default="default",
         help="the slabs' designs: the default family, or another (Φ10 at 100 mm to Φ25 at 200 mm, covers 15-40 mm)",
     )
+    ap.add_argument(
+        "--jitter",
+        type=float,
+        default=4.0,
+        help="each bar placed off its design line by a uniform draw within ± this (mm, on top of a 1.5 mm normal "
+        "one), so a spacing is off by up to twice it (default 4)",
+    )
+    ap.add_argument(
+        "--decision-rule",
+        default=None,
+        help="judge under this decision rule (simple, guarded, shared risk, proven; docs/uncertainty.md) instead "
+        "of the one each slab's standard names; best with --rejudge on a cache",
+    )
     args = ap.parse_args(argv)
+    if args.decision_rule is not None:
+        from rebarlib._decision import check_rule
+
+        try:
+            JUDGE["rule"] = check_rule(args.decision_rule, "--decision-rule")
+        except ValueError as e:
+            ap.error(str(e))
+    if not 0 <= args.jitter <= 50:
+        ap.error(f"--jitter: expected 0 to 50 mm, got {args.jitter!r}")
     try:
         lo, hi = (float(x) for x in args.heights.split(","))
     except ValueError:
@@ -831,7 +875,13 @@ def main(argv=None) -> int:
     if not 0 < lo <= hi:
         ap.error(f"--heights: expected 0 < LO <= HI, got {args.heights!r}")
     RENDER.update(
-        camera=args.camera, sensor=args.sensor, photo=args.photo, ribs=args.ribs, heights=[lo, hi], designs=args.designs
+        camera=args.camera,
+        sensor=args.sensor,
+        photo=args.photo,
+        ribs=args.ribs,
+        heights=[lo, hi],
+        designs=args.designs,
+        jitter_mm=args.jitter,
     )
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
@@ -890,6 +940,14 @@ def _render_and_judge(args) -> dict:
 
 def _rejudge(args) -> dict:
     folder, follow, rounds, guided = args
+    if follow or guided:
+        # these may render captures the cache lacks: only as the slab's own were rendered
+        made = {**RENDER_DEFAULT, **json.loads((Path(folder) / "slab.json").read_text()).get("render", {})}
+        if made != RENDER:
+            raise SystemExit(
+                f"{folder}: rendered as {made}; judge it again with the options it was rendered with "
+                f"(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter), not as {RENDER}"
+            )
     return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds, guided=guided)
 
 
@@ -925,10 +983,11 @@ def report(recs: list) -> None:
     items = ("cover", "layer_distance", "spacing", "bar_size", "bar_count")
     print(
         "\nPer item: false fails (failed on a slab without that defect), missed (defect of that item, "
-        "item not failed), left incomplete\n"
+        "item not failed), left incomplete; lots failed that the truth, judged as a perfect inspection would, "
+        "passes\n"
     )
-    print("| item | false fails | missed | incomplete (clean slabs) |")
-    print("|---|---:|---:|---:|")
+    print("| item | false fails | missed | incomplete (clean slabs) | lots failed, passed in truth |")
+    print("|---|---:|---:|---:|---:|")
     for it in items:
         false = sum(
             it in r["failed"] and DEFECT_ITEM.get(r["defect"]) != it and it not in r.get("truth_failed", ())
@@ -936,7 +995,7 @@ def report(recs: list) -> None:
         )
         missed = sum(DEFECT_ITEM.get(r["defect"]) == it and it not in r["failed"] for r in recs)
         inc = sum(it in r["incomplete"] for r in recs if r["defect"] is None and not r.get("truth_failed"))
-        print(f"| {it} | {false} | {missed} | {inc} |")
+        print(f"| {it} | {false} | {missed} | {inc} | {_lot_false_fails(recs, it)} |")
     causes(recs)
     closer = [(r["slab"], c) for r in recs for c in r.get("closer", [])]
     if closer:
@@ -969,6 +1028,22 @@ def report(recs: list) -> None:
                 f"{r['edge_view']}, shadows {r['shadows']}): {r['verdict']}; failed {r['failed']}; "
                 f"incomplete {r['incomplete']}"
             )
+
+
+def _lot_false_fails(recs: list, item: str):
+    """Lots of ``item`` failed that the truth, judged as a perfect inspection would, passes: a
+    false fail the per-item count hides where another lot of the item fails in truth (a slab whose
+    placing jitter puts one spacing lot out, another lot failed on a misreading). A lot the truth
+    leaves open (its captures not placed on each other may repeat a spacing) is not counted. The
+    truth holds no bar counts, so "–" for them; so for records judged before the lots were kept."""
+    if item == "bar_count" or any("truth_passed_lots" not in r or "failed_lots" not in r for r in recs):
+        return "–"
+    return sum(
+        1
+        for r in recs
+        for lot in r["failed_lots"]
+        if lot.split("_lower")[0].split("_upper")[0] == item and lot in r["truth_passed_lots"]
+    )
 
 
 #: what a checkpoint's reason says, in order: the first that matches names the cause
