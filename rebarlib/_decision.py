@@ -10,6 +10,10 @@
 - ``shared risk``: the acceptance zone is the tolerance zone (decisions as simple acceptance);
   the parties agree to share the risk that a value near a limit is judged wrongly. It differs
   from ``simple`` in what the report states, not in the verdicts.
+- ``proven``: accepted as under simple acceptance; a rejection only where it is proven
+  (ISO 14253-1: non-conformity proven where the value lies beyond the limit by at least U). A
+  checkpoint beyond its limit by less than U is not settled: its item fails only where it would
+  fail with such checkpoints within, and is left open otherwise.
 
 Every checkpoint whose interval ``[deviation - U, deviation + U]`` reaches over a limit is
 marked "within, not proven" or "beyond, not proven", under every rule.
@@ -23,12 +27,14 @@ from ._status import BEYOND, BEYOND_NOT_PROVEN, WITHIN, WITHIN_NOT_PROVEN
 
 __all__ = ["DECISION_RULES", "RULE_TEXT", "check_rule", "decide", "decide_size", "risk_summary"]
 
-DECISION_RULES = ("simple", "guarded", "shared risk")
+DECISION_RULES = ("simple", "guarded", "shared risk", "proven")
 RULE_TEXT = {
     "simple": "simple acceptance (ILAC-G8 w = 0): the measured value against the limit, as the code is written",
     "guarded": "guarded acceptance (ILAC-G8 w = U): each limit narrowed by the expanded uncertainty U (k = 2)",
     "shared risk": "shared risk (JCGM 106 §8.3.3): the measured value against the limit, the risk of a wrong "
     "decision near a limit shared by agreement",
+    "proven": "simple acceptance, rejection only where proven (ISO 14253-1): a value beyond its limit by less than "
+    "the expanded uncertainty U (k = 2) leaves its item open",
 }
 PROVEN = (WITHIN, BEYOND)
 WITHIN_NP, BEYOND_NP = WITHIN_NOT_PROVEN, BEYOND_NOT_PROVEN
@@ -129,6 +135,8 @@ def risk_summary(checkpoints, rule: str, k: float) -> dict:
         if r is None or (isinstance(r, float) and math.isnan(r)):
             continue
         n_risk += 1
+        if rule == "proven" and d == BEYOND_NP and st != "within":
+            continue  # not rejected under this rule: left open, no false reject to expect
         if st == "within":
             acc += r
             worst_a = max(worst_a, r)
@@ -139,6 +147,9 @@ def risk_summary(checkpoints, rule: str, k: float) -> dict:
         "simple": "a value accepted on the limit has up to 50 % chance of being out of tolerance",
         "shared risk": "a value accepted on the limit has up to 50 % chance of being out of tolerance, "
         "a value rejected just beyond it as much chance of being within (shared)",
+        "proven": "a value accepted on the limit has up to 50 % chance of being out of tolerance; a value "
+        f"rejected beyond the limit by U has about {100 * (1 - _phi(k)):.1f} % chance of being within; values "
+        "beyond by less than U are left open",
         "guarded": f"a value accepted at the guarded limit has about {100 * (1 - _phi(k)):.1f} % chance "
         "of being out of tolerance; values within the limit by less than U are rejected",
     }[rule]

@@ -214,6 +214,13 @@ def _lot_readings(cp: pd.DataFrame, unplaced: set, order: list, r_min: float) ->
     )
 
 
+def _unproven_text(k: int, n_beyond: int) -> str:
+    """How many of an item's checkpoints beyond lie beyond their limit by less than their U."""
+    if k == n_beyond == 1:
+        return "the checkpoint beyond lies beyond its limit by less than its expanded uncertainty U"
+    return f"{k} of the {n_beyond} checkpoints beyond lie beyond their limit by less than their expanded uncertainty U"
+
+
 def _item_row(
     key: str,
     cp: pd.DataFrame,
@@ -236,6 +243,14 @@ def _item_row(
     passed = int((measured["status"] == WITHIN).sum())
     n_beyond_max = int((measured["status"] == BEYOND_MAX).sum())
     n_not_proven = int(measured["decision"].isin([WITHIN_NP, BEYOND_NP]).sum()) if "decision" in measured else 0
+    # under the "proven" rule a checkpoint beyond its limit by less than U is not settled: the item
+    # fails only where it fails with those counted within (docs/uncertainty.md)
+    n_beyond_np = (
+        int((measured["status"].isin([BEYOND, BEYOND_MAX]) & (measured["decision"] == BEYOND_NP)).sum())
+        if "decision" in measured
+        else 0
+    )
+    n_unsettled = n_beyond_np if tol.decision_rule == "proven" else 0
     n_nm = n - n_meas
     ratio = passed / n_meas if n_meas else None
     worst = None
@@ -272,6 +287,19 @@ def _item_row(
                 f"share, below {r_min:.0%} under one reading and not under the other; a capture placed on both "
                 "settles it"
             )
+        elif (
+            not ok_ratio and ok_max and n_unsettled and high[0] + n_nm + n_unsettled >= r_min * (high[1] + n_nm) - _EPS
+        ):
+            # under the "proven" rule: the share fails only with checkpoints whose being beyond is
+            # not proven (and, as below, with the checkpoints not measured): not a failure on proof
+            verdict = INCOMPLETE
+            why.append(
+                f"{passed}/{n_meas} within tolerance, below {r_min:.0%}; "
+                + _unproven_text(n_unsettled, n_meas - passed)
+                + " (not proven"
+                + (f"; {n_nm} checkpoint(s) not measured" if n_nm else "")
+                + "): measuring by hand settles it"
+            )
         elif not ok_ratio and ok_max and n_nm and high[0] + n_nm >= r_min * (high[1] + n_nm) - _EPS:
             # A share below the rule's on the measured checkpoints alone is no failure on
             # evidence while the checkpoints not measured could still lift it to the rule's:
@@ -299,6 +327,10 @@ def _item_row(
             )
         if not ok_max:
             why.append(f"{n_beyond_max} checkpoint(s) beyond {rule.max_factor:g}× the tolerance")
+        if verdict == FAIL and n_beyond_np:
+            # the sheet says where a failure rests on values beyond their limit by less than their
+            # uncertainty: judged on the measured side of the limit, as the rule says, not proven
+            why.append(_unproven_text(n_beyond_np, n_meas - passed) + " (not proven: a hand measurement confirms it)")
         if n_nm:
             why.append(f"{n_nm} of {n} checkpoints not measured ({'; '.join(reasons)})")
             # A rule that needs every checkpoint to comply cannot pass on a part of them.

@@ -239,12 +239,20 @@ def _judge_with_rule(item, deviation, minus, plus, max_factor, U, confidence, ru
     """``(status, flag, decision, risk)`` of a deviation under the decision rule: guarded
     acceptance narrows each limit by U before :func:`_judge` (a bar size: accepted only where its
     confidence proves it); the decision marks what the interval leaves unproven
-    (``rebarlib._decision``). Simple acceptance and shared risk judge as :func:`_judge` does."""
+    (``rebarlib._decision``). Simple acceptance, shared risk and "proven" judge as :func:`_judge`
+    does ("proven" leaves unproven checkpoints to the item's row, ``rebarlib._verdicts``), except
+    that under "proven" a checkpoint is beyond 1.5× its limit only where it is so by U."""
     status, flag = _judge(deviation, minus, plus, max_factor)
     if item.startswith("bar_size"):
         decision, risk = decide_size(status == WITHIN, status == WITHIN, confidence, COVERAGE_K)
     else:
         decision, risk = decide(status == WITHIN, deviation, minus, plus, U, COVERAGE_K)
+    if rule_name == "proven" and status == BEYOND_MAX and U is not None and math.isfinite(U):
+        # beyond the limit's max_factor multiple, but not by U: beyond the limit only, as proven
+        factor = 1.5 if max_factor is None else max_factor
+        side = (plus if deviation > 0 else minus) or 0.0
+        if abs(deviation) - U <= factor * side + _EPS:
+            status, flag = BEYOND, FLAGS[BEYOND]
     if rule_name == "guarded" and status == WITHIN and decision == WITHIN_NP:
         # inside the limit, not by the guard band: not accepted (ILAC-G8 binary guarded acceptance)
         status = BEYOND

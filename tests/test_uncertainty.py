@@ -617,6 +617,79 @@ def test_guarded_acceptance_narrows_the_limit_by_U(paper_design):
     assert _cp(g2, "cover")["status"] == "within"
 
 
+def test_proven_rule_rejects_only_beyond_the_limit_by_U(paper_design):
+    from dataclasses import replace
+
+    proven = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "proven"})
+    # cover ±3 mm (GB 50204, slab): 3.3 mm beyond the design with U = 0.8 mm is beyond the limit by
+    # 0.3 < U: rejected under simple acceptance, left open under "proven"
+    s = evaluate([_slab(paper_design.cover_mm + 3.3, 0.4)], paper_design)
+    p = evaluate([_slab(paper_design.cover_mm + 3.3, 0.4)], proven)
+    assert s.items.set_index("item").loc["cover", "verdict"] == "fail" and s.verdict == "rejected"
+    # simple acceptance rejects it on the measured side of the limit, and the sheet says it is not proven
+    assert (
+        "the checkpoint beyond lies beyond its limit by less than" in s.items.set_index("item").loc["cover", "reason"]
+    )
+    assert _cp(p, "cover")["status"] == "beyond" and _cp(p, "cover")["decision"] == "beyond, not proven"
+    row = p.items.set_index("item").loc["cover"]
+    assert row["verdict"] == "incomplete" and "not proven" in row["reason"] and "by hand" in row["reason"]
+    assert p.verdict == "incomplete"
+    # left open, so no false reject is expected of it (under simple acceptance: its 23 % chance of being within)
+    assert p.decision_summary()["expected_false_rejects"] == 0.0
+    assert s.decision_summary()["expected_false_rejects"] == pytest.approx(0.227, abs=0.01)
+    # beyond by more than U (3.9 - 3 = 0.9 > 0.8): proven, rejected under both
+    p2 = evaluate([_slab(paper_design.cover_mm + 3.9, 0.4)], proven)
+    assert p2.items.set_index("item").loc["cover", "verdict"] == "fail" and p2.verdict == "rejected"
+    assert "not proven" not in p2.items.set_index("item").loc["cover", "reason"]
+    # within: accepted as under simple acceptance, also where it is within by less than U
+    p3 = evaluate([_slab(paper_design.cover_mm + 2.6, 0.4)], proven)
+    assert p3.items.set_index("item").loc["cover", "verdict"] == "pass"
+    assert p3.decision_summary()["rule"] == "proven" and "left open" in p3.decision_summary()["worst_case"]
+
+
+def test_proven_rule_judges_a_lot_on_its_proven_checkpoints(paper_design):
+    from dataclasses import replace
+
+    proven = replace(paper_design, tolerances={**paper_design.tolerances, "decision_rule": "proven"})
+
+    def lot(values):
+        r = _slab(20.0, 0.2, spacing=200.0, u_sp=1.0)
+        one = r["spacings"][0]
+        r["spacings"] = [
+            {**one, "bar_a": k, "bar_b": k + 1, "spacing_mm": v, "deviation_mm": v - 200.0}
+            for k, v in enumerate(values)
+        ]
+        return [r]
+
+    def verdict(values, design):
+        return evaluate(lot(values), design).items.set_index("item").loc["spacing_lower_bottom", "verdict"]
+
+    # ±10 mm, at least 80 % within (GB 50204); U = 2 mm. 211 and 189 are beyond by 1 < U
+    for values, simple, under_proven in (
+        ([200, 201, 199, 211, 189], "fail", "incomplete"),  # 3/5; 5/5 with the two unproven
+        ([200, 201, 199, 213, 189], "fail", "incomplete"),  # one proven beyond: 4/5 at most
+        ([200, 201, 199, 213, 187], "fail", "fail"),  # both proven beyond: 3/5
+        ([200, 201, 199, 200, 189], "pass", "pass"),  # 4/5 either way
+    ):
+        assert verdict(values, paper_design) == simple, values
+        assert verdict(values, proven) == under_proven, values
+
+
+def test_proven_rule_beyond_the_max_factor_only_where_proven():
+    from rebarlib.acceptance import _judge_with_rule
+
+    # ±10 mm, 1.5x = 15 mm: 15.5 mm with U = 2 is beyond the limit (proven) but not beyond 15 by U
+    st, _, dec, _ = _judge_with_rule("spacing_lower_bottom", 15.5, 10.0, 10.0, 1.5, 2.0, None, "simple")
+    assert st == "beyond max" and dec == "beyond"
+    st, _, dec, _ = _judge_with_rule("spacing_lower_bottom", 15.5, 10.0, 10.0, 1.5, 2.0, None, "proven")
+    assert st == "beyond" and dec == "beyond"
+    st, _, _, _ = _judge_with_rule("spacing_lower_bottom", 17.5, 10.0, 10.0, 1.5, 2.0, None, "proven")
+    assert st == "beyond max"
+    from rebarlib._decision import check_rule
+
+    assert check_rule(" Proven ", "design.toml") == "proven"
+
+
 def test_spacing_uncertainty_reaches_the_checkpoints(paper_design):
     acc = evaluate([_slab(20.0, 0.2, spacing=208.5, u_sp=1.0)], paper_design)
     sp = acc.checkpoints[acc.checkpoints["item"] == "spacing_lower_bottom"].iloc[0]
