@@ -214,8 +214,13 @@ def _lot_readings(cp: pd.DataFrame, unplaced: set, order: list, r_min: float) ->
     )
 
 
-def _unproven_text(k: int, n_beyond: int) -> str:
-    """How many of an item's checkpoints beyond lie beyond their limit by less than their U."""
+def _unproven_text(k: int, n_beyond: int, size: bool = False) -> str:
+    """How many of an item's checkpoints beyond lie beyond their limit by less than their U (a bar
+    size: read as another size at a confidence below the one that proves it, Φ(2) = 0.977)."""
+    if size:
+        if k == n_beyond == 1:
+            return "the bar of another size is read so at a confidence below 0.977"
+        return f"{k} of the {n_beyond} bars of another size are read so at a confidence below 0.977"
     if k == n_beyond == 1:
         return "the checkpoint beyond lies beyond its limit by less than its expanded uncertainty U"
     return f"{k} of the {n_beyond} checkpoints beyond lie beyond their limit by less than their expanded uncertainty U"
@@ -295,7 +300,7 @@ def _item_row(
             verdict = INCOMPLETE
             why.append(
                 f"{passed}/{n_meas} within tolerance, below {r_min:.0%}; "
-                + _unproven_text(n_unsettled, n_meas - passed)
+                + _unproven_text(n_unsettled, n_meas - passed, key.startswith("bar_size"))
                 + " (not proven"
                 + (f"; {n_nm} checkpoint(s) not measured" if n_nm else "")
                 + "): measuring by hand settles it"
@@ -330,7 +335,10 @@ def _item_row(
         if verdict == FAIL and n_beyond_np:
             # the sheet says where a failure rests on values beyond their limit by less than their
             # uncertainty: judged on the measured side of the limit, as the rule says, not proven
-            why.append(_unproven_text(n_beyond_np, n_meas - passed) + " (not proven: a hand measurement confirms it)")
+            why.append(
+                _unproven_text(n_beyond_np, n_meas - passed, key.startswith("bar_size"))
+                + " (not proven: a hand measurement confirms it)"
+            )
         if n_nm:
             why.append(f"{n_nm} of {n} checkpoints not measured ({'; '.join(reasons)})")
             # A rule that needs every checkpoint to comply cannot pass on a part of them.

@@ -284,6 +284,34 @@ def test_bar_sizes_wrong_unmeasured_and_hidden():
     assert acc.verdict == "rejected"
 
 
+def test_a_size_read_below_the_confidence_that_proves_it():
+    from dataclasses import replace
+
+    bars = [
+        {"bar_id": 1, "layer": "lower", "level": "bottom", "nominal_mm": 14.0, "diameter_status": "measured"},
+        # read as Φ12 where Φ14 is drawn, at a confidence of 0.83 (a size is proven at Φ(2) = 0.977)
+        {
+            "bar_id": 2,
+            "layer": "lower",
+            "level": "bottom",
+            "nominal_mm": 12.0,
+            "diameter_status": "measured",
+            "budget_confidence": 0.83,
+        },
+    ]
+    simple = evaluate([_result(bars=bars)], _design()).items.set_index("item").loc["bar_size_lower_bottom"]
+    assert simple["verdict"] == "fail"
+    assert "the bar of another size is read so at a confidence below 0.977 (not proven" in simple["reason"]
+    d = _design()
+    proven = evaluate([_result(bars=bars)], replace(d, tolerances={**d.tolerances, "decision_rule": "proven"}))
+    row = proven.items.set_index("item").loc["bar_size_lower_bottom"]
+    assert row["verdict"] == "incomplete" and "confidence below 0.977" in row["reason"]
+    # proven (confidence 0.99): rejected under both
+    bars[1]["budget_confidence"] = 0.99
+    proven = evaluate([_result(bars=bars)], replace(d, tolerances={**d.tolerances, "decision_rule": "proven"}))
+    assert proven.items.set_index("item").loc["bar_size_lower_bottom", "verdict"] == "fail"
+
+
 def _sized_and_second(seen_mm, nominal, reason):
     """Two lower bottom bars: bar 1 sized Φ14 over 800 mm; bar 2 seen over ``seen_mm``, sized
     ``nominal`` (None: not measured, for ``reason``)."""
