@@ -168,19 +168,21 @@ def _inspect_all(slabs: list, *, method: str, jobs, quiet: bool) -> None:
             s.missing.append((cap.name, f"inspection failed: {o.error}"))
 
 
-def _judge(s: _Slab, out: Path, fmt: str, *, exports: bool, standard, html_only: bool):
+def _judge(s: _Slab, out: Path, fmt: str, *, exports: bool, standard, html_only: bool, rule=None):
     """Judge a slab: ``(acceptance, report path, HTML)``. With ``html_only`` the report's HTML is
     returned for a helper to render (:class:`PdfWriter`); else the report is written here and
-    the HTML is None."""
+    the HTML is None. ``rule``: ``--decision-rule`` (None: the preset's or the design's)."""
+    from ._cli_report import with_rule
     from .acceptance import evaluate, load_tolerances
     from .report import build_report, render_html, report_context
 
+    design = with_rule(s.design, rule)
     tolerances = load_tolerances(standard) if standard else None
-    acc = evaluate(s.results, s.design, tolerances, missing_captures=s.missing)
+    acc = evaluate(s.results, design, tolerances, missing_captures=s.missing)
     path = _outputs(out, s.name, fmt, exports)[0]
     if html_only:
-        return acc, path, render_html(report_context(s.folder, s.design, acc))
-    build_report(s.folder, s.design, acc, out_path=path, format=fmt, exports=exports)
+        return acc, path, render_html(report_context(s.folder, design, acc))
+    build_report(s.folder, design, acc, out_path=path, format=fmt, exports=exports)
     return acc, path, None
 
 
@@ -245,6 +247,10 @@ def run_floor(args) -> int:
     floor, out = Path(args.slab_dir), Path(args.out)
     if getattr(args, "jobs", None) is not None and args.jobs < 1:
         raise RebarInputError(f"--jobs {args.jobs}: expected a number of processes >= 1")
+    if getattr(args, "decision_rule", None) is not None:
+        from ._decision import check_rule
+
+        args.decision_rule = check_rule(args.decision_rule, "--decision-rule")  # refused before any work
     if out.suffix.lower() in (".pdf", ".html", ".htm"):
         raise RebarInputError(
             f"--out {out}: {floor} is a floor (a folder of slab folders): give a folder for its reports, not a file"
@@ -271,7 +277,13 @@ def run_floor(args) -> int:
                     if s.design is not None:
                         try:
                             acc, path, html = _judge(
-                                s, out, fmt, exports=exports, standard=args.standard, html_only=writer is not None
+                                s,
+                                out,
+                                fmt,
+                                exports=exports,
+                                standard=args.standard,
+                                html_only=writer is not None,
+                                rule=args.decision_rule,
                             )
                             made = (s, acc, path)
                         except RebarInputError as exc:

@@ -64,6 +64,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "file; default: the design's [slab] standard",
     )
     p.add_argument(
+        "--decision-rule",
+        metavar="RULE",
+        default=None,
+        help="judge under this decision rule instead of the preset's or the design's: simple, guarded, "
+        '"shared risk" or proven (docs/uncertainty.md); the report names the rule it used',
+    )
+    p.add_argument(
         "--method",
         choices=("paper", "refined"),
         default="refined",
@@ -266,7 +273,7 @@ def _run(args, writer) -> int:
 
     slab = Path(args.slab_dir)
     design_path = slab / "design.toml" if slab.is_dir() else slab
-    design = load_design(design_path)
+    design = with_rule(load_design(design_path), getattr(args, "decision_rule", None))
     tolerances = _tolerances(args.standard, design, load_tolerances)
     out, fmt, outputs = report_paths(args.out, slab_id=design.slab_id, fmt=args.format, exports=not args.no_exports)
     captures = find_captures(slab) if slab.is_dir() else []
@@ -303,6 +310,18 @@ def _run(args, writer) -> int:
         print(clean(f"exports: {outputs[1]}, {outputs[2]}"))
     sys.stdout.flush()
     return 0
+
+
+def with_rule(design, rule):
+    """``design`` judged under the decision rule ``rule`` (``--decision-rule``; None: as it is),
+    the name checked before anything is computed."""
+    if rule is None:
+        return design
+    from dataclasses import replace
+
+    from ._decision import check_rule
+
+    return replace(design, tolerances={**design.tolerances, "decision_rule": check_rule(rule, "--decision-rule")})
 
 
 def _tolerances(standard, design, load_tolerances):

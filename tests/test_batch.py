@@ -401,6 +401,22 @@ def test_floor_report_as_pdf_renders_each_slab_while_the_next_is_judged(tmp_path
     assert "floor floor: 3 slabs: 3 incomplete" in capsys.readouterr().out
 
 
+def test_floor_report_under_another_decision_rule(tmp_path, capsys):
+    fl = tmp_path / "floor"
+    fl.mkdir()
+    for name in ("S1", "S2"):
+        (fl / name).symlink_to(example_slab("paper_slab")[0], target_is_directory=True)
+        (tmp_path / "none" / name).mkdir(parents=True)
+    out = tmp_path / "reports"
+    args = ["report", str(fl), "--results", str(tmp_path / "none"), "--format", "html", "--quiet"]
+    assert main(args + ["--out", str(tmp_path / "bad"), "--decision-rule", "lenient"]) == 2
+    assert "--decision-rule" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    assert main(args + ["--out", str(out), "--decision-rule", "guarded"]) == 0
+    for name in ("S1", "S2"):
+        saved = json.loads((out / f"{name}_acceptance.json").read_text(encoding="utf-8"))
+        assert saved["decision"]["rule"] == "guarded"
+
+
 def test_pdf_writer_hands_one_document_at_a_time(tmp_path):
     from rebarlib._pdf_writer import PdfWriter
     from rebarlib.report import templates_dir

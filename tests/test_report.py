@@ -256,6 +256,23 @@ def test_cli_html_with_another_standard(paper, tmp_path):
     )
 
 
+def test_cli_report_under_another_decision_rule(paper, tmp_path, capsys):
+    _, res = paper
+    (tmp_path / "res" / "A_400").mkdir(parents=True)
+    (tmp_path / "res" / "A_400" / "result.json").write_text(
+        json.dumps(with_manifest(res["A_400"], "A_400")), encoding="utf-8"
+    )
+    out = tmp_path / "r.html"
+    args = ["report", str(PAPER), "--results", str(tmp_path / "res"), "--out", str(out), "--no-exports"]
+    assert main(args + ["--decision-rule", "Proven", "--force"]) == 0
+    html = out.read_text(encoding="utf-8")
+    assert "rejection only where proven" in html  # the report names the rule it judged under
+    assert main(args + ["--decision-rule", "lenient", "--force"]) == 2
+    assert "--decision-rule: decision_rule: expected one of" in capsys.readouterr().err
+    assert main(args + ["--force"]) == 0
+    assert "simple acceptance (ILAC-G8 w = 0)" in out.read_text(encoding="utf-8")
+
+
 def test_missing_templates_fail_with_a_clear_error(monkeypatch, tmp_path):
     import rebarlib.report as report
 
