@@ -96,12 +96,17 @@ RENDER = {
     "heights": [400.0, 700.0],
     "designs": "default",
     "jitter_mm": 4.0,
+    "defects": "default",
 }
 RENDER_DEFAULT = dict(RENDER)
 
 DEFECTS = ("missing_inside", "missing_end", "wrong_size", "cover", "spacing", "layer_distance")
+#: the defects of ``--defects extra``: a bar the design does not have, half-way between two
+#: (every odd slab; a set of its own, so that the default set's slabs keep their defects)
+DEFECTS_EXTRA = ("extra",)
 #: the acceptance item a defect must fail
 DEFECT_ITEM = {
+    "extra": "bar_count",
     "missing_inside": "bar_count",
     "missing_end": "bar_count",
     "wrong_size": "bar_size",
@@ -136,7 +141,8 @@ def _slab_plan(k: int, folder: Path):
     from rebarlib import synth as S
 
     rng = np.random.default_rng([2026, k])
-    defect = None if k % 2 == 0 else DEFECTS[(k // 2) % len(DEFECTS)]
+    family = DEFECTS_EXTRA if RENDER["defects"] == "extra" else DEFECTS
+    defect = None if k % 2 == 0 else family[(k // 2) % len(family)]
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "design.toml").write_text(design_toml(k, defect), encoding="utf-8")
     design = R.load_design(folder / "design.toml")
@@ -154,6 +160,7 @@ def _slab_plan(k: int, folder: Path):
         missing=1 if defect == "missing_inside" else 0,
         missing_at_end=1 if defect == "missing_end" else 0,
         wrong_size=1 if defect == "wrong_size" else 0,
+        extra=1 if defect == "extra" else 0,
     )
     if RENDER["ribs"] == "relief":
         dev = dataclasses.replace(dev, rib_relief=True)
@@ -287,8 +294,8 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
         if defect == "missing_end":  # step 100 mm towards the mesh's middle: the edge and the row in view
             mid = world(0.5 * (lo + hi))
             focus = focus + 100.0 * (mid - focus) / max(np.linalg.norm(mid - focus), 1.0)
-    elif defect == "wrong_size":
-        b = next(b for b in scene.bars if b.nominal_mm != b.design_mm)
+    elif defect in ("wrong_size", "extra"):
+        b = next(b for b in scene.bars if (b.extra if defect == "extra" else b.nominal_mm != b.design_mm))
         focus = b.axis[0, :2] + rng.uniform(0.35, 0.65) * (b.axis[-1, :2] - b.axis[0, :2])
     elif defect == "spacing":
         ia, ib = gap
@@ -853,6 +860,12 @@ def main(argv=None) -> int:
         "one), so a spacing is off by up to twice it (default 4)",
     )
     ap.add_argument(
+        "--defects",
+        choices=("default", "extra"),
+        default="default",
+        help="the odd slabs' defects: the default six in turn, or an extra bar half-way between two (a set of its own)",
+    )
+    ap.add_argument(
         "--decision-rule",
         default=None,
         help="judge under this decision rule (simple, guarded, shared risk, proven; docs/uncertainty.md) instead "
@@ -882,6 +895,7 @@ def main(argv=None) -> int:
         heights=[lo, hi],
         designs=args.designs,
         jitter_mm=args.jitter,
+        defects=args.defects,
     )
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
@@ -972,7 +986,9 @@ def report(recs: list) -> None:
     )
     print("| defect | slabs | rejected, names it | rejected, other item only | incomplete | accepted |")
     print("|---|---:|---:|---:|---:|---:|")
-    for d in DEFECTS:
+    for d in DEFECTS + DEFECTS_EXTRA:
+        if d not in DEFECTS and not any(r["defect"] == d for r in recs):
+            continue
         sel = [r for r in recs if r["defect"] == d]
         named = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] in r["failed"] for r in sel)
         other = sum(r["verdict"] == "rejected" and DEFECT_ITEM[d] not in r["failed"] for r in sel)

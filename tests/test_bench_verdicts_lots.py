@@ -45,3 +45,22 @@ def test_a_cache_is_not_judged_again_with_captures_rendered_otherwise(tmp_path):
         bv._rejudge((str(slab), True, 1, False))
     with pytest.raises(SystemExit, match="--camera"):
         bv._rejudge((str(slab), False, 1, True))
+
+
+def test_the_extra_bar_set_adds_one_bar_and_aims_a_capture_at_it(tmp_path, monkeypatch):
+    import numpy as np
+
+    monkeypatch.setitem(bv.RENDER, "defects", "extra")
+    design, scene, defect, _, specs = bv._slab_plan(601, tmp_path)
+    assert defect == "extra" and bv.DEFECT_ITEM[defect] == "bar_count"
+    extra = [b for b in scene.bars if b.extra]
+    assert len(extra) == 1
+    # the first capture is aimed at a point on the extra bar's axis (in plan)
+    b, target = extra[0], np.asarray(specs[0]["target"])[:2]
+    a0, a1 = b.axis[0, :2], b.axis[-1, :2]
+    t = np.clip(np.dot(target - a0, a1 - a0) / np.dot(a1 - a0, a1 - a0), 0, 1)
+    assert np.linalg.norm(a0 + t * (a1 - a0) - target) < 1.0 and 0.3 < t < 0.7
+    # the even slabs stay clean, and the default set's odd slabs keep their defects
+    assert bv._slab_plan(600, tmp_path / "c")[2] is None
+    monkeypatch.setitem(bv.RENDER, "defects", "default")
+    assert bv._slab_plan(601, tmp_path / "d")[2] == bv.DEFECTS[(601 // 2) % len(bv.DEFECTS)]
