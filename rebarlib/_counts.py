@@ -126,6 +126,9 @@ class CountParams:
         position's standard uncertainty is under this; else they are "not measured"
     overlap_fraction : an extra bar runs beside its twin over at least this share of the
         shorter one's length (else it is a lap or a loose piece)
+    distinct_fraction : two bars on one design position at least this share of a spacing (and
+        two bar widths) apart are two things, not one bar read twice: where one of them is no
+        measured bar, whether the other is an extra bar is "not measured", not "no extra"
     """
 
     step_mm: float = 5.0
@@ -137,6 +140,7 @@ class CountParams:
     min_share: float = 0.5
     max_position_sigma_mm: float = 1.5
     overlap_fraction: float = 0.8
+    distinct_fraction: float = 0.25
 
 
 # ----------------------------------------------------------------------------------------------
