@@ -215,14 +215,19 @@ def _render_one(scene, spec: dict, folder: Path) -> str:
     return spec["name"]
 
 
+def _check_rendered_as_asked(folder, advice: str) -> None:
+    """Stop where the slab in ``folder`` was rendered with other options than :data:`RENDER`."""
+    made = {**RENDER_DEFAULT, **json.loads((Path(folder) / "slab.json").read_text()).get("render", {})}
+    if made != RENDER:
+        raise SystemExit(f"{folder}: rendered as {made}, not as asked ({RENDER}): {advice}")
+
+
 def _render_slab(args) -> str:
     """Render slab ``k`` into ``cache/slab_k`` (design.toml, captures, slab.json); returns the folder."""
     k, cache = args
     folder = Path(cache) / f"slab_{k:03d}"
     if (folder / "slab.json").exists():
-        made = {**RENDER_DEFAULT, **json.loads((folder / "slab.json").read_text()).get("render", {})}
-        if made != RENDER:
-            raise SystemExit(f"{folder}: rendered as {made}, not as asked ({RENDER}): use another --cache")
+        _check_rendered_as_asked(folder, "use another --cache")
         return str(folder)
     _, scene, defect, edge_view, specs = _slab_plan(k, folder)
     caps = [_render_one(scene, spec, folder) for spec in specs]
@@ -956,12 +961,11 @@ def _rejudge(args) -> dict:
     folder, follow, rounds, guided = args
     if follow or guided:
         # these may render captures the cache lacks: only as the slab's own were rendered
-        made = {**RENDER_DEFAULT, **json.loads((Path(folder) / "slab.json").read_text()).get("render", {})}
-        if made != RENDER:
-            raise SystemExit(
-                f"{folder}: rendered as {made}; judge it again with the options it was rendered with "
-                f"(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter), not as {RENDER}"
-            )
+        _check_rendered_as_asked(
+            folder,
+            "judge it again with the options it was rendered with "
+            "(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter, --defects)",
+        )
     return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds, guided=guided)
 
 

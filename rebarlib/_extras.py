@@ -160,47 +160,10 @@ def _pair_verdict(row: _Row, k_extra: int, k_twin: int, plane, intr, foot, mask,
     weak = [(row.index[k], x) for x, k in ((a, k_extra), (b, k_twin)) if x.status != MEASURED]
     # two bars a good part of a spacing apart are two things, not one bar read twice (a sliver
     # beside a bar, a bar fitted twice lie within a bar's width or two of it)
-    distinct = gap >= max(prm.distinct_fraction * row.spacing, 4.0 * row.radius)
-    if weak and distinct and b.status != MEASURED and a.status == MEASURED:
-        # a measured bar off the position beside a bar on it that is no measured bar: an extra
-        # bar, or this position's bar placed far off it beside something else; which, this
-        # capture cannot tell (docs/verdicts.md, "Extra bars")
-        return {
-            **base,
-            "status": NOT_MEASURED,
-            "reason": (
-                f"{what}: bar {row.index[k_extra]} is a measured bar {gap:.0f} mm off the position and bar "
-                f"{row.index[k_twin]} beside it is not ({b.reason[:80]}): whether bar {row.index[k_extra]} is an "
-                "extra bar cannot be told from this capture"
-            ),
-        }
-    if weak and distinct and a.status != MEASURED:
-        # the bar off the position is no measured bar: an extra one only on its own evidence,
-        # which it lacks; but where the colour mask runs along it, it is no evidence of none either
-        m_img = mask() if mask is not None else None
-        share = _mask_along(a, plane, intr, foot, row.index[k_extra] + 1, m_img) if m_img is not None else math.nan
-        if math.isfinite(share) and share >= prm.min_share:
-            return {
-                **base,
-                "status": NOT_MEASURED,
-                "reason": (
-                    f"{what}: bar {row.index[k_extra]} is seen in the colour mask along {share:.0%} of it but is not "
-                    f"a measured bar ({a.reason[:80]}): whether it is an extra bar cannot be told from this capture"
-                ),
-            }
-        if m_img is not None and not math.isfinite(share) and a.t1_mm - a.t0_mm >= prm.min_evidence_mm:
-            # found over a bar position's length, but under nearer bars all along: the mask
-            # cannot show whether it is a bar (a bar half-way between two positions lies under
-            # a higher bar of its direction where that lattice's bars sit there)
-            return {
-                **base,
-                "status": NOT_MEASURED,
-                "reason": (
-                    f"{what}: bar {row.index[k_extra]}, found over {a.t1_mm - a.t0_mm:.0f} mm, is not a measured bar "
-                    f"({a.reason[:80]}) and lies under nearer bars all along, where the colour mask cannot show it: "
-                    "whether it is an extra bar cannot be told from this capture"
-                ),
-            }
+    if weak and gap >= max(prm.distinct_fraction * row.spacing, 4.0 * row.radius):
+        why = _why_open(row, k_extra, k_twin, a, b, gap, plane, intr, foot, mask, prm)
+        if why:
+            return {**base, "status": NOT_MEASURED, "reason": f"{what}: {why}"}
     if weak:
         # the position has its bar; the other is no evidence of an extra one
         return {
@@ -229,3 +192,40 @@ def _pair_verdict(row: _Row, k_extra: int, k_twin: int, plane, intr, foot, mask,
         "status": NOT_MEASURED,
         "reason": (f"{what}: the colour mask runs along only {min(shares):.0%} of one of them"),
     }
+
+
+def _why_open(row: _Row, k_extra: int, k_twin: int, a, b, gap: float, plane, intr, foot, mask, prm) -> str:
+    """Why a pair of two distinct bars, one of them no measured bar, leaves the position "not
+    measured" rather than showing no extra bar ("" where it shows none; docs/verdicts.md,
+    "Extra bars").
+
+    - The bar off the position measured, the one on it not: an extra bar, or this position's bar
+      placed far off it beside something else; which, this capture cannot tell.
+    - The bar off the position not measured: an extra one only on its own evidence, which it
+      lacks; but where the colour mask runs along it, or it lies under nearer bars all along
+      (where the mask cannot show it) over a position's length, it is no evidence of none
+      either (a bar half-way between two positions lies under a higher bar of its direction
+      where that lattice's bars sit there).
+    """
+    ke, kt = row.index[k_extra], row.index[k_twin]
+    if a.status == MEASURED:
+        return (
+            f"bar {ke} is a measured bar {gap:.0f} mm off the position and bar {kt} beside it is not "
+            f"({b.reason[:80]}): whether bar {ke} is an extra bar cannot be told from this capture"
+        )
+    m_img = mask() if mask is not None else None
+    if m_img is None:
+        return ""
+    share = _mask_along(a, plane, intr, foot, ke + 1, m_img)
+    if math.isfinite(share) and share >= prm.min_share:
+        return (
+            f"bar {ke} is seen in the colour mask along {share:.0%} of it but is not a measured bar "
+            f"({a.reason[:80]}): whether it is an extra bar cannot be told from this capture"
+        )
+    if not math.isfinite(share) and a.t1_mm - a.t0_mm >= prm.min_evidence_mm:
+        return (
+            f"bar {ke}, found over {a.t1_mm - a.t0_mm:.0f} mm, is not a measured bar ({a.reason[:80]}) and lies "
+            "under nearer bars all along, where the colour mask cannot show it: whether it is an extra bar cannot "
+            "be told from this capture"
+        )
+    return ""

@@ -249,9 +249,8 @@ def _judge_with_rule(item, deviation, minus, plus, max_factor, U, confidence, ru
         decision, risk = decide(status == WITHIN, deviation, minus, plus, U, COVERAGE_K)
     if rule_name == "proven" and status == BEYOND_MAX and U is not None and math.isfinite(U):
         # beyond the limit's max_factor multiple, but not by U: beyond the limit only, as proven
-        factor = 1.5 if max_factor is None else max_factor
-        side = (plus if deviation > 0 else minus) or 0.0
-        if abs(deviation) - U <= factor * side + _EPS:
+        # (the deviation moved U towards the design value is judged the same way)
+        if _judge(math.copysign(max(abs(deviation) - U, 0.0), deviation), minus, plus, max_factor)[0] != BEYOND_MAX:
             status, flag = BEYOND, FLAGS[BEYOND]
     if rule_name == "guarded" and status == WITHIN and decision == WITHIN_NP:
         # inside the limit, not by the guard band: not accepted (ILAC-G8 binary guarded acceptance)
