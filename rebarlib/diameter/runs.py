@@ -53,7 +53,7 @@ def _shaded_end(end, end2, behind, deep, nearer, b) -> np.ndarray:
     return hole & clean & (between & nearer).any(axis=1)
 
 
-def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
+def _holed_side(t, left, right, left2, right2, rows, sample_px, prm, hollow=None) -> str:
     """ "lo" or "hi" where the bar's mask runs (ends ``left``, ``right``: indices into the profile
     ``t``; ``left2``, ``right2``: the same ends with the samples behind the bar or without depth
     left out) end, at that side only, in a strip behind the bar or without depth at least
@@ -61,12 +61,28 @@ def _holed_side(t, left, right, left2, right2, rows, sample_px, prm) -> str:
     sections ``rows``), and are off the axis towards it by at least a quarter of the difference
     and twice the axis's lateral tolerance: what a sliver of a bar under this one does in the
     projector's shadow. "" otherwise (a bar's own edges lose a pixel or so of depth at grazing
-    angles, on both sides alike, and its runs stay centred)."""
-    rows = np.flatnonzero(rows & (left >= 0) & (right < len(t)))
+    angles, on both sides alike, and its runs stay centred).
+
+    A run that goes on to the end of the profile at one side, over a strip mostly without depth
+    (``hollow``: (M, K) rebar samples without depth beside a bar that has depth), is read too,
+    with that end where the profile ends: its strip and its centre's lean are then lower bounds.
+    A bar under this one wholly in its projector's shadow gives such a strip, wider than the room
+    the profile leaves beside the bar (docs/decisions/067). Where the strip past the profile has
+    depth, the depth step already placed the edge; a run over the whole profile is not read."""
+    K = len(t)
+    inside = (left >= 0) & (right < K)
+    if hollow is not None:
+        idx = np.arange(K)[None, :]
+        past_lo = (left < 0) & (right < K)
+        past_hi = (left >= 0) & (right >= K)
+        strip = (past_lo[:, None] & (idx < left2[:, None])) | (past_hi[:, None] & (idx > right2[:, None]))
+        n = strip.sum(axis=1)
+        inside |= (past_lo | past_hi) & (n > 0) & (2 * (strip & hollow).sum(axis=1) >= n)
+    rows = np.flatnonzero(rows & inside)
     if len(rows) < prm.min_sections:
         return ""
     px = sample_px[rows]
-    s_lo = float(np.median((left2 - left)[rows] * px))
+    s_lo = float(np.median((left2 - left)[rows] * px))  # (an end past the profile's is -1 or K)
     s_hi = float(np.median((right - right2)[rows] * px))
     px_mm = float(np.median((t[1] - t[0]) / px))
     centre = float(np.median(t[left[rows] + 1] + t[right[rows] - 1])) / 2 / px_mm  # px, + to hi
@@ -122,7 +138,9 @@ def _mask_runs(i, bar: _Bar, sec: _Sections, maskf, depth, intr, fp, prm, readin
     # whose runs merged with it within the footprint disagree). That end is then no edge of this
     # bar (below).
     sec.strip_side = (
-        "" if depth is None else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm)
+        ""
+        if depth is None
+        else _holed_side(t, left, right, left2, right2, in_img & has_seed, sample_px, prm, hollow=behind & ~deep)
     )
     sec.shaded_lo = too_far_lo & _shaded_end(left, left2, behind, deep, nearer, b)
     sec.shaded_hi = too_far_hi & _shaded_end(right, right2, behind, deep, nearer, b)
