@@ -63,6 +63,10 @@ tilt, heading, sensor and light kept. With n captures first taken: ``C0, G0`` (n
 designs they were not built on. ``--heights LO,HI`` draws the captures' heights above the
 formwork from another band than 400-700 mm (the other draws stay as they are): a camera with
 fewer pixels rendered as the capture guide says for it (docs/capturing.md, docs/decisions/063).
+``--laps N`` makes N inner bars of every slab of two pieces lapped side by side (touching, over 40
+diameters, ``Deviations.laps``) and aims one capture of each slab within 100 mm of one lap's
+middle (after the one aimed at the defect): a lap is no extra bar, no missing bar and no spacing
+(docs/verdicts.md, "Laps and pieces"); the truth holds no spacing between a lap's two bars.
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice
@@ -97,6 +101,7 @@ RENDER = {
     "designs": "default",
     "jitter_mm": 4.0,
     "defects": "default",
+    "laps": 0,
 }
 RENDER_DEFAULT = dict(RENDER)
 
@@ -161,6 +166,7 @@ def _slab_plan(k: int, folder: Path):
         missing_at_end=1 if defect == "missing_end" else 0,
         wrong_size=1 if defect == "wrong_size" else 0,
         extra=1 if defect == "extra" else 0,
+        laps=int(RENDER["laps"]),
     )
     if RENDER["ribs"] == "relief":
         dev = dataclasses.replace(dev, rib_relief=True)
@@ -170,7 +176,7 @@ def _slab_plan(k: int, folder: Path):
         scene, gap = _open_one_gap(scene, rng, 25.0)
     n_cap = int(rng.integers(2, 5)) if k % 5 == 0 else 2
     edge_view = k % 3 == 0
-    targets = _targets(scene, defect, gap, n_cap, edge_view, rng)
+    targets = _targets(scene, defect, gap, n_cap, edge_view, rng, laps=bool(RENDER["laps"]))
     specs = []
     for j, target in enumerate(targets):
         h = float(rng.uniform(*RENDER["heights"]))
@@ -277,9 +283,10 @@ def _across(scene, b) -> np.ndarray:
     return ey if b.level == "bottom" else ex
 
 
-def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
-    """Where each capture looks (world x, y mm): the first at the defect, one at the mesh's edge
-    where asked, the others inside the mesh."""
+def _targets(scene, defect, gap, n: int, edge_view: bool, rng, *, laps: bool = False) -> list:
+    """Where each capture looks (world x, y mm): the first at the defect, one at a lap with
+    ``laps`` (within 100 mm of the lap's middle), one at the mesh's edge where asked, the others
+    inside the mesh."""
     # the mesh's extent in its own frame (x along the bottom bars, y along the top bars)
     yaw = math.radians(scene.deviations.mesh_yaw_deg)
     ex = np.array([math.cos(yaw), math.sin(yaw)])
@@ -308,6 +315,9 @@ def _targets(scene, defect, gap, n: int, edge_view: bool, rng) -> list:
         focus = 0.5 * (a.axis.mean(0)[:2] + b.axis.mean(0)[:2])
     if focus is not None:
         out.append(focus)
+    if laps and scene.laps and len(out) < n:
+        mid = scene.laps[int(rng.integers(len(scene.laps)))][2][:2]
+        out.append(mid + rng.uniform(-100, 100, 2))
     if edge_view and len(out) < n:
         side = rng.integers(4)
         x = rng.uniform(lo[0] + 300, hi[0] - 300)
@@ -871,6 +881,13 @@ def main(argv=None) -> int:
         help="the odd slabs' defects: the default six in turn, or an extra bar half-way between two (a set of its own)",
     )
     ap.add_argument(
+        "--laps",
+        type=int,
+        default=0,
+        help="bars made of two lapped pieces per slab (side by side over 40 diameters), one capture a slab aimed "
+        "at one of them (default 0: none)",
+    )
+    ap.add_argument(
         "--decision-rule",
         default=None,
         help="judge under this decision rule (simple, guarded, shared risk, proven; docs/uncertainty.md) instead "
@@ -884,6 +901,8 @@ def main(argv=None) -> int:
             JUDGE["rule"] = check_rule(args.decision_rule, "--decision-rule")
         except ValueError as e:
             ap.error(str(e))
+    if not 0 <= args.laps <= 20:
+        ap.error(f"--laps: expected 0 to 20 laps a slab, got {args.laps!r}")
     if not 0 <= args.jitter <= 50:
         ap.error(f"--jitter: expected 0 to 50 mm, got {args.jitter!r}")
     try:
@@ -901,6 +920,7 @@ def main(argv=None) -> int:
         designs=args.designs,
         jitter_mm=args.jitter,
         defects=args.defects,
+        laps=args.laps,
     )
     if args.as_guided and args.follow_advice:
         ap.error("--as-guided is judged without follow-up captures: leave out --follow-advice")
@@ -964,7 +984,7 @@ def _rejudge(args) -> dict:
         _check_rendered_as_asked(
             folder,
             "judge it again with the options it was rendered with "
-            "(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter, --defects)",
+            "(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter, --defects, --laps)",
         )
     return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds, guided=guided)
 

@@ -38,6 +38,9 @@ def add_parser(sub):
     p.add_argument("--bow", type=float, default=0.0, help="bar bow (sagitta over its length), mm")
     p.add_argument("--missing", type=int, default=0, help="number of missing bars")
     p.add_argument("--wrong-size", type=int, default=0, help="number of bars of a wrong size")
+    p.add_argument(
+        "--laps", type=int, default=0, help="number of bars made of two pieces lapped side by side (40 diameters)"
+    )
     p.add_argument("--no-ribs", action="store_true", help="smooth bars (no rib envelope)")
     p.add_argument("--formwork", choices=("plywood", "film", "plastic"), default=None)
     p.add_argument("--rust", type=float, default=0.0, help="fraction of rusty bars, 0..1")
@@ -54,6 +57,13 @@ def run(args) -> int:
     from .synth import Appearance, Deviations, SensorModel, synth_capture
     from pathlib import Path
 
+    from ._checks import RebarInputError
+
+    for opt in ("missing", "wrong_size", "laps"):
+        if getattr(args, opt) < 0:
+            raise RebarInputError(
+                f"--{opt.replace('_', '-')}: expected a number of bars >= 0, got {getattr(args, opt)}"
+            )
     design = load_design(args.design)
     dev = Deviations(
         position_sigma_mm=args.position_sigma,
@@ -63,6 +73,7 @@ def run(args) -> int:
         missing=args.missing,
         wrong_size=args.wrong_size,
         ribs=not args.no_ribs,
+        laps=args.laps,
     )
     sensor = SensorModel() if args.sensor == "realistic" else SensorModel.ideal()
     sensor = replace(sensor, bias_mm_per_m2=args.bias)

@@ -18,7 +18,31 @@ from .geometry import LAYERS, LEVELS
 if TYPE_CHECKING:
     from ._counts import CountParams
 
-__all__ = ["count_table", "settle_spacings"]
+__all__ = ["count_table", "settle_spacings", "off_the_row"]
+
+
+def off_the_row(positions: pd.DataFrame, bars: list) -> set:
+    """The bars that take no part in the spacings: of each pair of bars on one design position
+    judged no extra bar (a lap's two bars, a loose piece, a sliver or a second fit beside the
+    bar), the one that does not stand for the position. The bar that stands is the measured one,
+    else the one seen over the longer stretch; the spacings of the row are then taken between
+    the bars that stand, with no spacing of a few millimetres between the two of a pair
+    (docs/verdicts.md, "Laps and pieces")."""
+    out = set()
+    if not len(positions) or "twin_id" not in positions.columns:
+        return out
+    pairs = positions[(positions["kind"] == "pair") & (positions["status"] == NOT_EXTRA)]
+    for a, b in zip(pairs["bar_id"], pairs["twin_id"]):
+        if pd.isna(a) or pd.isna(b):
+            continue
+        a, b = int(a), int(b)
+
+        def rank(k):
+            x = bars[k]
+            return (x.status == MEASURED, float(x.t1_mm - x.t0_mm), -k)
+
+        out.add(min((a, b), key=rank))
+    return out
 
 
 def count_table(bars: list, positions: pd.DataFrame, design_spacing: dict) -> pd.DataFrame:

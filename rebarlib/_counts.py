@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from ._camera import Intrinsics, project
-from ._count_tables import count_table, settle_spacings
+from ._count_tables import count_table, off_the_row, settle_spacings
 from ._evidence import (  # noqa: F401 (names tests and callers reach through this module)
     _footprints,
     _heights,
@@ -77,7 +77,15 @@ from ._status import (  # noqa: F401 (the position words, reached through this m
 )
 from .geometry import LAYERS, LEVELS, BarAxis, Plane, from_slab_frame, to_slab_frame
 
-__all__ = ["CountParams", "examine_positions", "mesh_boundary", "count_table", "settle_spacings", "POSITION_COLUMNS"]
+__all__ = [
+    "CountParams",
+    "examine_positions",
+    "mesh_boundary",
+    "count_table",
+    "settle_spacings",
+    "off_the_row",
+    "POSITION_COLUMNS",
+]
 
 
 POSITION_COLUMNS = [
@@ -101,6 +109,7 @@ POSITION_COLUMNS = [
     "end_x_mm",
     "end_y_mm",
     "end_z_mm",
+    "twin_id",
 ]
 
 

@@ -95,7 +95,7 @@ def inspect_refined(
     positions, placed, boundary = _positions(capture, design, bars, ground.plane, mask_cache)
     bars = bars + placed
     bar_clouds = bar_clouds + [Cloud(np.zeros((0, 3)), np.zeros((0, 2), np.int32)) for _ in placed]
-    spacings = G.measure_spacings(bars, design_spacing=_design_spacing(design))
+    spacings = G.measure_spacings(bars, design_spacing=_design_spacing(design), skip=C.off_the_row(positions, bars))
     spacings = C.settle_spacings(spacings, bars, positions)
     counts = C.count_table(bars, positions, _design_spacing(design))
     T["measure"] = time.perf_counter() - t

@@ -38,7 +38,7 @@ def _pair_spacing(a: BarAxis, b: BarAxis) -> float:
     return 0.5 * (d1 + d2)
 
 
-def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.DataFrame:
+def measure_spacings(bars: list, *, design_spacing: dict | None = None, skip=()) -> pd.DataFrame:
     """Spacing of every pair of adjacent bars of each layer and level, in order across the bars.
 
     Parameters
@@ -46,6 +46,9 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     bars : list of BarAxis with ``layer`` and ``level`` set; the table names each bar by its
         position in the list
     design_spacing : ``{(layer, level): spacing_mm}``, adds the design value and the deviation
+    skip : positions in ``bars`` of bars that take no part in the spacings: the second bar of
+        a lap, or a loose piece, beside the bar that stands for its design position
+        (``_count_tables.off_the_row``); its neighbours' spacings are taken to that bar
 
     Returns
     -------
@@ -77,7 +80,8 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None) -> pd.Da
     ids = {id(b): i for i, b in enumerate(bars)}
     # every bar found takes part in the order, so a bar whose axis could not be placed gives two
     # "not measured" spacings instead of one spacing twice the real one
-    for layer, level, a, b in _adjacent_pairs(bars):
+    skip = {int(k) for k in skip}
+    for layer, level, a, b in _adjacent_pairs([x for k, x in enumerate(bars) if k not in skip]):
         ds = (design_spacing or {}).get((layer, level))
         row = {"layer": layer, "level": level, "bar_a": ids[id(a)], "bar_b": ids[id(b)], "design_spacing_mm": ds}
         bad = [x for x in (a, b) if x.status != MEASURED]

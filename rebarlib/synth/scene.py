@@ -56,6 +56,12 @@ class Deviations:
     extra : number of bars added half-way between two design positions (same size as designed)
     position_uniform_mm : each bar's offset also moves by a uniform draw in ± this (on top of
         ``position_sigma_mm``): spacings off their design value by up to twice it
+    laps : number of inner bars made of two pieces joined by a lap, as bars shorter than the
+        slab are on site: the pieces lie side by side and touching (axes one envelope apart,
+        straddling the bar's position) over ``lap_length_mm``, centred at a random place along
+        the bar; ``SlabScene.laps`` says where. No bar is missing there and neither piece is an
+        extra bar
+    lap_length_mm : the laps' length; None: 40 diameters, at least 300 mm (GB 50010's shortest)
     """
 
     position_sigma_mm: float = 2.0
@@ -76,6 +82,8 @@ class Deviations:
     missing_at_end: int = 0
     extra: int = 0
     position_uniform_mm: float = 0.0
+    laps: int = 0
+    lap_length_mm: float | None = None
 
     @classmethod
     def none(cls) -> "Deviations":
@@ -98,6 +106,7 @@ class Bar:
     envelope_mm: float
     design_mm: float
     extra: bool = False  # a bar the design does not have (Deviations.extra)
+    lap_partner: int = -1  # the id of the other piece where this bar is one of a lap's two (Deviations.laps)
 
     @property
     def radius_mm(self) -> float:
@@ -123,6 +132,7 @@ class SlabScene:
     rods: tuple  # (p0 (3,), p1 (3,), radius, kind)
     key: int = 0  # seeds what belongs to the slab, not the shot: formwork texture, which bars rust
     ghosts: tuple = ()  # a Bar where each missing bar would have been (same order as ``missing``)
+    laps: tuple = ()  # (id of one piece, id of the other, world (3,) middle of the lap) per lap
 
 
 def _sizes_near(size: float) -> list:
@@ -157,7 +167,7 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
     sets = _design_positions(design, dev, half, rng)
     slots = _deviant_slots(sets, dev, rng)
     extent = _finite_extent(sets, dev)
-    bars, missing, ghosts = _place_bars(design, dev, sets, slots, extent, (ex, ey), half, rng)
+    bars, missing, ghosts, laps = _place_bars(design, dev, sets, slots, extent, (ex, ey), half, rng)
     boxes, rods = _accessories(design, dev, bars, yaw)
     if dev.edge_form and extent:
         boxes.extend(_edge_forms(design, bars, extent, ex, ey, yaw))
@@ -170,6 +180,7 @@ def make_scene(design: Design, deviations: Deviations | None = None, *, rng=None
         tuple(rods),
         key=int(rng.integers(2**31)),
         ghosts=tuple(ghosts),
+        laps=tuple(laps),
     )
 
 
@@ -194,10 +205,10 @@ def _design_positions(design: Design, dev: Deviations, half: float, rng) -> list
     return sets
 
 
-def _deviant_slots(sets: list, dev: Deviations, rng) -> tuple[set, set, set]:
-    """The ``(set index, position)`` slots left empty, given a bar of another size, and followed
-    by an extra bar. Missing and wrong-size bars are never the outermost of a set, except the
-    ``missing_at_end`` ones."""
+def _deviant_slots(sets: list, dev: Deviations, rng) -> tuple[set, set, set, set]:
+    """The ``(set index, position)`` slots left empty, given a bar of another size, followed
+    by an extra bar, and whose bar is lapped. Missing and wrong-size bars are never the outermost
+    of a set, except the ``missing_at_end`` ones; a lapped bar is an inner bar of its design size."""
     slots = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 1)]
     pick = rng.permutation(len(slots))
     missing_slots = {slots[i] for i in pick[: dev.missing]}
@@ -211,7 +222,11 @@ def _deviant_slots(sets: list, dev: Deviations, rng) -> tuple[set, set, set]:
     if dev.extra:
         gaps = [(si, k) for si, (_, _, offs) in enumerate(sets) for k in range(1, len(offs) - 2)]
         extra_slots = {gaps[i] for i in rng.permutation(len(gaps))[: dev.extra]}
-    return missing_slots, wrong_slots, extra_slots
+    lap_slots = set()
+    if dev.laps:
+        free = [x for x in slots if x not in missing_slots | wrong_slots | extra_slots]
+        lap_slots = {free[i] for i in rng.permutation(len(free))[: dev.laps]}
+    return missing_slots, wrong_slots, extra_slots, lap_slots
 
 
 def _finite_extent(sets: list, dev: Deviations) -> dict:
@@ -231,14 +246,14 @@ def _finite_extent(sets: list, dev: Deviations) -> dict:
 
 def _place_bars(
     design: Design, dev: Deviations, sets: list, slots: tuple, extent: dict, frame, half: float, rng
-) -> tuple[list, list, list]:
+) -> tuple[list, list, list, list]:
     """The bars of every set where they lie (offset, height and bow drawn from ``rng``); the
-    empty positions and a ghost bar at each (where it would have been, with no draw)."""
+    empty positions and a ghost bar at each (where it would have been, with no draw); the laps."""
     env = (lambda d: rib_envelope_mm(d)) if dev.ribs else (lambda d: float(d))
-    missing_slots, wrong_slots, extra_slots = slots
+    missing_slots, wrong_slots, extra_slots, lap_slots = slots
     ex, ey = frame
     base = {"lower": design.cover_mm, "upper": design.cover_mm + design.layer_distance_mm}
-    bars, missing, ghosts = [], [], []
+    bars, missing, ghosts, laps = [], [], [], []
     for si, (layer, level, offsets) in enumerate(sets):
         lat = design.lattice(layer)
         d_design = lat.level(level).diameter_mm
@@ -282,25 +297,41 @@ def _place_bars(
             # bottom bars rest on the spacers; top bars rest on the bottom bars of their lattice
             zc = z0 + e / 2 if level == "bottom" else z0 + bottom_env + e / 2
             n_seg = 12 if dev.bow_mm else 1
-            s = np.linspace(s_lo, s_hi, n_seg + 1)
-            bow = dev.bow_mm * rng.choice([-1.0, 1.0]) * (1 - ((s - s_mid) / s_half) ** 2) if dev.bow_mm else 0 * s
-            axis = s[:, None] * along + (off_true + bow)[:, None] * across + np.array([0, 0, zc])
-            bars.append(
-                Bar(
+            sign = rng.choice([-1.0, 1.0]) if dev.bow_mm else 0.0
+
+            def axis_over(a, b, shift=0.0):
+                s = np.linspace(a, b, n_seg + 1)
+                bow = dev.bow_mm * sign * (1 - ((s - s_mid) / s_half) ** 2) if dev.bow_mm else 0 * s
+                return s[:, None] * along + (off_true + shift + bow)[:, None] * across + np.array([0, 0, zc])
+
+            def bar(axis, offset, partner=-1):
+                return Bar(
                     len(bars),
                     layer,
                     level,
                     k,
-                    float(off_true),
+                    float(offset),
                     along.copy(),
                     axis,
                     float(nominal),
                     float(e),
                     float(d_design),
                     extra=is_extra,
+                    lap_partner=partner,
                 )
-            )
-    return bars, missing, ghosts
+
+            if not is_extra and (si, k) in lap_slots:
+                # two pieces side by side, touching, straddling the position over the lap
+                lap = dev.lap_length_mm or max(40.0 * nominal, 300.0)
+                mid = float(rng.uniform(s_lo + lap, s_hi - lap)) if s_hi - s_lo > 3 * lap else s_mid
+                side = float(rng.choice([-1.0, 1.0]))
+                i0 = len(bars)
+                bars.append(bar(axis_over(s_lo, mid + lap / 2, -side * e / 2), off_true - side * e / 2, i0 + 1))
+                bars.append(bar(axis_over(mid - lap / 2, s_hi, side * e / 2), off_true + side * e / 2, i0))
+                laps.append((i0, i0 + 1, mid * along + off_true * across + np.array([0, 0, zc])))
+                continue
+            bars.append(bar(axis_over(s_lo, s_hi), off_true))
+    return bars, missing, ghosts, laps
 
 
 def _accessories(design: Design, dev: Deviations, bars: list, yaw: float) -> tuple[list, list]:
@@ -342,6 +373,8 @@ def _ties(bars: list) -> list:
                 # crossing of the two chord lines in plan
                 A = np.column_stack((bb.direction[:2], -tb.direction[:2]))
                 st = np.linalg.solve(A, tb.axis[0, :2] - bb.axis[0, :2])
+                if not (0 <= st[0] <= _length(bb) and 0 <= st[1] <= _length(tb)):
+                    continue  # a lap's piece ends before this crossing
                 xy = bb.axis[0, :2] + st[0] * bb.direction[:2]
                 z = tb.axis[:, 2].mean() + tb.radius_mm + 0.7
                 diag = (bb.direction + tb.direction) / math.sqrt(2) * (tb.radius_mm + 3)

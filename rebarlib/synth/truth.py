@@ -102,6 +102,7 @@ def _bar_truth(b, pose, seen, n_seen: int, rust_of_bar) -> dict:
         "design_diameter_mm": b.design_mm,
         "wrong_size": b.nominal_mm != b.design_mm,
         "extra": bool(b.extra),
+        "lap_partner": b.lap_partner if b.lap_partner >= 0 else None,
         "rust": round(float(rust_of_bar[b.id]), 3),
         "visible_pixels": int(n_seen),
         "visible_length_mm": round(s1 - s0, 2),
@@ -116,6 +117,8 @@ def _spacings_truth(by: dict) -> list:
     for (layer, level), group in sorted(by.items()):
         group = sorted(group, key=lambda bb: bb["offset_mm"])
         for a, b in zip(group[:-1], group[1:]):
+            if a.get("lap_partner") == b["id"]:
+                continue  # a lap's two pieces lie on one position: no spacing between them
             spacings.append(
                 {
                     "layer": layer,
