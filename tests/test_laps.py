@@ -87,3 +87,11 @@ def test_a_lap_in_view_is_neither_an_extra_bar_nor_a_spacing():
     # every measured spacing of the lapped row is a spacing between positions, none inside the lap
     assert (row["spacing_mm"] > 0.5 * 200.0).all()
     assert R.evaluate([res.to_dict()], design).verdict != "rejected"
+
+
+@pytest.mark.parametrize("field, value", [("laps", -1), ("missing", -2), ("extra", 1.5), ("wrong_size", True)])
+def test_a_count_of_bars_must_be_a_whole_number_not_below_zero(field, value):
+    with pytest.raises(ValueError, match=f"{field}: expected a whole number of bars >= 0"):
+        S.Deviations(**{field: value})
+    with pytest.raises(ValueError, match="lap_length_mm: expected a length > 0 mm"):
+        S.Deviations(laps=1, lap_length_mm=0.0)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._checks import RebarInputError
 from .._design import Design
 from ..diameter.barsizes import GB_RIBS as _GB_RIBS
 from ..diameter.barsizes import rib_envelope_mm
@@ -84,6 +85,14 @@ class Deviations:
     position_uniform_mm: float = 0.0
     laps: int = 0
     lap_length_mm: float | None = None
+
+    def __post_init__(self):
+        for name in ("missing", "wrong_size", "missing_at_end", "extra", "laps"):
+            n = getattr(self, name)
+            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+                raise RebarInputError(f"{name}: expected a whole number of bars >= 0, got {n!r}")
+        if self.lap_length_mm is not None and not self.lap_length_mm > 0:
+            raise RebarInputError(f"lap_length_mm: expected a length > 0 mm or None, got {self.lap_length_mm!r}")
 
     @classmethod
     def none(cls) -> "Deviations":
