@@ -31,17 +31,14 @@ def off_the_row(positions: pd.DataFrame, bars: list) -> set:
     out = set()
     if not len(positions) or "twin_id" not in positions.columns:
         return out
+
+    def stands(k):  # measured first, then the longer stretch seen
+        return (bars[k].status == MEASURED, float(bars[k].t1_mm - bars[k].t0_mm), -k)
+
     pairs = positions[(positions["kind"] == "pair") & (positions["status"] == NOT_EXTRA)]
     for a, b in zip(pairs["bar_id"], pairs["twin_id"]):
-        if pd.isna(a) or pd.isna(b):
-            continue
-        a, b = int(a), int(b)
-
-        def rank(k):
-            x = bars[k]
-            return (x.status == MEASURED, float(x.t1_mm - x.t0_mm), -k)
-
-        out.add(min((a, b), key=rank))
+        if not (pd.isna(a) or pd.isna(b)):
+            out.add(min((int(a), int(b)), key=stands))
     return out
 
 
