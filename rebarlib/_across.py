@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._counts import CountParams
-from ._status import HIDDEN, MEASURED, MISSING, NOT_MEASURED, PRESENT
+from ._status import HIDDEN, MEASURED, MISSING, NOT_IN_VIEW, NOT_MEASURED, PRESENT
 from .geometry.plane import Plane, to_slab_frame
 
 #: a registration needs at least this many bars matched across each of the two directions
@@ -93,7 +93,7 @@ class _Set:
     mids: np.ndarray  # (N, 2) mid points in plan
     bar_ids: list
     segs: np.ndarray  # (N, 2, 2) the bars' ends in plan
-    open_mids: np.ndarray  # (M, 2) mid points of the positions not found (not measured, missing)
+    open_mids: np.ndarray  # (M, 2) mid points of the positions not found (not measured, missing, not in view)
     #: (N,) whether each bar's axis is a fit to both its sides (:func:`_well_placed`); None: all are
     fitted: np.ndarray | None = None
 
@@ -173,7 +173,9 @@ def plan_sets(r: dict) -> dict:
     for p in r.get("positions") or []:
         key = (p.get("layer"), p.get("level"))
         e = _ends(p)
-        if key in out and e is not None and p.get("status") in (NOT_MEASURED, MISSING):
+        # a position the capture could not see (not measured, or its core out of the image) may
+        # hold a bar the other capture shows; a missing one is compared as such
+        if key in out and e is not None and p.get("status") in (NOT_MEASURED, MISSING, NOT_IN_VIEW):
             mid = to_slab_frame(e, plane)[:, :2].mean(axis=0)
             out[key].open_mids = np.vstack([out[key].open_mids, mid])
     return out

@@ -843,3 +843,24 @@ def test_a_place_seen_empty_only_further_along_does_not_make_a_hidden_position_m
     b["positions"] = [p]
     out, _ = resolve_across([a, b])
     assert out[0]["positions"][0]["status"] == "not measured"
+
+
+@pytest.mark.parametrize("status, placed", [("not in view", True), ("outside the mesh", False)])
+def test_a_bar_where_the_other_capture_saw_no_position_in_view_does_not_veto_the_placing(status, placed):
+    # A's lower bottom bar at y = -250 lies along A's image border: A found no bar there and its
+    # position reads "not in view", though A's other bars reach past it (its view's hull). B
+    # shows that bar: it is no conflict (docs/decisions/069). Where A saw the mesh end there
+    # instead ("outside the mesh"), a bar of B there contradicts the placing, as before.
+    rng = np.random.default_rng(3)
+    xs, ys = _irregular(9, rng, 4.0), _irregular(9, rng, 4.0)
+    y = float(ys["lower"][np.argmin(np.abs(ys["lower"] + 250.0))])
+    a = _capture("A", xs, ys, ((-500, 300), (-450, 400)), positions=[("lower", "bottom", y)])
+    a["bars"] = _without_lower_bottom(a["bars"], y)
+    a["positions"][0]["status"] = status
+    b = _capture("B", xs, ys, ((-400, 420), (-350, 480)), turn=0.4, shift=(35.0, -12.0))
+    reg, why = register(a, b, 0.25 * SPACING)
+    assert (reg is not None) == placed, why
+    if placed:
+        c, s = math.cos(0.4), math.sin(0.4)
+        want = np.array([[c, -s], [s, c]]) @ np.array([150.0, -80.0]) + np.array([35.0, -12.0])
+        assert np.allclose(reg.to_b(np.array([150.0, -80.0])), want, atol=0.5)
