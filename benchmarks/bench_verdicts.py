@@ -981,11 +981,8 @@ def _rejudge(args) -> dict:
     folder, follow, rounds, guided = args
     if follow or guided:
         # these may render captures the cache lacks: only as the slab's own were rendered
-        _check_rendered_as_asked(
-            folder,
-            "judge it again with the options it was rendered with "
-            "(--camera, --sensor, --photo, --ribs, --heights, --designs, --jitter, --defects, --laps)",
-        )
+        options = ", ".join("--" + k.removesuffix("_mm") for k in RENDER)  # each render key has its option
+        _check_rendered_as_asked(folder, f"judge it again with the options it was rendered with ({options})")
     return _inspect_slab(folder, rejudge=True, follow=follow, rounds=rounds, guided=guided)
 
 
