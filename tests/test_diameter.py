@@ -528,6 +528,51 @@ def test_axes_placed_with_an_assumed_radius_never_give_another_size_by_an_echo_o
     assert r["diameter_status"] == "measured" and r["nominal_mm"] == 14.0 and r["width_source"] == "mask+circle"
 
 
+def test_a_wrong_size_is_confirmed_only_by_widths_that_lean_to_it():
+    # Decision 070, by hand, from two bars of the benchmark. Axes placed with an assumed radius
+    # (veto mode), a mask clearly giving another size, and the bar's top above its level's
+    # supports within the veto of the mask: that top may confirm the mask's size only where it
+    # lies nearer that size's envelope than the assumed one's.
+    from rebarlib.diameter.decision import _refined_decision
+    from rebarlib.diameter.params import DiameterParams
+
+    prm = DiameterParams()
+    kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
+    bar = BarReading(
+        px_mm=0.6,
+        centre_mm=0.0,
+        colour_width_mm=math.nan,
+        z_mm=420.0,
+        phase_sweep_px=20.0,
+        mask_between_mm=0.48,
+        depth_spread_mm=1.0,
+        depth_points=5000,
+        one_sided_share=0.0,
+        circle_width_mm=math.nan,
+        circle_sigma_mm=math.nan,
+        circle_between_mm=math.nan,
+        level_width_mm=12.05,
+        level_sigma_mm=1.09,
+        level_between_mm=0.89,
+        depth_width_mm=11.6,
+    )
+    # A Φ10 bar (envelope 11.6 mm) of grey mill scale among rusty ones, its mask read 13.3 mm
+    # all along (Φ12's envelope 13.9): its top, 12.05 ± 1.09 mm above its level's supports, lies
+    # within the veto of the mask but nearer Φ10. It had "confirmed" Φ12 (their mean 13.0 mm,
+    # confidence 0.82) and failed a clean slab; now the bar is left for a check by hand.
+    r = _refined_decision(13.3, 0.3, 170, bar, False, prm, assumed_mm=11.6 / 2, **kw)
+    assert r["diameter_status"] == "not measured"
+    assert r["diameter_reason"].startswith("possible wrong size") and "Φ12" in r["diameter_reason"]
+    # A Φ12 bar where Φ14 (16.2) was designed, its top 12.3 ± 1.0 mm above the bars it rests
+    # on: nearer Φ12 than Φ14, so it confirms the wrong size the mask gives.
+    wrong = replace(bar, level_width_mm=12.3, level_sigma_mm=1.0, depth_width_mm=16.2)
+    r = _refined_decision(13.3, 0.3, 170, wrong, False, prm, assumed_mm=16.2 / 2, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 12.0 and r["width_source"] == "mask+level"
+    # the same top confirms the assumed size's mask as before (no size to overturn)
+    r = _refined_decision(11.9, 0.3, 170, bar, False, prm, assumed_mm=11.6 / 2, **kw)
+    assert r["diameter_status"] == "measured" and r["nominal_mm"] == 10.0
+
+
 @pytest.mark.parametrize("use_cloud", ["veto", True])
 def test_without_a_cloud_the_mask_alone_does_not_overturn_the_assumed_size(use_cloud):
     # Decision 052: a bar with no depth across it, its axis placed with the Φ16 radius (envelope

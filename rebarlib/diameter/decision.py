@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .barsizes import bar_system, bracketing_sizes, size_half_gaps_mm, snap_diameter
+from .barsizes import bar_system, bracketing_sizes, observed_width_mm, size_half_gaps_mm, snap_diameter
 from .calibration import _two_sided
 from .params import MEASURED, NOT_MEASURED
 
@@ -132,7 +132,7 @@ def _arbitrate(out, med, conf_m, pair, info, in_shadow, prm, *, system, deformed
     return _sized(out, nominal, conf, width, sigma, "+".join(k for k, _, _ in used), reason, in_shadow, prm)
 
 
-def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
+def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size, against=math.nan):
     """``out`` as a bar sized from its mask width and the widths that do not depend on an axis
     placed with an assumed radius, whose own cloud width only echoes that radius: the circle
     fitted to its point cloud (:func:`_cloud_circle`) and, for a bar resting on others, its
@@ -147,10 +147,22 @@ def _settle(out, med, sigma_m, info, in_shadow, prm, *, system, deformed, size):
     it from a neighbour and confirm nothing). Their weighted mean with the mask width, its σ
     enlarged where they lie further apart than their σ say (Birge ratio), must snap to ``size``
     (the mask's own: they confirm, never overturn) with confidence ≥ ``prm.min_confidence``.
+
+    ``against``: the size the axis was placed with, where ``size`` is another (the mask gives a
+    bar of the wrong size). Such a size fails the bar, so the widths that depend on neither the
+    mask nor that axis must themselves lie nearer ``size``'s observed width than ``against``'s
+    (decision 070): within the veto they may lean either way, and a mask read wide all along (a
+    grey bar among rusty ones) would be "confirmed" by a top height that points to the designed
+    size.
     """
     used = _independent_widths(info)
     if not used or any(abs(med - w) / math.hypot(sigma_m, sg) > prm.veto_k for _, w, sg in used):
         return None
+    if math.isfinite(against) and against != size:
+        alone, _ = _birge_mean([w for _, w, _ in used], [sg for _, _, sg in used])
+        to_size = abs(alone - observed_width_mm(size, system=system, deformed=deformed))
+        if to_size >= abs(alone - observed_width_mm(against, system=system, deformed=deformed)):
+            return None
     # confirming needs evidence that could have told the size from its neighbours: the widths
     # together within a half size step at one σ (a circle fitted to a few millimetres of arc
     # with a σ of 5 mm, or a top height with 2 mm, agrees with any size the mask gives)
@@ -525,7 +537,9 @@ def _mask_and_cloud(
         # width from one edge to the axis: the axis was placed with the assumed radius (a
         # fit over part of the bar's arc slides with it), so that width cannot overturn it
         if conf_m >= prm.min_confidence and _two_sided(info):
-            settled = _settle(out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nom_m)
+            settled = _settle(
+                out, med, sigma_m, info, in_shadow, prm, system=system, deformed=deformed, size=nom_m, against=nom_c
+            )
             if settled is not None:
                 return settled, None, None, None
         # else the widths that depend on neither the mask nor the axis may tell the
