@@ -1,7 +1,8 @@
 # Sourced by the gpu_stage*.sh scripts (set D, RUNS, MIN, OUT and WAIT first): the settings every
 # GPU training call shares, from the environment, and the end of the call.
 #   DEVICE (cuda), JOBS (scene processes, 13), CAP (scenes per run's buffer, 16000), BATCH (64),
-#   CROP (256), VAL (seconds between validations and snapshots, 50), PY (python3)
+#   CROP (256), VAL (seconds between validations and snapshots, 50), PY (python3), FLIPS (the
+#   test-time flips the export's threshold is chosen with, "h v hv")
 DEVICE=${DEVICE:-cuda}
 JOBS=${JOBS:-13}
 CAP=${CAP:-16000}
@@ -9,6 +10,7 @@ BATCH=${BATCH:-64}
 CROP=${CROP:-256}
 VAL=${VAL:-50}
 PY=${PY:-python3}
+FLIPS=${FLIPS-h v hv}  # empty: no flips
 export PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1
 DR=$RUNS/scenes
 mkdir -p "$RUNS" "$DR"
@@ -27,8 +29,10 @@ export_and_pack() {
     for tag in "$@"; do
         arch=deeplab_fine
         [ "${tag:0:${#wide}}" = "$wide" ] && arch=deeplab_fine_w
+        # the run's own log names its architecture (stage 14 on)
+        [ -f "$RUNS/$tag.json" ] && arch=$($PY -c "import json,sys; print(json.load(open(sys.argv[1]))['arch'])" "$RUNS/$tag.json")
         $PY training/train_segmentation.py export --work "$D" --arch $arch --run-dir "$RUNS" \
-            --tag "$(cat "$RUNS/${tag}_last.txt")" --dynamic --flips h v hv --device "$DEVICE" \
+            --tag "$(cat "$RUNS/${tag}_last.txt")" --dynamic --flips $FLIPS --device "$DEVICE" \
             --out "$RUNS/onnx" --name "$tag" > "$RUNS/export_$tag.log" 2>&1 &
     done
     wait
@@ -36,7 +40,10 @@ export_and_pack() {
     if [ -n "$OUT" ]; then
         mkdir -p "$OUT"
         for tag in "$@"; do
-            (cd "$RUNS" && tar czf "$OUT/$tag.tgz" "$tag.json" "onnx/$tag.onnx" "onnx/$tag.json" "$tag"*.pt)
+            # the run's best state and its latest snapshots, as many as keep the archive under
+            # 14 MB (a wider network's snapshots are larger)
+            (cd "$RUNS" && tar czf "$OUT/$tag.tgz" "$tag.json" "onnx/$tag.onnx" "onnx/$tag.json" "$tag.pt" \
+                $(ls -t "${tag}"_it*.pt | head -n $((14000000 / $(stat -c %s "$tag.pt") - 2))))
         done
         (cd "$RUNS" && tar czf "$OUT/logs.tgz" ./*.log scenes/dr/000[0-4]?.jpg scenes/dr/000[0-4]?.png)
         ls -la "$OUT"

@@ -30,7 +30,7 @@ IN_W, IN_H = 640, 400
 MEAN = [123.7, 116.3, 103.5]  # RGB, 0-255 units
 STD = [58.4, 57.1, 57.4]
 TRAIN_SEED = 7
-ARCHS = ["unet", "deeplab", "deeplab_fine", "deeplab_fine_w"]
+ARCHS = ["unet", "deeplab", "deeplab_fine", "deeplab_fine_w", "deeplab_fine_w25", "deeplab_fine_w3"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,6 +363,9 @@ def build_model(arch: str):
         "deeplab": DeepLabLite,
         "deeplab_fine": lambda: DeepLabLite(fine=True),
         "deeplab_fine_w": lambda: DeepLabLite(fine=True, width=1.5),
+        # stage 14: wider still, for a single run without the test-time flips in the same time
+        "deeplab_fine_w25": lambda: DeepLabLite(fine=True, width=2.5),
+        "deeplab_fine_w3": lambda: DeepLabLite(fine=True, width=3.0),
     }
     return archs[arch]()
 
