@@ -66,7 +66,8 @@ fewer pixels rendered as the capture guide says for it (docs/capturing.md, docs/
 ``--laps N`` makes N inner bars of every slab of two pieces lapped side by side (touching, over 40
 diameters, ``Deviations.laps``) and aims one capture of each slab within 100 mm of one lap's
 middle (after the one aimed at the defect): a lap is no extra bar, no missing bar and no spacing
-(docs/verdicts.md, "Laps and pieces"); the truth holds no spacing between a lap's two bars.
+(docs/verdicts.md, "Laps and pieces"); the truth holds no spacing between a lap's two bars and
+takes its neighbours' spacings from the lap's middle (docs/decisions/071).
 
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts
     python benchmarks/bench_verdicts.py --slabs 60 --jobs 2 --cache /tmp/verdicts --rejudge --follow-advice

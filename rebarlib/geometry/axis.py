@@ -26,7 +26,9 @@ class BarAxis:
     fit's residual); ``point_index`` (the fitted points' indices into the lattice's points);
     ``group``, ``level`` (direction group 0 or 1, "bottom" or "top"); ``status``, ``reason``
     ("measured", or "not measured" and why); ``arc_deg`` (span of the cross-section the fitted
-    points cover); ``axis_se_mm`` (standard error of the axis position).
+    points cover); ``axis_se_mm`` (standard error of the axis position); ``lap_shift_mm``
+    (across, from the axis to the middle of a lap: a bar touching this one alongside; 0 where
+    none is seen, :func:`~rebarlib.geometry.bar_checks._laps`).
 
     Examples
     --------
@@ -54,6 +56,7 @@ class BarAxis:
     reason: str = ""
     arc_deg: float = float("nan")  # span of the cross-section covered by the fitted points
     axis_se_mm: float = float("nan")  # standard error of the axis position (offset / height)
+    lap_shift_mm: float = 0.0  # across, from the axis to the middle of a lap (0: no lap seen)
 
     @property
     def normal2d(self) -> np.ndarray:

@@ -215,6 +215,82 @@ def _drop_overlaps(bars: list) -> list:
     return sorted(out, key=lambda b: order[id(b)])
 
 
+def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> list:
+    """The bars with ``lap_shift_mm`` set where a bar touching them alongside is seen: a lap.
+
+    A lap's two bars lie side by side, touching, over 30 diameters or more, and stand together
+    for one design position; its middle, not either bar, is where that position's spacings are
+    measured from. The fit often keeps one of the two: their bands overlap, and the second is
+    either never a candidate of its own or dropped as overlapping (:func:`_drop_overlaps`). Its
+    points are still there, beside the kept bar's. Along the bar, in stations one diameter long,
+    the points at the bar's height whose offset across lies between 1.5 and 3 radii on one side
+    (a bar touching it has its axis 2 radii away; the bar's own points lie within one) are
+    counted against the bar's own; a station is occupied where they number at least half the
+    bar's own there. Where the occupied stations on one side run on over ``min_diameters``
+    diameters, and those points lie at the height of the bar's own (within half a radius,
+    median against median: a bar of the same level, not the fringe of flying pixels at a bar's
+    edge, whose heights fall towards the ground), the bar is lapped on that side, and its
+    ``lap_shift_mm`` is one radius towards it: the middle of two touching axes. (The median
+    offset of those points is no better: it leans outwards where the band cuts the other bar's
+    near flank off, and with the side the camera sees it from.)
+
+    Parameters
+    ----------
+    bars : list of BarAxis (only measured ones are examined)
+    plan, h : (N, 2) plan positions and (N,) heights of the lattice's points
+    min_diameters : float, the shortest run of occupied stations, in diameters
+
+    Returns
+    -------
+    list of BarAxis
+        The bars, in their order; a lapped bar is a copy with its ``lap_shift_mm``.
+    """
+    out = []
+    for b in bars:
+        shift = _lap_shift(b, plan, h, min_diameters) if b.status == MEASURED and b.radius_mm > 0 else 0.0
+        out.append(replace(b, lap_shift_mm=shift) if shift else b)
+    return out
+
+
+def _lap_shift(b: BarAxis, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> float:
+    """``lap_shift_mm`` of one bar (:func:`_laps`): 0.0 where no lap is seen."""
+    r = b.radius_mm
+    t = plan @ b.direction
+    near = (t >= b.t0_mm) & (t <= b.t1_mm)
+    t = t[near]
+    across = plan[near] @ b.normal2d - (b.offset_mm + b.slope * t)
+    dh = h[near] - (b.centre_h_mm + b.h_slope * t)
+    at_height = (dh > -0.5 * r) & (dh < 1.5 * r)
+    own = at_height & (np.abs(across) <= r)
+    if not own.any():
+        return 0.0
+    n_st = int(np.ceil((b.t1_mm - b.t0_mm) / (2 * r))) + 1
+    st = np.minimum(((t - b.t0_mm) / (2 * r)).astype(int), n_st - 1)
+    n_own = np.bincount(st[own], minlength=n_st)
+    best, best_side = 0, 0
+    for side in (1, -1):
+        beside = at_height & (side * across > 1.5 * r) & (side * across < 3.0 * r)
+        occupied = (np.bincount(st[beside], minlength=n_st) >= 0.5 * n_own) & (n_own > 0)
+        run = _longest_true_run(occupied)
+        if run > best:
+            best, best_side = run, side
+    if best < min_diameters:
+        return 0.0
+    beside = at_height & (best_side * across > 1.5 * r) & (best_side * across < 3.0 * r)
+    if abs(float(np.median(dh[beside])) - float(np.median(dh[own]))) > 0.5 * r:
+        return 0.0
+    return float(best_side * r)
+
+
+def _longest_true_run(flags: np.ndarray) -> int:
+    """The length of the longest run of True in a bool array."""
+    best = cur = 0
+    for f in flags:
+        cur = cur + 1 if f else 0
+        best = max(best, cur)
+    return best
+
+
 def _rms_outliers(bars: list, max_rms_ratio: float) -> list:
     """The bars without the measured ones whose fit residual exceeds ``max_rms_ratio`` times the
     lattice's median (the median is the sensor noise on bars; a far worse fit is not a bar).

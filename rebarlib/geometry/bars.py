@@ -13,7 +13,7 @@ import numpy as np
 from .._checks import RebarInputError
 from .._status import MEASURED, NOT_MEASURED
 from .axis import BarAxis, _longest_run
-from .bar_checks import _drop_overlaps, _off_their_level, _rms_outliers, _seen_in_parts, _sparse_bars
+from .bar_checks import _drop_overlaps, _laps, _off_their_level, _rms_outliers, _seen_in_parts, _sparse_bars
 from .directions import _bar_candidates, bar_directions, direction_sharpness
 from .fit import _facing_fit, _fit_bar, _place_along_rays, _refit_along_rays, _rms_on
 from .params import GeometryParams
@@ -152,6 +152,8 @@ def find_bars(
     # keep the one with more points (the other is the first one's edge or shadow fringe)
     bars = _drop_overlaps(bars)
     bars = _rms_outliers(bars, max_rms_ratio)
+    # a bar touching a kept one alongside is a lap: its spacings are taken from the lap's middle
+    bars = _laps(bars, plan, h, prm.lap_min_diameters)
     return _approximate_axes(bars, {c[0]: c[3] for c in cand}, h, camera)
 
 

@@ -51,6 +51,10 @@ class GeometryParams:
         of the bar's radius, a circle fit that the placing along the lines of sight contradicts
         is "not measured" (docs/decisions/048: below it the circle fit's first-order noise
         correction holds on any arc of 90° or more)
+    lap_min_diameters : a bar is taken as lapped with a bar touching it alongside, at its
+        height, over at least this many diameters of its length (a third of the shortest lap
+        any code allows, 30 diameters; a crossing bar, a tie or a chair spans one or two); its
+        spacings are then taken from the middle of the lap (docs/decisions/071)
     """
 
     run_cell_mm: float = 5.0
@@ -70,3 +74,4 @@ class GeometryParams:
     sparse_density_share: float = 0.25
     ray_check_noise_share: float = 0.25
     one_sided_cells: int = 3
+    lap_min_diameters: float = 10.0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
@@ -22,7 +24,8 @@ def _order_across(group_bars: list) -> list:
 
 def _pair_spacing(a: BarAxis, b: BarAxis) -> float:
     """Perpendicular plan distance between two fitted axes at the middle of their common stretch
-    (each way, averaged)."""
+    (each way, averaged); a lapped bar's axis is taken at the lap's middle (:func:`_lap_middle`)."""
+    a, b = _lap_middle(a), _lap_middle(b)
     ta0, ta1 = a.t0_mm, a.t1_mm
     pb = b.plan_point(np.array([b.t0_mm, b.t1_mm]))
     tb_on_a = pb @ a.direction
@@ -61,10 +64,12 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None, skip=())
         layer, level        the pair's lattice and direction group
         bar_a, bar_b        the two bars (positions in ``bars``), in order across
         spacing_mm          axis to axis at the middle of their common stretch (NaN
-                            where a bar is not measured)
+                            where a bar is not measured); a lapped bar's axis is
+                            the lap's middle (``BarAxis.lap_shift_mm``)
         design_spacing_mm   the design's spacing (NaN without one)
         deviation_mm        spacing less design spacing
-        status, reason      "measured", or "not measured" and which bar
+        status, reason      "measured", or "not measured" and which bar; a
+                            measured one names its lapped bars
         ==================  ==========================================================
 
     Examples
@@ -97,10 +102,18 @@ def measure_spacings(bars: list, *, design_spacing: dict | None = None, skip=())
             )
             continue
         s = _pair_spacing(a, b)
-        rows.append(
-            {**row, "spacing_mm": s, "deviation_mm": None if ds is None else s - ds, "status": MEASURED, "reason": ""}
-        )
+        lapped = [ids[id(x)] for x in (a, b) if x.lap_shift_mm]
+        reason = " and ".join(f"bar {k}" for k in lapped) + " lapped: taken at the middle of the lap" if lapped else ""
+        dev = None if ds is None else s - ds
+        rows.append({**row, "spacing_mm": s, "deviation_mm": dev, "status": MEASURED, "reason": reason})
     return _spacing_frame(rows)
+
+
+def _lap_middle(b: BarAxis) -> BarAxis:
+    """``b``, or where a bar touching it alongside was seen (``lap_shift_mm``, a lap), the line
+    through the lap's middle: the two bars stand for one design position together, and a
+    spacing to either bar would be off by a radius (docs/decisions/071)."""
+    return replace(b, offset_mm=b.offset_mm + b.lap_shift_mm) if b.lap_shift_mm else b
 
 
 def _adjacent_pairs(bars: list):

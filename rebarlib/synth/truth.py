@@ -112,21 +112,30 @@ def _bar_truth(b, pose, seen, n_seen: int, rust_of_bar) -> dict:
 
 def _spacings_truth(by: dict) -> list:
     """Centre-to-centre spacing of each pair of neighbouring bars of a set (``by``: the bars'
-    truth per (layer, level))."""
+    truth per (layer, level)). A lap's two pieces stand for one design position together, at
+    their middle: the spacings beside a lap are taken from there (as ``rebarlib`` measures them,
+    docs/decisions/071), named by the piece nearer the neighbour, and seen where either piece
+    is."""
     spacings = []
     for (layer, level), group in sorted(by.items()):
         group = sorted(group, key=lambda bb: bb["offset_mm"])
-        for a, b in zip(group[:-1], group[1:]):
-            if a.get("lap_partner") == b["id"]:
-                continue  # a lap's two pieces lie on one position: no spacing between them
+        slots = []  # one or two bars a design position
+        for bar in group:
+            if slots and slots[-1][-1].get("lap_partner") == bar["id"]:
+                slots[-1].append(bar)
+            else:
+                slots.append([bar])
+        for a, b in zip(slots[:-1], slots[1:]):
+            middle_a = float(np.mean([x["offset_mm"] for x in a]))
+            middle_b = float(np.mean([x["offset_mm"] for x in b]))
             spacings.append(
                 {
                     "layer": layer,
                     "level": level,
-                    "bar_a": a["id"],
-                    "bar_b": b["id"],
-                    "spacing_mm": round(b["offset_mm"] - a["offset_mm"], 4),
-                    "visible": a["visible"] and b["visible"],
+                    "bar_a": a[-1]["id"],
+                    "bar_b": b[0]["id"],
+                    "spacing_mm": round(middle_b - middle_a, 4),
+                    "visible": any(x["visible"] for x in a) and any(x["visible"] for x in b),
                 }
             )
     return spacings
