@@ -538,19 +538,11 @@ def test_a_wrong_size_is_confirmed_only_by_widths_that_lean_to_it():
 
     prm = DiameterParams()
     kw = dict(system="GB1499.2", deformed=True, use_cloud="veto")
-    bar = BarReading(
+    bar = _veto_bar(
         px_mm=0.6,
-        centre_mm=0.0,
-        colour_width_mm=math.nan,
         z_mm=420.0,
-        phase_sweep_px=20.0,
         mask_between_mm=0.48,
-        depth_spread_mm=1.0,
         depth_points=5000,
-        one_sided_share=0.0,
-        circle_width_mm=math.nan,
-        circle_sigma_mm=math.nan,
-        circle_between_mm=math.nan,
         level_width_mm=12.05,
         level_sigma_mm=1.09,
         level_between_mm=0.89,
@@ -610,7 +602,7 @@ def _veto_bar(**changes) -> BarReading:
     """A bar's reading for ``_refined_decision`` in veto mode (its axis placed with an assumed
     radius), 550 mm away, its cloud width echoing Φ14 (16.2), no independent width; ``changes``
     override or add entries."""
-    return BarReading(
+    fields = dict(
         px_mm=0.8,
         centre_mm=0.0,
         colour_width_mm=math.nan,
@@ -624,8 +616,8 @@ def _veto_bar(**changes) -> BarReading:
         circle_width_mm=math.nan,
         circle_sigma_mm=math.nan,
         circle_between_mm=math.nan,
-        **changes,
     )
+    return BarReading(**{**fields, **changes})
 
 
 def test_a_bar_s_height_above_its_supports_settles_a_width_and_arbitrates_a_conflict():

@@ -17,6 +17,23 @@ mkdir -p "$RUNS" "$DR"
 [ "$DEVICE" = cuda ] && nvidia-smi -L
 $PY -c "import torch, onnx, cv2; print('torch', torch.__version__, 'onnx', onnx.__version__, 'cv2', cv2.__version__)"
 
+#   compose_scenes / stop_scenes   (uses PY, DR, CAP, JOBS, RUNS, WAIT and SEED, INDOOR, CURVES,
+#   DOF, NEAR, BUNDLES): every kind of scene the compositor draws, composed on the machine's
+#   CPUs beside the training runs (which load them as they are written); compose_scenes gives
+#   the composer WAIT seconds' start, stop_scenes ends it once the runs are done.
+compose_scenes() {
+    $PY training/domain_random.py --work "$DR" --n "$CAP" --seed "$SEED" --hard --indoor "$INDOOR" \
+        --curves "$CURVES" --dof "$DOF" --near-blur "$NEAR" --bundles "$BUNDLES" --jobs "$JOBS" \
+        > "$RUNS/scenes.log" 2>&1 &
+    GEN=$!
+    sleep "$WAIT"
+}
+stop_scenes() {
+    kill $GEN 2>/dev/null
+    wait $GEN 2>/dev/null
+    tail -n 2 "$RUNS/scenes.log"
+}
+
 #   export_and_pack WIDE_PREFIX TAG...   (uses PY, D, RUNS, DEVICE, OUT and the A/B/C/D logs)
 # Prints the runs' validations, exports each run's last state (its threshold chosen on the
 # validation renders with the flips, logits on $DEVICE; a tag starting with WIDE_PREFIX is the

@@ -24,10 +24,7 @@ CURVES=${CURVES:-0.5}
 LR=${LR:-5e-4}
 JOBS=${JOBS:-12}
 source training/gpu_export.sh
-$PY training/domain_random.py --work "$DR" --n "$CAP" --seed "$SEED" --hard --indoor "$INDOOR" --curves "$CURVES" \
-    --dof "$DOF" --near-blur "$NEAR" --bundles "$BUNDLES" --jobs "$JOBS" > "$RUNS/scenes.log" 2>&1 &
-GEN=$!
-sleep "$WAIT"
+compose_scenes
 T="$PY training/train_segmentation.py train --work $D --minutes $MIN --val-every-s $VAL --device $DEVICE
    --threads 1 --out-dir $RUNS --dr-work $DR --dr-capacity $CAP --arch deeplab_fine_w
    --init-onnx training/candidates/deeplab_fine_w_dr11.onnx --lr $LR --freeze-bn --batch $BATCH --crop $CROP
@@ -37,7 +34,5 @@ A=$!
 $T --dr-share 0.7 --tag s13_bd > "$RUNS/B.log" 2>&1 &
 B=$!
 wait $A $B
-kill $GEN 2>/dev/null
-wait $GEN 2>/dev/null
-tail -n 2 "$RUNS/scenes.log"
+stop_scenes
 export_and_pack s13_b s13_b s13_bd

@@ -27,10 +27,7 @@ SHARE=${SHARE:-0.6}
 JOBS=${JOBS:-12}
 FLIPS=${FLIPS-}
 source training/gpu_export.sh
-$PY training/domain_random.py --work "$DR" --n "$CAP" --seed "$SEED" --hard --indoor "$INDOOR" --curves "$CURVES" \
-    --dof "$DOF" --near-blur "$NEAR" --bundles "$BUNDLES" --jobs "$JOBS" > "$RUNS/scenes.log" 2>&1 &
-GEN=$!
-sleep "$WAIT"
+compose_scenes
 T="$PY training/train_segmentation.py train --work $D --minutes $MIN --val-every-s $VAL --device $DEVICE
    --threads 1 --out-dir $RUNS --dr-work $DR --dr-capacity $CAP --lr $LR --batch $BATCH --crop $CROP
    --zoom 0.2 --dr-share $SHARE"
@@ -39,7 +36,5 @@ A=$!
 $T --arch deeplab_fine_w3 --tag s14_w30 > "$RUNS/B.log" 2>&1 &
 B=$!
 wait $A $B
-kill $GEN 2>/dev/null
-wait $GEN 2>/dev/null
-tail -n 2 "$RUNS/scenes.log"
+stop_scenes
 export_and_pack s14_ s14_w25 s14_w30
