@@ -5,9 +5,11 @@ import pytest
 
 from rebarlib.geometry import BarAxis, measure_spacings
 from rebarlib.geometry.bar_checks import _laps
+from rebarlib.geometry.params import GeometryParams
 
 R = 7.0  # the bars' radius (mm)
 H = 30.0  # their axes' height
+MIN_D = GeometryParams().lap_min_diameters  # the shortest lap seen, in diameters
 
 
 def _surface(y_axis, x0, x1, *, h_axis=H, step=2.0):
@@ -23,7 +25,7 @@ def _bar(y):
 
 
 def _shift(points, bar=None):
-    (b,) = _laps([bar or _bar(0.0)], points[:, :2], points[:, 2], 10.0)
+    (b,) = _laps([bar or _bar(0.0)], points[:, :2], points[:, 2], MIN_D)
     return b.lap_shift_mm
 
 
@@ -42,8 +44,8 @@ def test_a_bar_touching_the_fitted_one_alongside_is_a_lap():
         np.zeros((0, 3)),
         # a crossing bar, tie or chair: one or two diameters beside it
         _surface(2 * R, 300, 325),
-        # touching, but over less than ten diameters (a short piece, not a lap)
-        _surface(2 * R, 300, 300 + 9 * 2 * R),
+        # touching, but over less than the shortest lap seen (a short piece, not a lap)
+        _surface(2 * R, 300, 300 + (MIN_D - 1) * 2 * R),
         # a strip beside it at ground level, as flying pixels at a bar's edge fall away
         _surface(2 * R, 0, 600, h_axis=H - 2 * R),
     ],
@@ -56,7 +58,7 @@ def test_a_lapped_bar_is_spaced_from_the_lap_s_middle():
     # design positions 200 mm apart; the lap's two bars straddle the middle position, touching:
     # the fit kept the one at 200 - R. Spaced to it, the spacings read 193 and 207 mm.
     pts = np.r_[_surface(0.0, 0, 600), _surface(200 - R, 0, 600), _surface(200 + R, 0, 600), _surface(400, 0, 600)]
-    bars = _laps([_bar(0.0), _bar(200 - R), _bar(400.0)], pts[:, :2], pts[:, 2], 10.0)
+    bars = _laps([_bar(0.0), _bar(200 - R), _bar(400.0)], pts[:, :2], pts[:, 2], MIN_D)
     assert [round(b.lap_shift_mm, 1) for b in bars] == [0.0, pytest.approx(R, abs=0.5), 0.0]
     t = measure_spacings(bars, design_spacing={("lower", "bottom"): 200.0})
     assert t.spacing_mm.tolist() == [pytest.approx(200.0, abs=0.5)] * 2

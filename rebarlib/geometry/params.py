@@ -52,9 +52,10 @@ class GeometryParams:
         is "not measured" (docs/decisions/048: below it the circle fit's first-order noise
         correction holds on any arc of 90° or more)
     lap_min_diameters : a bar is taken as lapped with a bar touching it alongside, at its
-        height, over at least this many diameters of its length (a third of the shortest lap
-        any code allows, 30 diameters; a crossing bar, a tie or a chair spans one or two); its
-        spacings are then taken from the middle of the lap (docs/decisions/071)
+        height, over at least this many diameters of its length (more than twice the one or two
+        a crossing bar, a tie or a chair spans; a lap, 30 diameters or more, is often cut by the
+        image's border); its spacings are then taken from the middle of the lap
+        (docs/decisions/071)
     """
 
     run_cell_mm: float = 5.0
@@ -74,4 +75,4 @@ class GeometryParams:
     sparse_density_share: float = 0.25
     ray_check_noise_share: float = 0.25
     one_sided_cells: int = 3
-    lap_min_diameters: float = 10.0
+    lap_min_diameters: float = 5.0
