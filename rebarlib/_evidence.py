@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._camera import Intrinsics, backproject, project
-from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, from_slab_frame, to_slab_frame
+from .geometry import LAYERS, LEVELS, BarAxis, Plane, _in_image, _runs, from_slab_frame, to_slab_frame
 
 __all__ = ["mesh_boundary"]
 
@@ -198,13 +198,6 @@ def _samples(row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane:
     ok = _in_image(uv, cam, intr)
     shape = (len(t), len(c))
     return uv.reshape(shape + (2,)), ok.reshape(shape)
-
-
-def _runs(flags: np.ndarray) -> list:
-    """(start, stop) of each run of True in a 1-D boolean array."""
-    f = np.r_[False, flags, False].astype(np.int8)
-    d = np.diff(f)
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
 def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids, higher, noise, prm):

@@ -65,6 +65,7 @@ from .partial import flag_border_cut
 from .plane import Plane, fit_formwork, from_slab_frame, paper_fit_formwork, plane_frame, to_slab_frame
 from .second_look import _in_image, find_missed_bars  # noqa: F401  (_in_image: rebarlib._counts)
 from .spacing import _pair_spacing, bars_table, count_bars, measure_spacings  # noqa: F401
+from .axis import _runs  # noqa: F401  (rebarlib._evidence)
 
 __all__ = [
     "Plane",

@@ -130,6 +130,13 @@ def _run_length(t, *, cell_mm: float, max_gap_mm: float) -> float:
     return b - a
 
 
+def _runs(flags: np.ndarray) -> list:
+    """(start, stop) of each run of True in a 1-D boolean array."""
+    f = np.r_[False, flags, False].astype(np.int8)
+    d = np.diff(f)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
 def _longest_run(t, *, cell_mm: float, max_gap_mm: float, by: str = "count") -> tuple[float, float]:
     ts = np.sort(t)
     if len(ts) == 1:

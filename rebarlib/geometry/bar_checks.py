@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._status import MEASURED, NOT_MEASURED
-from .axis import BarAxis, _longest_run
+from .axis import BarAxis, _longest_run, _runs
 from .directions import _bar_candidates
 
 __all__: list = []
@@ -267,28 +267,18 @@ def _lap_shift(b: BarAxis, plan: np.ndarray, h: np.ndarray, min_diameters: float
     n_st = int(np.ceil((b.t1_mm - b.t0_mm) / (2 * r))) + 1
     st = np.minimum(((t - b.t0_mm) / (2 * r)).astype(int), n_st - 1)
     n_own = np.bincount(st[own], minlength=n_st)
-    best, best_side = 0, 0
+    best, best_side, best_beside = 0, 0, None
     for side in (1, -1):
         beside = at_height & (side * across > 1.5 * r) & (side * across < 3.0 * r)
         occupied = (np.bincount(st[beside], minlength=n_st) >= 0.5 * n_own) & (n_own > 0)
-        run = _longest_true_run(occupied)
+        run = max((stop - start for start, stop in _runs(occupied)), default=0)
         if run > best:
-            best, best_side = run, side
+            best, best_side, best_beside = run, side, beside
     if best < min_diameters:
         return 0.0
-    beside = at_height & (best_side * across > 1.5 * r) & (best_side * across < 3.0 * r)
-    if abs(float(np.median(dh[beside])) - float(np.median(dh[own]))) > 0.5 * r:
+    if abs(float(np.median(dh[best_beside])) - float(np.median(dh[own]))) > 0.5 * r:
         return 0.0
     return float(best_side * r)
-
-
-def _longest_true_run(flags: np.ndarray) -> int:
-    """The length of the longest run of True in a bool array."""
-    best = cur = 0
-    for f in flags:
-        cur = cur + 1 if f else 0
-        best = max(best, cur)
-    return best
 
 
 def _rms_outliers(bars: list, max_rms_ratio: float) -> list:
