@@ -60,33 +60,54 @@ def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> l
     """A bar seen only along one edge does not fix its axis: the fixed-radius circle can slide
     along the visible arc. "Not measured": under 2/3 of ``min_arc_deg`` of its cross-section
     seen, or under ``min_arc_deg`` and sparsely sampled (under a quarter of the layer's typical
-    points per mm), or over ``max_arc_deg`` (two flanks of a bar under a bar above it)."""
-    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in bars if b.status == MEASURED]
-    if dens:
-        typical = float(np.median(dens))
-        bars = [
-            replace(
-                b,
-                status=NOT_MEASURED,
-                reason=(
-                    f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points "
-                    f"({b.n_points / max(b.t1_mm - b.t0_mm, 1.0):.1f} points/mm against "
-                    f"{typical:.1f} typical): it is seen only in parts, its axis cannot be placed"
-                ),
+    points per mm), or over ``max_arc_deg`` (two flanks of a bar under a bar above it).
+
+    A sparsely sampled bar whose circle sits more than ``prm.sliver_level_radii`` radii off the
+    other bars of its direction (their length-weighted median axis height) is "not measured"
+    whatever arc its points cover: the nearer bar beside it leaves only a strip of its section,
+    and a circle slid down along that strip covers it with a wide arc while its axis lies a
+    centimetre or more off the bar's (docs/decisions/072). The bars of one level rest on the
+    same supports; a bar seen whole that far off them is a finding and stays measured, as a bar
+    the image border cuts does (:func:`~rebarlib.geometry.flag_border_cut`)."""
+    measured = [b for b in bars if b.status == MEASURED]
+    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in measured]
+    if not dens:
+        return bars
+    typical = float(np.median(dens))
+
+    def level_of(b):
+        others = [o for o in measured if o.group == b.group and o is not b]
+        if len(others) < 2:
+            return None
+        return _weighted_median([o.axis_height_mm for o in others], [max(o.t1_mm - o.t0_mm, 1.0) for o in others])
+
+    def reason(b) -> str | None:
+        density = b.n_points / max(b.t1_mm - b.t0_mm, 1.0)
+        seen = f"({density:.1f} points/mm against {typical:.1f} typical)"
+        sparse = density < prm.sparse_density_share * typical
+        if (
+            b.arc_deg < prm.arc_min_share * min_arc_deg
+            or b.arc_deg > max_arc_deg
+            or (b.arc_deg < min_arc_deg and sparse)
+        ):
+            return (
+                f"{b.arc_deg:.0f}° of the bar's cross-section is covered by its points {seen}: "
+                "it is seen only in parts, its axis cannot be placed"
             )
-            if b.status == MEASURED
-            and (
-                b.arc_deg < prm.arc_min_share * min_arc_deg
-                or b.arc_deg > max_arc_deg
-                or (
-                    b.arc_deg < min_arc_deg
-                    and b.n_points / max(b.t1_mm - b.t0_mm, 1.0) < prm.sparse_density_share * typical
-                )
+        level = level_of(b) if sparse else None
+        if level is not None and abs(b.axis_height_mm - level) > prm.sliver_level_radii * b.radius_mm:
+            return (
+                f"only a strip of the bar is seen {seen}, and the circle fitted to it sits "
+                f"{b.axis_height_mm - level:+.1f} mm off the other bars of its direction: "
+                "its axis cannot be placed"
             )
-            else b
-            for b in bars
-        ]
-    return bars
+        return None
+
+    out = []
+    for b in bars:
+        why = reason(b) if b.status == MEASURED else None
+        out.append(b if why is None else replace(b, status=NOT_MEASURED, reason=why))
+    return out
 
 
 def _sparse_bars(

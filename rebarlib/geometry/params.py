@@ -44,6 +44,9 @@ class GeometryParams:
         cross-section do not place its axis
     sparse_density_share : nor where they cover under ``min_arc_deg`` and the bar holds under
         this share of the layer's typical points per mm
+    sliver_level_radii : a sparsely sampled bar (under ``sparse_density_share`` of the typical
+        points per mm) whose axis lies more than this many radii off its direction's level was
+        fitted on a strip of it: "not measured" (docs/decisions/072)
     one_sided_cells : a bar is taken as covered along one flank by a parallel nearer bar (its
         clear flank's last pixel then left out of its fit, docs/decisions/055) where this many
         cells of one diameter show it so (one crossing bar's edge makes one at most)
@@ -74,5 +77,6 @@ class GeometryParams:
     arc_min_share: float = 2 / 3
     sparse_density_share: float = 0.25
     ray_check_noise_share: float = 0.25
+    sliver_level_radii: float = 0.5
     one_sided_cells: int = 3
     lap_min_diameters: float = 5.0
