@@ -37,6 +37,21 @@ def test_a_bar_touching_the_fitted_one_alongside_is_a_lap():
         assert _shift(pts) == pytest.approx(side * R, abs=0.5)
 
 
+def test_a_lap_whose_other_bar_gives_a_third_of_the_points_is_still_a_lap():
+    # the other bar's far flank seen edge-on, its points sparser: in a rendered capture they were
+    # 35-40 % of the bar's own per station, and the lap had been missed (decision 073)
+    pts = np.r_[_surface(0.0, 0, 600), _surface(2 * R, 100, 500)[::2]]
+    assert _shift(pts) == pytest.approx(R, abs=0.5)
+
+
+def test_a_line_fitted_through_both_pieces_of_a_lap_is_at_its_middle_already():
+    # one piece at y = -R up to x = 400, the other at y = +R from x = 200, side by side between:
+    # one straight line fitted through both lies at y = 0, the lap's middle, with a bar's points
+    # touching it on each side over 200 mm; moved a radius either way it would be off by one
+    pts = np.r_[_surface(-R, 0, 400), _surface(R, 200, 600)]
+    assert _shift(pts) == 0.0
+
+
 @pytest.mark.parametrize(
     "other",
     [

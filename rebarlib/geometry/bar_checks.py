@@ -236,7 +236,7 @@ def _drop_overlaps(bars: list) -> list:
     return sorted(out, key=lambda b: order[id(b)])
 
 
-def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> list:
+def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float, min_share: float = 0.25) -> list:
     """The bars with ``lap_shift_mm`` set where a bar touching them alongside is seen: a lap.
 
     A lap's two bars lie side by side, touching, over 30 diameters or more, and stand together
@@ -246,20 +246,26 @@ def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> 
     points are still there, beside the kept bar's. Along the bar, in stations one diameter long,
     the points at the bar's height whose offset across lies between 1.5 and 3 radii on one side
     (a bar touching it has its axis 2 radii away; the bar's own points lie within one) are
-    counted against the bar's own; a station is occupied where they number at least half the
-    bar's own there. Where the occupied stations on one side run on over ``min_diameters``
-    diameters, and those points lie at the height of the bar's own (within half a radius,
-    median against median: a bar of the same level, not the fringe of flying pixels at a bar's
-    edge, whose heights fall towards the ground), the bar is lapped on that side, and its
-    ``lap_shift_mm`` is one radius towards it: the middle of two touching axes. (The median
-    offset of those points is no better: it leans outwards where the band cuts the other bar's
-    near flank off, and with the side the camera sees it from.)
+    counted against the bar's own; a station is occupied where they number at least
+    ``min_share`` of the bar's own there (the band takes the outer three quarters of a touching
+    bar, whose far flank the camera sees edge-on or not at all). Where the points beside in a
+    run of occupied stations on one side span ``min_diameters`` diameters, and those points lie
+    at the height of the bar's own (within half a radius, median against median: a bar of the
+    same level, not the fringe of flying pixels at a bar's edge, whose heights fall towards the
+    ground), the bar is lapped on that side, and its ``lap_shift_mm`` is one radius towards it:
+    the middle of two touching axes. (The median offset of those points is no better: it leans
+    outwards where the band cuts the other bar's near flank off, and with the side the camera
+    sees it from.)
+    Lapped on both sides, the line was fitted through both pieces of the lap (one alone at each
+    end, the two side by side between) and lies at its middle already: no shift
+    (docs/decisions/073).
 
     Parameters
     ----------
     bars : list of BarAxis (only measured ones are examined)
     plan, h : (N, 2) plan positions and (N,) heights of the lattice's points
     min_diameters : float, the shortest run of occupied stations, in diameters
+    min_share : float, the least share of the bar's own points beside it in an occupied station
 
     Returns
     -------
@@ -268,12 +274,12 @@ def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> 
     """
     out = []
     for b in bars:
-        shift = _lap_shift(b, plan, h, min_diameters) if b.status == MEASURED and b.radius_mm > 0 else 0.0
+        shift = _lap_shift(b, plan, h, min_diameters, min_share) if b.status == MEASURED and b.radius_mm > 0 else 0.0
         out.append(replace(b, lap_shift_mm=shift) if shift else b)
     return out
 
 
-def _lap_shift(b: BarAxis, plan: np.ndarray, h: np.ndarray, min_diameters: float) -> float:
+def _lap_shift(b: BarAxis, plan: np.ndarray, h: np.ndarray, min_diameters: float, min_share: float = 0.25) -> float:
     """``lap_shift_mm`` of one bar (:func:`_laps`): 0.0 where no lap is seen."""
     r = b.radius_mm
     t = plan @ b.direction
@@ -288,18 +294,22 @@ def _lap_shift(b: BarAxis, plan: np.ndarray, h: np.ndarray, min_diameters: float
     n_st = int(np.ceil((b.t1_mm - b.t0_mm) / (2 * r))) + 1
     st = np.minimum(((t - b.t0_mm) / (2 * r)).astype(int), n_st - 1)
     n_own = np.bincount(st[own], minlength=n_st)
-    best, best_side, best_beside = 0, 0, None
+    own_h = float(np.median(dh[own]))
+    lapped = []
     for side in (1, -1):
         beside = at_height & (side * across > 1.5 * r) & (side * across < 3.0 * r)
-        occupied = (np.bincount(st[beside], minlength=n_st) >= 0.5 * n_own) & (n_own > 0)
-        run = max((stop - start for start, stop in _runs(occupied)), default=0)
-        if run > best:
-            best, best_side, best_beside = run, side, beside
-    if best < min_diameters:
-        return 0.0
-    if abs(float(np.median(dh[best_beside])) - float(np.median(dh[own]))) > 0.5 * r:
-        return 0.0
-    return float(best_side * r)
+        occupied = (np.bincount(st[beside], minlength=n_st) >= min_share * n_own) & (n_own > 0)
+        # the run's length is what its points span: a station its piece only enters counts
+        # as occupied at a quarter, but adds none of its length
+        run = 0.0
+        for start, stop in _runs(occupied):
+            tb = t[beside & (st >= start) & (st < stop)]
+            run = max(run, float(tb.max() - tb.min()))
+        if run >= min_diameters * 2 * r and abs(float(np.median(dh[beside])) - own_h) <= 0.5 * r:
+            lapped.append(side)
+    # a touching bar on both sides: the line was fitted through both pieces of the lap (one
+    # alone at each end, side by side between), and lies at its middle already
+    return float(lapped[0] * r) if len(lapped) == 1 else 0.0
 
 
 def _rms_outliers(bars: list, max_rms_ratio: float) -> list:

@@ -153,7 +153,7 @@ def find_bars(
     bars = _drop_overlaps(bars)
     bars = _rms_outliers(bars, max_rms_ratio)
     # a bar touching a kept one alongside is a lap: its spacings are taken from the lap's middle
-    bars = _laps(bars, plan, h, prm.lap_min_diameters)
+    bars = _laps(bars, plan, h, prm.lap_min_diameters, prm.lap_min_share)
     return _approximate_axes(bars, {c[0]: c[3] for c in cand}, h, camera)
 
 

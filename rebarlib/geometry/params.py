@@ -59,6 +59,10 @@ class GeometryParams:
         a crossing bar, a tie or a chair spans; a lap, 30 diameters or more, is often cut by the
         image's border); its spacings are then taken from the middle of the lap
         (docs/decisions/071)
+    lap_min_share : ... counting a station of one diameter where the points beside number at
+        least this share of the bar's own (the far flank of a touching bar is seen edge-on: a
+        third of the own points is common); a bar lapped on both sides is one line fitted
+        through both pieces, at the lap's middle already (docs/decisions/073)
     """
 
     run_cell_mm: float = 5.0
@@ -80,3 +84,4 @@ class GeometryParams:
     sliver_level_radii: float = 0.5
     one_sided_cells: int = 3
     lap_min_diameters: float = 5.0
+    lap_min_share: float = 0.25
