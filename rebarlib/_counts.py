@@ -133,6 +133,9 @@ class CountParams:
     min_share : a mask that shows a bar on at least this share of the slices places it
     max_position_sigma_mm : a bar placed from the mask has its spacings measured when its
         position's standard uncertainty is under this; else they are "not measured"
+    max_cut_share : ... and where the mask's band ends at a nearer bar's pixels on under this
+        share of the slices it is placed from: beyond it the band is the part showing beside a
+        bar over it, its middle not the bar's, and its place is not stated (docs/decisions/075)
     overlap_fraction : an extra bar runs beside its twin over at least this share of the
         shorter one's length (else it is a lap or a loose piece)
     distinct_fraction : two bars on one design position at least this share of a spacing (and
@@ -148,6 +151,7 @@ class CountParams:
     max_share: float = 0.1
     min_share: float = 0.5
     max_position_sigma_mm: float = 1.5
+    max_cut_share: float = 0.5
     overlap_fraction: float = 0.8
     distinct_fraction: float = 0.25
 
@@ -195,12 +199,13 @@ def examine_positions(
     foot = _footprints(bars, plane, intr)
     get_mask = _lazy_mask(mask)
     boundary = mesh_boundary(bars, plane=plane, depth_mm=depth, intrinsics=intr, noise_mm=noise)
-    rows_out, new_bars = [], []
+    rows_out, new_bars, rows = [], [], {}
     for layer in LAYERS:
         for level in LEVELS:
             row = _row_of(bars, layer, level, design_spacing.get((layer, level)))
             if row is None:
                 continue
+            rows[(layer, level)] = row
             rows_out.extend(
                 _examine_row(
                     row,
@@ -216,8 +221,87 @@ def examine_positions(
                     prm=prm,
                 )
             )
+    rows_out, new_bars = _level_untold(rows_out, rows, len(bars), new_bars, plane)
     df = pd.DataFrame(rows_out, columns=POSITION_COLUMNS)
     return df, new_bars, boundary
+
+
+# the positions that may hold a bar no depth places: a bar seen only in colour along a line of
+# sight they share could be theirs
+_OPEN = (MISSING, PRESENT_NO_DEPTH, NOT_MEASURED)
+
+
+def _level_untold(recs: list, rows: dict, n_found: int, new_bars: list, plane: Plane) -> tuple:
+    """``(recs, new_bars)`` with a bar placed from the colour mask alone taken back where its
+    level cannot be told (docs/decisions/074).
+
+    A bar without depth is placed on the mask's centre line at the height of the level whose
+    position it stands on. The colour does not say that height. Where a position of a row of
+    the same direction on another level — one where no bar with depth was found: missing,
+    placed without depth, or not measured — lies on the same lines of sight (seen from the
+    camera's centre, the two bars' silhouettes would overlap), the band of rebar could be
+    either bar: a missing upper bar right over a lower bar in the projector's shadow would be
+    counted present. Both positions are then "not measured", with the reason, and no bar is
+    placed for either. The silhouettes overlap where the would-be axis at offset ``p`` and
+    height ``h``, carried along the lines of sight to the other level's height ``h2`` (``c +
+    (p - c) k``, ``k = (zc - h2) / (zc - h)``, ``c`` and ``zc`` the camera's offset across and
+    height), lies within ``r2 + r k`` of that level's position, and their stretches along the
+    row overlap."""
+    cam = to_slab_frame(np.zeros((1, 3)), plane)[0]
+
+    def stretch(rec, row):
+        ends = np.array([[rec[f"{e}_{c}_mm"] for c in "xyz"] for e in ("start", "end")], float)
+        t = to_slab_frame(ends, plane)[:, :2] @ row.direction
+        return float(t.min()), float(t.max())
+
+    untold = {}
+    for i, rec in enumerate(recs):
+        if rec["status"] != PRESENT_NO_DEPTH or rec["kind"] not in ("gap", "end"):
+            continue
+        row = rows[(rec["layer"], rec["level"])]
+        c, zc = float(cam[:2] @ row.normal), float(cam[2])
+        t0, t1 = stretch(rec, row)
+        for j, other in enumerate(recs):
+            key = (other["layer"], other["level"])
+            if j == i or other["status"] not in _OPEN or other["kind"] not in ("gap", "end") or key not in rows:
+                continue
+            row2 = rows[key]
+            if key == (rec["layer"], rec["level"]) or abs(float(row.direction @ row2.direction)) < 0.95:
+                continue
+            if zc <= max(row.height, row2.height) + 1.0:
+                continue
+            k = (zc - row2.height) / (zc - row.height)
+            q = float(np.sign(row.normal @ row2.normal)) * float(other["offset_mm"])
+            u0, u1 = stretch(other, row)
+            if min(t1, u1) <= max(t0, u0):
+                continue
+            if abs(c + (float(rec["offset_mm"]) - c) * k - q) < row2.radius + row.radius * k:
+                untold.setdefault(i, j)
+    if not untold:
+        return recs, new_bars
+    out, kept, renumber = [], [], {}
+    for i, rec in enumerate(recs):
+        bid = rec.get("bar_id")
+        placed = bid is not None and not pd.isna(bid) and int(bid) >= n_found
+        if i in untold:
+            o = recs[untold[i]]
+            rec = {
+                **rec,
+                "status": NOT_MEASURED,
+                "bar_id": None,
+                "reason": (
+                    "the colour mask shows a bar along it without depth, but the "
+                    f"{o['layer']} {o['level']} position at {float(o['offset_mm']):.0f} mm lies on the same "
+                    "lines of sight: without depth the bar's height, and so which of the two it is, "
+                    "cannot be told"
+                ),
+            }
+        elif placed:
+            renumber[int(bid)] = n_found + len(kept)
+            kept.append(new_bars[int(bid) - n_found])
+            rec = {**rec, "bar_id": renumber[int(bid)]}
+        out.append(rec)
+    return out, kept
 
 
 def _lazy_mask(mask):

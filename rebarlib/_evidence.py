@@ -293,6 +293,10 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
     on = free & m[v2, u2]
     shows = np.zeros(len(t), bool)
     centre = np.full(len(t), np.nan)
+    # a run whose end meets a found bar's pixels is cut by that (nearer) bar: its middle is the
+    # middle of what shows beside that bar, not of the bar
+    covered = inside2 & (foot[v2, u2] != 0)
+    cut = np.zeros(len(t), bool)
     edge = ev["_nd_edge"]
     n_c = len(c)
     for k in np.flatnonzero(in_view | edge):
@@ -303,6 +307,7 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
             a, b = max(runs, key=lambda ab: ab[1] - ab[0])
             shows[k] = True
             centre[k] = 0.5 * (c[a] + c[b - 1])
+            cut[k] = (a > 0 and covered[k, a - 1]) or (b < n_c and covered[k, b])
     ev["mask_mm"] = float(shows[in_view].sum() * L)
     for key, sel in (
         ("mask_empty_share", state == 1),
@@ -311,7 +316,7 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> di
     ):
         if sel.sum():
             ev[key] = float(shows[sel].mean())
-    ev["_shows"], ev["_centre"] = shows, centre
+    ev["_shows"], ev["_centre"], ev["_cut"] = shows, centre, cut
     return ev
 
 

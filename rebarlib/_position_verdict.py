@@ -368,12 +368,22 @@ def _present(
         The ``positions`` row, with ``_bar`` True and ``_new`` the placed :class:`BarAxis`.
     """
     off, sd, t0, t1 = _place_from_mask(row, p, ev, sel & np.isfinite(ev["_centre"]), plane, intr, prm)
+    placed = sel & np.isfinite(ev["_centre"])
+    cut = float(ev["_cut"][placed].mean()) if "_cut" in ev and placed.any() else 0.0
     if border:
         at = float((sel & ev["_nd_edge"]).sum()) * prm.step_mm
         how = (
             f"the colour mask shows it over {sel.sum() * prm.step_mm:.0f} mm, {at:.0f} mm of that where the "
             "image's border cuts its corridor: placed from the mask's centre line at its level's height, its "
             "place not stated to an accuracy, so its spacings are not measured"
+        )
+        sd = math.nan
+    elif cut >= prm.max_cut_share:
+        how = (
+            "placed from the colour mask's centre line at its level's height; along "
+            f"{cut:.0%} of it the mask's band ends at a nearer bar's pixels, so its centre line is that "
+            "of the part showing beside that bar, not the bar's: its place not stated to an accuracy, "
+            "so its spacings are not measured"
         )
         sd = math.nan
     else:
