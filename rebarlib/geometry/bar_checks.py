@@ -264,7 +264,8 @@ def _laps(bars: list, plan: np.ndarray, h: np.ndarray, min_diameters: float, min
     ----------
     bars : list of BarAxis (only measured ones are examined)
     plan, h : (N, 2) plan positions and (N,) heights of the lattice's points
-    min_diameters : float, the shortest run of occupied stations, in diameters
+    min_diameters : float, the shortest span of the points beside in a run of occupied stations,
+        in diameters
     min_share : float, the least share of the bar's own points beside it in an occupied station
 
     Returns
