@@ -279,23 +279,32 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
     return ev
 
 
-def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm) -> dict:
+def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm, depth=None, noise: float = 1.0) -> dict:
     """The colour mask's evidence over the slices of ``ev`` (:func:`_examine`): how much of the
     row's length shows a bar, the share of the empty / no-depth / occupied slices that do, and
-    the centre line of each showing slice. Called only when a verdict needs it."""
+    the centre line of each showing slice. Called only when a verdict needs it.
+
+    The mask is read outside every found bar's pixels and, given the ``depth`` (mm), outside
+    the pixels whose depth shows something above the would-be bar's top (as :func:`_examine`
+    reads it): rebar there is a nearer bar the fit did not take (a lap's second piece), not a
+    bar at this level (docs/decisions/075)."""
     t, c, state, in_view = ev["_t"], ev["_c"], ev["_state"], ev["_in_view"]
     step, r, L = prm.sample_mm, row.radius, prm.step_mm
     # the mask at the axis height: its centre line is the axis's projection
     uv2, inside2 = _samples(row, p, t, c, row.height, plane, intr)
     u2 = np.clip(uv2[..., 0], 0, intr.width - 1)
     v2 = np.clip(uv2[..., 1], 0, intr.height - 1)
-    free = inside2 & (foot[v2, u2] == 0)
+    covered = inside2 & (foot[v2, u2] != 0)
+    if depth is not None:
+        z = depth[v2, u2]
+        h = np.where(z > 0, _heights(u2.ravel(), v2.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
+        covered |= inside2 & (z > 0) & (h > row.height + r + max(3.0 * noise, 2.0))
+    free = inside2 & ~covered
     on = free & m[v2, u2]
     shows = np.zeros(len(t), bool)
     centre = np.full(len(t), np.nan)
-    # a run whose end meets a found bar's pixels is cut by that (nearer) bar: its middle is the
-    # middle of what shows beside that bar, not of the bar
-    covered = inside2 & (foot[v2, u2] != 0)
+    # a run whose end meets a found bar's pixels, or a nearer surface's, is cut by it: its
+    # middle is the middle of what shows beside that bar, not of the bar
     cut = np.zeros(len(t), bool)
     edge = ev["_nd_edge"]
     n_c = len(c)

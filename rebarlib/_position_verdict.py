@@ -164,7 +164,7 @@ def _evidence_at(row: _Row, p: float, nb, *, plane, depth, intr, foot, higher, m
     needs = ev["in_view_mm"] >= E and (ev["occupied_mm"] >= E or ev["empty_mm"] >= E or nd_mm >= E)
     m = mask() if (mask is not None and needs) else None
     if m is not None:
-        ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm)
+        ev = _add_mask(ev, row, p, m, plane=plane, intr=intr, foot=foot, prm=prm, depth=depth, noise=noise)
     return ev
 
 

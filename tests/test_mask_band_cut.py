@@ -46,3 +46,50 @@ def test_a_band_cut_by_a_nearer_bar_over_most_of_it_places_the_bar_without_a_sta
         assert math.isnan(rec["position_sigma_mm"]) and math.isnan(rec["_new"].axis_se_mm)
         assert "ends at a nearer bar's pixels" in rec["reason"]
         assert "spacings are not measured" in rec["reason"]
+
+
+def _band_scene(band_height_mm):
+    """A capture 600 mm over the formwork, looking down: the rebar mask is one band along the
+    row's position 0 at the level's axis height; the band's pixels have depth at
+    ``band_height_mm`` above the formwork (None: no depth), every other pixel the formwork."""
+    from rebarlib._camera import project
+    from rebarlib.geometry import from_slab_frame
+
+    depth = np.full((INTR.height, INTR.width), 600.0)
+    mask = np.zeros((INTR.height, INTR.width), bool)
+    t, c = np.meshgrid(np.arange(-200.0, 200.0, 0.5), np.arange(-7.0, 7.01, 0.5))
+    plan = t.ravel()[:, None] * ALONG + c.ravel()[:, None] * ACROSS
+    cam = from_slab_frame(np.column_stack((plan, np.full(len(plan), ROW.height))), PLANE)
+    uv = np.round(project(cam, INTR)).astype(int)
+    mask[uv[:, 1], uv[:, 0]] = True
+    depth[mask] = 0.0 if band_height_mm is None else 600.0 - band_height_mm
+    return depth, mask
+
+
+@pytest.mark.parametrize("band_height_mm, shows", [(None, True), (ROW.height + 7.0, True), (130.0, False)])
+def test_the_mask_is_read_outside_a_nearer_surface_with_depth(band_height_mm, shows):
+    # rebar in the mask over pixels whose depth shows something well above the bar's top is a
+    # nearer bar the fit did not take (a lap's second piece over a lower position), not a bar at
+    # this level; a band without depth, or at the bar's height, is read as before
+    from rebarlib._evidence import _add_mask, _examine
+
+    depth, mask = _band_scene(band_height_mm)
+    foot = np.zeros(depth.shape, np.int32)
+    ev = _examine(
+        ROW,
+        0.0,
+        (-150.0, 150.0),
+        plane=PLANE,
+        depth=depth,
+        intr=INTR,
+        foot=foot,
+        row_ids=[1],
+        higher=[],
+        noise=0.5,
+        prm=CountParams(),
+    )
+    ev = _add_mask(ev, ROW, 0.0, mask, plane=PLANE, intr=INTR, foot=foot, prm=CountParams(), depth=depth, noise=0.5)
+    assert bool(ev["_shows"][ev["_in_view"]].mean() > 0.9) is shows
+    # without the depth the band is read as rebar wherever the mask has it
+    ev = _add_mask(ev, ROW, 0.0, mask, plane=PLANE, intr=INTR, foot=foot, prm=CountParams())
+    assert ev["_shows"][ev["_in_view"]].mean() > 0.9
