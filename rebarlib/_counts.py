@@ -226,6 +226,16 @@ def examine_positions(
     return df, new_bars, boundary
 
 
+def _carried(p: float, h: float, h2: float, c: float, zc: float) -> tuple:
+    """``(x, k)``: where the line of sight from the camera's centre (offset ``c`` across, height
+    ``zc``) through offset ``p`` at height ``h`` meets height ``h2``, ``x = c + (p - c) k`` with
+    ``k = (zc - h2) / (zc - h)``; a bar of radius ``r`` at ``p`` looks as wide there as ``r k``.
+    Two bars' silhouettes overlap where ``|x - q| < r2 + r k`` (``q``, ``r2``: the other bar at
+    ``h2``)."""
+    k = (zc - h2) / (zc - h)
+    return c + (p - c) * k, k
+
+
 # the positions that may hold a bar no depth places: a bar seen only in colour along a line of
 # sight they share could be theirs
 _OPEN = (MISSING, PRESENT_NO_DEPTH, NOT_MEASURED)
@@ -254,6 +264,7 @@ def _level_untold(recs: list, rows: dict, n_found: int, new_bars: list, plane: P
         t = to_slab_frame(ends, plane)[:, :2] @ row.direction
         return float(t.min()), float(t.max())
 
+    rivals = [j for j, o in enumerate(recs) if o["status"] in _OPEN and o["kind"] in ("gap", "end")]
     untold = {}
     for i, rec in enumerate(recs):
         if rec["status"] != PRESENT_NO_DEPTH or rec["kind"] not in ("gap", "end"):
@@ -261,21 +272,19 @@ def _level_untold(recs: list, rows: dict, n_found: int, new_bars: list, plane: P
         row = rows[(rec["layer"], rec["level"])]
         c, zc = float(cam[:2] @ row.normal), float(cam[2])
         t0, t1 = stretch(rec, row)
-        for j, other in enumerate(recs):
-            key = (other["layer"], other["level"])
-            if j == i or other["status"] not in _OPEN or other["kind"] not in ("gap", "end") or key not in rows:
-                continue
-            row2 = rows[key]
-            if key == (rec["layer"], rec["level"]) or abs(float(row.direction @ row2.direction)) < 0.95:
+        for j in rivals:
+            other = recs[j]
+            row2 = rows[(other["layer"], other["level"])]
+            if row2 is row or abs(float(row.direction @ row2.direction)) < 0.95:
                 continue
             if zc <= max(row.height, row2.height) + 1.0:
                 continue
-            k = (zc - row2.height) / (zc - row.height)
-            q = float(np.sign(row.normal @ row2.normal)) * float(other["offset_mm"])
             u0, u1 = stretch(other, row)
             if min(t1, u1) <= max(t0, u0):
                 continue
-            if abs(c + (float(rec["offset_mm"]) - c) * k - q) < row2.radius + row.radius * k:
+            x, k = _carried(float(rec["offset_mm"]), row.height, row2.height, c, zc)
+            q = float(np.sign(row.normal @ row2.normal)) * float(other["offset_mm"])
+            if abs(x - q) < row2.radius + row.radius * k:
                 untold.setdefault(i, j)
     if not untold:
         return recs, new_bars
@@ -458,8 +467,8 @@ def _where_it_shows(row: _Row, p: float, over: list, plane: Plane, intr: Intrins
     for q, hu, ru in over:
         if zc <= hu + 1.0:
             continue
-        k = (zc - hu) / (zc - row.height)
-        d = (1.0 - k) * c + k * p - q  # the position's place on that bar's level, from the bar
+        x, k = _carried(p, row.height, hu, c, zc)
+        d = x - q  # the position's place on that bar's level, from the bar
         if best is None or abs(d) < abs(best[0]):
             best = (d, k, ru)
     if best is None:

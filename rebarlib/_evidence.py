@@ -188,6 +188,18 @@ def _offset(b: BarAxis, n2) -> float:
     return float(b.plan_point(b.t_mid) @ n2)
 
 
+def _height_grid(u, v, z, plane: Plane, intr: Intrinsics) -> np.ndarray:
+    """Heights above the formwork (mm) of a grid of pixels ``(u, v)`` with depths ``z``; NaN where
+    there is no depth."""
+    return np.where(z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
+
+
+def _band_top(row: _Row, noise: float) -> float:
+    """The highest a point on a bar of ``row`` reads: its top plus the depth noise (3 σ, at least
+    2 mm). Above it is something else: a nearer bar, or whatever lies over the spot."""
+    return row.height + row.radius + max(3.0 * noise, 2.0)
+
+
 def _samples(row: _Row, p: float, t: np.ndarray, c: np.ndarray, h: float, plane: Plane, intr: Intrinsics):
     """Pixels (T, C, 2 int) and in-image flags of the plan grid (t along, p + c across) at
     height ``h``."""
@@ -216,10 +228,10 @@ def _examine(row: _Row, p: float, t_range, *, plane, depth, intr, foot, row_ids,
     # found bars higher than this level hide the spot; lower ones are its support, judged by depth
     other = np.isin(owner, higher) & ~own_row & inside
     z = depth[v, u]
-    h = np.where(z > 0, _heights(u.ravel(), v.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
+    h = _height_grid(u, v, z, plane, intr)
     margin = max(0.35 * r, 3.0 * noise)
     band_lo = row.height - r + margin
-    band_hi = top + max(3.0 * noise, 2.0)
+    band_hi = _band_top(row, noise)
     nodepth = inside & ~own_row & ~other & (z <= 0)
     seen = inside & ~own_row & ~other & (z > 0)
     above = seen & (h > band_hi)
@@ -297,8 +309,7 @@ def _add_mask(ev: dict, row: _Row, p: float, m, *, plane, intr, foot, prm, depth
     covered = inside2 & (foot[v2, u2] != 0)
     if depth is not None:
         z = depth[v2, u2]
-        h = np.where(z > 0, _heights(u2.ravel(), v2.ravel(), z.ravel(), plane, intr).reshape(z.shape), np.nan)
-        covered |= inside2 & (z > 0) & (h > row.height + r + max(3.0 * noise, 2.0))
+        covered |= inside2 & (z > 0) & (_height_grid(u2, v2, z, plane, intr) > _band_top(row, noise))
     free = inside2 & ~covered
     on = free & m[v2, u2]
     shows = np.zeros(len(t), bool)

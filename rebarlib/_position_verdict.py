@@ -370,7 +370,7 @@ def _present(
     placed = sel & np.isfinite(ev["_centre"])
     off, sd, t0, t1 = _place_from_mask(row, p, ev, placed, plane, intr, prm)
     # the share of those slices whose band ends at a found bar's pixels (decision 075)
-    cut = float(ev["_cut"][placed].mean()) if "_cut" in ev and placed.any() else 0.0
+    cut = float(ev["_cut"][placed].mean()) if placed.any() else 0.0
     if border:
         at = float((sel & ev["_nd_edge"]).sum()) * prm.step_mm
         how = (

@@ -26,6 +26,17 @@ def _weighted_median(values, weights) -> float:
     return float(v[int(np.searchsorted(c, 0.5 * c[-1]))])
 
 
+def _level(bars: list) -> float:
+    """The level of a direction's bars: their axis heights' median weighted by the length each
+    is seen over (docs/decisions/064)."""
+    return _weighted_median([b.axis_height_mm for b in bars], [max(b.t1_mm - b.t0_mm, 1.0) for b in bars])
+
+
+def _density(b: BarAxis) -> float:
+    """A bar's fitted points per mm of its extent."""
+    return b.n_points / max(b.t1_mm - b.t0_mm, 1.0)
+
+
 def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
     """Something lying well below the other bars of its direction (a spacer block's top, the
     stub of a chair, the mixed pixels along a bar's silhouette fitted as a short bar) is not a
@@ -39,7 +50,7 @@ def _off_their_level(bars: list, radii: dict, max_r: float, prm) -> list:
     for g in {b.group for b in bars}:
         mine = [b for b in bars if b.group == g and b.status == MEASURED]
         if len(mine) >= 2:
-            med = _weighted_median([b.axis_height_mm for b in mine], [max(b.t1_mm - b.t0_mm, 1.0) for b in mine])
+            med = _level(mine)
             tol = prm.level_tol_radii * radii.get(g, max_r)
             bars = [b for b in bars if b.group != g or b.status != MEASURED or b.axis_height_mm >= med - tol]
             bars = [
@@ -70,19 +81,16 @@ def _seen_in_parts(bars: list, min_arc_deg: float, max_arc_deg: float, prm) -> l
     same supports; a bar seen whole that far off them is a finding and stays measured, as a bar
     the image border cuts does (:func:`~rebarlib.geometry.flag_border_cut`)."""
     measured = [b for b in bars if b.status == MEASURED]
-    dens = [b.n_points / max(b.t1_mm - b.t0_mm, 1.0) for b in measured]
-    if not dens:
+    if not measured:
         return bars
-    typical = float(np.median(dens))
+    typical = float(np.median([_density(b) for b in measured]))
 
     def level_of(b):
         others = [o for o in measured if o.group == b.group and o is not b]
-        if len(others) < 2:
-            return None
-        return _weighted_median([o.axis_height_mm for o in others], [max(o.t1_mm - o.t0_mm, 1.0) for o in others])
+        return _level(others) if len(others) >= 2 else None
 
     def reason(b) -> str | None:
-        density = b.n_points / max(b.t1_mm - b.t0_mm, 1.0)
+        density = _density(b)
         seen = f"({density:.1f} points/mm against {typical:.1f} typical)"
         sparse = density < prm.sparse_density_share * typical
         if (
