@@ -93,3 +93,24 @@ def test_the_truth_spaces_a_lap_from_its_middle_too():
     group = [bar(1, 0.0), bar(2, 200 - 8.1, 3), bar(3, 200 + 8.1, 2), bar(4, 400.0)]
     sp = _spacings_truth({("lower", "bottom"): group})
     assert [(s["bar_a"], s["bar_b"], s["spacing_mm"]) for s in sp] == [(1, 2, 200.0), (3, 4, 200.0)]
+
+
+def test_the_truth_spaces_a_lone_piece_as_it_lies():
+    """A capture that sees one piece of a lap and not the other (beyond the lap, or the other
+    hidden) sees a bar where that piece lies: its truth spaces from that piece, on both sides,
+    named by it (decision 071's definition; decision 076)."""
+    from rebarlib.synth.truth import _spacings_truth
+
+    def bar(i, off, partner=None, visible=True):
+        return {"id": i, "offset_mm": off, "lap_partner": partner, "visible": visible}
+
+    group = [bar(1, 0.0), bar(2, 200 - 8.1, 3), bar(3, 200 + 8.1, 2, visible=False), bar(4, 400.0)]
+    sp = _spacings_truth({("lower", "bottom"): group})
+    assert [(s["bar_a"], s["bar_b"], s["spacing_mm"]) for s in sp] == [(1, 2, 191.9), (2, 4, 208.1)]
+    # neither piece seen: the position is still the lap's middle (and the spacings not visible)
+    group = [bar(1, 0.0), bar(2, 200 - 8.1, 3, False), bar(3, 200 + 8.1, 2, False), bar(4, 400.0)]
+    sp = _spacings_truth({("lower", "bottom"): group})
+    assert [(s["bar_a"], s["bar_b"], s["spacing_mm"], s["visible"]) for s in sp] == [
+        (1, 2, 200.0, False),
+        (3, 4, 200.0, False),
+    ]

@@ -115,7 +115,9 @@ def _spacings_truth(by: dict) -> list:
     truth per (layer, level)). A lap's two pieces stand for one design position together, at
     their middle: the spacings beside a lap are taken from there (as ``rebarlib`` measures them,
     docs/decisions/071), named by the piece nearer the neighbour, and seen where either piece
-    is."""
+    is. Where this capture sees one piece of a lap and not the other (beyond the lap, or the
+    other hidden), the bar there is the piece it sees, and it is spaced as it lies: from that
+    piece, named by it (decision 071; decision 076 for the truth)."""
     spacings = []
     for (layer, level), group in sorted(by.items()):
         group = sorted(group, key=lambda bb: bb["offset_mm"])
@@ -125,6 +127,8 @@ def _spacings_truth(by: dict) -> list:
                 slots[-1].append(bar)
             else:
                 slots.append([bar])
+        # what stands at each position in this capture: the pieces it sees, else all of them
+        slots = [[x for x in slot if x["visible"]] or slot for slot in slots]
         for a, b in zip(slots[:-1], slots[1:]):
             middle_a = float(np.mean([x["offset_mm"] for x in a]))
             middle_b = float(np.mean([x["offset_mm"] for x in b]))
