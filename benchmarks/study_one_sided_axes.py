@@ -128,7 +128,7 @@ def main(argv=None) -> int:
             "mask≠cloud": g.reason.apply(lambda s: int(s.str.contains("disagree").sum())),
         }
     )
-    print(table.round(2).to_markdown())
+    print(table.round(2).to_string())  # tabulate (for to_markdown) is not a dependency
     return 0
 
 
