@@ -562,7 +562,9 @@ def _count_checkpoints(sheet: _Sheet, r: dict, cap: str) -> None:
             rec = sub.iloc[0].to_dict()
             found, expected = _num(rec.get("found")), _num(rec.get("expected"))
             if found is None or expected is None:
-                sheet.add(item, cap, la, lv, "count", expected, None, reason="bar count not measured")
+                why = str(rec.get("evidence") or "").strip()  # "no bar found", "no design spacing"
+                reason = f"bar count not measured: {why} in this capture" if why else "bar count not measured"
+                sheet.add(item, cap, la, lv, "count", expected, None, reason=reason)
                 continue
             n_miss = int(_num(rec.get("missing")) or 0)
             n_extra = int(_num(rec.get("extra")) or 0)

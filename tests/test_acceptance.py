@@ -443,6 +443,15 @@ def test_missing_bars_fail_the_count():
     assert _verdict(allowed, "bar_count_lower_top") == "pass"
 
 
+def test_a_count_not_measured_says_why():
+    counts = [{"layer": la, "level": lv, "found": 3, "expected": 3, "missing": 0, "extra": 0} for la, lv in LAYERS]
+    counts[1] = {"layer": "lower", "level": "top", "found": 0, "expected": None, "evidence": "no bar found"}
+    acc = evaluate([_result(counts=counts)], _design())
+    cp = acc.checkpoints.set_index("item").loc["bar_count_lower_top"]
+    assert cp["reason"] == "bar count not measured: no bar found in this capture"
+    assert _verdict(acc, "bar_count_lower_top") == "not measured"
+
+
 def test_top_cover_is_checked_only_with_a_thickness():
     acc = evaluate([_result(top_cover=design_top_cover_mm(_design()) - 2.0)], _design())
     assert _verdict(acc, "top_cover") == "pass"

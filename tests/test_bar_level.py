@@ -4,6 +4,8 @@ axis heights weighted by the length each is seen over (rebarlib/geometry/bar_che
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from rebarlib.geometry.axis import BarAxis
@@ -40,3 +42,21 @@ def test_bars_within_the_tolerance_of_the_level_are_kept_and_a_sliver_above_is_n
     sliver = _bar(60.0, -60, 60, 600.0)  # 17 mm above the level, 43 mm (tolerance 13.8 mm): a sliver
     out = _off_their_level([*bars, sliver], {0: 9.2}, 9.2, GeometryParams())
     assert out[:3] == bars and out[3].status == "not measured" and "above the other bars" in out[3].reason
+
+
+def test_a_direction_with_no_bar_measured_keeps_a_level_of_its_own():
+    """With no bar of a direction measured, its level comes from its bars' approximate heights;
+    before, it was named "bottom" beside the other direction's bottom bars, and the lattice's two
+    directions were counted as one row (a D435-like capture from 696 mm: "15 found" on the
+    lower bottom level, the top level "no bar found")."""
+    from rebarlib.geometry.levels import assign_levels
+
+    top_dir = [replace(_bar(48.0 + k, -200.0, 200.0, 200.0 * k), status="not measured") for k in range(3)]
+    bottom_dir = [
+        replace(_bar(36.0, -200.0, 200.0, 200.0 * k, group=1), direction=np.array([0.0, 1.0])) for k in range(3)
+    ]
+    for bars in (top_dir + bottom_dir, top_dir + [replace(b, status="not measured") for b in bottom_dir]):
+        levels = {(b.group, b.level) for b in assign_levels(bars)}
+        assert levels == {(0, "top"), (1, "bottom")}
+    # one direction alone is the bottom level, measured or not
+    assert {b.level for b in assign_levels(top_dir)} == {"bottom"}

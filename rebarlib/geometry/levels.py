@@ -149,6 +149,12 @@ def _stacks(bars: list, crest: list, min_crossings: int) -> np.ndarray:
 def assign_levels(bars: list) -> list:
     """Name each direction group "bottom" (lower axes) or "top" (resting on the bottom bars).
 
+    A group is placed by its measured bars' median axis height (:func:`level_heights`); a group
+    with none measured, by the median of its bars' approximate heights (a bar "not measured" still
+    carries the height its direction's band was found at). Two groups always get two names: with
+    both named "bottom", a lattice's two directions would be counted, spaced and judged as one
+    row.
+
     Parameters
     ----------
     bars : list of BarAxis of one lattice, ``group`` set
@@ -156,8 +162,21 @@ def assign_levels(bars: list) -> list:
     Returns
     -------
     list of BarAxis with ``level`` set (one group alone is "bottom")
+
+    Examples
+    --------
+    >>> from rebarlib.geometry.axis import BarAxis
+    >>> def bar(g, h, status="measured"):
+    ...     d = np.array([1.0, 0.0]) if g == 0 else np.array([0.0, 1.0])
+    ...     return BarAxis("lower", d, 0.0, 0.0, h, 0.0, 0.0, 500.0, 7.0, 100, 0.3, group=g, status=status)
+    >>> [b.level for b in assign_levels([bar(0, 48.0, "not measured"), bar(1, 36.0, "not measured")])]
+    ['top', 'bottom']
     """
     hs = level_heights(bars)
+    for g in sorted({b.group for b in bars} - set(hs)):
+        rough = [b.axis_height_mm for b in bars if b.group == g and np.isfinite(b.axis_height_mm)]
+        if rough:
+            hs[g] = float(np.median(rough))
     order = sorted(hs, key=hs.get)
     names = {g: ("bottom" if i == 0 else "top") for i, g in enumerate(order)}
     if len(order) == 1:
