@@ -563,7 +563,9 @@ def _count_checkpoints(sheet: _Sheet, r: dict, cap: str) -> None:
             found, expected = _num(rec.get("found")), _num(rec.get("expected"))
             if found is None or expected is None:
                 why = str(rec.get("evidence") or "").strip()  # "no bar found", "no design spacing"
-                reason = f"bar count not measured: {why} in this capture" if why else "bar count not measured"
+                if why == "no bar found":
+                    why = "no bar of this direction found in this capture"
+                reason = f"bar count not measured: {why}" if why else "bar count not measured"
                 sheet.add(item, cap, la, lv, "count", expected, None, reason=reason)
                 continue
             n_miss = int(_num(rec.get("missing")) or 0)

@@ -448,7 +448,7 @@ def test_a_count_not_measured_says_why():
     counts[1] = {"layer": "lower", "level": "top", "found": 0, "expected": None, "evidence": "no bar found"}
     acc = evaluate([_result(counts=counts)], _design())
     cp = acc.checkpoints.set_index("item").loc["bar_count_lower_top"]
-    assert cp["reason"] == "bar count not measured: no bar found in this capture"
+    assert cp["reason"] == "bar count not measured: no bar of this direction found in this capture"
     assert _verdict(acc, "bar_count_lower_top") == "not measured"
 
 
