@@ -257,21 +257,26 @@ def _level_untold(recs: list, rows: dict, n_found: int, new_bars: list, plane: P
     (p - c) k``, ``k = (zc - h2) / (zc - h)``, ``c`` and ``zc`` the camera's offset across and
     height), lies within ``r2 + r k`` of that level's position, and their stretches along the
     row overlap."""
+    placed = [i for i, o in enumerate(recs) if o["status"] == PRESENT_NO_DEPTH and o["kind"] in ("gap", "end")]
+    if not placed:
+        return recs, new_bars
     cam = to_slab_frame(np.zeros((1, 3)), plane)[0]
+    rivals = [j for j, o in enumerate(recs) if o["status"] in _OPEN and o["kind"] in ("gap", "end")]
+    plan = {}  # a record's axis ends in plan (slab frame), taken once, when first needed
 
-    def stretch(rec, row):
-        ends = np.array([[rec[f"{e}_{c}_mm"] for c in "xyz"] for e in ("start", "end")], float)
-        t = to_slab_frame(ends, plane)[:, :2] @ row.direction
+    def stretch(i, row):
+        if i not in plan:
+            ends = np.array([[recs[i][f"{e}_{c}_mm"] for c in "xyz"] for e in ("start", "end")], float)
+            plan[i] = to_slab_frame(ends, plane)[:, :2]
+        t = plan[i] @ row.direction
         return float(t.min()), float(t.max())
 
-    rivals = [j for j, o in enumerate(recs) if o["status"] in _OPEN and o["kind"] in ("gap", "end")]
     untold = {}
-    for i, rec in enumerate(recs):
-        if rec["status"] != PRESENT_NO_DEPTH or rec["kind"] not in ("gap", "end"):
-            continue
+    for i in placed:
+        rec = recs[i]
         row = rows[(rec["layer"], rec["level"])]
         c, zc = float(cam[:2] @ row.normal), float(cam[2])
-        t0, t1 = stretch(rec, row)
+        t0, t1 = stretch(i, row)
         for j in rivals:
             other = recs[j]
             row2 = rows[(other["layer"], other["level"])]
@@ -279,7 +284,7 @@ def _level_untold(recs: list, rows: dict, n_found: int, new_bars: list, plane: P
                 continue
             if zc <= max(row.height, row2.height) + 1.0:
                 continue
-            u0, u1 = stretch(other, row)
+            u0, u1 = stretch(j, row)
             if min(t1, u1) <= max(t0, u0):
                 continue
             x, k = _carried(float(rec["offset_mm"]), row.height, row2.height, c, zc)
